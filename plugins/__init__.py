@@ -1,0 +1,1 @@
+"""Built-in plugins: formalisms and integrators, discovered by the workbench registry."""
