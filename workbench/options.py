@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import numbers
+import types
 import typing
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Any, Literal, Union
 
 from workbench.errors import ConfigError
 
@@ -22,7 +24,9 @@ class NoOptions:
 
 
 def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
-    """(name, type, default) of every option, in declaration order."""
+    """(name, type, default) of every option, in declaration order (default None if required)."""
+    if not dataclasses.is_dataclass(options_class):
+        raise ConfigError(f"options class {options_class!r} is not a dataclass")
     hints = typing.get_type_hints(options_class)
     rows = []
     for f in dataclasses.fields(options_class):
@@ -33,9 +37,19 @@ def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
     return rows
 
 
+def _is_union(annotation: Any) -> bool:
+    return typing.get_origin(annotation) in (Union, types.UnionType)
+
+
 def type_name(annotation: Any) -> str:
     if typing.get_origin(annotation) is Literal:
         return " | ".join(repr(a) for a in typing.get_args(annotation))
+    if _is_union(annotation):
+        return " | ".join(type_name(a) for a in typing.get_args(annotation))
+    if annotation is type(None):
+        return "None"
+    if typing.get_origin(annotation) is not None:
+        return str(annotation).replace("typing.", "")
     return getattr(annotation, "__name__", str(annotation))
 
 
@@ -43,20 +57,36 @@ def _coerce(owner: str, name: str, annotation: Any, value: Any) -> Any:
     origin = typing.get_origin(annotation)
     if origin is Literal:
         allowed = typing.get_args(annotation)
-        if value not in allowed:
-            raise ConfigError(
-                f"{owner}: option {name!r} must be one of {', '.join(map(repr, allowed))}, "
-                f"not {value!r}"
-            )
-        return value
-    if annotation is bool:
+        for choice in allowed:
+            # True == 1, so compare the kind of value as well
+            same_kind = isinstance(value, bool) == isinstance(choice, bool) and isinstance(
+                value, str
+            ) == isinstance(choice, str)
+            if same_kind and value == choice:
+                return choice
+        raise ConfigError(
+            f"{owner}: option {name!r} must be one of {', '.join(map(repr, allowed))}, "
+            f"not {value!r}"
+        )
+    if _is_union(annotation):
+        members = typing.get_args(annotation)
+        if value is None and type(None) in members:
+            return None
+        for member in members:
+            if member is type(None):
+                continue
+            try:
+                return _coerce(owner, name, member, value)
+            except ConfigError:
+                continue
+    elif annotation is bool:
         if isinstance(value, bool):
             return value
     elif annotation is int:
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
+        if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+            return int(value)
     elif annotation is float:
-        if isinstance(value, int | float) and not isinstance(value, bool):
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
             return float(value)
     elif annotation is str:
         if isinstance(value, str):
@@ -78,6 +108,8 @@ def parse_options(options_class: type, values: Mapping[str, Any] | None, owner: 
     if not isinstance(values, Mapping):
         raise ConfigError(f"{owner}: options must be a table of name = value, not {values!r}")
     fields = {name: annotation for name, annotation, _ in option_fields(options_class)}
+    if any(not isinstance(key, str) for key in values):
+        raise ConfigError(f"{owner}: option names must be strings, got {list(values)!r}")
     kwargs = {}
     for key, value in values.items():
         if key not in fields:
