@@ -1,0 +1,580 @@
+"""Every bad model raises a ModelError naming the element and the fix (workbench.validation)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from workbench.errors import ModelError
+from workbench.model import (
+    AppliedForce,
+    Drive,
+    Frame,
+    JointForce,
+    JointSpringDamper,
+    KnifeEdge,
+    Model,
+    RollingDisk,
+    RollingSphere,
+    Shape,
+    SpringDamper,
+)
+from workbench.rotations import axis_angle_to_matrix
+from workbench.validation import validate_model
+
+CUBE = np.diag([0.1, 0.1, 0.1])
+
+
+def pendulum(kind: str = "spatial") -> Model:
+    """A valid one-link pendulum: body 'link' on revolute 'hinge' from the ground."""
+    model = Model("pendulum", kind=kind)
+    model.add_body("link", 1.0, com=(0.0, -0.5, 0.0), inertia=CUBE)
+    model.add_joint("hinge", "revolute", "ground", "link")
+    return model
+
+
+def chain(kind: str = "spatial") -> Model:
+    model = pendulum(kind)
+    model.add_body("link2", 1.0, com=(0.0, -0.5, 0.0), inertia=CUBE)
+    model.add_joint("hinge2", "revolute", "link", "link2", parent_frame=Frame.at(0, -1, 0))
+    return model
+
+
+# ---- valid models pass ---------------------------------------------------------------
+
+
+def test_valid_spatial_model_passes() -> None:
+    model = chain()
+    model.add_body("ball", 2.0, inertia=(0.1, 0.1, 0.1), shapes=[Shape("sphere", (0.1,))])
+    model.add_joint("float", "free", "ground", "ball")
+    model.add_joint("loop", "spherical", "link2", "ball", parent_frame=Frame.at(0, -1, 0), cut=True)
+    model.add_force(
+        SpringDamper("spring", "ground", np.zeros(3), "link", np.zeros(3), 10.0, 0.5, 0.2)
+    )
+    model.add_force(JointSpringDamper("torsion", "hinge", 1.0, 0.1))
+    model.add_force(JointForce("motor", "hinge2", lambda t, q, v: 0.0 * t))
+    model.add_force(
+        AppliedForce("push", "link", np.zeros(3), lambda t, p, r, v, w: (np.zeros(3), np.zeros(3)))
+    )
+    model.add_nonholonomic(RollingSphere("roll", "ball", 0.1))
+    model.add_nonholonomic(KnifeEdge("knife", "link2", np.zeros(3), np.array([1.0, 0, 0])))
+    assert model.validate() is model
+
+
+def test_valid_planar_model_passes() -> None:
+    model = Model("planar-ok", kind="planar")
+    model.add_body("crank", 1.0, com=(0.05, 0, 0), inertia=0.01)
+    model.add_joint("crank-joint", "revolute", "ground", "crank", axis=(0, 0, -1))
+    model.add_body("slider", 1.0, inertia=0.01)
+    model.add_joint(
+        "slide",
+        "prismatic",
+        "ground",
+        "slider",
+        axis=(1, 1, 0),
+        parent_frame=Frame(np.zeros(3), axis_angle_to_matrix((0, 0, 1), 0.3)),
+    )
+    model.add_point_mass("bob", 0.5)
+    model.add_joint("bob-joint", "revolute", "crank", "bob", child_frame=Frame.at(0, 0.3, 0))
+    model.add_nonholonomic(RollingDisk("disk", "slider", 0.2))
+    validate_model(model)
+
+
+def test_driven_joint_with_derivatives_passes() -> None:
+    model = pendulum()
+    model.add_body("arm", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: (t, 0.0), lambda t: (1.0, 0.0), lambda t: (0.0, 0.0))
+    model.add_joint("wrist", "universal", "link", "arm", drive=drive)
+    validate_model(model)
+
+
+# ---- bodies ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("mass", [0.0, -1.0])
+def test_nonpositive_mass(mass: float) -> None:
+    model = pendulum()
+    model.add_body("bad", mass, inertia=CUBE)
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*mass must be > 0"):
+        model.validate()
+
+
+def test_nan_mass() -> None:
+    model = pendulum()
+    model.add_body("bad", math.nan, inertia=CUBE)
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*mass.*not finite"):
+        model.validate()
+
+
+def test_nan_com() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, com=(0, math.inf, 0), inertia=CUBE)
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*com.*NaN or inf"):
+        model.validate()
+
+
+def test_planar_com_out_of_plane() -> None:
+    model = pendulum("planar")
+    model.add_body("bad", 1.0, com=(0, 0, 0.1), inertia=1.0)
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*x-y plane"):
+        model.validate()
+
+
+def test_missing_inertia() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0)
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*give a 3x3 inertia tensor"):
+        model.validate()
+
+
+def test_scalar_inertia_in_spatial_model() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, inertia=0.2)
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*scalar.*give a 3x3 inertia tensor"):
+        model.validate()
+
+
+def test_inertia_with_inf() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, inertia=(1.0, math.inf, 1.0))
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*NaN or inf"):
+        model.validate()
+
+
+def test_inertia_not_symmetric() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, inertia=[[1, 0.1, 0], [0, 1, 0], [0, 0, 1]])
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*not symmetric"):
+        model.validate()
+
+
+def test_inertia_not_positive_definite() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, inertia=(1.0, 1.0, 0.0))
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*not positive definite"):
+        model.validate()
+
+
+def test_inertia_violates_triangle_inequality() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, inertia=(1.0, 1.0, 2.5))
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*triangle inequality"):
+        model.validate()
+
+
+def test_triangle_inequality_limit_passes() -> None:
+    model = pendulum()
+    model.add_body("disk", 1.0, inertia=(0.5, 0.5, 1.0 + 1e-12))  # thin disk
+    model.add_joint("j", "revolute", "link", "disk")
+    model.validate()
+
+
+def test_bad_shape_size() -> None:
+    model = pendulum()
+    model.add_body("bad", 1.0, inertia=CUBE, shapes=[Shape("box", (1.0, -1.0, 1.0))])
+    model.add_joint("j", "revolute", "link", "bad")
+    with pytest.raises(ModelError, match=r"body 'bad'.*box shape size"):
+        model.validate()
+
+
+def test_bad_gravity() -> None:
+    model = pendulum()
+    model.gravity = np.array([0.0, 0.0, math.nan])
+    with pytest.raises(ModelError, match=r"gravity.*NaN or inf"):
+        model.validate()
+
+
+def test_planar_gravity_out_of_plane() -> None:
+    model = pendulum("planar")
+    model.gravity = np.array([0.0, 0.0, -9.81])
+    with pytest.raises(ModelError, match=r"gravity.*x-y plane"):
+        model.validate()
+
+
+def test_empty_model() -> None:
+    with pytest.raises(ModelError, match=r"no bodies.*add_body"):
+        Model("empty").validate()
+
+
+def test_duplicate_name_at_add_time() -> None:
+    model = pendulum()
+    with pytest.raises(ModelError, match=r"duplicate name 'link'"):
+        model.add_joint("link", "revolute", "ground", "link")
+
+
+# ---- joints ----------------------------------------------------------------------
+
+
+def test_unknown_joint_type_lists_valid_ones() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("weird", "helical", "link", "b")
+    with pytest.raises(ModelError, match=r"joint 'weird'.*'helical'.*revolute, prismatic"):
+        model.validate()
+
+
+@pytest.mark.parametrize("role", ["parent", "child"])
+def test_unknown_body_in_joint(role: str) -> None:
+    model = pendulum()
+    names = (
+        {"parent": "nowhere", "child": "link"}
+        if role == "parent"
+        else {"parent": "link", "child": "nowhere"}
+    )
+    model.add_joint("j", "revolute", names["parent"], names["child"], cut=True)
+    with pytest.raises(ModelError, match=rf"joint 'j'.*{role} 'nowhere' is not a body"):
+        model.validate()
+
+
+def test_tree_joint_child_ground() -> None:
+    model = pendulum()
+    model.add_joint("j", "revolute", "link", "ground")
+    with pytest.raises(ModelError, match=r"joint 'j'.*child cannot be 'ground'"):
+        model.validate()
+
+
+def test_parent_equals_child() -> None:
+    model = pendulum()
+    model.add_joint("self", "revolute", "link", "link", cut=True)
+    with pytest.raises(ModelError, match=r"joint 'self'.*parent and child are both 'link'"):
+        model.validate()
+
+
+def test_zero_axis() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("j", "prismatic", "link", "b", axis=(0, 0, 0))
+    with pytest.raises(ModelError, match=r"joint 'j'.*axis has zero length"):
+        model.validate()
+
+
+def test_zero_axis2_of_universal() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("u", "universal", "link", "b", axis2=(0, 0, 0))
+    with pytest.raises(ModelError, match=r"joint 'u'.*axis2 has zero length"):
+        model.validate()
+
+
+def test_parallel_universal_axes() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("u", "universal", "link", "b", axis=(0, 1, 0), axis2=(0, 2, 0))
+    with pytest.raises(ModelError, match=r"joint 'u'.*parallel"):
+        model.validate()
+
+
+def test_nan_axis() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("j", "revolute", "link", "b", axis=(0, math.nan, 1))
+    with pytest.raises(ModelError, match=r"joint 'j'.*axis.*NaN or inf"):
+        model.validate()
+
+
+def test_nan_frame_position() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("j", "revolute", "link", "b", parent_frame=Frame.at(math.nan, 0, 0))
+    with pytest.raises(ModelError, match=r"joint 'j'.*parent_frame position.*NaN or inf"):
+        model.validate()
+
+
+def test_frame_rotation_not_orthonormal() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint(
+        "j", "revolute", "link", "b", child_frame=Frame(np.zeros(3), np.diag([1.0, 2.0, 1.0]))
+    )
+    with pytest.raises(ModelError, match=r"joint 'j'.*child_frame rotation is not a rotation"):
+        model.validate()
+
+
+def test_frame_rotation_reflection() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint(
+        "j", "revolute", "link", "b", child_frame=Frame(np.zeros(3), np.diag([1.0, 1.0, -1.0]))
+    )
+    with pytest.raises(ModelError, match=r"joint 'j'.*determinant \+1"):
+        model.validate()
+
+
+@pytest.mark.parametrize("joint_type", ["spherical", "universal", "cylindrical", "free"])
+def test_joint_type_not_planar(joint_type: str) -> None:
+    model = pendulum("planar")
+    model.add_body("b", 1.0, inertia=1.0)
+    model.add_joint("j", joint_type, "link", "b")
+    with pytest.raises(ModelError, match=rf"joint 'j'.*{joint_type} joint does not fit a planar"):
+        model.validate()
+
+
+def test_planar_revolute_axis_not_z() -> None:
+    model = pendulum("planar")
+    model.add_body("b", 1.0, inertia=1.0)
+    model.add_joint("j", "revolute", "link", "b", axis=(1, 0, 0))
+    with pytest.raises(ModelError, match=r"joint 'j'.*revolute axis must be along \+z"):
+        model.validate()
+
+
+def test_planar_prismatic_axis_out_of_plane() -> None:
+    model = pendulum("planar")
+    model.add_body("b", 1.0, inertia=1.0)
+    model.add_joint("j", "prismatic", "link", "b", axis=(1, 0, 1))
+    with pytest.raises(ModelError, match=r"joint 'j'.*prismatic axis must lie in the x-y"):
+        model.validate()
+
+
+def test_planar_frame_z_offset() -> None:
+    model = pendulum("planar")
+    model.add_body("b", 1.0, inertia=1.0)
+    model.add_joint("j", "revolute", "link", "b", parent_frame=Frame.at(0, 0, 0.1))
+    with pytest.raises(ModelError, match=r"joint 'j'.*parent_frame must have zero z offset"):
+        model.validate()
+
+
+def test_planar_frame_rotation_not_about_z() -> None:
+    model = pendulum("planar")
+    model.add_body("b", 1.0, inertia=1.0)
+    model.add_joint(
+        "j",
+        "revolute",
+        "link",
+        "b",
+        child_frame=Frame(np.zeros(3), axis_angle_to_matrix((1, 0, 0), 0.2)),
+    )
+    with pytest.raises(ModelError, match=r"joint 'j'.*child_frame may rotate only about z"):
+        model.validate()
+
+
+def test_drive_without_derivatives() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("motor", "revolute", "link", "b", drive=Drive(lambda t: t))
+    with pytest.raises(ModelError, match=r"joint 'motor'.*velocity and acceleration"):
+        model.validate()
+
+
+def test_multi_coordinate_drive_without_acceleration() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: (t, t), lambda t: (1.0, 1.0))
+    model.add_joint("wrist", "cylindrical", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'wrist'.*lacks its acceleration"):
+        model.validate()
+
+
+def test_drive_returning_nan() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: t, lambda t: math.nan, lambda t: 0.0)
+    model.add_joint("motor", "revolute", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'motor'.*velocity at t = 0.*not finite"):
+        model.validate()
+
+
+def test_driven_cut_joint() -> None:
+    model = chain()
+    drive = Drive(lambda t: t, lambda t: 1.0, lambda t: 0.0)
+    model.add_joint("closure", "revolute", "ground", "link2", cut=True, drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'closure'.*cut\) joint cannot be driven"):
+        model.validate()
+
+
+# ---- topology --------------------------------------------------------------------
+
+
+def test_body_not_connected_to_ground() -> None:
+    model = pendulum()
+    model.add_body("floating", 1.0, inertia=CUBE)
+    with pytest.raises(ModelError, match=r"body 'floating'.*not connected to 'ground'"):
+        model.validate()
+
+
+def test_body_connected_only_by_cut_joint() -> None:
+    model = pendulum()
+    model.add_body("loose", 1.0, inertia=CUBE)
+    model.add_joint("closure", "revolute", "link", "loose", cut=True)
+    with pytest.raises(ModelError, match=r"body 'loose'.*not connected.*cut joints do not"):
+        model.validate()
+
+
+def test_body_with_two_parent_joints() -> None:
+    model = chain()
+    model.add_joint("again", "revolute", "ground", "link2")
+    with pytest.raises(ModelError, match=r"body 'link2'.*child of two tree joints.*cut=True"):
+        model.validate()
+
+
+def test_tree_joints_forming_a_loop_off_ground() -> None:
+    model = Model("ring")
+    model.add_body("a", 1.0, inertia=CUBE)
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("ab", "revolute", "a", "b")
+    model.add_joint("ba", "revolute", "b", "a")
+    with pytest.raises(ModelError, match=r"body 'a'.*closed loop.*never reaches 'ground'"):
+        model.validate()
+
+
+# ---- point masses ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("joint_type", ["spherical", "universal", "cylindrical", "free"])
+def test_point_mass_on_spinning_joint(joint_type: str) -> None:
+    model = pendulum()
+    model.add_point_mass("bob", 1.0)
+    model.add_joint("j", joint_type, "link", "bob", child_frame=Frame.at(0, 1, 0))
+    with pytest.raises(ModelError, match=r"body 'bob'.*point mass would spin.*add_body"):
+        model.validate()
+
+
+def test_point_mass_on_revolute_without_offset() -> None:
+    model = pendulum()
+    model.add_point_mass("bob", 1.0)
+    model.add_joint("j", "revolute", "link", "bob", child_frame=Frame.at(0, 0, 0.4), axis=(0, 0, 1))
+    with pytest.raises(ModelError, match=r"body 'bob'.*revolute joint offset from the mass"):
+        model.validate()
+
+
+def test_point_mass_on_revolute_with_offset_passes() -> None:
+    model = pendulum()
+    model.add_point_mass("bob", 1.0)
+    model.add_joint("j", "revolute", "link", "bob", child_frame=Frame.at(0, 0.4, 0))
+    model.validate()
+
+
+def test_point_mass_on_prismatic_passes() -> None:
+    model = pendulum()
+    model.add_point_mass("bob", 1.0)
+    model.add_joint("j", "prismatic", "link", "bob", axis=(1, 0, 0))
+    model.validate()
+
+
+# ---- force elements and nonholonomic constraints ---------------------------------
+
+
+def test_spring_unknown_body() -> None:
+    model = pendulum()
+    model.add_force(SpringDamper("spring", "ground", np.zeros(3), "lnik", np.zeros(3), 1.0))
+    with pytest.raises(ModelError, match=r"force 'spring'.*body2 'lnik' is not a body"):
+        model.validate()
+
+
+@pytest.mark.parametrize("field", ["stiffness", "damping"])
+def test_spring_negative_parameter(field: str) -> None:
+    model = pendulum()
+    values = {"stiffness": 1.0, "damping": 0.1, field: -1.0}
+    model.add_force(
+        SpringDamper(
+            "spring",
+            "ground",
+            np.zeros(3),
+            "link",
+            np.zeros(3),
+            values["stiffness"],
+            values["damping"],
+        )
+    )
+    with pytest.raises(ModelError, match=rf"force 'spring'.*{field} must be >= 0"):
+        model.validate()
+
+
+def test_spring_nan_point() -> None:
+    model = pendulum()
+    model.add_force(
+        SpringDamper("spring", "ground", np.array([math.nan, 0, 0]), "link", np.zeros(3), 1.0)
+    )
+    with pytest.raises(ModelError, match=r"force 'spring'.*point1.*NaN or inf"):
+        model.validate()
+
+
+def test_joint_spring_unknown_joint() -> None:
+    model = pendulum()
+    model.add_force(JointSpringDamper("torsion", "hnige", 1.0))
+    with pytest.raises(ModelError, match=r"force 'torsion'.*joint 'hnige' is not a joint"):
+        model.validate()
+
+
+def test_joint_spring_negative_damping() -> None:
+    model = pendulum()
+    model.add_force(JointSpringDamper("torsion", "hinge", 1.0, -0.5))
+    with pytest.raises(ModelError, match=r"force 'torsion'.*damping must be >= 0"):
+        model.validate()
+
+
+def test_joint_spring_on_spherical() -> None:
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_joint("ball", "spherical", "link", "b")
+    model.add_force(JointSpringDamper("torsion", "ball", 1.0))
+    with pytest.raises(ModelError, match=r"force 'torsion'.*spherical joint 'ball'"):
+        model.validate()
+
+
+def test_joint_force_unknown_joint() -> None:
+    model = pendulum()
+    model.add_force(JointForce("motor", "nope", lambda t, q, v: 0.0))
+    with pytest.raises(ModelError, match=r"force 'motor'.*joint 'nope'"):
+        model.validate()
+
+
+def test_applied_force_unknown_body() -> None:
+    model = pendulum()
+    model.add_force(AppliedForce("push", "nope", np.zeros(3), lambda *a: (0, 0)))
+    with pytest.raises(ModelError, match=r"force 'push'.*body 'nope' is not a body"):
+        model.validate()
+
+
+def test_applied_force_on_ground() -> None:
+    model = pendulum()
+    model.add_force(AppliedForce("push", "ground", np.zeros(3), lambda *a: (0, 0)))
+    with pytest.raises(ModelError, match=r"force 'push'.*body cannot be 'ground'"):
+        model.validate()
+
+
+@pytest.mark.parametrize("radius", [0.0, -0.1])
+def test_nonpositive_radius(radius: float) -> None:
+    model = pendulum()
+    model.add_nonholonomic(RollingSphere("roll", "link", radius))
+    with pytest.raises(ModelError, match=r"constraint 'roll'.*radius must be > 0"):
+        model.validate()
+
+
+def test_nan_radius() -> None:
+    model = pendulum()
+    model.add_nonholonomic(RollingDisk("wheel", "link", math.nan))
+    with pytest.raises(ModelError, match=r"constraint 'wheel'.*radius.*not finite"):
+        model.validate()
+
+
+def test_nonholonomic_unknown_body() -> None:
+    model = pendulum()
+    model.add_nonholonomic(KnifeEdge("knife", "blade", np.zeros(3), np.array([1.0, 0, 0])))
+    with pytest.raises(ModelError, match=r"constraint 'knife'.*body 'blade' is not a body"):
+        model.validate()
+
+
+def test_knife_edge_zero_direction() -> None:
+    model = pendulum()
+    model.add_nonholonomic(KnifeEdge("knife", "link", np.zeros(3), np.zeros(3)))
+    with pytest.raises(ModelError, match=r"constraint 'knife'.*direction has zero length"):
+        model.validate()
+
+
+def test_rolling_sphere_in_planar_model() -> None:
+    model = pendulum("planar")
+    model.add_nonholonomic(RollingSphere("roll", "link", 0.1))
+    with pytest.raises(ModelError, match=r"constraint 'roll'.*needs a spatial model"):
+        model.validate()
