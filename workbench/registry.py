@@ -184,7 +184,7 @@ def close_matches(name: str, names: list[str]) -> list[str]:
         return text.lower().replace("_", "-")
 
     by_normal = {normal(n): n for n in names}
-    close = difflib.get_close_matches(normal(name), list(by_normal), n=3, cutoff=0.5)
+    close = difflib.get_close_matches(normal(name), list(by_normal), n=3, cutoff=0.6)
     return [by_normal[c] for c in close]
 
 

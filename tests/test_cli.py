@@ -1,0 +1,191 @@
+"""The command line: tables on stdout; bad input is one line on stderr and exit code 2."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from tests.test_registry import FAKE_MODULES, write_fake_distribution
+from workbench import cli
+from workbench import registry as registry_module
+from workbench.errors import ConfigError
+from workbench.registry import Registry
+
+REPO = Path(__file__).resolve().parents[1]
+STARTER_PROBLEMS = ("simple-pendulum", "double-pendulum", "slider-crank", "heavy-top")
+
+
+def run_workbench(*args: str, pythonpath: Path | None = None) -> subprocess.CompletedProcess:
+    """``python -m workbench ARGS`` in a subprocess, wide enough that tables do not wrap."""
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
+    if pythonpath is not None:
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(pythonpath), env.get("PYTHONPATH")]))
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *args],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def assert_one_line_error(stderr: str, *fragments: str) -> None:
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("error: ")
+    assert "Traceback" not in stderr
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+@pytest.fixture
+def fake_registry(tmp_path, monkeypatch):
+    """The global registry replaced by a fresh one that sees only the fake distribution."""
+    monkeypatch.syspath_prepend(str(write_fake_distribution(tmp_path)))
+    monkeypatch.setattr(registry_module, "REGISTRY", Registry(builtin_packages={}))
+    yield registry_module.REGISTRY
+    for name in FAKE_MODULES:
+        sys.modules.pop(name, None)
+
+
+@pytest.fixture
+def runner(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    monkeypatch.setenv("NO_COLOR", "1")
+    return CliRunner()
+
+
+# -- in process (CliRunner) -------------------------------------------------------------
+def test_list_prints_one_table_per_kind(fake_registry, runner):
+    result = runner.invoke(cli.app, ["list"])
+    assert result.exit_code == 0, result.output
+    for title in ("problems", "formalisms", "integrators"):
+        assert title in result.stdout
+    assert "toy-formalism" in result.stdout
+    assert "A formalism that exists only in tests." in result.stdout
+    assert "planar, tree" in result.stdout
+    assert "ode (index <= 0), dae (index <= 1)" in result.stdout
+    assert "toy-pendulum" in result.stdout
+
+
+def test_list_shows_a_broken_plugin_with_its_error(fake_registry, runner):
+    result = runner.invoke(cli.app, ["list", "formalisms"])
+    assert result.exit_code == 0, result.output
+    line = next(line for line in result.stdout.splitlines() if "broken-formalism" in line)
+    assert "broken: ImportError: fake_wb_broken needs libfoo" in line
+    assert "toy-formalism" in result.stdout
+    assert "toy-integrator" not in result.stdout
+
+
+def test_describe_formalism_shows_options_and_capabilities(fake_registry, runner):
+    result = runner.invoke(cli.app, ["describe", "toy-formalism"])
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    assert "toy-formalism (formalism" in out
+    assert "capabilities: planar, tree" in out
+    assert "scheme" in out and "'index3' | 'ggl'" in out and "'index3'" in out
+    assert "alpha" in out and "float" in out and "5.0" in out
+
+
+def test_describe_problem_shows_source_and_model(fake_registry, runner):
+    result = runner.invoke(cli.app, ["describe", "toy-pendulum"])
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    assert "source: test suite, no book section" in out
+    assert "options: none" in out
+    for label in ("kind", "planar", "bodies", "1: bob", "joints", "1: pivot", "DOF"):
+        assert label in out
+    assert "invariants" in out and "energy" in out
+    assert "reference" in out
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["list", "solvers"], "unknown plugin kind 'solvers'"),
+        (["describe", "toy-formalsm"], "did you mean toy-formalism"),
+        (["describe", "broken-formalism"], "is broken: ImportError"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_code_2(fake_registry, runner, args, fragment):
+    result = runner.invoke(cli.app, args)
+    assert result.exit_code == 2
+    assert result.stdout == ""
+    assert_one_line_error(result.stderr, fragment)
+
+
+def test_any_workbench_error_from_a_command_exits_2(fake_registry, runner, monkeypatch):
+    def failing_list(kind: str):
+        raise ConfigError("sweep 'x': tolerance 'rtol' must be positive\nsecond line")
+
+    monkeypatch.setattr(fake_registry, "list", failing_list)
+    result = runner.invoke(cli.app, ["list", "problems"])
+    assert result.exit_code == 2
+    assert_one_line_error(result.stderr, "must be positive | second line")
+
+
+def test_usage_errors_exit_2(runner):
+    assert runner.invoke(cli.app, ["no-such-command"]).exit_code == 2
+    assert runner.invoke(cli.app, ["describe"]).exit_code == 2
+    assert runner.invoke(cli.app, ["list", "problems", "extra"]).exit_code == 2
+
+
+def test_version(runner):
+    result = runner.invoke(cli.app, ["--version"])
+    assert result.exit_code == 0 and "mbs-workbench" in result.stdout
+
+
+def test_capabilities_text():
+    class Both:
+        capabilities = frozenset({"spatial", "loops"})
+        accepts = {"mechanical": 3}
+
+    assert cli.capabilities_text(Both) == "loops, spatial; mechanical (index <= 3)"
+    assert cli.capabilities_text(object) == "-"
+    assert cli.capabilities_text(None) == "-"
+
+
+# -- as a subprocess --------------------------------------------------------------------
+def test_subprocess_list(tmp_path):
+    result = run_workbench("list", pythonpath=write_fake_distribution(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert "toy-formalism" in result.stdout and "toy-integrator" in result.stdout
+    line = next(line for line in result.stdout.splitlines() if "broken-formalism" in line)
+    assert "broken: ImportError" in line
+    assert "Traceback" not in result.stdout + result.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["list", "formalsms"], "did you mean formalisms?"),
+        (["describe", "no-such-plugin-anywhere"], "is called 'no-such-plugin-anywhere'"),
+    ],
+)
+def test_subprocess_bad_input(args, fragment):
+    result = run_workbench(*args)
+    assert result.returncode == 2
+    assert_one_line_error(result.stderr, fragment)
+
+
+def test_subprocess_usage_error_exits_2():
+    result = run_workbench("no-such-command")
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+
+
+def test_starter_problems_are_described():
+    registered = set(registry_module.plugin_names("problem"))
+    missing = [name for name in STARTER_PROBLEMS if name not in registered]
+    if missing:
+        pytest.skip(f"starter problems not registered yet: {', '.join(missing)}")
+    for name in STARTER_PROBLEMS:
+        result = run_workbench("describe", name)
+        assert result.returncode == 0, result.stderr
+        assert "source:" in result.stdout and "DOF" in result.stdout
