@@ -52,7 +52,7 @@ def _vector(value: Any, size: int = 3) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Frame:
-    """A frame fixed on a body: origin ``position`` (3,) and ``rotation`` (3, 3) in the body frame."""
+    """A frame fixed on a body: origin ``position`` (3,), ``rotation`` (3, 3), body coordinates."""
 
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))

@@ -1,0 +1,73 @@
+"""Low-overhead numerical evaluation of CasADi Functions in hot loops.
+
+``Function.__call__`` costs 10-40 us of Python overhead per call, more than the dynamics
+of a small mechanism. :class:`FastFunction` binds preallocated NumPy arrays to a
+``Function.buffer()`` once and evaluates into them. Outputs are dense (the builder must
+``densify`` them: buffers hold only structural nonzeros).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+
+class FastFunction:
+    """A CasADi Function evaluated through preallocated buffers.
+
+    ``f(*args)`` returns a tuple of NumPy arrays (copies, safe to keep), one per output,
+    shaped (rows,) for column outputs and (rows, cols) otherwise. ``f.into(*args)``
+    returns the internal arrays themselves (overwritten by the next call).
+    """
+
+    def __init__(self, function: ca.Function) -> None:
+        self.function = function
+        self.name = function.name()
+        self.n_calls = 0
+        self._buffer, self._evaluate = function.buffer()
+        self._inputs = []
+        for i in range(function.n_in()):
+            sparsity = function.sparsity_in(i)
+            if not sparsity.is_dense():
+                raise ValueError(f"{self.name}: input {i} must be dense")
+            array = np.zeros(sparsity.numel())
+            self._buffer.set_arg(i, memoryview(array))
+            self._inputs.append(array)
+        self._outputs = []
+        self._views = []
+        for i in range(function.n_out()):
+            sparsity = function.sparsity_out(i)
+            if not sparsity.is_dense():
+                raise ValueError(f"{self.name}: output {i} must be dense (use casadi.densify)")
+            rows, cols = sparsity.shape
+            array = np.zeros(rows * cols)
+            self._buffer.set_res(i, memoryview(array))
+            self._outputs.append(array)
+            self._views.append(array if cols == 1 else array.reshape(cols, rows).T)
+
+    def into(self, *args: object) -> tuple[np.ndarray, ...]:
+        for array, value in zip(self._inputs, args, strict=True):
+            array[:] = np.ravel(value) if np.ndim(value) else value
+        self._evaluate()
+        self.n_calls += 1
+        return tuple(self._views)
+
+    def __call__(self, *args: object) -> tuple[np.ndarray, ...]:
+        return tuple(view.copy() for view in self.into(*args))
+
+    def __getstate__(self) -> dict:
+        return {"function": self.function}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["function"])  # type: ignore[misc]
+
+
+def dense_function(name: str, inputs: list, outputs: list, input_names: list[str] | None = None,
+                   output_names: list[str] | None = None) -> FastFunction:
+    """Build a CasADi Function with dense outputs and wrap it for fast evaluation."""
+    outputs = [ca.densify(o) for o in outputs]
+    if input_names and output_names:
+        function = ca.Function(name, inputs, outputs, input_names, output_names)
+    else:
+        function = ca.Function(name, inputs, outputs)
+    return FastFunction(function)
