@@ -320,11 +320,6 @@ def _check_drive(model: Model, what: str, joint: Joint) -> None:
     drive = joint.drive
     if drive is None:
         return
-    if joint.cut:
-        raise ModelError(
-            f"{_where(model, what)}: a loop-closing (cut) joint cannot be driven; drive a "
-            "tree joint of the loop instead"
-        )
     if joint.type == "fixed":
         raise ModelError(
             f"{_where(model, what)}: a fixed joint has no coordinates to drive; remove the drive"

@@ -1,0 +1,284 @@
+"""Topology and degrees of freedom of a model (book 9.2, 9.3, 11.1).
+
+:func:`analyze` validates the model and returns a :class:`Topology`: the spanning tree
+(tree joints, parent of every body, bodies parents-first), the cut (loop-closing) joints
+and one independent loop per cut joint, the Gruebler-Kutzbach count of degrees of
+freedom, and the true count from the rank of the velocity constraint matrix W(t, q)
+(book 9.3.2): f = nv - rank W. Rows of W that depend linearly on earlier rows are
+reported as redundant (an overconstrained mechanism, such as a spatial four-bar with
+parallel axes, has Gruebler count -2 but one degree of freedom).
+
+Counting (planar models: 3 instead of 6):
+
+- a free tree joint contributes its number of velocities, a driven one none;
+- a cut joint removes 6 - (its number of velocities) rows (a driven cut joint is held
+  fixed relative to its driven pose and removes 6);
+- a rolling sphere or disk removes one holonomic row (its contact height);
+- nonholonomic rows (rolling sphere 2, rolling disk 2 (planar model 1), knife edge 1)
+  restrict velocities, not positions: they are counted in ``n_nonholonomic`` and in the
+  rank-based ``dof`` (which counts independent velocities), not in ``dof_gruebler``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+import scipy.linalg
+
+from workbench import joints as jk
+from workbench.errors import ModelError
+from workbench.model import GROUND, Joint, KnifeEdge, Model, RollingDisk, RollingSphere
+from workbench.validation import validate_model
+
+RANK_TOLERANCE = 1e-9
+"""Singular values below this fraction of the largest one count as zero."""
+
+
+@dataclass
+class Topology:
+    """The structure and degrees of freedom of a model (see the module docstring).
+
+    ``loops[i]`` belongs to ``cut_joints[i]``: the cut joint, then the tree joints from
+    its parent body up to the common ancestor, then down to its child body.
+    ``dof``, ``rank`` and the redundancy fields are None when the rank was not computed
+    (``analyze(model, rank=False)``). ``configuration`` is the tree-joint coordinate
+    vector (``TreeKinematics.q`` order) at which W was evaluated, ``assembled`` whether
+    the closure constraints hold there (to 1e-9).
+    """
+
+    tree_joints: list[str]
+    cut_joints: list[str]
+    loops: list[list[str]]
+    n_loops: int
+    parent_of: dict[str, str]
+    parent_joint: dict[str, str]
+    depth: dict[str, int]
+    body_order: list[str]
+    dof_gruebler: int
+    n_holonomic: int
+    n_nonholonomic: int
+    dof: int | None = None
+    rank: int | None = None
+    constraint_names: list[str] = field(default_factory=list)
+    redundant_constraints: list[str] = field(default_factory=list)
+    redundant_elements: list[str] = field(default_factory=list)
+    configuration: np.ndarray | None = None
+    assembled: bool | None = None
+
+    @property
+    def overconstrained(self) -> bool:
+        """True when some constraint rows are redundant."""
+        return bool(self.redundant_constraints)
+
+    def describe(self) -> str:
+        """A few human-readable lines (for the CLI and logs)."""
+        lines = [
+            f"{len(self.body_order)} bodies, {len(self.tree_joints)} tree joints, "
+            f"{self.n_loops} loops, {self.n_nonholonomic} nonholonomic rows",
+            f"DOF (Gruebler count): {self.dof_gruebler}",
+        ]
+        if self.dof is not None:
+            lines.append(f"DOF (rank of the constraint Jacobian): {self.dof}")
+        for loop in self.loops:
+            lines.append(f"loop: {' - '.join(loop)}")
+        if self.redundant_constraints:
+            lines.append(
+                f"redundant constraint rows: {', '.join(self.redundant_constraints)} "
+                f"(of {', '.join(self.redundant_elements)})"
+            )
+        return "\n".join(lines)
+
+
+def analyze(
+    model: Model,
+    q: np.ndarray | None = None,
+    t: float = 0.0,
+    rank: bool = True,
+    tolerance: float = RANK_TOLERANCE,
+) -> Topology:
+    """Validate ``model`` and return its :class:`Topology`.
+
+    q: free tree-joint coordinates (``TreeKinematics(model).q_names`` order, nq) at which
+    the constraint Jacobian is evaluated; default: the neutral coordinates. Either is
+    first moved onto the closure constraints g(t, q) = 0 by Gauss-Newton steps when that
+    converges, so the rank is that of the assembled mechanism. t: time (s) for driven
+    joints. rank=False skips the symbolic kinematics (dof stays None).
+    """
+    validate_model(model)
+    tree = _tree_order(model)
+    parent_of = {j.child: j.parent for j in tree}
+    parent_joint = {j.child: j.name for j in tree}
+    depth: dict[str, int] = {}
+    for joint in tree:
+        depth[joint.child] = 1 + depth.get(joint.parent, 0) if joint.parent != GROUND else 1
+    body_order = [j.child for j in tree]
+    loops = [_loop(joint, parent_of, parent_joint) for joint in model.cut_joints]
+    n_holonomic_contacts = sum(
+        isinstance(c, RollingSphere | RollingDisk) for c in model.nonholonomic
+    )
+    topology = Topology(
+        tree_joints=[j.name for j in model.tree_joints],
+        cut_joints=[j.name for j in model.cut_joints],
+        loops=loops,
+        n_loops=len(loops),
+        parent_of=parent_of,
+        parent_joint=parent_joint,
+        depth=depth,
+        body_order=body_order,
+        dof_gruebler=_gruebler(model) - n_holonomic_contacts,
+        n_holonomic=sum(_cut_rows(model, j) for j in model.cut_joints) + n_holonomic_contacts,
+        n_nonholonomic=sum(_nonholonomic_rows(model, c) for c in model.nonholonomic),
+    )
+    if rank:
+        _rank(model, topology, q, t, tolerance)
+    return topology
+
+
+def _tree_order(model: Model) -> list[Joint]:
+    """Tree joints parents-first (breadth first from the ground, in the order added)."""
+    children: dict[str, list[Joint]] = {}
+    for joint in model.tree_joints:
+        children.setdefault(joint.parent, []).append(joint)
+    ordered: list[Joint] = []
+    frontier = [GROUND]
+    while frontier:
+        body = frontier.pop(0)
+        for joint in children.get(body, []):
+            ordered.append(joint)
+            frontier.append(joint.child)
+    return ordered
+
+
+def _loop(cut: Joint, parent_of: dict[str, str], parent_joint: dict[str, str]) -> list[str]:
+    """The cut joint, then the tree path from its parent body to its child body."""
+
+    def to_root(body: str) -> list[str]:
+        path = [body]
+        while body != GROUND:
+            body = parent_of[body]
+            path.append(body)
+        return path
+
+    up, down = to_root(cut.parent), to_root(cut.child)
+    common = next(body for body in up if body in down)
+    up_joints = [parent_joint[b] for b in up[: up.index(common)]]
+    down_joints = [parent_joint[b] for b in down[: down.index(common)]]
+    return [cut.name, *up_joints, *reversed(down_joints)]
+
+
+def _joint_dof(joint: Joint) -> int:
+    return 0 if joint.drive is not None else jk.DIMENSIONS[joint.type][1]
+
+
+def _cut_rows(model: Model, joint: Joint) -> int:
+    return (3 if model.kind == "planar" else 6) - _joint_dof(joint)
+
+
+def _gruebler(model: Model) -> int:
+    free = sum(_joint_dof(j) for j in model.tree_joints)
+    return free - sum(_cut_rows(model, j) for j in model.cut_joints)
+
+
+def _nonholonomic_rows(model: Model, constraint: object) -> int:
+    if isinstance(constraint, KnifeEdge):
+        return 1
+    if isinstance(constraint, RollingDisk) and model.kind == "planar":
+        return 1
+    return 2
+
+
+def _element_of(row_name: str) -> str:
+    """The joint or constraint a row belongs to: "loop[2]" -> "loop", "roll.height" -> "roll"."""
+    return re.sub(r"(\[\d+\]|\.height)$", "", row_name)
+
+
+def _rank(
+    model: Model, topology: Topology, q: np.ndarray | None, t: float, tolerance: float
+) -> None:
+    from workbench.kinematics import TreeKinematics, initial_joint_values
+
+    kinematics = TreeKinematics(model)
+    if q is None:
+        q0 = initial_joint_values(model, kinematics, {}, velocities=False)
+    else:
+        q0 = np.asarray(q, dtype=float).reshape(-1)
+        if q0.shape != (kinematics.nq,):
+            raise ModelError(
+                f"model {model.name!r}: analyze() got {q0.size} coordinates, the tree has "
+                f"{kinematics.nq} ({', '.join(kinematics.q_names)})"
+            )
+    W = kinematics.velocity_constraint_matrix
+    g = kinematics.closure_constraints
+    H = ca.jacobian(kinematics.qdot, kinematics.v)  # q' = H(q) v
+    n_h = kinematics.n_holonomic
+    evaluate = ca.Function(
+        "topology_rank", [kinematics.t, kinematics.q], [ca.densify(W), ca.densify(g), ca.densify(H)]
+    )
+    q_at, assembled = _assemble(kinematics, evaluate, q0, t, n_h)
+    W_at = np.asarray(evaluate(t, q_at)[0], dtype=float).reshape(-1, kinematics.nv)
+    names = list(kinematics.velocity_constraint_names)
+    independent = _independent_rows(W_at, tolerance)
+    redundant = [names[i] for i in range(len(names)) if i not in independent]
+    topology.rank = len(independent)
+    topology.dof = kinematics.nv - topology.rank
+    topology.constraint_names = names
+    topology.redundant_constraints = redundant
+    topology.redundant_elements = list(dict.fromkeys(_element_of(n) for n in redundant))
+    topology.configuration = q_at
+    topology.assembled = assembled
+
+
+def _independent_rows(W: np.ndarray, tolerance: float) -> list[int]:
+    """Indices of rows of W independent of the rows before them (greedy, in row order)."""
+    if W.size == 0:
+        return []
+    scale = float(np.linalg.norm(W, 2))
+    if scale == 0.0:
+        return []
+    kept: list[int] = []
+    for i in range(W.shape[0]):
+        trial = W[[*kept, i]]
+        singular = scipy.linalg.svdvals(trial)
+        if singular.min() > tolerance * scale:
+            kept.append(i)
+    return kept
+
+
+def _assemble(
+    kinematics, evaluate, q0: np.ndarray, t: float, n_h: int, iterations: int = 50
+) -> tuple[np.ndarray, bool]:
+    """Move q0 onto g(t, q) = 0 by minimum-norm Gauss-Newton steps in the velocities.
+
+    Steps go through q' = H(q) v, and quaternions are renormalized, so unit quaternions
+    stay unit. Returns (q, converged); when it does not converge q0 is returned.
+    """
+    quaternion_slices = _quaternion_slices(kinematics)
+    q = q0.copy()
+    for _ in range(iterations + 1):
+        W, g, H = (np.asarray(x, dtype=float) for x in evaluate(t, q))
+        g = g.reshape(-1)
+        if g.size == 0 or np.max(np.abs(g)) <= 1e-12:
+            return q, True
+        W_h = W.reshape(-1, kinematics.nv)[:n_h]
+        step, *_ = np.linalg.lstsq(W_h, -g, rcond=None)
+        q = q + H.reshape(kinematics.nq, kinematics.nv) @ step
+        for s in quaternion_slices:
+            q[s] /= np.linalg.norm(q[s])
+    g = np.asarray(evaluate(t, q)[1], dtype=float).reshape(-1)
+    if np.max(np.abs(g)) <= 1e-9:
+        return q, True
+    return q0, False
+
+
+def _quaternion_slices(kinematics) -> list[slice]:
+    slices = []
+    for joint in kinematics.free_joints:
+        q_slice, _ = kinematics.joint_slices[joint.name]
+        if joint.type == "spherical":
+            slices.append(q_slice)
+        elif joint.type == "free":
+            slices.append(slice(q_slice.start + 3, q_slice.start + 7))
+    return slices
