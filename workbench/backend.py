@@ -42,6 +42,7 @@ class _CasadiOps:
     abs = staticmethod(ca.fabs)
     dot = staticmethod(ca.dot)
     cross = staticmethod(ca.cross)
+    where = staticmethod(ca.if_else)  # where(condition, if_true, if_false)
 
 
 def vector(items: list[Any]) -> Any:
