@@ -1,0 +1,176 @@
+"""Consistent initial states, computed once in joint space for every formalism.
+
+The problem gives the free tree-joint coordinates and velocities. Here they are projected
+onto the loop-closure (and contact-height) constraints by Newton's method, keeping the
+independent coordinates fixed; the velocities onto W v + w = 0 likewise; then mapped into
+the formalism's coordinates by ``Equations.joint_space_map``; the accelerations and
+multipliers follow from [M W^T; W 0] [v'; lambda] = [Q; gamma].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from workbench.equations import Equations
+from workbench.errors import IntegrationError
+from workbench.kinematics import TreeKinematics, initial_joint_values
+
+
+@dataclass
+class InitialState:
+    """A consistent state at t0 in the formalism's coordinates, and in joint space."""
+
+    t0: float
+    q: np.ndarray
+    v: np.ndarray
+    qdot: np.ndarray
+    acceleration: np.ndarray
+    multipliers: np.ndarray
+    q_joint: np.ndarray
+    v_joint: np.ndarray
+
+    def y0(self, equations: Equations, form: str) -> np.ndarray:
+        """Initial state vector of ``form`` ([q, v, (lambda), (mu)])."""
+        base = np.concatenate([self.q, self.v])
+        if form != "dae":
+            return base
+        n = equations.forms["dae"].n
+        extra = np.zeros(n - base.size)
+        extra[: min(self.multipliers.size, extra.size)] = self.multipliers[: extra.size]
+        return np.concatenate([base, extra])
+
+    def yp0(self, equations: Equations, form: str) -> np.ndarray:
+        """Initial derivative of the state vector of ``form``."""
+        base = np.concatenate([self.qdot, self.acceleration])
+        if form != "dae":
+            return base
+        return np.concatenate([base, np.zeros(equations.forms["dae"].n - base.size)])
+
+
+def _independent_columns(kinematics: TreeKinematics, problem: Any, velocities: bool) -> list[int]:
+    chosen = getattr(problem, "independent_coordinates", None) or ()
+    columns = []
+    for joint_name, index in chosen:
+        if joint_name not in kinematics.joint_slices:
+            raise IntegrationError(
+                f"problem {problem.name!r}: independent coordinate {joint_name!r} is not a free "
+                "tree joint"
+            )
+        q_slice, v_slice = kinematics.joint_slices[joint_name]
+        columns.append((v_slice if velocities else q_slice).start + index)
+    return columns
+
+
+def _dependent_columns(jacobian: np.ndarray, fixed: list[int]) -> np.ndarray:
+    """Columns to solve for: the best-conditioned ones by pivoted QR, avoiding ``fixed``."""
+    n = jacobian.shape[1]
+    candidates = np.array([c for c in range(n) if c not in fixed], dtype=int)
+    if jacobian.shape[0] == 0 or candidates.size == 0:
+        return np.zeros(0, dtype=int)
+    _, r, pivots = scipy.linalg.qr(jacobian[:, candidates], pivoting=True, mode="economic")
+    diagonal = np.abs(np.diag(r))
+    rank = int(np.sum(diagonal > 1e-10 * max(diagonal.max(initial=0.0), 1e-300)))
+    return candidates[pivots[:rank]]
+
+
+def _normalize_quaternions(kinematics: TreeKinematics, q: np.ndarray) -> None:
+    for joint in kinematics.free_joints:
+        q_slice, _ = kinematics.joint_slices[joint.name]
+        if joint.type in ("spherical", "free"):
+            p = q[q_slice][-4:]
+            q[q_slice.stop - 4 : q_slice.stop] = p / np.linalg.norm(p)
+
+
+def project_joint_state(
+    kinematics: TreeKinematics, problem: Any, t0: float, q: np.ndarray, v: np.ndarray,
+    tolerance: float = 1e-12, max_iterations: int = 50,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Newton projection onto g(t, q) = 0 and W v + w = 0 with independent ones fixed."""
+    g_function = kinematics.function("closure", [kinematics.closure_constraints,
+                                                 kinematics.closure_jacobian], with_v=False)
+    w_function = kinematics.function("velocity", [kinematics.velocity_constraint_matrix,
+                                                  kinematics.velocity_constraint_bias])
+    q = q.copy()
+    fixed = _independent_columns(kinematics, problem, velocities=False)
+    if kinematics.closure_constraints.numel():
+        for _ in range(max_iterations):
+            g, g_q = (np.asarray(x) for x in g_function(t0, q))
+            g = g.ravel()
+            if np.max(np.abs(g)) < tolerance:
+                break
+            columns = _dependent_columns(g_q, fixed)
+            step, *_ = np.linalg.lstsq(g_q[:, columns], -g, rcond=None)
+            q[columns] += step
+            _normalize_quaternions(kinematics, q)
+        else:
+            worst = int(np.argmax(np.abs(g)))
+            raise IntegrationError(
+                f"initial state: the loop-closure constraints could not be satisfied; the largest "
+                f"residual is {kinematics.closure_names[worst]} = {g[worst]:.3g}; give initial "
+                "joint coordinates closer to an assembled configuration"
+            )
+    v = v.copy()
+    if kinematics.velocity_constraints.numel():
+        w_matrix, w_bias = (np.asarray(x) for x in w_function(t0, q, v))
+        w_matrix, w_bias = np.atleast_2d(w_matrix), w_bias.ravel()
+        residual = w_matrix @ v + w_bias
+        fixed_v = _independent_columns(kinematics, problem, velocities=True)
+        columns = _dependent_columns(w_matrix, fixed_v)
+        step, *_ = np.linalg.lstsq(w_matrix[:, columns], -residual, rcond=None)
+        v[columns] += step
+        left = np.abs(w_matrix @ v + w_bias)
+        if left.max(initial=0.0) > 1e-8 * max(1.0, np.abs(v).max(initial=0.0)):
+            worst = int(np.argmax(left))
+            raise IntegrationError(
+                f"initial state: the velocity constraint "
+                f"{kinematics.velocity_constraint_names[worst]} cannot be satisfied with the "
+                "independent velocities given"
+            )
+    return q, v
+
+
+def consistent_initial_state(equations: Equations, problem: Any,
+                             kinematics: TreeKinematics | None = None) -> InitialState:
+    """The problem's initial condition as a consistent state of ``equations``."""
+    model = equations.model
+    kinematics = kinematics or TreeKinematics(model)
+    t0 = float(problem.t_start)
+    q_joint = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
+    v_joint = initial_joint_values(model, kinematics, problem.initial_joint_velocities(), True)
+    _normalize_quaternions(kinematics, q_joint)
+    q_joint, v_joint = project_joint_state(kinematics, problem, t0, q_joint, v_joint)
+    q, v = equations.joint_space_map(t0, q_joint, v_joint)
+    q, v = np.ravel(q), np.ravel(v)
+    acceleration, multipliers, qdot = accelerations(equations, t0, q, v)
+    return InitialState(t0, q, v, qdot, acceleration, multipliers, q_joint, v_joint)
+
+
+def accelerations(equations: Equations, t: float, q: np.ndarray,
+                  v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(v', lambda, q') at a consistent state, from the mechanical form (or the ode form)."""
+    if "mechanical" in equations.forms:
+        mech = equations.forms["mechanical"]
+        (mass,) = mech.mass(t, q)
+        (forces,) = mech.forces(t, q, v)
+        (qdot,) = mech.qdot(t, q, v)
+        nc = mech.n_constraints
+        if nc == 0:
+            return np.linalg.solve(np.atleast_2d(mass), forces), np.zeros(0), qdot
+        (w_matrix,) = mech.velocity_matrix(t, q)
+        (gamma,) = mech.acceleration_rhs(t, q, v)
+        w_matrix = np.reshape(w_matrix, (nc, -1))
+        nv = v.size
+        kkt = np.block([[np.atleast_2d(mass), w_matrix.T], [w_matrix, np.zeros((nc, nc))]])
+        solution, *_ = np.linalg.lstsq(kkt, np.concatenate([forces, np.ravel(gamma)]),
+                                       rcond=None)
+        return solution[:nv], solution[nv:], qdot
+    (f,) = equations.forms["ode"].rhs(t, np.concatenate([q, v]))
+    return f[q.size:], np.zeros(0), f[: q.size]
+
+
+__all__ = ["InitialState", "accelerations", "consistent_initial_state",
+           "project_joint_state"]
