@@ -14,10 +14,10 @@ Model (spatial; z up; SI units):
 Initial state (options): the symmetry axis tilted by ``initial_tilt`` (rad, default 0.3)
 about the inertial x axis, quaternion (cos(tilt/2), sin(tilt/2), 0, 0); spinning at
 ``spin`` (rad/s, default 50) about the symmetry axis, angular velocity (0, 0, spin) in
-the body frame, no initial precession. C * spin = 0.3 kg m^2/s is well above
-sqrt(4 (A + m a^2) m g a) = 0.23, a fast top: it nutates at about
-C spin / (A + m a^2) = 21 rad/s between cusps while precessing at about
-m g a / (C spin) = 3.3 rad/s. t_end = 2 s.
+the body frame, no initial precession. C * spin = 0.3 kg m^2/s exceeds
+sqrt(4 (A + m a^2) m g a) = 0.23 kg m^2/s (upright, it would sleep); released tilted, it
+nutates between tilts 0.30 and 0.46 rad (period 0.44 s) while precessing about the
+vertical. t_end = 2 s.
 
 Invariants: energy (conservative); the angular momentum about the vertical axis through
 the fixed point (kg m^2/s; gravity has no moment about it); the spin, the angular

@@ -166,3 +166,39 @@ def test_heavy_top_initial_state() -> None:
     axis = rotation[:, 2]
     assert axis @ np.array([0.0, 0.0, 1.0]) == pytest.approx(math.cos(0.3))
     assert np.allclose(omega.ravel(), 50.0 * axis)
+
+
+def test_heavy_top_invariants_conserved_along_euler_equations() -> None:
+    """Integrate the top's Euler equations about the tip independently of any formalism."""
+    from scipy.integrate import solve_ivp
+    from scipy.spatial.transform import Rotation
+
+    from workbench.rotations import quaternion_rate_matrix
+
+    problem = get_problem("heavy-top")()
+    model = problem.model()
+    body = model.bodies["top"]
+    inertia_tip = body.inertia + body.mass * (
+        body.com @ body.com * np.eye(3) - np.outer(body.com, body.com)
+    )
+
+    def rhs(t, y):
+        p, omega = y[:4], y[4:]
+        rotation = Rotation.from_quat([*p[1:], p[0]]).as_matrix()
+        torque = np.cross(body.com, body.mass * rotation.T @ model.gravity)
+        alpha = np.linalg.solve(inertia_tip, torque - np.cross(omega, inertia_tip @ omega))
+        return np.concatenate([quaternion_rate_matrix(p, "body") @ omega, alpha])
+
+    y0 = np.concatenate(
+        [problem.initial_joint_coordinates()["tip"], problem.initial_joint_velocities()["tip"]]
+    )
+    solution = solve_ivp(rhs, (0.0, 1.0), y0, rtol=1e-10, atol=1e-12, t_eval=[0.0, 0.4, 1.0])
+    values = []
+    for p, omega_body in zip(solution.y[:4].T, solution.y[4:].T, strict=True):
+        p = p / np.linalg.norm(p)
+        rotation = Rotation.from_quat([*p[1:], p[0]]).as_matrix()
+        poses, twists = top_state(p, rotation @ omega_body)
+        values.append([inv.function(model, 0.0, poses, twists) for inv in problem.invariants()])
+    values = np.array(values)
+    assert np.allclose(values, values[0], rtol=1e-7)
+    assert values[0, 1] == pytest.approx(50.0)
