@@ -180,13 +180,15 @@ def implicit_constraints(
     a = unit(joint.axis)
     ex, ey, ez = np.eye(3)
     if planar:
-        rows = {
-            "revolute": [d[0], d[1]],
-            "prismatic": [_perp(a, d), rel[1, 0]],
-            "planar": [],
-            "fixed": [d[0], d[1], rel[1, 0]],
-        }[kind]
-        return _rows(rows)
+        if kind == "revolute":
+            return _rows([d[0], d[1]])
+        if kind == "prismatic":
+            return _rows([_perp(a, d), rel[1, 0]])
+        if kind == "fixed":
+            return _rows([d[0], d[1], rel[1, 0]])
+        if kind == "planar":
+            return _rows([])
+        raise ValueError(f"joint {joint.name!r}: a {kind} joint does not fit a planar model")
     b1, b2 = _perpendicular_pair(a)
     align = [_inner(b1, rel, a), _inner(b2, rel, a)]  # C's axis stays along P's axis
     no_twist = [_inner(ex, rel, ey), _inner(ey, rel, ez), _inner(ez, rel, ex)]
