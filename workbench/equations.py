@@ -418,7 +418,8 @@ def joint_residuals(model: Model, t: Any, bodies: dict[str, BodyState]) -> Any:
             q_d, _, _ = jk.drive_values(joint, t)
             r_rel, rot_rel = jk.relative_transform(joint, q_d)
             r_p, rot_p = r_p + ca.mtimes(rot_p, r_rel), ca.mtimes(rot_p, rot_rel)
-        r_c, rot_c = bodies[joint.child].frame(joint.child_frame)
+        child = ground if joint.child == GROUND else bodies[joint.child]
+        r_c, rot_c = child.frame(joint.child_frame)
         residual = jk.implicit_constraints(joint, planar, r_p, rot_p, r_c, rot_c)
         if np.size(residual) if not isinstance(residual, ca.SX | ca.MX) else residual.numel():
             rows.append(residual)
