@@ -1,0 +1,449 @@
+"""Formalism ``absolute-dae``: absolute body coordinates and implicit joint constraints.
+
+Book 5.6.1 (point masses), 6.6.1 (planar), 7.6.1 (spatial), 8.2.1 (nonholonomic). Every
+body gets its own coordinates, independent of the joints:
+
+* planar model: q_b = (x, y, angle), v_b = (x', y', angle');
+* spatial model: q_b = (r (3), p (4)), the body frame origin in the inertial frame and
+  Euler parameters (scalar first); v_b = (r' (3), omega_b (3)), with omega_b the angular
+  velocity in the *body* frame, and q_b' = (r', H(p) omega_b), H from
+  :func:`workbench.rotations.quaternion_rate_matrix` (p, "body").
+
+The Newton-Euler equations of each body, written as in minimal-ode through the Jacobians
+J_T = d v_com / d v and J_R = d omega / d v of its own twist (so the centre of mass need
+not be at the body frame origin), give a block-diagonal
+
+    M = blockdiag(m J_T^T J_T + J_R^T I J_R),   Q - h = sum J^T F - (m J_T^T a_bias + ...),
+
+and every joint, tree and cut alike, becomes implicit holonomic constraints g(t, q) = 0
+(book 9.4, :func:`workbench.joints.implicit_constraints` between the world frames P and
+C, P moved by the drive of a driven joint), plus contact heights and nonholonomic rows of
+rolling and knife-edge constraints. The velocity constraints are d/dt g followed by the
+nonholonomic rows; the equations are M v' = Q - h - W^T lambda.
+
+Why omega in the body frame and not p' as velocities: with v_b = (r', omega_b) there are 6
+velocities a body and M is nonsingular for a rigid body (the book's choice with p' as
+velocities has 7 and needs the normalization p^T p = 1 as a constraint row to fix the
+singular direction along p). With omega_b, d/dt (p^T p) = 2 p^T H(p) omega_b = 0
+identically: the normalization has a zero velocity Jacobian, so it is *not* a constraint
+row (it would make W rank deficient) but an invariant of the kinematics q' = H v. Its
+numerical drift shows in the joint residuals observable (R(p) is not orthogonal when
+|p| != 1).
+
+Redundant constraints (a planar four-bar built with spatial revolute joints, all axes
+parallel) are found at build time: W is evaluated at the assembled neutral configuration
+(and at a perturbed one; the larger rank wins), rows depending on earlier rows are removed
+(option ``redundant="remove"``, recorded in ``notes``) or reported (``"error"``).
+
+Point masses keep full body coordinates; their rotational directions have zero inertia
+(M is singular there) but model validation forbids attachments that leave their spin free,
+so the augmented matrix [M W^T; W 0] is nonsingular.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from workbench import forces as fm
+from workbench import joints as jk
+from workbench import rotations as rot
+from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
+from workbench.errors import ConfigError, ModelError
+from workbench.formalism import Formalism
+from workbench.kinematics import BodyState, TreeKinematics, contact_rows, initial_joint_values
+from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
+from workbench.registry import formalism
+
+RANK_TOLERANCE = 1e-9
+"""Singular values below this fraction of the largest one count as zero (redundancy)."""
+
+try:  # being added to workbench.rotations; fall back to the two formulas (book 3.7)
+    from workbench.rotations import axis_angle_to_quaternion, quaternion_multiply
+except ImportError:  # pragma: no cover - depends on the core version
+
+    def axis_angle_to_quaternion(axis: Any, angle: Any) -> Any:
+        """(cos(angle/2), sin(angle/2) axis) of a unit axis."""
+        c, s = ca.cos(angle / 2), ca.sin(angle / 2)
+        return ca.vertcat(c, s * axis[0], s * axis[1], s * axis[2])
+
+    def quaternion_multiply(p: Any, q: Any) -> Any:
+        """p * q, scalar first: R(p * q) = R(p) R(q)."""
+        return ca.vertcat(
+            p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
+            p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2],
+            p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1],
+            p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0],
+        )
+
+
+@dataclass(frozen=True)
+class AbsoluteOptions:
+    index: Literal[1, 2, 3] = 3
+    baumgarte_alpha: float = 10.0
+    baumgarte_beta: float = 10.0
+    redundant: Literal["remove", "error"] = "remove"
+
+    def __post_init__(self) -> None:
+        if self.baumgarte_alpha < 0 or self.baumgarte_beta < 0:
+            raise ConfigError("Baumgarte gains must be >= 0")
+
+
+# ---- coordinates ------------------------------------------------------------------------
+
+
+class AbsoluteCoordinates:
+    """Symbols t, q, v of all bodies, q' = H(q) v, and every body's symbolic state.
+
+    Per body: planar (x, y, angle) / (x', y', angle'); spatial (r (3), p (4)) /
+    (r' (3), omega in the body frame (3)). ``slices`` {body: (q slice, v slice)}.
+    """
+
+    def __init__(self, model: Model) -> None:
+        self.planar = model.kind == "planar"
+        nq_body, nv_body = (3, 3) if self.planar else (7, 6)
+        names = list(model.bodies)
+        self.t = ca.SX.sym("t")
+        self.q = ca.SX.sym("q", nq_body * len(names))
+        self.v = ca.SX.sym("v", nv_body * len(names))
+        self.slices: dict[str, tuple[slice, slice]] = {}
+        self.bodies: dict[str, BodyState] = {}
+        self.q_names: list[str] = []
+        self.v_names: list[str] = []
+        rates = []
+        if self.planar:
+            q_labels, v_labels = ("x", "y", "angle"), ("vx", "vy", "omega")
+        else:
+            q_labels = ("x", "y", "z", "p0", "p1", "p2", "p3")
+            v_labels = ("vx", "vy", "vz", "wx", "wy", "wz")
+        for i, name in enumerate(names):
+            q_slice = slice(i * nq_body, (i + 1) * nq_body)
+            v_slice = slice(i * nv_body, (i + 1) * nv_body)
+            self.slices[name] = (q_slice, v_slice)
+            self.q_names += [f"{name}.{label}" for label in q_labels]
+            self.v_names += [f"{name}.{label}" for label in v_labels]
+            q_b, v_b = self.q[q_slice], self.v[v_slice]
+            zero = ca.SX(1, 1)
+            if self.planar:
+                position = ca.vertcat(q_b[0], q_b[1], zero)
+                rotation = rot.axis_angle_to_matrix(np.array([0.0, 0.0, 1.0]), q_b[2])
+                velocity = ca.vertcat(v_b[0], v_b[1], zero)
+                angular_velocity = ca.vertcat(zero, zero, v_b[2])
+                rates.append(v_b)
+            else:
+                p, omega_body = q_b[3:7], v_b[3:6]
+                rotation = rot.quaternion_to_matrix(p)
+                position, velocity = q_b[0:3], v_b[0:3]
+                angular_velocity = ca.mtimes(rotation, omega_body)
+                p_rate = ca.mtimes(rot.quaternion_rate_matrix(p, "body"), omega_body)
+                rates.append(ca.vertcat(velocity, p_rate))
+            self.bodies[name] = BodyState(position, rotation, velocity, angular_velocity)
+        self.qdot = ca.vertcat(*rates) if rates else ca.SX(0, 1)
+
+
+def newton_euler(model: Model, coords: AbsoluteCoordinates) -> tuple[Any, Any]:
+    """(M, h): mass matrix and gyroscopic/centrifugal bias of all bodies (book 7.6.1).
+
+    Through each body's twist Jacobians, so any body frame (centre of mass anywhere) and
+    any velocity choice work; the result is block diagonal.
+    """
+    t, q, v, qdot = coords.t, coords.q, coords.v, coords.qdot
+    nv = v.numel()
+    mass, bias = ca.SX.zeros(nv, nv), ca.SX.zeros(nv)
+    for name, body in model.bodies.items():
+        state = coords.bodies[name]
+        v_com = state.point_velocity(body.com)
+        omega = state.angular_velocity
+        j_t, j_r = ca.jacobian(v_com, v), ca.jacobian(omega, v)
+        a_com = ca.mtimes(ca.jacobian(v_com, q), qdot) + ca.jacobian(v_com, t)
+        alpha = ca.mtimes(ca.jacobian(omega, q), qdot) + ca.jacobian(omega, t)
+        inertia = ca.mtimes([state.rotation, ca.DM(body.inertia), state.rotation.T])
+        mass += body.mass * ca.mtimes(j_t.T, j_t) + ca.mtimes([j_r.T, inertia, j_r])
+        gyroscopic = ca.mtimes(inertia, alpha) + ca.cross(omega, ca.mtimes(inertia, omega))
+        bias += body.mass * ca.mtimes(j_t.T, a_com) + ca.mtimes(j_r.T, gyroscopic)
+    return mass, bias
+
+
+def constraint_row_names(model: Model) -> list[str]:
+    """Names of the rows of :func:`workbench.equations.joint_residuals`, in its order."""
+    names = []
+    for joint in model.joints.values():
+        kind = "fixed" if joint.drive is not None else joint.type
+        n = jk.CONSTRAINT_ROWS[model.kind].get(kind, 0)
+        names += [f"{joint.name}[{i}]" for i in range(n)]
+    for constraint in model.nonholonomic:
+        if isinstance(constraint, RollingSphere | RollingDisk):  # they have a contact height
+            names.append(f"{constraint.name}.height")
+    return names
+
+
+def joint_coordinates_from_poses(
+    model: Model, coords: AbsoluteCoordinates
+) -> dict[str, tuple[Any, Any]]:
+    """(q_joint, v_joint) of every joint carrying a spring or force, from the body poses.
+
+    Driven joints take the drive's values (their velocities do not depend on v, so a joint
+    force on them does no virtual work, as in joint-coordinate formalisms).
+    """
+    result = {}
+    for name in fm.joints_with_forces(model):
+        joint = model.joints[name]
+        if joint.drive is not None:
+            q_d, v_d, _ = jk.drive_values(joint, coords.t)
+            result[name] = (q_d, v_d)
+            continue
+        q_joint = fm.relative_joint_coordinates(model, coords.bodies, name)
+        v_joint = ca.mtimes(ca.jacobian(q_joint, coords.q), coords.qdot) + ca.jacobian(
+            q_joint, coords.t
+        )
+        result[name] = (q_joint, v_joint)
+    return result
+
+
+# ---- joint space -> absolute coordinates --------------------------------------------------
+
+
+def _constant_quaternion(matrix: np.ndarray) -> ca.DM:
+    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
+    return ca.DM([w, x, y, z])
+
+
+def joint_quaternion(joint: Joint, q: Any) -> Any:
+    """Euler parameters of C relative to P for joint coordinates q (cf. relative_transform)."""
+    a = jk.unit(joint.axis)
+    identity = ca.DM([1.0, 0.0, 0.0, 0.0])
+    kind = joint.type
+    if kind in ("prismatic", "fixed"):
+        return identity
+    if kind == "revolute":
+        return axis_angle_to_quaternion(a, q[0])
+    if kind == "cylindrical":
+        return axis_angle_to_quaternion(a, q[1])
+    if kind == "universal":
+        return quaternion_multiply(
+            axis_angle_to_quaternion(a, q[0]), axis_angle_to_quaternion(jk.unit(joint.axis2), q[1])
+        )
+    if kind == "spherical":
+        return q[0:4]
+    if kind == "planar":
+        return axis_angle_to_quaternion(np.array([0.0, 0.0, 1.0]), q[2])
+    if kind == "free":
+        return q[3:7]
+    raise ValueError(f"joint {joint.name!r}: unknown joint type {kind!r}")
+
+
+def joint_space_map(model: Model, tree: TreeKinematics) -> list[Any]:
+    """[q, v] absolute coordinates as expressions of the tree's (t, q, v).
+
+    Orientations are composed as quaternions along the tree (no matrix -> quaternion
+    conversion of symbols); planar angles are 2 atan2(p3, p0), continuous for |angle| <
+    2 pi.
+    """
+    quaternions: dict[str, Any] = {GROUND: ca.DM([1.0, 0.0, 0.0, 0.0])}
+    for joint in tree.order:
+        q_joint, _ = tree.joint_coordinates(joint)
+        p = quaternion_multiply(
+            quaternions[joint.parent], _constant_quaternion(joint.parent_frame.rotation)
+        )
+        p = quaternion_multiply(p, joint_quaternion(joint, q_joint))
+        child_inverse = _constant_quaternion(joint.child_frame.rotation.T)
+        quaternions[joint.child] = quaternion_multiply(p, child_inverse)
+    q_parts, v_parts = [], []
+    for name in model.bodies:
+        state, p = tree.bodies[name], quaternions[name]
+        if model.kind == "planar":
+            q_parts.append(
+                ca.vertcat(state.position[0], state.position[1], 2 * ca.atan2(p[3], p[0]))
+            )
+            v_parts.append(
+                ca.vertcat(state.velocity[0], state.velocity[1], state.angular_velocity[2])
+            )
+        else:
+            q_parts.append(ca.vertcat(state.position, p))
+            omega_body = ca.mtimes(state.rotation.T, state.angular_velocity)
+            v_parts.append(ca.vertcat(state.velocity, omega_body))
+    return [ca.vertcat(*q_parts), ca.vertcat(*v_parts)]
+
+
+# ---- redundancy -------------------------------------------------------------------------
+
+
+def independent_rows(matrix: np.ndarray, tolerance: float = RANK_TOLERANCE) -> list[int]:
+    """Indices of rows independent of the rows kept before them (greedy, in row order)."""
+    if matrix.size == 0:
+        return []
+    scale = float(np.linalg.norm(matrix, 2))
+    if scale == 0.0:
+        return []
+    basis = np.zeros((0, matrix.shape[1]))
+    kept = []
+    for i, row in enumerate(matrix):
+        residual = row.copy()
+        for _ in range(2):  # Gram-Schmidt twice: orthogonal to working precision
+            residual -= basis.T @ (basis @ residual)
+        norm = np.linalg.norm(residual)
+        if norm > tolerance * scale:
+            kept.append(i)
+            basis = np.vstack([basis, residual / norm])
+    return kept
+
+
+def assemble(tree: TreeKinematics, q0: np.ndarray, iterations: int = 50) -> np.ndarray | None:
+    """Tree coordinates near q0 on the closure constraints (Gauss-Newton, t = 0), or None."""
+    g, w_matrix = tree.closure_constraints, tree.velocity_constraint_matrix
+    n_h = tree.n_holonomic
+    if n_h == 0:
+        return q0
+    h_matrix = ca.jacobian(tree.qdot, tree.v)
+    evaluate = ca.Function(
+        "assemble",
+        [tree.t, tree.q],
+        [ca.densify(g), ca.densify(w_matrix[:n_h, :]), ca.densify(h_matrix)],
+    )
+    quaternion_slices = []
+    for joint in tree.free_joints:
+        q_slice, _ = tree.joint_slices[joint.name]
+        if joint.type == "spherical":
+            quaternion_slices.append(q_slice)
+        elif joint.type == "free":
+            quaternion_slices.append(slice(q_slice.start + 3, q_slice.stop))
+    q = q0.copy()
+    for _ in range(iterations):
+        g_value, w_value, h_value = (np.asarray(x, dtype=float) for x in evaluate(0.0, q))
+        g_value = g_value.reshape(-1)
+        if np.max(np.abs(g_value)) <= 1e-12:
+            return q
+        step, *_ = np.linalg.lstsq(w_value.reshape(n_h, -1), -g_value, rcond=None)
+        q = q + h_value.reshape(tree.nq, tree.nv) @ step
+        for s in quaternion_slices:
+            q[s] /= np.linalg.norm(q[s])
+    g_value = np.asarray(evaluate(0.0, q)[0], dtype=float).reshape(-1)
+    return q if np.max(np.abs(g_value)) <= 1e-9 else None
+
+
+def select_rows(
+    model: Model, tree: TreeKinematics, to_absolute: ca.Function, w_matrix: ca.Function
+) -> list[int]:
+    """Independent rows of W at the assembled neutral (or a perturbed) configuration.
+
+    The rank can only drop at singular configurations, so of the two the larger wins.
+    """
+    neutral = initial_joint_values(model, tree, {}, velocities=False)
+    perturbed = neutral + 0.1 * np.random.default_rng(0).standard_normal(neutral.size)
+    best: list[int] | None = None
+    for start in (neutral, perturbed):
+        q_joint = assemble(tree, start)
+        if q_joint is None:
+            continue
+        q_abs = np.asarray(to_absolute(0.0, q_joint, np.zeros(tree.nv))[0]).reshape(-1)
+        rows = independent_rows(np.asarray(w_matrix(0.0, q_abs)))
+        if best is None or len(rows) > len(best):
+            best = rows
+    if best is None:  # nothing assembles: use the neutral configuration as it is
+        q_abs = np.asarray(to_absolute(0.0, neutral, np.zeros(tree.nv))[0]).reshape(-1)
+        best = independent_rows(np.asarray(w_matrix(0.0, q_abs)))
+    return best
+
+
+# ---- the formalism ----------------------------------------------------------------------
+
+
+@formalism
+class AbsoluteDae(Formalism):
+    name = "absolute-dae"
+    summary = "Absolute body coordinates (Euler parameters), implicit joint constraints, DAE"
+    Options = AbsoluteOptions
+    capabilities = frozenset(
+        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic"}
+    )
+
+    @classmethod
+    def forms(cls, options: Any) -> dict[str, int]:
+        options = cls.parse_options(options)
+        forms = {"dae": options.index, "mechanical": 0}
+        if options.index == 1:
+            forms["ode"] = 0
+        return forms
+
+    def build(self, model: Model, options: Any = None) -> Equations:
+        options = self.parse_options(options)
+        model.validate()
+        self.check(model)
+        coords = AbsoluteCoordinates(model)
+        t, q, v, qdot = coords.t, coords.q, coords.v, coords.qdot
+        planar = coords.planar
+
+        mass, bias = newton_euler(model, coords)
+        applied = fm.generalized_forces(
+            model, t, v, coords.bodies, joint_coordinates_from_poses(model, coords)
+        )
+
+        g = ca.SX(joint_residuals(model, t, coords.bodies))
+        g_names = constraint_row_names(model)
+        assert g.numel() == len(g_names), "constraint row names out of step with residuals"
+        g_rate = ca.mtimes(ca.jacobian(g, q), qdot) + ca.jacobian(g, t)
+        nh_rows, nh_names = [], []
+        for constraint in model.nonholonomic:
+            _, rows = contact_rows(planar, coords.bodies[constraint.body], constraint)
+            nh_rows.append(rows)
+            nh_names += [f"{constraint.name}[{i}]" for i in range(rows.numel())]
+        velocity_rows = ca.vertcat(g_rate, *nh_rows)
+        names = g_names + nh_names
+
+        tree = TreeKinematics(model)
+        map_outputs = joint_space_map(model, tree)
+        notes = []
+        if not planar:
+            notes.append(
+                "velocities: origin velocity (inertial) and angular velocity in the body "
+                "frame; the Euler-parameter normalization p^T p = 1 is an invariant of "
+                "q' = H(p) omega (zero velocity Jacobian), not a constraint row: its drift "
+                "shows in the joint residuals"
+            )
+        if velocity_rows.numel():
+            to_absolute = ca.Function("to_absolute", [tree.t, tree.q, tree.v], map_outputs)
+            w_function = ca.Function("W", [t, q], [ca.densify(ca.jacobian(velocity_rows, v))])
+            kept = select_rows(model, tree, to_absolute, w_function)
+            removed = [names[i] for i in range(len(names)) if i not in kept]
+            if removed:
+                if options.redundant == "error":
+                    raise ModelError(
+                        f"model {model.name!r}: redundant constraint rows {', '.join(removed)} "
+                        "(they depend on the other joint constraints); remove or loosen the "
+                        "joints, or use the absolute-dae option redundant='remove'"
+                    )
+                notes.append(f"removed redundant constraint rows: {', '.join(removed)}")
+            n_h = g.numel()
+            kept_h = [i for i in kept if i < n_h]
+            g = g[kept_h] if kept_h else ca.SX(0, 1)
+            velocity_rows = velocity_rows[kept] if kept else ca.SX(0, 1)
+            names = [names[i] for i in kept]
+
+        system = MechanicalSystem(
+            t=t,
+            q=q,
+            v=v,
+            qdot=qdot,
+            mass=mass,
+            forces=applied - bias,
+            q_names=coords.q_names,
+            v_names=coords.v_names,
+            position_constraints=g,
+            velocity_constraints=velocity_rows,
+            constraint_names=names,
+        )
+        return build_equations(
+            self.name,
+            model,
+            system,
+            coords.bodies,
+            ([tree.t, tree.q, tree.v], map_outputs),
+            dae_index=options.index,
+            baumgarte=(options.baumgarte_alpha, options.baumgarte_beta),
+            ode=system.n_constraints == 0 or options.index == 1,
+            notes=notes,
+        )
