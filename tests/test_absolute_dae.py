@@ -248,14 +248,13 @@ def absolute_state(name: str, seed: int, t: float = 0.0, **options: object):
 
 def accelerations(mech, t: float, q: np.ndarray, v: np.ndarray):
     """(v', lambda) from [M W^T; W 0] [v'; lambda] = [Q; gamma]."""
-    (mass,) = mech.mass(t, q)
+    nv, nc = v.size, mech.n_constraints
+    mass = mech.mass(t, q)[0].reshape(nv, nv)  # one-velocity outputs come back flat
     (forces,) = mech.forces(t, q, v)
-    nc = mech.n_constraints
     if nc == 0:
         return np.linalg.solve(mass, forces), np.zeros(0)
-    (w_matrix,) = mech.velocity_matrix(t, q)
+    w_matrix = mech.velocity_matrix(t, q)[0].reshape(nc, nv)
     (gamma,) = mech.acceleration_rhs(t, q, v)
-    nv = mass.shape[0]
     kkt = np.block([[mass, w_matrix.T], [w_matrix, np.zeros((nc, nc))]])
     solution = np.linalg.solve(kkt, np.concatenate([forces, gamma]))
     return solution[:nv], solution[nv:]
