@@ -80,3 +80,11 @@ def test_same_motion_after_short_integration(name: str) -> None:
         end_frames.append(eq.observables.frames(t_end, solution.y[: q.size, -1]))
     for a, b in zip(*end_frames, strict=True):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-7)
+
+
+@pytest.mark.parametrize("name", COMPARED)
+def test_same_number_of_free_velocities(name: str) -> None:
+    """nv - (constraint rows) agrees: no row lost or invented; only the four-bar had removals."""
+    (minimal, _, _), (absolute, _, _) = states(name, 41, 0.0)
+    assert absolute.nv - absolute.n_constraints == minimal.nv - minimal.n_constraints
+    assert not any(note.startswith("removed") for note in absolute.notes)

@@ -294,16 +294,6 @@ def independent_rows(matrix: np.ndarray, tolerance: float = RANK_TOLERANCE) -> l
 
 def assemble(tree: TreeKinematics, q0: np.ndarray, iterations: int = 50) -> np.ndarray | None:
     """Tree coordinates near q0 on the closure constraints (Gauss-Newton, t = 0), or None."""
-    g, w_matrix = tree.closure_constraints, tree.velocity_constraint_matrix
-    n_h = tree.n_holonomic
-    if n_h == 0:
-        return q0
-    h_matrix = ca.jacobian(tree.qdot, tree.v)
-    evaluate = ca.Function(
-        "assemble",
-        [tree.t, tree.q],
-        [ca.densify(g), ca.densify(w_matrix[:n_h, :]), ca.densify(h_matrix)],
-    )
     quaternion_slices = []
     for joint in tree.free_joints:
         q_slice, _ = tree.joint_slices[joint.name]
@@ -312,6 +302,18 @@ def assemble(tree: TreeKinematics, q0: np.ndarray, iterations: int = 50) -> np.n
         elif joint.type == "free":
             quaternion_slices.append(slice(q_slice.start + 3, q_slice.stop))
     q = q0.copy()
+    for s in quaternion_slices:
+        q[s] /= np.linalg.norm(q[s])
+    g, w_matrix = tree.closure_constraints, tree.velocity_constraint_matrix
+    n_h = tree.n_holonomic
+    if n_h == 0:
+        return q
+    h_matrix = ca.jacobian(tree.qdot, tree.v)
+    evaluate = ca.Function(
+        "assemble",
+        [tree.t, tree.q],
+        [ca.densify(g), ca.densify(w_matrix[:n_h, :]), ca.densify(h_matrix)],
+    )
     for _ in range(iterations):
         g_value, w_value, h_value = (np.asarray(x, dtype=float) for x in evaluate(0.0, q))
         g_value = g_value.reshape(-1)
