@@ -42,15 +42,19 @@ def test_ode_and_dae_jacobians_match_finite_differences():
     y = state.y0(equations, "ode") + 0.01
     (jacobian,) = ode.jacobian(0.3, y)
     h = 1e-6
-    columns = [(ode.rhs(0.3, y + h * e)[0] - ode.rhs(0.3, y - h * e)[0]) / (2 * h)
-               for e in np.eye(y.size)]
+    columns = [
+        (ode.rhs(0.3, y + h * e)[0] - ode.rhs(0.3, y - h * e)[0]) / (2 * h) for e in np.eye(y.size)
+    ]
     assert np.allclose(jacobian, np.array(columns).T, rtol=1e-5, atol=1e-6)
     dae = equations.forms["dae"]
     y, yp = state.y0(equations, "dae"), state.yp0(equations, "dae")
     (combined,) = dae.jacobian(0.0, y, yp, 2.5)
     columns = [
-        (dae.residual(0.0, y + h * e, yp + 2.5 * h * e)[0]
-         - dae.residual(0.0, y - h * e, yp - 2.5 * h * e)[0]) / (2 * h)
+        (
+            dae.residual(0.0, y + h * e, yp + 2.5 * h * e)[0]
+            - dae.residual(0.0, y - h * e, yp - 2.5 * h * e)[0]
+        )
+        / (2 * h)
         for e in np.eye(y.size)
     ]
     assert np.allclose(combined, np.array(columns).T, rtol=1e-5, atol=1e-6)
@@ -69,8 +73,14 @@ def test_index1_ode_with_baumgarte_holds_the_loop_and_conserves_energy():
     problem, equations = build("slider-crank", index=1)
     state = consistent_initial_state(equations, problem)
     ode = equations.forms["ode"]
-    solution = solve_ivp(lambda t, y: ode.rhs(t, y)[0], (0, 1.0), state.y0(equations, "ode"),
-                         method="DOP853", rtol=1e-10, atol=1e-10)
+    solution = solve_ivp(
+        lambda t, y: ode.rhs(t, y)[0],
+        (0, 1.0),
+        state.y0(equations, "ode"),
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-10,
+    )
     nq = equations.nq
     energies, drift = [], []
     for t, y in zip(solution.t, solution.y.T, strict=True):
@@ -102,8 +112,15 @@ class ImpossibleLoop(Problem):
         model = Model("impossible", kind="planar")
         model.add_body("link", 1.0, com=(0.5, 0, 0), inertia=0.1)
         model.add_joint("hinge", "revolute", "ground", "link")
-        model.add_joint("pin", "revolute", "link", "ground", parent_frame=Frame.at(1.0),
-                        child_frame=Frame.at(5.0), cut=True)
+        model.add_joint(
+            "pin",
+            "revolute",
+            "link",
+            "ground",
+            parent_frame=Frame.at(1.0),
+            child_frame=Frame.at(5.0),
+            cut=True,
+        )
         return model
 
 

@@ -41,12 +41,14 @@ def test_relative_twist_is_the_derivative_of_the_transform(kind):
     r_minus, rot_minus = jk.relative_transform(joint, q - h * qdot)
     r, rot = jk.relative_transform(joint, q)
     velocity, omega = jk.relative_twist(joint, q, v)
-    assert np.allclose((np.ravel(r_plus) - np.ravel(r_minus)) / (2 * h), np.ravel(velocity),
-                       atol=1e-7)
+    assert np.allclose(
+        (np.ravel(r_plus) - np.ravel(r_minus)) / (2 * h), np.ravel(velocity), atol=1e-7
+    )
     rot_dot = (np.asarray(rot_plus) - np.asarray(rot_minus)) / (2 * h)
     omega_skew = rot_dot @ np.asarray(rot).T
-    assert np.allclose([omega_skew[2, 1], omega_skew[0, 2], omega_skew[1, 0]], np.ravel(omega),
-                       atol=1e-6)
+    assert np.allclose(
+        [omega_skew[2, 1], omega_skew[0, 2], omega_skew[1, 0]], np.ravel(omega), atol=1e-6
+    )
 
 
 @pytest.mark.parametrize("kind", SPATIAL + ["fixed"])
@@ -100,11 +102,17 @@ def test_planar_rows_of_a_planar_revolute_and_prismatic_joint():
     revolute = Joint("r", "revolute", "ground", "b")
     prismatic = Joint("p", "prismatic", "ground", "b", axis=np.array([1.0, 0, 0]))
     rot = Rotation.from_rotvec([0, 0, 0.3]).as_matrix()
-    assert np.allclose(jk.implicit_constraints(revolute, True, np.zeros(3), np.eye(3),
-                                               np.zeros(3), rot), 0)
+    assert np.allclose(
+        jk.implicit_constraints(revolute, True, np.zeros(3), np.eye(3), np.zeros(3), rot), 0
+    )
     # prismatic along x: sliding along x is allowed, sideways or rotating is not
-    assert np.allclose(jk.implicit_constraints(prismatic, True, np.zeros(3), np.eye(3),
-                                               np.array([0.7, 0, 0]), np.eye(3)), 0)
-    sideways = jk.implicit_constraints(prismatic, True, np.zeros(3), np.eye(3),
-                                       np.array([0.7, 0.1, 0]), rot)
+    assert np.allclose(
+        jk.implicit_constraints(
+            prismatic, True, np.zeros(3), np.eye(3), np.array([0.7, 0, 0]), np.eye(3)
+        ),
+        0,
+    )
+    sideways = jk.implicit_constraints(
+        prismatic, True, np.zeros(3), np.eye(3), np.array([0.7, 0.1, 0]), rot
+    )
     assert np.allclose(np.abs(sideways), [0.1, np.sin(0.3)])

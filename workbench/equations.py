@@ -268,8 +268,11 @@ def build_equations(
         stabilized = gamma - 2 * alpha * c - beta**2 * position_term
     forms: dict[str, Any] = {}
 
-    # mechanical form
-    w_matrix = ca.jacobian(c, v) if nc else ca.DM.zeros(0, nv)
+    # mechanical form; H and W do not depend on v, but MX Jacobians of call nodes keep v
+    # as a structural input: substitute it away so they are functions of (t, q)
+    zero_v = ca.DM.zeros(nv)
+    w_matrix = ca.substitute(ca.jacobian(c, v), v, zero_v) if nc else ca.DM.zeros(0, nv)
+    h_matrix = ca.substitute(ca.jacobian(system.qdot, v), v, zero_v)
     a = _sym_like(q, "a", nv)
     lam = _sym_like(q, "lam", nc)
     dyn = ca.mtimes(system.mass, a) - system.forces
@@ -279,7 +282,7 @@ def build_equations(
         mass=dense_function("mass", [t, q], [system.mass]),
         forces=dense_function("forces", [t, q, v], [system.forces]),
         qdot=dense_function("qdot", [t, q, v], [system.qdot]),
-        kinematics=dense_function("kinematics", [t, q], [ca.jacobian(system.qdot, v)]),
+        kinematics=dense_function("kinematics", [t, q], [h_matrix]),
         position_constraints=dense_function("g", [t, q], [g]),
         position_jacobian=dense_function("g_q", [t, q], [ca.jacobian(g, q)]),
         velocity_matrix=dense_function("W", [t, q], [w_matrix]),
@@ -375,8 +378,9 @@ def build_observables(
 ) -> Observables:
     """Poses, twists, energies and constraint residuals from symbolic body states."""
     names = list(model.bodies)
-    positions = ca.horzcat(*[bodies[b].position for b in names])
-    rotations = ca.horzcat(*[bodies[b].rotation for b in names])
+    zero_v = ca.DM.zeros(v.numel())  # poses depend on (t, q) only; see build_equations
+    positions = ca.substitute(ca.horzcat(*[bodies[b].position for b in names]), v, zero_v)
+    rotations = ca.substitute(ca.horzcat(*[bodies[b].rotation for b in names]), v, zero_v)
     twists = ca.horzcat(
         *[ca.vertcat(bodies[b].velocity, bodies[b].angular_velocity) for b in names]
     )
@@ -388,7 +392,7 @@ def build_observables(
         coordinates[joint] = fm.relative_joint_coordinates(model, bodies, joint)
     energy = ca.vertcat(fm.kinetic_energy(model, bodies),
                         fm.potential_energy(model, bodies, coordinates))
-    position_residual = joint_residuals(model, t, bodies)
+    position_residual = ca.substitute(joint_residuals(model, t, bodies), v, zero_v)
     velocity_residual = ca.mtimes(ca.jacobian(position_residual, q), qdot) + ca.jacobian(
         position_residual, t
     )
