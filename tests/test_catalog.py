@@ -1,0 +1,186 @@
+"""The whole problem catalog: every registered problem is valid, has the DOF and loops
+derived by hand, a consistent initial state, and (when conservative) conserves energy and
+its declared invariants along a tight minimal-ode run; analytic references agree with it.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from plugins.formalisms.minimal_ode import MinimalOde
+from workbench.initial import consistent_initial_state
+from workbench.registry import REGISTRY, get_problem
+from workbench.topology import analyze
+
+# name: (options, dof from the rank of the constraint Jacobian, independent loops),
+# derived by hand (Gruebler / counting velocities minus independent constraint rows).
+EXPECTED = {
+    "simple-pendulum": ({}, 1, 0),
+    "double-pendulum": ({}, 2, 0),
+    "slider-crank": ({}, 1, 1),
+    "heavy-top": ({}, 3, 0),
+    "torque-free-gyro": ({}, 3, 0),  # spherical joint: 3
+    "torque-free-symmetric-gyro": ({}, 3, 0),
+}
+
+RTOL = 1e-10
+ATOL = 1e-12
+SIMULATION_LIMIT = 5.0  # s of simulated time in tests
+
+
+def registered_problems() -> list[str]:
+    return [info.name for info in REGISTRY.list("problem") if info.plugin is not None]
+
+
+def test_every_registered_problem_has_expected_values() -> None:
+    assert sorted(registered_problems()) == sorted(EXPECTED)
+
+
+def make(name: str):
+    options, _, _ = EXPECTED[name]
+    return get_problem(name)(options)
+
+
+@functools.cache
+def simulate(name: str):
+    """(problem, equations, times, q, v) of a tight minimal-ode (index 1) run."""
+    problem = make(name)
+    equations = MinimalOde().build(problem.model(), {"index": 1})
+    state = consistent_initial_state(equations, problem)
+    ode = equations.forms["ode"]
+    t_end = min(problem.t_end, problem.t_start + SIMULATION_LIMIT)
+    times = np.linspace(problem.t_start, t_end, 41)
+    solution = solve_ivp(
+        lambda t, y: ode.rhs(t, y)[0],
+        (problem.t_start, t_end),
+        state.y0(equations, "ode"),
+        method="DOP853",
+        rtol=RTOL,
+        atol=ATOL,
+        t_eval=times,
+    )
+    assert solution.success, solution.message
+    nq = equations.nq
+    return problem, equations, times, solution.y[:nq].T, solution.y[nq:].T
+
+
+def observed(equations, t: float, q: np.ndarray, v: np.ndarray):
+    poses = equations.observables.poses(t, q)
+    (twists,) = equations.observables.twists(t, q, v)
+    return poses, np.reshape(twists, (-1, 6)) if twists.ndim == 1 else twists.T
+
+
+@pytest.mark.parametrize("name", list(EXPECTED))
+def test_model_valid_with_dof_and_loops(name: str) -> None:
+    problem = make(name)
+    assert problem.name == name and problem.summary and problem.source
+    assert problem.__doc__ or type(problem).__module__
+    model = problem.model()
+    assert model.validate() is model
+    _, dof, loops = EXPECTED[name]
+    topology = analyze(model)
+    assert topology.n_loops == loops
+    assert topology.dof == dof
+    assert topology.redundant_constraints == []
+    assert 0 < problem.t_end - problem.t_start <= 10.0
+
+
+@pytest.mark.parametrize("name", list(EXPECTED))
+def test_consistent_initial_state(name: str) -> None:
+    problem = make(name)
+    equations = MinimalOde().build(problem.model(), {"index": 1})
+    state = consistent_initial_state(equations, problem)
+    residuals = equations.observables.residuals(problem.t_start, state.q, state.v)
+    scale = max(1.0, float(np.abs(state.v).max(initial=0.0)))
+    for residual in residuals:
+        assert np.all(np.abs(residual) < 1e-9 * scale)
+    # the problem's own values are kept for the independent coordinates
+    given = problem.initial_joint_coordinates()
+    for joint, index in problem.independent_coordinates or ():
+        q_slice, _ = equations_slices(problem)[joint]
+        assert state.q_joint[q_slice][index] == pytest.approx(np.ravel(given[joint])[index])
+
+
+def equations_slices(problem):
+    from workbench.kinematics import TreeKinematics
+
+    return TreeKinematics(problem.model()).joint_slices
+
+
+def relative_drift(values: np.ndarray, scale: float) -> float:
+    return float(np.max(np.abs(values - values[0])) / scale)
+
+
+@pytest.mark.parametrize("name", list(EXPECTED))
+def test_energy_and_invariants_conserved(name: str) -> None:
+    problem = make(name)
+    if problem.conservative:
+        _, equations, times, q, v = simulate(name)
+        energies = energy_series(equations, times, q, v)
+        total = energies.sum(axis=1)
+        scale = max(np.abs(energies).max(), 1e-12)
+        assert relative_drift(total, scale) < 1e-6
+    invariants = problem.invariants()
+    if not invariants:
+        return
+    _, equations, times, q, v = simulate(name)
+    model = equations.model
+    for invariant in invariants:
+        values = []
+        for t, qi, vi in zip(times, q, v, strict=True):
+            poses, twists = observed(equations, t, qi, vi)
+            values.append(invariant.function(model, t, poses, twists))
+        values = np.array(values)
+        scale = max(np.abs(values).max(), invariant_scale(name, equations, times, q, v))
+        assert relative_drift(values, scale) < 1e-6, invariant.name
+
+
+def invariant_scale(name, equations, times, q, v) -> float:
+    """A floor for relative errors: kinetic-plus-potential energy scale of the run."""
+    energies = energy_series(equations, times, q, v)
+    return max(float(np.abs(energies).max()) * 1e-3, 1e-12)
+
+
+def energy_series(equations, times, q, v) -> np.ndarray:
+    """(n_times, 2) kinetic and potential energy along a run."""
+    energy = equations.observables.energy
+    return np.array([energy(t, qi, vi)[0] for t, qi, vi in zip(times, q, v, strict=True)])
+
+
+def quaternion_distance(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad) between orientations given as scalar-first quaternions."""
+    dot = np.abs(np.sum(p * q, axis=-1))
+    return 2 * np.arccos(np.clip(dot, -1.0, 1.0))
+
+
+@pytest.mark.parametrize("name", [n for n in EXPECTED if make(n).reference() is not None])
+def test_analytic_reference_agrees_with_a_tight_run(name: str) -> None:
+    problem, equations, times, q, v = simulate(name)
+    reference = problem.reference()
+    assert reference.kind == "analytic" and reference.description
+    expected = reference.poses(times)
+    poses = equations.observables.poses
+    computed = np.array([poses(t, qi) for t, qi in zip(times, q, strict=True)])
+    assert expected.shape == computed.shape
+    positions = np.isfinite(expected[..., :3])
+    assert positions.any()
+    assert np.max(np.abs(expected[..., :3][positions] - computed[..., :3][positions])) < 1e-6
+    rotations = np.all(np.isfinite(expected[..., 3:]), axis=-1)
+    if rotations.any():
+        angle = quaternion_distance(expected[..., 3:][rotations], computed[..., 3:][rotations])
+        assert np.max(angle) < 1e-6
+
+
+# ---- problem-specific checks ------------------------------------------------------
+
+
+def test_symmetric_gyro_reference_starts_at_the_initial_pose() -> None:
+    problem = get_problem("torque-free-symmetric-gyro")()
+    pose = problem.reference().poses(np.array([0.0]))[0, 0]
+    assert np.allclose(pose[3:], problem.initial_joint_coordinates()["pivot"])
+    assert math.isclose(np.linalg.norm(pose[3:]), 1.0)
