@@ -153,7 +153,7 @@ class Integrator:
         except Exception as error:  # noqa: BLE001 - a failed method is a result, not a crash
             trajectory.success = False
             last = traceback.format_exception_only(type(error), error)[-1].strip()
-            trajectory.message = trajectory.message or f"{type(error).__name__}: {last}"
+            trajectory.message = trajectory.message or last  # "Type: message"
         trajectory.stats.integrate_s = time.perf_counter() - wall - trajectory.stats.setup_s
         trajectory.stats.cpu_s = time.process_time() - cpu
         calls = {key: f.n_calls - before[key] for key, f in counted.items()}
