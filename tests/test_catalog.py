@@ -26,6 +26,9 @@ EXPECTED = {
     "heavy-top": ({}, 3, 0),
     "torque-free-gyro": ({}, 3, 0),  # spherical joint: 3
     "torque-free-symmetric-gyro": ({}, 3, 0),
+    "double-point-pendulum": ({}, 2, 0),  # two revolute joints
+    "point-mass-slider-crank": ({}, 1, 1),  # 3 tree joints - 2 rows of the cut revolute
+    "rotating-ring": ({}, 1, 0),  # driven revolute (0) + revolute (1)
 }
 
 RTOL = 1e-10
