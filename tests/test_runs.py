@@ -1,0 +1,177 @@
+"""The runner and metrics: run ids, stages, pairing, failures, physics of the metrics."""
+
+from __future__ import annotations
+
+import importlib
+import math
+import sys
+
+import numpy as np
+import pytest
+
+from workbench import metrics
+from workbench.registry import REGISTRY
+from workbench.runs import RunSpec, execute_run, normalized_spec
+
+
+@pytest.fixture
+def fake_plugins():
+    """Register tests/fake_plugins.py for one test, then restore the registry."""
+    REGISTRY.discover()
+    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
+    sys.modules.pop("tests.fake_plugins", None)
+    yield importlib.import_module("tests.fake_plugins")
+    for kind, entries in saved.items():
+        REGISTRY.entries[kind] = entries
+    sys.modules.pop("tests.fake_plugins", None)
+
+
+def spec(
+    problem="test-pendulum", formalism="minimal-ode", integrator="test-rk45", rtol=1e-6, **kwargs
+):
+    kwargs.setdefault("formalism_options", {"index": 1})
+    return RunSpec(problem, formalism, integrator, rtol, rtol * 1e-3, **kwargs)
+
+
+def test_run_id_is_stable_short_and_distinct() -> None:
+    a = RunSpec("p", "f", "i", 1e-6, 1e-9, {"x": 1, "y": 2})
+    same = RunSpec("p", "f", "i", 1e-6, 1e-9, {"y": 2, "x": 1})
+    assert a.run_id == same.run_id
+    assert len(a.run_id) == 16 and int(a.run_id, 16) >= 0
+    # the hash of the canonical JSON is part of the contract: it must not change
+    assert a.run_id == RunSpec.from_dict(a.to_dict()).run_id
+    others = [
+        RunSpec("q", "f", "i", 1e-6, 1e-9, {"x": 1, "y": 2}),
+        RunSpec("p", "g", "i", 1e-6, 1e-9, {"x": 1, "y": 2}),
+        RunSpec("p", "f", "j", 1e-6, 1e-9, {"x": 1, "y": 2}),
+        RunSpec("p", "f", "i", 1e-7, 1e-9, {"x": 1, "y": 2}),
+        RunSpec("p", "f", "i", 1e-6, 1e-10, {"x": 1, "y": 2}),
+        RunSpec("p", "f", "i", 1e-6, 1e-9, {"x": 1, "y": 3}),
+        RunSpec("p", "f", "i", 1e-6, 1e-9, {"x": 1, "y": 2}, {"index": 1}),
+        RunSpec("p", "f", "i", 1e-6, 1e-9, {"x": 1, "y": 2}, {}, {"a": 1}),
+    ]
+    ids = {a.run_id} | {o.run_id for o in others}
+    assert len(ids) == len(others) + 1
+
+
+def test_normalized_spec_fills_defaults(fake_plugins) -> None:
+    short = normalized_spec(spec(formalism_options={"index": 1}))
+    full = normalized_spec(spec(formalism_options=short.formalism_options))
+    assert short.run_id == full.run_id
+    assert short.formalism_options["baumgarte_alpha"] == 10.0
+    assert short.problem_options == {"initial_angle": 1.0}
+
+
+def test_conservative_run_errors_shrink_with_tolerance(fake_plugins, tmp_path) -> None:
+    rows = [execute_run(spec(rtol=rtol), reference_dir=tmp_path).row for rtol in (1e-3, 1e-6, 1e-9)]
+    assert [r["status"] for r in rows] == ["ok"] * 3
+    assert all(r["reference_kind"] == "computed" for r in rows)
+    energy = [r["energy_err_max"] for r in rows]
+    error = [r["err_max"] for r in rows]
+    assert energy[0] > energy[1] > energy[2]
+    assert error[0] > error[1] > error[2]
+    assert energy[2] < 1e-7 and error[2] < 1e-6 and energy[0] > 1e-6
+    assert rows[2]["scd"] > rows[0]["scd"] + 4
+    # minimal coordinates of a tree: no drift by construction
+    assert rows[2]["drift_pos_max"] < 1e-12 and math.isnan(rows[2]["drift_nh_max"])
+    assert all(r["n_rhs"] > 0 and r["n_steps"] > 0 for r in rows)
+    assert rows[0]["n_rhs"] < rows[2]["n_rhs"]
+    # stage times, versions, machine
+    for column in ("build_s", "init_s", "integrate_s", "metrics_s", "wall_s", "cpu_s"):
+        assert rows[2][column] >= 0
+    assert rows[1]["equations_cached"] and rows[1]["build_s"] < rows[0]["build_s"]
+    assert rows[0]["version_numpy"] == np.__version__ and rows[0]["cpu_count"] >= 1
+    # the reference is cached on disk
+    assert len(list(tmp_path.glob("test-pendulum-*.parquet"))) == 1
+
+
+def test_closed_loop_drift_and_energy_with_inline_rk4(fake_plugins, tmp_path) -> None:
+    coarse = execute_run(
+        spec(
+            "test-slider-crank", integrator="test-rk4", integrator_options={"steps_per_sample": 2}
+        ),
+        reference_dir=tmp_path,
+    )
+    fine = execute_run(
+        spec(
+            "test-slider-crank", integrator="test-rk4", integrator_options={"steps_per_sample": 20}
+        ),
+        reference_dir=tmp_path,
+    )
+    assert coarse.row["status"] == fine.row["status"] == "ok"
+    assert fine.row["drift_pos_max"] < coarse.row["drift_pos_max"]
+    assert fine.row["energy_err_max"] < coarse.row["energy_err_max"]
+    assert fine.row["drift_pos_max"] < 1e-5 and fine.row["energy_err_max"] < 1e-4
+    series = fine.series
+    assert list(series.columns) == metrics.SERIES_COLUMNS
+    assert len(series) == 26 and (series["run_id"] == fine.row["run_id"]).all()
+    assert series["drift_pos"].iloc[0] < 1e-10 and series["energy_err"].iloc[0] == 0
+
+
+def test_analytic_reference_and_non_conservative_notes(fake_plugins) -> None:
+    falling = execute_run(spec("test-falling", rtol=1e-8)).row
+    assert falling["reference_kind"] == "analytic"
+    assert falling["err_max"] < 1e-6 and falling["scd"] > 6
+    loose = execute_run(spec("test-nonconservative", rtol=1e-4)).row
+    assert loose["status"] == "ok" and math.isnan(loose["energy_err_max"])
+    assert "not computed" in loose["notes"]
+
+
+def test_skip_reasons(fake_plugins) -> None:
+    form = execute_run(spec(formalism_options={"index": 3})).row
+    assert form["status"] == "skipped"
+    assert "test-rk45 accepts" in form["message"] and "minimal-ode offers" in form["message"]
+    loops = execute_run(spec("test-slider-crank", formalism="test-trees-only")).row
+    assert loops["status"] == "skipped" and "loop-closing" in loops["message"]
+    picky = execute_run(spec(integrator="test-picky")).row
+    assert picky["status"] == "skipped" and "constant mass matrix" in picky["message"]
+
+
+@pytest.mark.parametrize(
+    "formalism, integrator, stage, text",
+    [
+        ("test-broken-build", "test-rk45", "build", "always fails to build"),
+        ("minimal-ode", "test-raise", "integrate", "the test integrator raised"),
+        ("minimal-ode", "test-nan", "integrate", "NaN"),
+    ],
+)
+def test_failures_are_rows(fake_plugins, formalism, integrator, stage, text) -> None:
+    result = execute_run(spec(formalism=formalism, integrator=integrator))
+    row = result.row
+    assert row["status"] == "failed" and row["stage"] == stage
+    assert text in row["message"] and row["message"].startswith(stage)
+    assert "\n" not in row["message"]
+
+
+def test_unknown_plugin_is_a_failed_row(fake_plugins) -> None:
+    row = execute_run(spec(integrator="no-such-integrator")).row
+    assert row["status"] == "failed" and "unknown integrator" in row["message"]
+
+
+def test_sink_receives_the_run(fake_plugins) -> None:
+    calls = []
+
+    class Sink:
+        def log_run(self, run_spec, equations, problem, trajectory, series):
+            calls.append(
+                (run_spec, equations.formalism, problem.name, trajectory.success, len(series))
+            )
+
+    run = spec()
+    result = execute_run(run, sink=Sink())
+    assert calls == [(run, "minimal-ode", "test-pendulum", True, 41)]
+    assert result.row["log_s"] >= 0
+
+
+def test_pose_error_and_length_scale() -> None:
+    reference = np.zeros((2, 1, 7))
+    reference[..., 0] = 2.0
+    reference[..., 3] = 1.0
+    poses = reference.copy()
+    poses[1, 0, 1] = 0.003  # 3 mm off
+    angle = 0.01
+    poses[1, 0, 3:] = [math.cos(angle / 2), 0, 0, math.sin(angle / 2)]
+    error = metrics.pose_error(poses, reference, 2.0)
+    assert error[0] == 0 and error[1] == pytest.approx(0.003 + 2.0 * angle)
+    assert metrics.length_scale(None, reference) == 2.0
+    assert metrics.length_scale(None, np.zeros((1, 1, 7))) == metrics.MIN_LENGTH_SCALE

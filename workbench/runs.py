@@ -1,0 +1,370 @@
+"""One run: (problem, formalism + options, integrator + options, rtol, atol) -> a result row.
+
+:func:`execute_run` goes through named stages, each timed (wall and CPU) and recorded as
+a column (MuJoCo-style pipeline stages):
+
+1. **pairing/build** — the problem's model; the formalism must support its features
+   (``Formalism.unsupported``), the integrator must accept a form the formalism offers
+   (``Integrator.select_form``); then the equations are built (``build_s``), or reused
+   from this process's cache keyed by (problem, problem options, formalism, formalism
+   options); finally ``Integrator.incompatibility`` may refuse them. A refusal makes the
+   row ``skipped`` with the reason in ``message``;
+2. **initial state** — :func:`~workbench.initial.consistent_initial_state` (``init_s``);
+3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
+   a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
+   the metrics are still taken over the part that was reached;
+4. **metrics** — :mod:`workbench.metrics` (``metrics_s``; obtaining the reference is
+   timed apart as ``reference_s``);
+5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
+   series)`` (e.g. a Rerun recording). Logging is passed in, never written into
+   formalisms or integrators.
+
+An exception at any stage makes the row ``failed`` with a one-line ``message`` naming the
+stage; :func:`execute_run` itself does not raise for a failing plugin.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from workbench import metrics as metrics_module
+from workbench import registry
+from workbench.errors import ConfigError
+
+STATUSES = ("ok", "failed", "skipped", "timeout")
+
+
+def canonical_json(value: Any) -> str:
+    """JSON with sorted keys and no spaces: the same value always gives the same text."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=True)
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What to run. Options are plain dicts of option name -> value (JSON-able)."""
+
+    problem: str
+    formalism: str
+    integrator: str
+    rtol: float
+    atol: float
+    problem_options: dict[str, Any] = field(default_factory=dict)
+    formalism_options: dict[str, Any] = field(default_factory=dict)
+    integrator_options: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["rtol"], data["atol"] = float(self.rtol), float(self.atol)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RunSpec:
+        return cls(**{k: data[k] for k in cls.__dataclass_fields__ if k in data})
+
+    @property
+    def run_id(self) -> str:
+        """Stable short id: the first 16 hex digits of sha256 of the canonical JSON."""
+        return hashlib.sha256(canonical_json(self.to_dict()).encode()).hexdigest()[:16]
+
+    def label(self) -> str:
+        def opts(options: dict[str, Any]) -> str:
+            return (
+                "(" + ",".join(f"{k}={v}" for k, v in sorted(options.items())) + ")"
+                if options
+                else ""
+            )
+
+        return (
+            f"{self.problem}{opts(self.problem_options)} / "
+            f"{self.formalism}{opts(self.formalism_options)} / "
+            f"{self.integrator}{opts(self.integrator_options)} @ rtol {self.rtol:g}"
+        )
+
+
+@dataclass
+class RunResult:
+    """A result row (see :data:`workbench.store.SCHEMA`) and the run's time series."""
+
+    row: dict[str, Any]
+    series: pd.DataFrame
+
+
+def normalized_spec(spec: RunSpec) -> RunSpec:
+    """``spec`` with every option table completed with defaults (checked: ConfigError).
+
+    Two specs that mean the same run then have the same id.
+    """
+    from workbench.options import options_dict
+
+    problem_options = options_dict(registry.get_problem(spec.problem)(spec.problem_options).options)
+    formalism_options = options_dict(
+        registry.get_formalism(spec.formalism).parse_options(spec.formalism_options)
+    )
+    integrator_options = options_dict(
+        registry.get_integrator(spec.integrator).parse_options(spec.integrator_options)
+    )
+    if not (spec.rtol > 0 and spec.atol > 0):
+        raise ConfigError(f"tolerances must be positive (rtol={spec.rtol}, atol={spec.atol})")
+    return RunSpec(
+        spec.problem,
+        spec.formalism,
+        spec.integrator,
+        float(spec.rtol),
+        float(spec.atol),
+        problem_options,
+        formalism_options,
+        integrator_options,
+    )
+
+
+# ---- equations cache (one per worker process) ---------------------------------------
+
+_EQUATIONS: dict[tuple[str, str, str, str], Any] = {}
+
+
+def clear_cache() -> None:
+    _EQUATIONS.clear()
+
+
+def cached_equations(spec: RunSpec, model: Any) -> tuple[Any, bool]:
+    """(equations, reused?) for the spec's problem and formalism (+ options)."""
+    key = (
+        spec.problem,
+        canonical_json(spec.problem_options),
+        spec.formalism,
+        canonical_json(spec.formalism_options),
+    )
+    if key in _EQUATIONS:
+        return _EQUATIONS[key], True
+    formalism = registry.get_formalism(spec.formalism)()
+    equations = formalism.build(model, spec.formalism_options)
+    _EQUATIONS[key] = equations
+    return equations, False
+
+
+# ---- the run -------------------------------------------------------------------------
+
+
+class _Stages:
+    """Wall and CPU time of named stages; ``current`` names the stage for error messages."""
+
+    def __init__(self) -> None:
+        self.wall: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}
+        self.current = "pairing"
+        self.running = False
+
+    def start(self, name: str) -> None:
+        self.current, self.running = name, True
+        self._wall, self._cpu = time.perf_counter(), time.process_time()
+
+    def stop(self) -> None:
+        if not self.running:
+            return
+        self.running = False
+        self.wall[self.current] = self.wall.get(self.current, 0.0) + (
+            time.perf_counter() - self._wall
+        )
+        self.cpu[self.current] = self.cpu.get(self.current, 0.0) + (time.process_time() - self._cpu)
+
+
+def base_row(spec: RunSpec) -> dict[str, Any]:
+    """The key columns of a row (options as canonical JSON text)."""
+    return {
+        "run_id": spec.run_id,
+        "problem": spec.problem,
+        "problem_options": canonical_json(spec.problem_options),
+        "formalism": spec.formalism,
+        "formalism_options": canonical_json(spec.formalism_options),
+        "integrator": spec.integrator,
+        "integrator_options": canonical_json(spec.integrator_options),
+        "rtol": float(spec.rtol),
+        "atol": float(spec.atol),
+    }
+
+
+def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[str, Any]:
+    """A row without metrics (skipped, timeout, a worker that died)."""
+    row = base_row(spec) | {"status": status, "message": message}
+    row.update(extra)
+    row.update(metrics_module.environment())
+    return row
+
+
+def _one_line(error: BaseException) -> str:
+    last = traceback.format_exception_only(type(error), error)[-1].strip()
+    lines = [line.strip() for line in last.splitlines() if line.strip()]
+    return " | ".join(lines) or type(error).__name__
+
+
+def execute_run(
+    spec: RunSpec, sink: Any = None, reference_dir: Path | str | None = None
+) -> RunResult:
+    """Run ``spec`` through the stages of the module docstring; never raises for a plugin.
+
+    ``reference_dir``: where computed references are cached on disk (usually
+    ``<out>/references``); None keeps them in memory only.
+    """
+    stages = _Stages()
+    row = base_row(spec)
+    row.update(
+        {"status": "ok", "message": "", "stage": "", "equations_cached": False, "reference_s": 0.0}
+    )
+    series = metrics_module.empty_series(spec.run_id)
+    state: dict[str, Any] = {}
+    try:
+        stages.start("pairing")
+        problem = registry.get_problem(spec.problem)(spec.problem_options)
+        formalism_class = registry.get_formalism(spec.formalism)
+        integrator = registry.get_integrator(spec.integrator)()
+        formalism_options = formalism_class.parse_options(spec.formalism_options)
+        integrator_options = integrator.parse_options(spec.integrator_options)
+        model = problem.model()
+        skip = _pairing(spec, model, formalism_class, formalism_options, integrator)
+        stages.stop()
+        if skip:
+            row.update(status="skipped", message=skip)
+        else:
+            stages.start("build")
+            equations, reused = cached_equations(spec, model)
+            row["equations_cached"] = reused
+            stages.stop()
+            form = integrator.select_form(formalism_class.forms(formalism_options))
+            reason = integrator.incompatibility(equations, integrator_options)
+            if reason:
+                row.update(status="skipped", message=f"integrator {spec.integrator!r}: {reason}")
+            else:
+                row["form"] = form
+                stages.start("initial state")
+                from workbench.initial import consistent_initial_state
+
+                initial = consistent_initial_state(equations, problem)
+                y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
+                stages.stop()
+
+                stages.start("integrate")
+                times = problem.sample_times()
+                trajectory = integrator.solve(
+                    equations, y0, yp0, times, spec.rtol, spec.atol, integrator_options, form
+                )
+                stages.stop()
+                state["trajectory"] = trajectory
+                _record_trajectory(row, trajectory)
+
+                stages.start("metrics")
+                reference = metrics_module.problem_reference(
+                    problem,
+                    spec.problem,
+                    spec.problem_options,
+                    times,
+                    Path(reference_dir) if reference_dir is not None else None,
+                )
+                row["reference_s"] = reference.seconds
+                metric_row, series = metrics_module.trajectory_metrics(
+                    spec.run_id,
+                    problem,
+                    equations,
+                    np.asarray(trajectory.times),
+                    np.atleast_2d(trajectory.y),
+                    trajectory.success,
+                    reference,
+                )
+                row.update(metric_row)
+                stages.stop()
+                stages.wall["metrics"] = max(0.0, stages.wall["metrics"] - reference.seconds)
+
+                if sink is not None:
+                    stages.start("log")
+                    sink.log_run(spec, equations, problem, trajectory, series)
+                    stages.stop()
+    except Exception as error:  # noqa: BLE001 - a failing plugin is a result, not a crash
+        stages.stop()
+        row.update(
+            status="failed", stage=stages.current, message=f"{stages.current}: {_one_line(error)}"
+        )
+    row["build_s"] = stages.wall.get("build", 0.0)
+    row["init_s"] = stages.wall.get("initial state", 0.0)
+    row["integrate_s"] = stages.wall.get("integrate", 0.0)
+    row["metrics_s"] = stages.wall.get("metrics", 0.0)
+    row["log_s"] = stages.wall.get("log", 0.0)
+    main_stages = ("pairing", "build", "initial state", "integrate", "metrics")
+    row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
+    row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
+    row.update(metrics_module.environment())
+    return RunResult(row, series)
+
+
+def _pairing(
+    spec: RunSpec, model: Any, formalism_class: type, formalism_options: Any, integrator: Any
+) -> str | None:
+    """Why this formalism and integrator cannot run this model, or None."""
+    from workbench.formalism import FEATURES
+
+    missing = formalism_class.unsupported(model)
+    if missing:
+        names = ", ".join(FEATURES.get(f, f) for f in sorted(missing))
+        return f"formalism {spec.formalism!r} does not support {names} (model {model.name!r})"
+    offered = formalism_class.forms(formalism_options)
+    if integrator.select_form(offered) is None:
+        accepts = ", ".join(f"{k} (index <= {v})" for k, v in integrator.accepts.items())
+        offers = ", ".join(f"{k} (index {v})" for k, v in offered.items())
+        return (
+            f"integrator {spec.integrator} accepts {{{accepts}}}; "
+            f"formalism {spec.formalism} offers {{{offers}}}"
+        )
+    return None
+
+
+def _record_trajectory(row: dict[str, Any], trajectory: Any) -> None:
+    stats = trajectory.stats
+    row.update(
+        {
+            "t_reached": float(trajectory.t_reached),
+            "n_rhs": int(stats.n_rhs),
+            "n_jac": int(stats.n_jac),
+            "n_steps": int(stats.n_steps),
+            "n_rejected": int(stats.n_rejected),
+            "n_lu": int(stats.n_lu),
+            "n_newton": int(stats.n_newton),
+        }
+    )
+    if not trajectory.success:
+        message = trajectory.message or "the integration failed"
+        row.update(
+            status="failed",
+            stage="integrate",
+            message=f"integrate: {message} (t reached {trajectory.t_reached:g})",
+        )
+
+
+def format_row(row: dict[str, Any]) -> list[tuple[str, str]]:
+    """(name, value) pairs of a row for printing (key columns and metrics)."""
+    shown = []
+    for key, value in row.items():
+        if isinstance(value, float):
+            text = "nan" if math.isnan(value) else f"{value:.4g}"
+        else:
+            text = str(value)
+        shown.append((key, text))
+    return shown
+
+
+__all__ = [
+    "RunResult",
+    "RunSpec",
+    "STATUSES",
+    "canonical_json",
+    "execute_run",
+    "normalized_spec",
+    "status_row",
+]

@@ -1,0 +1,293 @@
+"""The results store: one directory, crash-safe and resumable.
+
+Layout of an output directory ``<out>``::
+
+    <out>/runs/<run_id>.json         one result row (JSON object), see SCHEMA
+    <out>/series/<run_id>.parquet    its time series (metrics.SERIES_COLUMNS)
+    <out>/references/*.parquet       computed reference poses (see workbench.metrics)
+    <out>/results.parquet            all rows, consolidated at the end of a sweep
+    <out>/sweep.toml                 the sweep specification that was run (if any)
+
+Every file is written atomically: to a temporary file in the same directory, flushed,
+then renamed over the target with :func:`os.replace`. The series is written before the
+row, so a row file implies its series; a sweep killed at any moment leaves only whole
+files, and a resumed sweep skips the run ids whose row exists.
+
+:func:`load_results` returns a DataFrame whose first columns are always those of
+:data:`SCHEMA`, in that order (missing values NaN or empty), followed by any others.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import tempfile
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from workbench.errors import ConfigError
+
+# The stable schema of a result row: (column, meaning). Units: seconds, metres, radians.
+SCHEMA: list[tuple[str, str]] = [
+    ("run_id", "16 hex digits of sha256 of the run's canonical JSON"),
+    ("problem", "problem name"),
+    ("problem_options", "problem options, JSON"),
+    ("formalism", "formalism name"),
+    ("formalism_options", "formalism options, JSON"),
+    ("integrator", "integrator name"),
+    ("integrator_options", "integrator options, JSON"),
+    ("rtol", "relative tolerance"),
+    ("atol", "absolute tolerance"),
+    ("status", "ok | failed | skipped | timeout"),
+    ("message", "why a run failed, was skipped or timed out (one line)"),
+    ("stage", "the stage that failed: pairing, build, initial state, integrate, metrics, log"),
+    ("form", "the form the integrator consumed (ode, dae, mechanical)"),
+    ("t_reached", "last output time reached (s)"),
+    ("wall_s", "wall time of the run: build_s + init_s + integrate_s + metrics_s"),
+    ("cpu_s", "CPU time of the same stages"),
+    ("build_s", "wall time to build the equations (0 when reused from the worker's cache)"),
+    ("init_s", "wall time of the consistent initial state"),
+    ("integrate_s", "wall time of the integration"),
+    ("metrics_s", "wall time of the metrics (without computing the reference)"),
+    ("reference_s", "wall time to obtain the reference (0 when cached)"),
+    ("equations_cached", "the equations were reused from the worker's cache"),
+    ("n_rhs", "right-hand-side / residual evaluations"),
+    ("n_jac", "Jacobian evaluations"),
+    ("n_steps", "accepted steps"),
+    ("n_rejected", "rejected steps"),
+    ("n_lu", "LU factorizations (-1: not reported)"),
+    ("n_newton", "Newton iterations (-1: not reported)"),
+    ("reference_kind", "analytic | stored | computed | none"),
+    ("reference", "how the reference was obtained"),
+    ("length_scale", "L of the pose error (m)"),
+    ("err_max", "max over output times of the pose error (m)"),
+    ("err_end", "pose error at the end time (m)"),
+    ("scd", "-log10(err_end / length_scale)"),
+    ("drift_pos_max", "max position-level constraint residual"),
+    ("drift_pos_final", "final position-level constraint residual"),
+    ("drift_vel_max", "max velocity-level constraint residual"),
+    ("drift_vel_final", "final velocity-level constraint residual"),
+    ("drift_nh_max", "max nonholonomic constraint residual (NaN: none)"),
+    ("drift_nh_final", "final nonholonomic constraint residual"),
+    ("energy_err_max", "max relative energy error (NaN: not conservative)"),
+    ("energy_err_final", "final relative energy error"),
+    ("invariant_err_max", "max relative error of the problem's invariants"),
+    ("notes", "remarks on the metrics (e.g. what was not computed and why)"),
+    ("version_python", "Python version"),
+    ("version_numpy", "NumPy version"),
+    ("version_scipy", "SciPy version"),
+    ("version_casadi", "CasADi version"),
+    ("version_sksundae", "scikit-sundae version"),
+    ("version_workbench", "mbs-workbench version"),
+    ("machine", "platform of the machine that ran it"),
+    ("cpu_count", "CPUs of that machine"),
+]
+SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
+RUNS_DIR = "runs"
+SERIES_DIR = "series"
+RESULTS_FILE = "results.parquet"
+
+
+# ---- atomic writes -------------------------------------------------------------------
+
+
+def _atomic_write(path: Path, write: Any) -> None:
+    """Call ``write(temp_path)`` then rename the temporary file over ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(handle)
+    try:
+        write(temp_name)
+        with open(temp_name, "rb+") as written:
+            os.fsync(written.fileno())
+        os.replace(temp_name, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(temp_name)
+        raise
+
+
+def write_json_atomic(data: dict[str, Any], path: Path) -> None:
+    text = json.dumps(_jsonable(data), indent=1, allow_nan=True)
+
+    def write(name: str) -> None:
+        with open(name, "w", encoding="utf-8") as out:
+            out.write(text)
+
+    _atomic_write(path, write)
+
+
+def write_parquet_atomic(frame: pd.DataFrame, path: Path) -> None:
+    _atomic_write(path, lambda name: frame.to_parquet(name, index=False))
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON values (NumPy scalars to Python; inf and NaN kept, JSON5 style)."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):
+        return value.item()
+    return value
+
+
+# ---- the store -----------------------------------------------------------------------
+
+
+def row_path(out: Path, run_id: str) -> Path:
+    return Path(out) / RUNS_DIR / f"{run_id}.json"
+
+
+def series_path(out: Path, run_id: str) -> Path:
+    return Path(out) / SERIES_DIR / f"{run_id}.parquet"
+
+
+def write_run(out: Path, row: dict[str, Any], series: pd.DataFrame | None) -> None:
+    """Persist one run: the series first, then the row (so a row implies its series)."""
+    run_id = row["run_id"]
+    if series is not None:
+        write_parquet_atomic(series, series_path(out, run_id))
+    write_json_atomic(row, row_path(out, run_id))
+
+
+def read_row(path: Path) -> dict[str, Any] | None:
+    """One row file, or None if it is unreadable (truncated, corrupt, not an object)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or not isinstance(data.get("run_id"), str):
+        return None
+    return data
+
+
+def completed_run_ids(out: Path) -> set[str]:
+    """Run ids with a readable row file (what a resumed sweep skips)."""
+    directory = Path(out) / RUNS_DIR
+    if not directory.is_dir():
+        return set()
+    return {p.stem for p in directory.glob("*.json") if read_row(p) is not None}
+
+
+def frame_from_rows(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
+    """Rows as a DataFrame with the SCHEMA columns first (missing ones NaN)."""
+    frame = pd.DataFrame(list(rows))
+    for column in SCHEMA_COLUMNS:
+        if column not in frame.columns:
+            frame[column] = math.nan
+    extra = [c for c in frame.columns if c not in SCHEMA_COLUMNS]
+    frame = frame[SCHEMA_COLUMNS + extra]
+    if len(frame):
+        frame = frame.sort_values(
+            ["problem", "formalism", "integrator", "rtol", "run_id"],
+            kind="stable",
+            ignore_index=True,
+        )
+    return frame
+
+
+def _parquet_safe(frame: pd.DataFrame) -> pd.DataFrame:
+    """Object columns of mixed types (e.g. NaN in a text column) as strings for Parquet."""
+    frame = frame.copy()
+    for column in frame.columns:
+        if frame[column].dtype == object:
+            frame[column] = frame[column].map(
+                lambda v: (
+                    ""
+                    if v is None or (isinstance(v, float) and math.isnan(v))
+                    else v
+                    if isinstance(v, str)
+                    else json.dumps(v)
+                )
+            )
+    return frame
+
+
+def consolidate(out: Path) -> Path:
+    """Write ``<out>/results.parquet`` (atomically) from the row files; return its path."""
+    frame = load_results(out)
+    path = Path(out) / RESULTS_FILE
+    write_parquet_atomic(_parquet_safe(frame), path)
+    return path
+
+
+def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
+    """All result rows of an output directory (``runs/*.json``), or of a results.parquet.
+
+    The columns start with :data:`SCHEMA_COLUMNS` in that order. A row file that cannot
+    be read (truncated or corrupt) is left out with a warning naming it; the names of such
+    files are in ``frame.attrs["unreadable"]``.
+    """
+    path = Path(path)
+    if path.is_file():
+        try:
+            frame = pd.read_parquet(path)
+        except Exception as error:  # noqa: BLE001 - pyarrow raises several kinds
+            raise ConfigError(f"cannot read results file {path}: {error}") from None
+        return frame_from_rows(frame.to_dict("records")) if len(frame) else frame_from_rows([])
+    directory = path / RUNS_DIR
+    if not directory.is_dir():
+        if (path / RESULTS_FILE).is_file():
+            return load_results(path / RESULTS_FILE)
+        raise ConfigError(
+            f"no results in {path}: expected a directory with runs/*.json "
+            "(the output of `workbench sweep`) or a results.parquet file"
+        )
+    rows, unreadable = [], []
+    for row_file in sorted(directory.glob("*.json")):
+        row = read_row(row_file)
+        if row is None:
+            unreadable.append(str(row_file))
+        else:
+            rows.append(row)
+    if unreadable:
+        warnings.warn(
+            f"{len(unreadable)} unreadable result file(s) left out (re-run the sweep to "
+            f"redo them): {', '.join(unreadable[:5])}",
+            stacklevel=2,
+        )
+    frame = frame_from_rows(rows)
+    frame.attrs["unreadable"] = unreadable
+    return frame
+
+
+def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.DataFrame:
+    """Time series of one run (``run_id``) or of all runs of an output directory."""
+    directory = Path(path) / SERIES_DIR
+    if run_id is not None:
+        file = directory / f"{run_id}.parquet"
+        if not file.is_file():
+            raise ConfigError(f"no time series for run {run_id!r} in {path}")
+        return pd.read_parquet(file)
+    frames = [pd.read_parquet(f) for f in sorted(directory.glob("*.parquet"))]
+    frames = [f for f in frames if len(f)]
+    if not frames:
+        from workbench.metrics import empty_series
+
+        return empty_series("")
+    return pd.concat(frames, ignore_index=True)
+
+
+__all__ = [
+    "SCHEMA",
+    "SCHEMA_COLUMNS",
+    "completed_run_ids",
+    "consolidate",
+    "frame_from_rows",
+    "load_results",
+    "load_series",
+    "read_row",
+    "row_path",
+    "series_path",
+    "write_json_atomic",
+    "write_parquet_atomic",
+    "write_run",
+]
