@@ -28,7 +28,9 @@ singular direction along p). With omega_b, d/dt (p^T p) = 2 p^T H(p) omega_b = 0
 identically: the normalization has a zero velocity Jacobian, so it is *not* a constraint
 row (it would make W rank deficient) but an invariant of the kinematics q' = H v. Its
 numerical drift shows in the joint residuals observable (R(p) is not orthogonal when
-|p| != 1).
+|p| != 1) wherever a joint constrains orientation or sits off the body frame origin (a
+spherical joint at the origin does not see it). Nothing renormalizes p: an integrator
+that wants to may project |p| = 1 between steps.
 
 Redundant constraints (a planar four-bar built with spatial revolute joints, all axes
 parallel) are found at build time: W is evaluated at the assembled neutral configuration
