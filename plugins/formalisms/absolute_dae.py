@@ -60,27 +60,10 @@ from workbench.formalism import Formalism
 from workbench.kinematics import BodyState, TreeKinematics, contact_rows, initial_joint_values
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
 from workbench.registry import formalism
+from workbench.rotations import axis_angle_to_quaternion, quaternion_multiply
 
 RANK_TOLERANCE = 1e-9
 """Singular values below this fraction of the largest one count as zero (redundancy)."""
-
-try:  # being added to workbench.rotations; fall back to the two formulas (book 3.7)
-    from workbench.rotations import axis_angle_to_quaternion, quaternion_multiply
-except ImportError:  # pragma: no cover - depends on the core version
-
-    def axis_angle_to_quaternion(axis: Any, angle: Any) -> Any:
-        """(cos(angle/2), sin(angle/2) axis) of a unit axis."""
-        c, s = ca.cos(angle / 2), ca.sin(angle / 2)
-        return ca.vertcat(c, s * axis[0], s * axis[1], s * axis[2])
-
-    def quaternion_multiply(p: Any, q: Any) -> Any:
-        """p * q, scalar first: R(p * q) = R(p) R(q)."""
-        return ca.vertcat(
-            p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
-            p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2],
-            p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1],
-            p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0],
-        )
 
 
 @dataclass(frozen=True)
