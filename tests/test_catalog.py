@@ -30,6 +30,7 @@ EXPECTED = {
     "point-mass-slider-crank": ({}, 1, 1),  # 3 tree joints - 2 rows of the cut revolute
     "rotating-ring": ({}, 1, 0),  # driven revolute (0) + revolute (1)
     "rolling-pendulum": ({}, 2, 0),  # planar 3 + revolute 1 - height 1 - rolling 1
+    "two-joint-robot": ({}, 2, 0),
 }
 
 RTOL = 1e-10
