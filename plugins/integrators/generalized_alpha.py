@@ -141,50 +141,53 @@ class GeneralizedAlpha(Integrator):
         reached = [t]
         h = default_step(times, options.step)
         h_min = 1e-14 * max(1.0, abs(times[-1]))
-        for t_out in times[1:]:
-            if options.adaptive:
-                while t < t_out:
-                    h_try = min(h, t_out - t)
-                    if t_out - t - h_try < 1e-12 * abs(t_out):
-                        h_try = t_out - t
-                    try:
-                        new = self._step(state, t, h_try, stats)
-                    except _NewtonFailure as failure:
-                        stats.n_rejected += 1
-                        h = h_try / 4
-                        if h < h_min:
+        try:
+            for t_out in times[1:]:
+                if options.adaptive:
+                    while t < t_out:
+                        h_try = min(h, t_out - t)
+                        if t_out - t - h_try < 1e-12 * abs(t_out):
+                            h_try = t_out - t
+                        try:
+                            new = self._step(state, t, h_try, stats)
+                        except _NewtonFailure as failure:
+                            stats.n_rejected += 1
+                            h = h_try / 4
+                            if h < h_min:
+                                raise IntegrationError(str(failure)) from None
+                            continue
+                        error = self._error(state, new, t, h_try, task.rtol, task.atol)
+                        factor = min(4.0, max(0.2, 0.9 * error ** (-1 / 3))) if error > 0 else 4.0
+                        if error <= 1.0:
+                            clipped = h_try < h
+                            state = new
+                            t = float(t_out) if h_try == t_out - t else t + h_try
+                            stats.n_steps += 1
+                            # a step shortened to hit an output time does not shrink the next one
+                            h = max(h, h_try * factor) if clipped else h_try * factor
+                        else:
+                            stats.n_rejected += 1
+                            h = h_try * factor
+                            if h < h_min:
+                                raise IntegrationError(
+                                    f"generalized-alpha: step size {h:.3g} s underflow "
+                                    f"at t = {t:.6g}"
+                                )
+                else:
+                    n_steps = max(1, math.ceil((t_out - t) / h - 1e-9))
+                    h_interval = (t_out - t) / n_steps
+                    t_start = t
+                    for k in range(n_steps):
+                        try:
+                            state = self._step(state, t, h_interval, stats)
+                        except _NewtonFailure as failure:
                             raise IntegrationError(str(failure)) from None
-                        continue
-                    error = self._error(state, new, t, h_try, task.rtol, task.atol)
-                    factor = min(4.0, max(0.2, 0.9 * error ** (-1 / 3))) if error > 0 else 4.0
-                    if error <= 1.0:
-                        clipped = h_try < h
-                        state = new
-                        t = float(t_out) if h_try == t_out - t else t + h_try
                         stats.n_steps += 1
-                        # a step shortened to hit an output time does not shrink the next one
-                        h = max(h, h_try * factor) if clipped else h_try * factor
-                    else:
-                        stats.n_rejected += 1
-                        h = h_try * factor
-                        if h < h_min:
-                            raise IntegrationError(
-                                f"generalized-alpha: step size {h:.3g} s underflow at t = {t:.6g}"
-                            )
-            else:
-                n_steps = max(1, math.ceil((t_out - t) / h - 1e-9))
-                h_interval = (t_out - t) / n_steps
-                t_start = t
-                for k in range(n_steps):
-                    try:
-                        state = self._step(state, t, h_interval, stats)
-                    except _NewtonFailure as failure:
-                        raise IntegrationError(str(failure)) from None
-                    stats.n_steps += 1
-                    t = t_start + (k + 1) * h_interval
-                t = float(t_out)
-            rows.append(np.concatenate([state.q, state.v, state.lam]))
-            reached.append(float(t_out))
+                        t = t_start + (k + 1) * h_interval
+                    t = float(t_out)
+                rows.append(np.concatenate([state.q, state.v, state.lam]))
+                reached.append(float(t_out))
+        finally:  # keep what was reached, also when a step fails
             trajectory.y = np.array(rows)
             trajectory.times = np.array(reached)
 
