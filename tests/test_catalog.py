@@ -17,8 +17,9 @@ from workbench.initial import consistent_initial_state
 from workbench.registry import REGISTRY, get_problem
 from workbench.topology import analyze
 
-# name: (options, dof from the rank of the constraint Jacobian, independent loops),
+# case: (options, dof from the rank of the constraint Jacobian, independent loops),
 # derived by hand (Gruebler / counting velocities minus independent constraint rows).
+# A case is a problem name, with "[variant]" appended for non-default options.
 EXPECTED = {
     "simple-pendulum": ({}, 1, 0),
     "double-pendulum": ({}, 2, 0),
@@ -31,6 +32,9 @@ EXPECTED = {
     "rotating-ring": ({}, 1, 0),  # driven revolute (0) + revolute (1)
     "rolling-pendulum": ({}, 2, 0),  # planar 3 + revolute 1 - height 1 - rolling 1
     "two-joint-robot": ({}, 2, 0),
+    "ball-on-rotating-plane": ({}, 3, 0),  # free 6 - height 1 - rolling 2
+    "knife-edge-cart": ({}, 2, 0),  # planar 3 - knife edge 1
+    "knife-edge-cart[sleigh]": ({"com_offset": 0.1}, 2, 0),
 }
 
 RTOL = 1e-10
@@ -42,13 +46,17 @@ def registered_problems() -> list[str]:
     return [info.name for info in REGISTRY.list("problem") if info.plugin is not None]
 
 
+def problem_name(case: str) -> str:
+    return case.split("[")[0]
+
+
 def test_every_registered_problem_has_expected_values() -> None:
-    assert sorted(registered_problems()) == sorted(EXPECTED)
+    assert sorted(registered_problems()) == sorted({problem_name(c) for c in EXPECTED})
 
 
-def make(name: str):
-    options, _, _ = EXPECTED[name]
-    return get_problem(name)(options)
+def make(case: str):
+    options, _, _ = EXPECTED[case]
+    return get_problem(problem_name(case))(options)
 
 
 @functools.cache
@@ -83,7 +91,7 @@ def observed(equations, t: float, q: np.ndarray, v: np.ndarray):
 @pytest.mark.parametrize("name", list(EXPECTED))
 def test_model_valid_with_dof_and_loops(name: str) -> None:
     problem = make(name)
-    assert problem.name == name and problem.summary and problem.source
+    assert problem.name == problem_name(name) and problem.summary and problem.source
     assert problem.__doc__ or type(problem).__module__
     model = problem.model()
     assert model.validate() is model
@@ -159,8 +167,14 @@ def energy_series(equations, times, q, v) -> np.ndarray:
 
 def quaternion_distance(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Rotation angle (rad) between orientations given as scalar-first quaternions."""
-    dot = np.abs(np.sum(p * q, axis=-1))
-    return 2 * np.arccos(np.clip(dot, -1.0, 1.0))
+    conjugate = p * np.array([1.0, -1.0, -1.0, -1.0])
+    scalar = np.sum(conjugate * q, axis=-1)  # scalar part of conj(p) q
+    vector = (
+        conjugate[..., :1] * q[..., 1:]
+        + q[..., :1] * conjugate[..., 1:]
+        + np.cross(conjugate[..., 1:], q[..., 1:])
+    )
+    return 2 * np.arctan2(np.linalg.norm(vector, axis=-1), np.abs(scalar))
 
 
 @pytest.mark.parametrize("name", [n for n in EXPECTED if make(n).reference() is not None])
