@@ -1,0 +1,304 @@
+"""CasADi's own integrators (``casadi.integrator``) on the symbolic equations.
+
+The equations' CasADi Functions (``FastFunction.function``) are called on fresh
+symbols to rebuild expressions, and ``casadi.integrator(name, plugin, dae, t0, tout,
+opts)`` returns the states at every output time.
+
+* ``casadi-cvodes``: CVODES (BDF or Adams, option ``method``) on the ``ode`` form.
+* ``casadi-idas``: IDAS on the ``dae`` form of index 0 or 1, rewritten as the
+  semi-explicit index-1 system CasADi requires: with the differential components
+  x = y_d and z = [w, y_a],
+
+      x' = w,    0 = F(t, y(x, y_a), y'(w, 0)),
+
+  whose Jacobian with respect to z, [dF/dy_d' dF/dy_a], is nonsingular exactly when
+  F has index <= 1 (for the mechanical index-1 form it is [I 0 0; 0 M W^T; 0 W 0]).
+  The multipliers come out at every output time with the state.
+* ``casadi-collocation``: fixed-step Radau IIA collocation (``collocation`` plugin,
+  order 2 ``degree`` - 1) on the ``ode`` form. Its number of steps is
+  ``intervals_per_output`` per output interval, or, when that is 0, derived from rtol:
+  steps no longer than rtol^(1 / order) s.
+
+Statistics come from ``Function.stats()``: CVODES/IDAS steps, right-hand-side
+evaluations, error-test failures (rejected steps), Newton iterations and linear setups
+(CasADi re-evaluates the Jacobian at each setup, so that is also ``n_jac``); the
+collocation plugin reports only its steps.
+
+Failures: the SUNDIALS plugins raise on a failed step; the time reached is taken from
+the stats, and the integration is repeated on the output times before it to return
+them (cheap, and only on failure). The fixed-step plugins do not report a failed
+implicit step at all (CasADi keeps the last state and returns success), so a stalled
+state — unchanged over an output interval although its derivative is not zero, or a
+non-finite derivative at an output — is reported as the failure.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
+
+import casadi as ca
+import numpy as np
+
+from workbench.errors import ConfigError
+from workbench.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.registry import integrator
+
+
+def _symbols_for(*functions: ca.Function) -> type:
+    """SX when every function is an SXFunction (expressions stay small), else MX."""
+    return ca.SX if all(f.is_a("SXFunction") for f in functions) else ca.MX
+
+
+def _ode_dae(task: IntegrationTask) -> tuple[dict[str, Any], int]:
+    """{t, x, ode} from the ode form; the number of differential states."""
+    function = task.form.rhs.function
+    sym = _symbols_for(function)
+    t, y = sym.sym("t"), sym.sym("y", task.form.n)
+    return {"t": t, "x": y, "ode": function(t, y)}, task.form.n
+
+
+def _semi_explicit_dae(task: IntegrationTask) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+    """{t, x, z, ode, alg} from the dae form (index <= 1): x' = w, 0 = F(t, y, y')."""
+    form = task.form
+    function = form.residual.function
+    sym = _symbols_for(function)
+    differential = np.flatnonzero(~form.algebraic)
+    algebraic = np.flatnonzero(form.algebraic)
+    t = sym.sym("t")
+    x, w, y_a = (
+        sym.sym("x", differential.size),
+        sym.sym("w", differential.size),
+        sym.sym("y_a", algebraic.size),
+    )
+    y_parts: list[Any] = [None] * form.n
+    yp_parts: list[Any] = [sym(0)] * form.n
+    for i, j in enumerate(differential):
+        y_parts[j], yp_parts[j] = x[i], w[i]
+    for i, j in enumerate(algebraic):
+        y_parts[j] = y_a[i]
+    residual = function(t, ca.vertcat(*y_parts), ca.vertcat(*yp_parts))
+    dae = {"t": t, "x": x, "z": ca.vertcat(w, y_a), "ode": w, "alg": residual}
+    return dae, differential, algebraic
+
+
+def _error_line(error: Exception) -> str:
+    """The informative line of a CasADi exception ('... returned "CV_TOO_MUCH_WORK" ...')."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    for line in reversed(lines):
+        if "returned" in line or "failed" in line.lower():
+            return line.split(": ", 1)[-1] if ".cpp:" in line else line
+    return lines[-1] if lines else type(error).__name__
+
+
+class CasadiBase(Integrator):
+    """Builds the dae dictionary, calls casadi.integrator and fills the trajectory."""
+
+    plugin: ClassVar[str] = ""
+
+    def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
+        raise NotImplementedError
+
+    def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def initial(self, task: IntegrationTask, layout: Any) -> dict[str, np.ndarray]:
+        return {"x0": task.y0}
+
+    def states(self, result: dict[str, Any], layout: Any, n: int) -> np.ndarray:
+        """(n_times, n) states from the integrator's xf (and zf) columns."""
+        return np.asarray(result["xf"]).reshape(n, -1).T
+
+    def run(self, task: IntegrationTask, dae: dict, layout: Any, times: np.ndarray) -> Any:
+        function = ca.integrator(
+            self.name.replace("-", "_"),
+            self.plugin,
+            dae,
+            float(times[0]),
+            list(map(float, times)),
+            self.plugin_options(task),
+        )
+        try:
+            return function, function(**self.initial(task, layout)), None
+        except RuntimeError as error:
+            return function, None, error
+
+    def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
+        dae, layout = self.dae(task)
+        n = task.y0.size
+        function, result, error = self.run(task, dae, layout, task.times)
+        stats = function.stats()
+        self.fill_stats(trajectory, stats)
+        times = task.times
+        if error is not None:
+            trajectory.success = False
+            t_failed = float(stats.get("tcur", times[0]))
+            trajectory.message = f"{self.name}: at t = {t_failed:g}: {_error_line(error)}"
+            times = times[times <= t_failed]
+            result = None
+            if times.size >= 2:  # repeat up to the last output time reached
+                _, result, _ = self.run(task, dae, layout, times)
+        if result is None:
+            trajectory.times, trajectory.y = task.times[:1], task.y0[None, :].copy()
+            return
+        trajectory.times, trajectory.y = times, self.states(result, layout, n)
+
+    def fill_stats(self, trajectory: Trajectory, stats: dict[str, Any]) -> None:
+        s = trajectory.stats
+        s.n_steps = int(stats.get("nsteps", 0))
+        s.n_rhs = int(stats.get("nfevals", 0))
+        s.n_rejected = int(stats.get("netfails", -1))
+        s.n_newton = int(stats.get("nniters", -1))
+        s.n_lu = int(stats.get("nlinsetups", -1))
+        s.n_jac = max(s.n_lu, 0)
+
+
+@dataclass(frozen=True)
+class SundialsOptions:
+    max_num_steps: int = 10_000  # steps towards each output time
+    max_step: float = 0.0  # s; 0 = unbounded
+
+    def __post_init__(self) -> None:
+        if self.max_num_steps < 1:
+            raise ConfigError(f"max_num_steps must be >= 1, not {self.max_num_steps}")
+        if self.max_step < 0:
+            raise ConfigError(f"max_step must be >= 0 s (0 = unbounded), not {self.max_step}")
+
+
+def _sundials_options(task: IntegrationTask) -> dict[str, Any]:
+    options = {
+        "reltol": task.rtol,
+        "abstol": task.atol,
+        "max_num_steps": task.options.max_num_steps,
+        "disable_internal_warnings": True,
+        "show_eval_warnings": False,  # one line per failed evaluation costs more than it
+    }
+    if task.options.max_step:
+        options["max_step_size"] = task.options.max_step
+    return options
+
+
+@dataclass(frozen=True)
+class CvodesOptions(SundialsOptions):
+    method: Literal["bdf", "adams"] = "bdf"
+
+
+@integrator
+class CasadiCvodes(CasadiBase):
+    name = "casadi-cvodes"
+    summary = "CasADi CVODES (BDF or Adams) on the symbolic ode form"
+    Options = CvodesOptions
+    accepts: ClassVar[dict[str, int]] = {"ode": 0}
+    plugin = "cvodes"
+
+    def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
+        dae, n = _ode_dae(task)
+        return dae, n
+
+    def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
+        method = task.options.method
+        return {**_sundials_options(task), "linear_multistep_method": method}
+
+
+@integrator
+class CasadiIdas(CasadiBase):
+    name = "casadi-idas"
+    summary = "CasADi IDAS on the dae form (index <= 1) as x' = w, 0 = F(t, x, y_a, w)"
+    Options = SundialsOptions
+    accepts: ClassVar[dict[str, int]] = {"dae": 1}
+    plugin = "idas"
+
+    def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
+        dae, differential, algebraic = _semi_explicit_dae(task)
+        return dae, (differential, algebraic)
+
+    def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
+        return {**_sundials_options(task), "calc_ic": False}
+
+    def initial(self, task: IntegrationTask, layout: Any) -> dict[str, np.ndarray]:
+        differential, algebraic = layout
+        z0 = np.concatenate([task.yp0[differential], task.y0[algebraic]])
+        return {"x0": task.y0[differential], "z0": z0}
+
+    def states(self, result: dict[str, Any], layout: Any, n: int) -> np.ndarray:
+        differential, algebraic = layout
+        xf, zf = np.asarray(result["xf"]), np.asarray(result["zf"])
+        xf = xf.reshape(differential.size, -1)
+        zf = zf.reshape(differential.size + algebraic.size, -1)
+        y = np.empty((xf.shape[1], n))
+        y[:, differential] = xf.T
+        y[:, algebraic] = zf[differential.size :].T
+        return y
+
+
+@dataclass(frozen=True)
+class CollocationOptions:
+    degree: int = 3  # collocation points per step; Radau IIA order 2 degree - 1
+    intervals_per_output: int = 0  # steps per output interval; 0 = from rtol
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.degree <= 9:
+            raise ConfigError(f"degree must be between 1 and 9, not {self.degree}")
+        if self.intervals_per_output < 0:
+            raise ConfigError(
+                f"intervals_per_output must be >= 0 (0 = from rtol), not "
+                f"{self.intervals_per_output}"
+            )
+
+
+@integrator
+class CasadiCollocation(CasadiBase):
+    name = "casadi-collocation"
+    summary = "CasADi Radau IIA collocation, fixed steps from rtol or intervals_per_output"
+    Options = CollocationOptions
+    accepts: ClassVar[dict[str, int]] = {"ode": 0}
+    plugin = "collocation"
+
+    def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
+        dae, n = _ode_dae(task)
+        return dae, n
+
+    def n_elements(self, task: IntegrationTask) -> int:
+        intervals = len(task.times) - 1
+        if task.options.intervals_per_output:
+            return intervals * task.options.intervals_per_output
+        order = 2 * task.options.degree - 1
+        step = task.rtol ** (1.0 / order)
+        return max(intervals, math.ceil((task.times[-1] - task.times[0]) / step))
+
+    def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
+        return {
+            "collocation_scheme": "radau",
+            "show_eval_warnings": False,
+            "interpolation_order": task.options.degree,
+            "number_of_finite_elements": self.n_elements(task),
+        }
+
+    def fill_stats(self, trajectory: Trajectory, stats: dict[str, Any]) -> None:
+        trajectory.stats.n_steps = int(stats.get("n_call_step", 0))
+        trajectory.stats.n_rejected = 0
+
+    def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
+        super().integrate(task, trajectory)
+        stalled = _first_stalled(task, trajectory.times, trajectory.y)
+        if stalled is not None:
+            trajectory.success = False
+            trajectory.message = (
+                f"{self.name}: the implicit step failed after t = "
+                f"{trajectory.times[stalled - 1]:g} (the state stopped changing)"
+            )
+            trajectory.times = trajectory.times[:stalled]
+            trajectory.y = trajectory.y[:stalled]
+
+
+def _first_stalled(task: IntegrationTask, times: np.ndarray, y: np.ndarray) -> int | None:
+    """First output index whose state was not computed (see the module docstring)."""
+    rhs = task.form.rhs.function  # not the FastFunction: these calls are no solver cost
+    for k in range(1, len(times)):
+        if not np.all(np.isfinite(np.asarray(rhs(times[k], y[k])))):
+            return k
+        if np.array_equal(y[k], y[k - 1]):
+            if np.any(np.asarray(rhs(times[k - 1], y[k - 1])) != 0):
+                return k
+    return None
