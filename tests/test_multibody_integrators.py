@@ -27,7 +27,7 @@ from workbench.initial import accelerations, consistent_initial_state
 from workbench.kinematics import BodyState
 from workbench.model import AppliedForce, Frame, Model
 from workbench.problem import Problem
-from workbench.registry import get_integrator
+from workbench.registry import get_formalism, get_integrator
 
 warnings.filterwarnings("ignore", category=FutureWarning)
 
@@ -142,6 +142,13 @@ def slider_crank():
     return problem, eq3, state
 
 
+def registered_formalism_or_skip(name: str):
+    try:
+        return get_formalism(name)
+    except PluginError as error:
+        pytest.skip(f"formalism {name!r} is not available: {error}")
+
+
 def registered_or_skip(name: str):
     try:
         return get_integrator(name)
@@ -189,6 +196,45 @@ def test_rattle_energy_bounded_where_rk4_drifts():
     assert np.max(np.abs(g)) < 1e-12
 
 
+class BarPendulum(Problem):
+    """A uniform bar on a pivot; body frame at its centre of mass or at the pivot."""
+
+    name = "test-bar-pendulum"
+
+    def __init__(self, frame_at_com: bool = True) -> None:
+        super().__init__()
+        self.frame_at_com = frame_at_com
+
+    def model(self) -> Model:
+        m = Model("bar", kind="planar")
+        if self.frame_at_com:
+            m.add_body("bar", 2.0, inertia=2.0 / 12)
+            m.add_joint("pivot", "revolute", "ground", "bar", child_frame=Frame.at(-0.5))
+        else:
+            m.add_body("bar", 2.0, com=(0.5, 0, 0), inertia=2.0 / 12)
+            m.add_joint("pivot", "revolute", "ground", "bar")
+        return m
+
+    def initial_joint_coordinates(self) -> dict[str, float]:
+        return {"pivot": -0.5}
+
+
+def test_rattle_on_absolute_dae_planar_rigid_body():
+    absolute = registered_formalism_or_skip("absolute-dae")
+    offset = absolute().build(BarPendulum(frame_at_com=False).model(), {"index": 3})
+    assert "constant mass matrix" in Rattle().incompatibility(offset, None)
+    problem = BarPendulum()
+    eq = absolute().build(problem.model(), {"index": 3})
+    assert Rattle().incompatibility(eq, None) is None
+    state = consistent_initial_state(eq, problem)
+    times = np.linspace(0.0, 20.0, 1001)
+    result = Rattle().solve(eq, state.y0(eq, "mechanical"), None, times, 1e-6, 1e-6, {"step": 0.02})
+    assert result.success, result.message
+    error = np.abs(energy(eq, times, result.y) - energy(eq, times[:1], result.y[:1])[0])
+    assert error[times >= 15].max() <= 2 * error[times <= 5].max() + 1e-12
+    assert error.max() < 2e-3 * np.abs(energy(eq, times[:1], result.y[:1])[0])
+
+
 # ---- (2) generalized-alpha: order 2, g = 0, multipliers ---------------------------------
 
 
@@ -234,6 +280,49 @@ def test_generalized_alpha_order_two_on_slider_crank(slider_crank, rho_inf):
     for t, y in zip(result.times, result.y, strict=True):
         _, lam, _ = accelerations(eq3, t, y[:3], y[3:6])
         assert np.abs(y[6:] - lam).max() < 1e-2 * (1 + np.abs(lam).max())
+
+
+def test_generalized_alpha_order_two_with_euler_parameters():
+    """nq != nv: q' = H(q) omega with Euler parameters (absolute-dae, spatial)."""
+    absolute = registered_formalism_or_skip("absolute-dae")
+
+    class SphericalPendulum(Problem):
+        name = "test-spherical-pendulum"
+
+        def model(self) -> Model:
+            m = Model("sph", kind="spatial")
+            m.add_body("b", 1.0, inertia=(0.02, 0.03, 0.04))
+            m.add_joint("s", "spherical", "ground", "b", child_frame=Frame.at(0, 0, 0.5))
+            return m
+
+        def initial_joint_coordinates(self) -> dict:
+            return {"s": np.array([math.cos(0.3), math.sin(0.3), 0.0, 0.0])}
+
+        def initial_joint_velocities(self) -> dict:
+            return {"s": np.array([0.0, 2.0, 5.0])}
+
+    problem = SphericalPendulum()
+    eq = absolute().build(problem.model(), {"index": 3})
+    assert eq.nq == eq.nv + 1
+    state = consistent_initial_state(eq, problem)
+    rhs = absolute().build(problem.model(), {"index": 1}).forms["ode"].rhs
+    reference = solve_ivp(
+        lambda t, y: rhs(t, y)[0],
+        (0.0, 1.0),
+        np.r_[state.q, state.v],
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-13,
+    ).y[: eq.nq, -1]
+    steps, errors = [4e-3, 2e-3, 1e-3], []
+    for step in steps:
+        result = GeneralizedAlpha().solve(
+            eq, state.y0(eq, "mechanical"), None, [0.0, 1.0], 1e-6, 1e-6, {"step": step}
+        )
+        assert result.success, result.message
+        errors.append(np.abs(result.y[-1, : eq.nq] - reference).max())
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert abs(slope - 2.0) < 0.5, (slope, errors)
 
 
 def test_generalized_alpha_adaptive(slider_crank):
