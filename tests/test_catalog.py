@@ -35,6 +35,7 @@ EXPECTED = {
     "ball-on-rotating-plane": ({}, 3, 0),  # free 6 - height 1 - rolling 2
     "knife-edge-cart": ({}, 2, 0),  # planar 3 - knife edge 1
     "knife-edge-cart[sleigh]": ({"com_offset": 0.1}, 2, 0),
+    "articulated-arm": ({}, 6, 0),
 }
 
 RTOL = 1e-10
