@@ -271,6 +271,7 @@ class CasadiCollocation(CasadiBase):
         return {
             "collocation_scheme": "radau",
             "show_eval_warnings": False,
+            "rootfinder_options": {"show_eval_warnings": False},
             "interpolation_order": task.options.degree,
             "number_of_finite_elements": self.n_elements(task),
         }

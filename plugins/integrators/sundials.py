@@ -1,8 +1,8 @@
 """SUNDIALS CVODE and IDA through scikit-sundae (``sksundae``), with exact dense Jacobians.
 
 * ``sundials-cvode-bdf`` / ``sundials-cvode-adams``: CVODE on the ``ode`` form
-  y' = f(t, y) (BDF orders 1-5 with Newton iterations on the exact df/dy, or Adams-Moulton
-  orders 1-12).
+  y' = f(t, y): BDF orders 1-5 or Adams-Moulton orders 1-12, both with Newton iterations
+  on the exact df/dy.
 * ``sundials-ida``: IDA (variable-order BDF) on the ``dae`` form 0 = F(t, y, y') up to
   index 2, iteration matrix dF/dy + c dF/dy' exact. The workbench passes a consistent
   (y0, y0'); option ``calc_initcond`` lets IDA correct y0' and the algebraic y0 anyway.
@@ -129,7 +129,7 @@ class CvodeBase(Integrator):
         solver = CVODE(
             rhsfn,
             method=self.method,
-            jacfn=jacfn if self.method == "BDF" else None,
+            jacfn=jacfn,  # Newton iterations for Adams too (SUNDIALS' default)
             **_common_options(task, 5 if self.method == "BDF" else 12),
         )
         solver.init_step(task.times[0], task.y0)
@@ -147,7 +147,7 @@ class CvodeBdf(CvodeBase):
 @integrator
 class CvodeAdams(CvodeBase):
     name = "sundials-cvode-adams"
-    summary = "SUNDIALS CVODE, variable-order Adams-Moulton 1-12 (non-stiff)"
+    summary = "SUNDIALS CVODE, variable-order Adams-Moulton 1-12, exact dense Jacobian"
     method = "Adams"
 
 
