@@ -1,0 +1,255 @@
+"""Formalism ``nonholonomic-projection``: minimal velocities and Jourdain's projection.
+
+Book 8.1.3 (minimal velocities), 8.2.2 (equations of motion in minimal form) and 8.3.2
+(the ball on a rotating plane). The tree joint velocities v (nv) obey the velocity
+constraints W(t, q) v + w(t, q) = 0 (closure rows of the cut joints and contact heights,
+then nonholonomic rows; :class:`~workbench.kinematics.TreeKinematics`). They are written
+with minimal velocities s (nv - rank W):
+
+    v = F(t, q) s + f(t, q),    W F = 0,    W f + w = 0,
+
+by partitioning: the independent velocities v_i = s are a fixed selection, computed once
+by pivoted QR of W at a reference configuration (the neutral joint coordinates at t = 0,
+or a seeded random configuration if W is not finite there; option ``independent`` names
+them instead), and the dependent ones follow from W_d v_d = -(W_i s + w):
+
+    F = P^T [I; -W_d^-1 W_i],    f = P^T [0; -W_d^-1 w]    (symbolic W_d^-1).
+
+Jourdain's principle projects the equations of motion with F^T:
+
+    (F^T M F) s' = F^T (Q - h - M (F' s + f')),    q' = H(q) (F s + f),
+
+computed body by body with each body's twist written in s (so the bias F' s + f' is the
+time derivative of the twists at s' = 0). It is an ODE in y = (q, s): no multipliers and
+no velocity constraints (they hold by construction, to round-off). Holonomic closure
+constraints and contact heights are *not* enforced at position level: their drift is
+measured by the observables. A partition that becomes singular along the motion (W_d
+losing rank) makes the right-hand side infinite; choose ``independent`` accordingly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import scipy.linalg
+
+from workbench import forces as fm
+from workbench import joints as jk
+from workbench.equations import Equations, MechanicalSystem, build_equations
+from workbench.errors import ConfigError, ModelError
+from workbench.formalism import Formalism
+from workbench.kinematics import BodyState, TreeKinematics
+from workbench.model import Model
+from workbench.registry import formalism
+
+RANK_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class ProjectionOptions:
+    """``independent``: names of tree-joint velocities (``TreeKinematics.v_names``) to keep
+    as the minimal velocities s; empty: chosen by pivoted QR."""
+
+    independent: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if isinstance(self.independent, str) or not all(
+            isinstance(name, str) for name in self.independent
+        ):
+            raise ConfigError("independent must be a list of velocity names")
+        object.__setattr__(self, "independent", tuple(self.independent))
+
+
+@dataclass
+class Partition:
+    """The velocity partition: ``rows`` of W kept (independent rows), ``independent`` and
+    ``dependent`` columns (indices into v), and the reference configuration used."""
+
+    rows: np.ndarray
+    independent: np.ndarray
+    dependent: np.ndarray
+    q_reference: np.ndarray
+
+
+def reference_configuration(kinematics: TreeKinematics, seed: int = 0) -> np.ndarray:
+    """Neutral joint coordinates (seed 0) or a random configuration (unit quaternions)."""
+    q = np.zeros(kinematics.nq)
+    rng = np.random.default_rng(seed)
+    for joint in kinematics.free_joints:
+        q_slice, _ = kinematics.joint_slices[joint.name]
+        value = jk.neutral_coordinates(joint)
+        if seed:
+            value = value + rng.uniform(-0.5, 0.5, value.size)
+            if joint.type in ("spherical", "free"):
+                value[-4:] /= np.linalg.norm(value[-4:])
+        q[q_slice] = value
+    return q
+
+
+def _rank(matrix: np.ndarray) -> tuple[int, np.ndarray]:
+    """Numerical rank and column pivots of ``matrix`` by pivoted QR."""
+    if matrix.size == 0:
+        return 0, np.arange(matrix.shape[1])
+    _, r, pivots = scipy.linalg.qr(matrix, pivoting=True, mode="economic")
+    diagonal = np.abs(np.diag(r))
+    scale = max(float(diagonal.max(initial=0.0)), 1e-300)
+    return int(np.sum(diagonal > RANK_TOLERANCE * scale)), pivots
+
+
+def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] = ()) -> Partition:
+    """Choose independent rows of W and independent velocities (see the module doc)."""
+    k = kinematics
+    w_function = ca.Function("W", [k.t, k.q], [ca.densify(k.velocity_constraint_matrix)])
+    for seed in range(6):
+        q_ref = reference_configuration(k, seed)
+        w_matrix = np.asarray(w_function(0.0, q_ref), dtype=float).reshape(-1, k.nv)
+        if np.all(np.isfinite(w_matrix)):
+            break
+    else:
+        raise ModelError(
+            f"model {k.model.name!r}: the velocity constraint matrix is not finite at any "
+            "reference configuration tried"
+        )
+    rank, row_pivots = _rank(w_matrix.T)
+    rows = np.sort(row_pivots[:rank])
+    w_rows = w_matrix[rows]
+    if independent:
+        unknown = [name for name in independent if name not in k.v_names]
+        if unknown:
+            raise ConfigError(
+                f"nonholonomic-projection: {unknown[0]!r} is not a tree-joint velocity; use "
+                f"one of {', '.join(k.v_names)}"
+            )
+        chosen = np.array([k.v_names.index(name) for name in independent], dtype=int)
+        dependent = np.array([c for c in range(k.nv) if c not in set(chosen)], dtype=int)
+        if dependent.size != rank or _rank(w_rows[:, dependent])[0] < rank:
+            raise ConfigError(
+                f"nonholonomic-projection: the independent velocities {list(independent)} "
+                f"leave a singular dependent block; give {k.nv - rank} velocities whose "
+                "complement the constraints determine"
+            )
+    else:
+        _, pivots = _rank(w_rows)
+        dependent = np.sort(pivots[:rank])
+        chosen = np.array([c for c in range(k.nv) if c not in set(dependent)], dtype=int)
+    return Partition(rows, np.sort(chosen), dependent, q_ref)
+
+
+def minimal_velocity_map(
+    kinematics: TreeKinematics, partition: Partition, s: Any
+) -> tuple[Any, Any, Any]:
+    """(F (nv, ns), f (nv), v = F s + f) as SX expressions in (t, q) and s."""
+    k = kinematics
+    n_s = partition.independent.size
+    rows = [int(i) for i in partition.rows]
+    w_matrix = k.velocity_constraint_matrix[rows, :]
+    w_bias = k.velocity_constraint_bias[rows]
+    F = ca.SX.zeros(k.nv, n_s)
+    f = ca.SX.zeros(k.nv)
+    for column, index in enumerate(partition.independent):
+        F[int(index), column] = 1.0
+    if partition.dependent.size:
+        dependent = [int(i) for i in partition.dependent]
+        independent = [int(i) for i in partition.independent]
+        solution = ca.solve(w_matrix[:, dependent], ca.horzcat(w_matrix[:, independent], w_bias))
+        F[dependent, :] = -solution[:, :n_s]
+        f[dependent] = -solution[:, n_s]
+    return F, f, ca.mtimes(F, s) + f
+
+
+def projected_system(
+    model: Model, kinematics: TreeKinematics, partition: Partition
+) -> tuple[MechanicalSystem, dict[str, BodyState], dict[str, Any]]:
+    """The projected equations, the bodies' states in (t, q, s) and the joint coordinates."""
+    k = kinematics
+    names = [k.v_names[int(i)] for i in partition.independent]
+    s = ca.SX.sym("s", len(names))
+    _, _, v_of_s = minimal_velocity_map(k, partition, s)
+    body_names = list(model.bodies)
+    joints = model.tree_joints
+    twists = [x for b in body_names for x in (k.bodies[b].velocity, k.bodies[b].angular_velocity)]
+    joint_velocities = [k.joint_coordinates(j)[1] for j in joints]
+    joint_velocities = [ca.SX(x) if not isinstance(x, ca.SX) else x for x in joint_velocities]
+    substituted = ca.substitute([k.qdot, *twists, *joint_velocities], [k.v], [v_of_s])
+    qdot, twists, joint_velocities = (
+        substituted[0],
+        substituted[1 : 1 + len(twists)],
+        substituted[1 + len(twists) :],
+    )
+    bodies = {
+        b: BodyState(k.bodies[b].position, k.bodies[b].rotation, twists[2 * i], twists[2 * i + 1])
+        for i, b in enumerate(body_names)
+    }
+    joint_coordinates = {
+        j.name: (k.joint_coordinates(j)[0], joint_velocities[i]) for i, j in enumerate(joints)
+    }
+    mass = ca.SX.zeros(s.numel(), s.numel())
+    bias = ca.SX.zeros(s.numel())
+    for name, body in model.bodies.items():
+        state = bodies[name]
+        v_com = state.point_velocity(body.com)
+        omega = state.angular_velocity
+        j_t, j_r = ca.jacobian(v_com, s), ca.jacobian(omega, s)
+        # twist rates at s' = 0: along q' = H (F s + f) and explicit time
+        a_com = ca.mtimes(ca.jacobian(v_com, k.q), qdot) + ca.jacobian(v_com, k.t)
+        alpha = ca.mtimes(ca.jacobian(omega, k.q), qdot) + ca.jacobian(omega, k.t)
+        mass += body.mass * ca.mtimes(j_t.T, j_t)
+        bias += body.mass * ca.mtimes(j_t.T, a_com)
+        if not body.point_mass:
+            inertia = ca.mtimes([state.rotation, ca.DM(body.inertia), state.rotation.T])
+            mass += ca.mtimes([j_r.T, inertia, j_r])
+            gyroscopic = ca.mtimes(inertia, alpha) + ca.cross(omega, ca.mtimes(inertia, omega))
+            bias += ca.mtimes(j_r.T, gyroscopic)
+    applied = fm.generalized_forces(model, k.t, s, bodies, joint_coordinates)
+    system = MechanicalSystem(
+        t=k.t,
+        q=k.q,
+        v=s,
+        qdot=qdot,
+        mass=mass,
+        forces=applied - bias,
+        q_names=k.q_names,
+        v_names=names,
+    )
+    return system, bodies, joint_coordinates
+
+
+@formalism
+class NonholonomicProjection(Formalism):
+    name = "nonholonomic-projection"
+    summary = "Minimal velocities v = F s + f, Jourdain projection F^T, an ODE in (q, s) (8.2.2)"
+    Options = ProjectionOptions
+    capabilities = frozenset(
+        {"planar", "spatial", "nonholonomic", "closed-loops", "point-masses", "rheonomic"}
+    )
+
+    @classmethod
+    def forms(cls, options: Any) -> dict[str, int]:
+        cls.parse_options(options)
+        return {"ode": 0, "dae": 0, "mechanical": 0}
+
+    def build(self, model: Model, options: Any = None) -> Equations:
+        options = self.parse_options(options)
+        model.validate()
+        self.check(model)
+        kinematics = TreeKinematics(model)
+        partition = velocity_partition(kinematics, options.independent)
+        system, bodies, joint_coordinates = projected_system(model, kinematics, partition)
+        independent = [int(i) for i in partition.independent]
+        notes = [
+            "minimal velocities: " + (", ".join(system.v_names) or "none"),
+            "holonomic constraints are not enforced at position level; see their drift",
+        ]
+        return build_equations(
+            self.name,
+            model,
+            system,
+            bodies,
+            ([kinematics.t, kinematics.q, kinematics.v], [kinematics.q, kinematics.v[independent]]),
+            ode=True,
+            joint_coordinates={name: qv[0] for name, qv in joint_coordinates.items()},
+            notes=notes,
+        )
