@@ -16,7 +16,8 @@ every body, and calls :func:`build_equations`. The shared code here then derives
   measured the same way for all formalisms).
 
 State vectors are ordered [q, v, (lambda), (mu)]; their names are ``Equations.y_names``.
-Every numeric function is a :class:`~workbench.evaluate.FastFunction`.
+Every numeric function is a :class:`~workbench.evaluate.FastFunction`; Jacobians are
+:class:`~workbench.evaluate.LazyFunction`s, built on first use.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from workbench import forces as fm
 from workbench import joints as jk
-from workbench.evaluate import FastFunction, dense_function
+from workbench.evaluate import FastFunction, dense_function, lazy_dense_function
 from workbench.kinematics import BodyState, contact_rows
 from workbench.model import GROUND, Model
 
@@ -215,21 +216,35 @@ def constraint_acceleration_rhs(system: MechanicalSystem) -> Any:
     return -(ca.mtimes(ca.jacobian(c, system.q), system.qdot) + ca.jacobian(c, system.t))
 
 
-def _augmented_acceleration(system: MechanicalSystem, gamma: Any) -> tuple[Any, Any]:
-    """Solve [M W^T; W 0] [v'; lambda] = [Q; gamma] symbolically."""
-    nv, nc = system.v.numel(), system.n_constraints
-    if nc == 0:
-        if system.acceleration is not None:
-            return system.acceleration, system.q[0:0]
-        return ca.solve(system.mass, system.forces), system.q[0:0]
-    w_matrix = ca.jacobian(system.velocity_constraints, system.v)
-    kkt = ca.vertcat(
-        ca.horzcat(system.mass, w_matrix.T), ca.horzcat(w_matrix, ca.SX.zeros(nc, nc)
-                                                         if isinstance(system.q, ca.SX)
-                                                         else ca.MX.zeros(nc, nc))
-    )
-    solution = ca.solve(kkt, ca.vertcat(system.forces, gamma))
-    return solution[:nv], solution[nv:]
+SYMBOLIC_SOLVE_LIMIT = 8
+"""Linear systems larger than this are solved numerically (LU inside an MX graph): a
+symbolic LU of [M W^T; W 0] grows so fast that building takes seconds at 6 spatial bodies.
+Measured with benchmarks/build_and_eval.py; see the README's Performance section."""
+
+
+def _augmented_acceleration(system: MechanicalSystem, gamma: Any) -> tuple[Any, Any, Any]:
+    """(v', lambda, y symbols) solving [M W^T; W 0] [v'; lambda] = [Q; gamma].
+
+    Returns v' and lambda as expressions in symbols t, q, v that may be fresh MX symbols
+    (returned as a triple) when the system is too large for a symbolic solve.
+    """
+    t, q, v = system.t, system.q, system.v
+    nv, nc = v.numel(), system.n_constraints
+    if nc == 0 and system.acceleration is not None:
+        return system.acceleration, q[0:0], (t, q, v)
+    w_matrix = ca.jacobian(system.velocity_constraints, v)
+    zeros = (ca.MX if isinstance(q, ca.MX) else ca.SX).zeros(nc, nc)
+    kkt = ca.vertcat(ca.horzcat(system.mass, w_matrix.T), ca.horzcat(w_matrix, zeros))
+    rhs = ca.vertcat(system.forces, gamma)
+    symbols = (t, q, v)
+    method = "symbolicqr"
+    if nv + nc > SYMBOLIC_SOLVE_LIMIT or isinstance(q, ca.MX):
+        if isinstance(q, ca.SX):
+            symbols = (ca.MX.sym("t"), ca.MX.sym("q", q.numel()), ca.MX.sym("v", nv))
+            kkt, rhs = ca.Function("kkt", [t, q, v], [kkt, rhs])(*symbols)
+        method = "lapacklu"
+    solution = ca.solve(kkt, rhs) if method == "symbolicqr" else ca.solve(kkt, rhs, method)
+    return solution[:nv], solution[nv:], symbols
 
 
 def build_equations(
@@ -288,10 +303,10 @@ def build_equations(
         velocity_matrix=dense_function("W", [t, q], [w_matrix]),
         velocity_constraints=dense_function("c", [t, q, v], [c]),
         acceleration_rhs=dense_function("gamma", [t, q, v], [gamma]),
-        dynamics=dense_function(
+        dynamics=lazy_dense_function(
             "dynamics",
             [t, q, v, a, lam],
-            [dyn, ca.jacobian(dyn, q), ca.jacobian(dyn, v), system.mass, w_matrix.T],
+            lambda: [dyn, ca.jacobian(dyn, q), ca.jacobian(dyn, v), system.mass, w_matrix.T],
         ),
         n_holonomic=m,
         n_constraints=nc,
@@ -299,12 +314,15 @@ def build_equations(
 
     # ode form: [q' ; v'] with v' from the (augmented) system
     if ode or nc == 0:
-        accel, _ = _augmented_acceleration(system, stabilized)
-        y = ca.vertcat(q, v)
-        f = ca.vertcat(system.qdot, accel)
+        accel, _, (t_o, q_o, v_o) = _augmented_acceleration(system, stabilized)
+        qdot = system.qdot
+        if q_o is not q:
+            qdot = ca.Function("qdot", [t, q, v], [qdot])(t_o, q_o, v_o)
+        y = ca.vertcat(q_o, v_o)
+        f = ca.vertcat(qdot, accel)
         forms["ode"] = OdeForm(
-            rhs=dense_function("ode_rhs", [t, y], [f]),
-            jacobian=dense_function("ode_jac", [t, y], [ca.jacobian(f, y)]),
+            rhs=dense_function("ode_rhs", [t_o, y], [f]),
+            jacobian=lazy_dense_function("ode_jac", [t_o, y], lambda: [ca.jacobian(f, y)]),
             n=nq + nv,
         )
 
@@ -315,8 +333,11 @@ def build_equations(
     dynamic = ca.mtimes(system.mass, vp) - system.forces
     if nc:
         dynamic = dynamic + ca.mtimes(w_matrix.T, lam)
-    parts, y_parts, yp_parts, algebraic = [kinematic, dynamic], [q, v], [qp, vp], [False] * (
-        nq + nv
+    parts, y_parts, yp_parts, algebraic = (
+        [kinematic, dynamic],
+        [q, v],
+        [qp, vp],
+        [False] * (nq + nv),
     )
     if index == 3:
         nonholonomic = c[m:] if nc > m else q[0:0]
@@ -341,10 +362,13 @@ def build_equations(
     residual = ca.vertcat(*parts)
     y_all, yp_all = ca.vertcat(*y_parts), ca.vertcat(*yp_parts)
     coefficient = _sym_like(q, "c", 1)
-    jac = ca.jacobian(residual, y_all) + coefficient * ca.jacobian(residual, yp_all)
+
+    def dae_jacobian() -> list:
+        return [ca.jacobian(residual, y_all) + coefficient * ca.jacobian(residual, yp_all)]
+
     forms["dae"] = DaeForm(
         residual=dense_function("dae_residual", [t, y_all, yp_all], [residual]),
-        jacobian=dense_function("dae_jacobian", [t, y_all, yp_all, coefficient], [jac]),
+        jacobian=lazy_dense_function("dae_jacobian", [t, y_all, yp_all, coefficient], dae_jacobian),
         algebraic=np.array(algebraic, dtype=bool),
         index=index,
         n=int(y_all.numel()),
@@ -384,20 +408,20 @@ def build_observables(
     twists = ca.horzcat(
         *[ca.vertcat(bodies[b].velocity, bodies[b].angular_velocity) for b in names]
     )
-    spring_joints = {
-        f.joint for f in model.forces if isinstance(f, fm.JointSpringDamper)
-    }
+    spring_joints = {f.joint for f in model.forces if isinstance(f, fm.JointSpringDamper)}
     coordinates = dict(joint_coordinates or {})
     for joint in spring_joints - set(coordinates):
         coordinates[joint] = fm.relative_joint_coordinates(model, bodies, joint)
-    energy = ca.vertcat(fm.kinetic_energy(model, bodies),
-                        fm.potential_energy(model, bodies, coordinates))
+    energy = ca.vertcat(
+        fm.kinetic_energy(model, bodies), fm.potential_energy(model, bodies, coordinates)
+    )
     position_residual = ca.substitute(joint_residuals(model, t, bodies), v, zero_v)
     velocity_residual = ca.mtimes(ca.jacobian(position_residual, q), qdot) + ca.jacobian(
         position_residual, t
     )
-    nonholonomic = [contact_rows(model.kind == "planar", bodies[c.body], c)[1]
-                    for c in model.nonholonomic]
+    nonholonomic = [
+        contact_rows(model.kind == "planar", bodies[c.body], c)[1] for c in model.nonholonomic
+    ]
     nh_residual = ca.vertcat(*nonholonomic) if nonholonomic else ca.DM.zeros(0, 1)
     return Observables(
         frames=dense_function("frames", [t, q], [positions, rotations]),

@@ -8,6 +8,8 @@ of a small mechanism. :class:`FastFunction` binds preallocated NumPy arrays to a
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import casadi as ca
 import numpy as np
 
@@ -62,8 +64,13 @@ class FastFunction:
         self.__init__(state["function"])  # type: ignore[misc]
 
 
-def dense_function(name: str, inputs: list, outputs: list, input_names: list[str] | None = None,
-                   output_names: list[str] | None = None) -> FastFunction:
+def dense_function(
+    name: str,
+    inputs: list,
+    outputs: list,
+    input_names: list[str] | None = None,
+    output_names: list[str] | None = None,
+) -> FastFunction:
     """Build a CasADi Function with dense outputs and wrap it for fast evaluation."""
     outputs = [ca.densify(o) for o in outputs]
     if input_names and output_names:
@@ -71,3 +78,53 @@ def dense_function(name: str, inputs: list, outputs: list, input_names: list[str
     else:
         function = ca.Function(name, inputs, outputs)
     return FastFunction(function)
+
+
+class LazyFunction:
+    """A FastFunction built on first use.
+
+    Jacobians can cost more to build (seconds for a deep spatial chain) than a run that
+    never asks for them saves; explicit integrators never do. Same interface as
+    :class:`FastFunction`; ``n_calls`` is 0 until built.
+    """
+
+    def __init__(self, builder: Callable[[], FastFunction]) -> None:
+        self._builder: Callable[[], FastFunction] | None = builder
+        self._fast: FastFunction | None = None
+
+    @property
+    def fast(self) -> FastFunction:
+        if self._fast is None:
+            assert self._builder is not None
+            self._fast = self._builder()
+            self._builder = None
+        return self._fast
+
+    @property
+    def built(self) -> bool:
+        return self._fast is not None
+
+    @property
+    def function(self) -> ca.Function:
+        return self.fast.function
+
+    @property
+    def n_calls(self) -> int:
+        return self._fast.n_calls if self._fast is not None else 0
+
+    def into(self, *args: object) -> tuple[np.ndarray, ...]:
+        return self.fast.into(*args)
+
+    def __call__(self, *args: object) -> tuple[np.ndarray, ...]:
+        return self.fast(*args)
+
+    def __getstate__(self) -> dict:
+        return {"fast": self.fast}
+
+    def __setstate__(self, state: dict) -> None:
+        self._builder, self._fast = None, state["fast"]
+
+
+def lazy_dense_function(name: str, inputs: list, outputs: Callable[[], list]) -> LazyFunction:
+    """:func:`dense_function` deferred until first use; ``outputs`` builds the expressions."""
+    return LazyFunction(lambda: dense_function(name, inputs, outputs()))
