@@ -60,8 +60,13 @@ class ScipyIvp(Integrator):
         form, options = task.form, task.options
         accepted = [0]
 
+        non_finite: list[float] = []
+
         def rhs(t: float, y: np.ndarray) -> np.ndarray:
-            return form.rhs(t, y)[0]  # a copy: RK stages keep the returned arrays
+            value = form.rhs(t, y)[0]  # a copy: RK stages keep the returned arrays
+            if not non_finite and not np.all(np.isfinite(value)):
+                non_finite.append(t)
+            return value
 
         extra: dict[str, Any] = {"max_step": options.max_step}
         if options.first_step is not None:
@@ -79,13 +84,17 @@ class ScipyIvp(Integrator):
             **extra,
         )
         trajectory.times = np.asarray(solution.t)
-        trajectory.y = np.asarray(solution.y).T.reshape(len(solution.t), -1)
+        trajectory.y = np.asarray(solution.y).T.reshape(len(solution.t), task.y0.size)
         trajectory.stats.n_steps = accepted[0]
         trajectory.stats.n_rejected = -1
         trajectory.stats.n_lu = int(solution.nlu) if self.implicit else -1
         if solution.status < 0:
             trajectory.success = False
             trajectory.message = f"{self.name}: {solution.message}"
+            if non_finite:
+                trajectory.message += (
+                    f" (the right-hand side became NaN or infinite at t = {non_finite[0]:.6g})"
+                )
 
 
 # workbench name -> (SciPy method, uses the Jacobian, summary)
