@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 
 from plugins.formalisms.minimal_ode import MinimalOde
 from workbench.initial import consistent_initial_state
+from workbench.kinematics import TreeKinematics, initial_joint_values
 from workbench.registry import REGISTRY, get_problem
 from workbench.topology import analyze
 
@@ -36,6 +37,10 @@ EXPECTED = {
     "knife-edge-cart": ({}, 2, 0),  # planar 3 - knife edge 1
     "knife-edge-cart[sleigh]": ({"com_offset": 0.1}, 2, 0),
     "articulated-arm": ({}, 6, 0),
+    "four-bar": ({}, 1, 1),  # 3 revolutes - 2 rows of the cut revolute
+    "four-bar[near-change-point]": ({"near_change_point": True}, 1, 1),
+    "rsrrr": ({}, 1, 1),  # 4 revolutes in the tree - 3 rows of the cut spherical joint
+    "parallel-robot": ({}, 3, 2),  # 7 revolutes in the tree - 2 x 2 rows
 }
 
 RTOL = 1e-10
@@ -97,7 +102,10 @@ def test_model_valid_with_dof_and_loops(name: str) -> None:
     model = problem.model()
     assert model.validate() is model
     _, dof, loops = EXPECTED[name]
-    topology = analyze(model)
+    kinematics = TreeKinematics(model)
+    q0 = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
+    topology = analyze(model, q=q0)  # at the initial (assembled) configuration
+    assert topology.assembled is not False
     assert topology.n_loops == loops
     assert topology.dof == dof
     assert topology.redundant_constraints == []
@@ -113,17 +121,15 @@ def test_consistent_initial_state(name: str) -> None:
     scale = max(1.0, float(np.abs(state.v).max(initial=0.0)))
     for residual in residuals:
         assert np.all(np.abs(residual) < 1e-9 * scale)
-    # the problem's own values are kept for the independent coordinates
-    given = problem.initial_joint_coordinates()
+    # the problem's own values are kept for the independent coordinates and velocities
+    model = equations.model
+    kinematics = TreeKinematics(model)
+    q0 = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
+    v0 = initial_joint_values(model, kinematics, problem.initial_joint_velocities(), True)
     for joint, index in problem.independent_coordinates or ():
-        q_slice, _ = equations_slices(problem)[joint]
-        assert state.q_joint[q_slice][index] == pytest.approx(np.ravel(given[joint])[index])
-
-
-def equations_slices(problem):
-    from workbench.kinematics import TreeKinematics
-
-    return TreeKinematics(problem.model()).joint_slices
+        q_slice, v_slice = kinematics.joint_slices[joint]
+        assert state.q_joint[q_slice.start + index] == pytest.approx(q0[q_slice.start + index])
+        assert state.v_joint[v_slice.start + index] == pytest.approx(v0[v_slice.start + index])
 
 
 def relative_drift(values: np.ndarray, scale: float) -> float:
@@ -204,3 +210,26 @@ def test_symmetric_gyro_reference_starts_at_the_initial_pose() -> None:
     pose = problem.reference().poses(np.array([0.0]))[0, 0]
     assert np.allclose(pose[3:], problem.initial_joint_coordinates()["pivot"])
     assert math.isclose(np.linalg.norm(pose[3:]), 1.0)
+
+
+@pytest.mark.parametrize("near", [False, True])
+@pytest.mark.parametrize("angle", [0.0, 1.0, 3.0, math.pi, -2.0])
+def test_four_bar_state_closes_the_loop(near: bool, angle: float) -> None:
+    from problems.ch11_closed_loops import four_bar_state
+
+    problem = get_problem("four-bar")({"near_change_point": near})
+    model = problem.model()
+    kinematics = TreeKinematics(model)
+    state = four_bar_state(angle, 2.0, problem.lengths)
+    q = initial_joint_values(model, kinematics, {j: x for j, (x, _) in state.items()}, False)
+    v = initial_joint_values(model, kinematics, {j: x for j, (_, x) in state.items()}, True)
+    f = kinematics.function("g", [kinematics.closure_constraints, kinematics.velocity_constraints])
+    g, w = (np.asarray(x, dtype=float) for x in f(0.0, q, v))
+    assert np.abs(g).max() < 1e-12 and np.abs(w).max() < 1e-12
+    # near the change point the closure Jacobian almost loses rank at crank angle pi
+    jacobian = kinematics.function("G", [kinematics.closure_jacobian], with_v=False)
+    singular = np.linalg.svd(np.asarray(jacobian(0.0, q), dtype=float), compute_uv=False)
+    if near and angle == math.pi:
+        assert singular.min() < 0.1 * singular.max()
+    elif not near:
+        assert singular.min() > 0.4 * singular.max()
