@@ -41,6 +41,9 @@ EXPECTED = {
     "four-bar[near-change-point]": ({"near_change_point": True}, 1, 1),
     "rsrrr": ({}, 1, 1),  # 4 revolutes in the tree - 3 rows of the cut spherical joint
     "parallel-robot": ({}, 3, 2),  # 7 revolutes in the tree - 2 x 2 rows
+    "planar-chain": ({"n_links": 4}, 4, 0),
+    "spatial-chain": ({"n_links": 4}, 4, 0),
+    "binary-tree": ({"depth": 2}, 3, 0),  # 2^2 - 1 bodies, one revolute each
 }
 
 RTOL = 1e-10
@@ -233,3 +236,29 @@ def test_four_bar_state_closes_the_loop(near: bool, angle: float) -> None:
         assert singular.min() < 0.1 * singular.max()
     elif not near:
         assert singular.min() > 0.4 * singular.max()
+
+
+@pytest.mark.parametrize(
+    ("name", "options", "dof"),
+    [
+        ("planar-chain", {"n_links": 1}, 1),
+        ("planar-chain", {}, 5),
+        ("spatial-chain", {"n_links": 7}, 7),
+        ("binary-tree", {"depth": 1}, 1),
+        ("binary-tree", {}, 7),
+    ],
+)
+def test_scalable_sizes(name: str, options: dict, dof: int) -> None:
+    model = get_problem(name)(options).model()
+    assert len(model.bodies) == dof
+    topology = analyze(model)
+    assert topology.dof == dof and topology.n_loops == 0
+
+
+@pytest.mark.parametrize("options", [{"n_links": 0}, {"depth": 0}])
+def test_scalable_options_rejected(options: dict) -> None:
+    from workbench.errors import ConfigError
+
+    name = "planar-chain" if "n_links" in options else "binary-tree"
+    with pytest.raises(ConfigError):
+        get_problem(name)(options)
