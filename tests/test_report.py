@@ -1,0 +1,210 @@
+"""HTML reports from synthetic results: files, links, tables and the cheapest-pair choice."""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.errors import ConfigError
+from workbench.report import (
+    cheapest_pairs,
+    latex_table,
+    markdown_table,
+    middle_tolerance,
+    prepare_results,
+    status_matrix,
+    write_report,
+)
+
+SERIES_COLUMNS = ("drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err")
+
+
+def synthetic_results(
+    problems: tuple[str, ...] = ("simple-pendulum", "heavy-top"),
+    formalisms: tuple[str, ...] = ("minimal-ode", "absolute-dae"),
+    integrators: tuple[str, ...] = ("radau", "generalized-alpha"),
+    rtols: tuple[float, ...] = (1e-3, 1e-5, 1e-7),
+    seed: int = 0,
+) -> pd.DataFrame:
+    """Rows of the results-store schema: scd grows and cost rises as rtol shrinks."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for p, problem in enumerate(problems):
+        for f, formalism in enumerate(formalisms):
+            for i, integrator in enumerate(integrators):
+                for rtol in rtols:
+                    digits = -np.log10(rtol)
+                    status = "ok"
+                    message = ""
+                    if (p + f + i) % 7 == 3 and rtol == rtols[-1]:
+                        status, message = "failed", f"Newton iteration diverged at t = {p + 0.5}"
+                    elif (p + f + i) % 11 == 5 and rtol == rtols[0]:
+                        status, message = "timeout", "run exceeded the time limit of 60 s"
+                    scd = digits - 0.5 + 0.3 * f - 0.2 * i + 0.1 * rng.standard_normal()
+                    wall = 1e-3 * (1 + f + 2 * i) * digits**2 * (1 + 0.05 * rng.random())
+                    rows.append(
+                        {
+                            "run_id": f"{problem}-{formalism}-{integrator}-{rtol:g}",
+                            "problem": problem,
+                            "formalism": formalism,
+                            "integrator": integrator,
+                            "rtol": rtol,
+                            "atol": rtol * 1e-2,
+                            "status": status,
+                            "message": message,
+                            "wall_s": wall if status == "ok" else np.nan,
+                            "cpu_s": wall,
+                            "n_rhs": int(100 * (1 + i) * digits**2),
+                            "n_jac": int(5 * digits),
+                            "n_steps": int(20 * digits**2),
+                            "n_rejected": int(digits),
+                            "err_max": 10 ** (-scd + 0.5),
+                            "err_end": 10**-scd,
+                            "scd": scd if status == "ok" else np.nan,
+                            "drift_pos_max": rtol * (1 + f),
+                            "drift_vel_max": rtol * (2 + f),
+                            "drift_nh_max": 0.0,
+                            "energy_err_max": rtol * (3 + i),
+                            "invariant_err_max": rtol,
+                            "formalism_options": json.dumps({}),
+                            "integrator_options": json.dumps({"order": 5}),
+                        }
+                    )
+    return pd.DataFrame(rows)
+
+
+def synthetic_series(run_id: str, n: int = 200) -> pd.DataFrame:
+    """A run's time series: drifts growing like t, a nonholonomic drift of zero."""
+    t = np.linspace(0.0, 10.0, n)
+    scale = 1e-6 * (1 + (hash(run_id) % 5))
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "t": t,
+            "drift_pos": scale * t,
+            "drift_vel": 2 * scale * t,
+            "drift_nh": 0.0,
+            "energy_err": scale * np.sqrt(t),
+            "ref_err": scale * t**2,
+        }
+    )
+
+
+def image_sources(index: Path) -> list[str]:
+    return re.findall(r'<img src="([^"]+)"', index.read_text(encoding="utf-8"))
+
+
+def test_report_files_and_links(tmp_path: Path) -> None:
+    results = synthetic_results()
+    index = write_report(results, synthetic_series, tmp_path / "report", "workbench report x")
+    assert index == tmp_path / "report" / "index.html"
+    sources = image_sources(index)
+    assert len(sources) == 4  # two problems x (work-precision, drift)
+    for source in sources:
+        assert (index.parent / source).is_file(), source
+    links = re.findall(r'href="([^"#]+)"', index.read_text(encoding="utf-8"))
+    assert any(link.endswith(".svg") for link in links)
+    assert any(link.endswith(".pdf") for link in links)
+    for link in links:
+        assert (index.parent / link).is_file(), link
+    for name in ("summary", "status"):
+        for ext in ("csv", "md", "tex"):
+            assert (index.parent / "tables" / f"{name}.{ext}").is_file()
+        assert "\\toprule" in (index.parent / "tables" / f"{name}.tex").read_text()
+    assert (index.parent / "tables" / "results.csv").is_file()
+    page = index.read_text(encoding="utf-8")
+    assert "workbench report x" in page
+    assert "matplotlib" in page and "pandas" in page
+    assert "Newton iteration diverged" in page  # a failure reason in the footnotes
+
+
+def test_report_without_series_draws_no_drift(tmp_path: Path) -> None:
+    index = write_report(synthetic_results(), None, tmp_path, "cmd")
+    assert len(image_sources(index)) == 2
+    assert "no drift plot" in index.read_text(encoding="utf-8")
+
+
+def test_cheapest_pair_on_a_constructed_case() -> None:
+    base = {"problem": "p", "status": "ok", "rtol": 1e-6, "n_rhs": 10}
+    rows = [
+        # fast but inaccurate
+        dict(base, formalism="a", integrator="x", scd=3.0, wall_s=0.1),
+        # reaches 4 and is the cheaper of the two that do
+        dict(base, formalism="b", integrator="y", scd=4.5, wall_s=0.5),
+        dict(base, formalism="c", integrator="z", scd=6.5, wall_s=0.9),
+        # cheaper still, but failed: never chosen
+        dict(base, formalism="d", integrator="w", scd=9.0, wall_s=0.01, status="failed"),
+    ]
+    summary = cheapest_pairs(prepare_results(pd.DataFrame(rows)))
+    chosen = dict(zip(summary["target scd"], summary["pair"], strict=True))
+    assert chosen == {2.0: "a / x", 4.0: "b / y", 6.0: "c / z"}
+
+    rows[2]["scd"] = 5.0
+    summary = cheapest_pairs(prepare_results(pd.DataFrame(rows)))
+    assert summary.loc[summary["target scd"] == 6.0, "pair"].item() == "none reached"
+
+
+def test_status_matrix_counts_and_footnotes() -> None:
+    runs = prepare_results(synthetic_results())
+    matrix, footnotes = status_matrix(runs)
+    assert list(matrix.index) == ["simple-pendulum", "heavy-top"]
+    assert matrix.shape[1] == 4
+    total = 0
+    for cell in matrix.to_numpy().ravel():
+        total += sum(int(n) for n in re.findall(r"(\d+) (?:ok|failed|timeout|skipped)", cell))
+    assert total == len(runs)
+    not_ok = runs[runs["status"] != "ok"]
+    assert len(footnotes) == not_ok.groupby(["status", "message"]).ngroups > 0
+
+
+def test_labels_include_options_only_when_they_vary() -> None:
+    results = synthetic_results(problems=("p",), formalisms=("f",), integrators=("i",))
+    assert set(prepare_results(results)["pair"]) == {"f / i"}
+    other = results.copy()
+    other["integrator_options"] = json.dumps({"order": 3})
+    pairs = set(prepare_results(pd.concat([results, other]))["pair"])
+    assert pairs == {"f / i[order=5]", "f / i[order=3]"}
+
+
+def test_table_writers() -> None:
+    table = pd.DataFrame({"name": ["a_b", "c|d"], "value": [1.5, float("nan")]})
+    latex = latex_table(table)
+    assert "\\toprule" in latex and "\\bottomrule" in latex and "a\\_b" in latex
+    assert "{lr}" in latex
+    markdown = markdown_table(table)
+    assert markdown.splitlines()[0] == "| name | value |"
+    assert "c\\|d" in markdown
+
+
+def test_middle_tolerance() -> None:
+    assert middle_tolerance([1e-3, 1e-5, 1e-7, 1e-5]) == 1e-5
+    assert middle_tolerance([float("nan")]) is None
+
+
+def test_missing_columns_is_a_config_error(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="status"):
+        write_report(pd.DataFrame({"problem": ["p"]}), None, tmp_path, "cmd")
+
+
+@pytest.mark.slow
+def test_two_thousand_runs_report_is_fast_and_small(tmp_path: Path) -> None:
+    results = synthetic_results(
+        problems=tuple(f"problem-{k}" for k in range(10)),
+        formalisms=("minimal-ode", "absolute-dae", "recursive", "lagrange"),
+        integrators=tuple(f"integrator-{k}" for k in range(10)),
+        rtols=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10),
+    )
+    assert len(results) == 2000
+    start = time.perf_counter()
+    index = write_report(results, synthetic_series, tmp_path, "cmd", progress=False)
+    elapsed = time.perf_counter() - start
+    assert elapsed < 60, elapsed
+    assert index.stat().st_size < 20e6
+    for source in image_sources(index):
+        assert (index.parent / source).is_file()
