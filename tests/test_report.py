@@ -208,3 +208,49 @@ def test_two_thousand_runs_report_is_fast_and_small(tmp_path: Path) -> None:
     assert index.stat().st_size < 20e6
     for source in image_sources(index):
         assert (index.parent / source).is_file()
+
+
+# -- the command line ---------------------------------------------------------------------
+def write_results_directory(directory: Path) -> pd.DataFrame:
+    """A results directory as `workbench sweep` writes it: runs/*.json and series/*.parquet."""
+    from workbench.store import write_run
+
+    results = synthetic_results(problems=("simple-pendulum",))
+    for row in results.to_dict("records"):
+        write_run(directory, row, synthetic_series(row["run_id"]))
+    return results
+
+
+def test_cli_report(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from workbench.cli import app
+
+    write_results_directory(tmp_path / "sweep")
+    outcome = CliRunner().invoke(app, ["report", str(tmp_path / "sweep")])
+    assert outcome.exit_code == 0, outcome.output
+    index = tmp_path / "sweep" / "report" / "index.html"
+    assert str(index) in outcome.output
+    assert len(image_sources(index)) == 2  # work-precision and drift from the stored series
+    assert f"workbench report {tmp_path / 'sweep'} -o" in index.read_text(encoding="utf-8")
+
+    outcome = CliRunner().invoke(
+        app, ["report", str(tmp_path / "sweep"), "-o", str(tmp_path / "r")]
+    )
+    assert outcome.exit_code == 0, outcome.output
+    assert (tmp_path / "r" / "index.html").is_file()
+
+
+@pytest.mark.parametrize("make", ["missing", "empty"])
+def test_cli_report_without_results_is_one_line_error(tmp_path: Path, make: str) -> None:
+    from typer.testing import CliRunner
+
+    from workbench.cli import app
+
+    path = tmp_path / "nothing"
+    if make == "empty":
+        path.mkdir()
+    outcome = CliRunner().invoke(app, ["report", str(path)])
+    assert outcome.exit_code == 2
+    assert "error:" in outcome.output and "results" in outcome.output
+    assert "Traceback" not in outcome.output
