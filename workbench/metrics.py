@@ -197,7 +197,7 @@ def computed_reference(
                 poses = _frame_to_poses(frame, times.size)
                 description = f"computed, read from {path.name}"
                 _REFERENCE_MEMORY[digest] = ("computed", poses, description)
-                return ReferencePoses("computed", poses, description)
+                return ReferencePoses("computed", poses, description, time.perf_counter() - started)
             except Exception:  # noqa: BLE001 - an unreadable cache file is recomputed
                 pass
         formalism_class = registry.get_formalism(formalism_name)

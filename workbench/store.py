@@ -115,13 +115,7 @@ def _atomic_write(path: Path, write: Any) -> None:
 
 
 def write_json_atomic(data: dict[str, Any], path: Path) -> None:
-    text = json.dumps(_jsonable(data), indent=1, allow_nan=True)
-
-    def write(name: str) -> None:
-        with open(name, "w", encoding="utf-8") as out:
-            out.write(text)
-
-    _atomic_write(path, write)
+    write_text_atomic(json.dumps(_jsonable(data), indent=1, allow_nan=True), path)
 
 
 def write_parquet_atomic(frame: pd.DataFrame, path: Path) -> None:
@@ -290,4 +284,13 @@ __all__ = [
     "write_json_atomic",
     "write_parquet_atomic",
     "write_run",
+    "write_text_atomic",
 ]
+
+
+def write_text_atomic(text: str, path: Path) -> None:
+    def write(name: str) -> None:
+        with open(name, "w", encoding="utf-8") as out:
+            out.write(text)
+
+    _atomic_write(path, write)

@@ -1,0 +1,112 @@
+"""The results store: atomic files, stable schema, corrupt files reported, not fatal."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pandas as pd
+import pytest
+
+import workbench
+from workbench import store
+from workbench.errors import ConfigError
+from workbench.metrics import SERIES_COLUMNS
+
+
+def row(run_id: str, **extra) -> dict:
+    base = {
+        "run_id": run_id,
+        "problem": "p",
+        "formalism": "f",
+        "integrator": "i",
+        "rtol": 1e-6,
+        "atol": 1e-9,
+        "status": "ok",
+        "message": "",
+        "err_max": 1e-5,
+    }
+    return base | extra
+
+
+def series(run_id: str) -> pd.DataFrame:
+    return pd.DataFrame({c: [0.0, 1.0] for c in SERIES_COLUMNS}).assign(run_id=run_id)
+
+
+def test_write_run_leaves_no_temporary_files(tmp_path) -> None:
+    store.write_run(tmp_path, row("a" * 16), series("a" * 16))
+    store.write_run(tmp_path, row("b" * 16, status="skipped"), None)
+    files = sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*") if p.is_file())
+    assert files == [
+        "runs/" + "a" * 16 + ".json",
+        "runs/" + "b" * 16 + ".json",
+        "series/" + "a" * 16 + ".parquet",
+    ]
+    assert not list(tmp_path.rglob("*.tmp"))
+    assert store.completed_run_ids(tmp_path) == {"a" * 16, "b" * 16}
+
+
+def test_failed_write_leaves_no_temporary_file(tmp_path) -> None:
+    with pytest.raises(TypeError):
+        store.write_json_atomic({"run_id": object()}, tmp_path / "x.json")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_load_results_schema_and_the_top_level_export(tmp_path) -> None:
+    store.write_run(tmp_path, row("a" * 16, custom=3), series("a" * 16))
+    frame = workbench.load_results(tmp_path)
+    assert list(frame.columns[: len(store.SCHEMA_COLUMNS)]) == store.SCHEMA_COLUMNS
+    assert frame.loc[0, "custom"] == 3 and math.isnan(frame.loc[0, "scd"])
+    for column in [
+        "run_id",
+        "problem",
+        "formalism",
+        "integrator",
+        "rtol",
+        "atol",
+        "status",
+        "message",
+        "wall_s",
+        "cpu_s",
+        "n_rhs",
+        "n_jac",
+        "n_steps",
+        "n_rejected",
+        "err_max",
+        "err_end",
+        "scd",
+        "drift_pos_max",
+        "drift_vel_max",
+        "drift_nh_max",
+        "energy_err_max",
+        "invariant_err_max",
+    ]:
+        assert column in frame.columns
+    # consolidated parquet reads back the same rows
+    path = store.consolidate(tmp_path)
+    again = workbench.load_results(path)
+    assert list(again["run_id"]) == list(frame["run_id"])
+    assert list(again.columns[: len(store.SCHEMA_COLUMNS)]) == store.SCHEMA_COLUMNS
+    assert len(workbench.load_series(tmp_path, "a" * 16)) == 2
+    assert len(store.load_series(tmp_path)) == 2
+
+
+def test_corrupt_row_is_reported_not_fatal(tmp_path) -> None:
+    store.write_run(tmp_path, row("a" * 16), series("a" * 16))
+    good = store.row_path(tmp_path, "a" * 16).read_text()
+    store.row_path(tmp_path, "b" * 16).write_text(good[: len(good) // 2])  # truncated
+    store.row_path(tmp_path, "c" * 16).write_text(json.dumps([1, 2]))  # not a row
+    with pytest.warns(UserWarning, match="2 unreadable result file"):
+        frame = store.load_results(tmp_path)
+    assert list(frame["run_id"]) == ["a" * 16]
+    assert len(frame.attrs["unreadable"]) == 2
+    # a resumed sweep redoes them
+    assert store.completed_run_ids(tmp_path) == {"a" * 16}
+
+
+def test_missing_results_is_a_config_error(tmp_path) -> None:
+    with pytest.raises(ConfigError, match="no results"):
+        store.load_results(tmp_path / "nothing")
+    (tmp_path / "bad.parquet").write_text("not parquet")
+    with pytest.raises(ConfigError, match="cannot read"):
+        store.load_results(tmp_path / "bad.parquet")

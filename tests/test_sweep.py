@@ -1,0 +1,339 @@
+"""Sweeps: spec validation, worker pool reliability (hang, crash, death), resume, CLI."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from workbench import store
+from workbench.cli import app
+from workbench.errors import ConfigError
+from workbench.registry import REGISTRY
+from workbench.sweep import load_spec, parse_spec, run_sweep
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def fake_plugins():
+    """Register tests/fake_plugins.py for one test, then restore the registry."""
+    REGISTRY.discover()
+    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
+    sys.modules.pop("tests.fake_plugins", None)
+    yield importlib.import_module("tests.fake_plugins")
+    for kind, entries in saved.items():
+        REGISTRY.entries[kind] = entries
+    sys.modules.pop("tests.fake_plugins", None)
+
+
+def spec_text(
+    out: Path, integrators: str, problems: str = '["test-pendulum"]', extra: str = ""
+) -> str:
+    return f"""
+out = "{out.as_posix()}"
+jobs = 2
+time_limit = 5.0
+tolerances = [1e-4, 1e-6]
+plugins = ["tests.fake_plugins"]
+problems = {problems}
+formalisms = [{{ name = "minimal-ode", options = {{ index = [1] }} }}]
+integrators = {integrators}
+{extra}
+"""
+
+
+def rows_by_integrator(out: Path) -> dict[str, set[str]]:
+    frame = store.load_results(out)
+    return {name: set(group["status"]) for name, group in frame.groupby("integrator")}
+
+
+def test_spec_expands_grids_and_normalizes_options(fake_plugins, tmp_path) -> None:
+    sweep = parse_spec(
+        spec_text(
+            tmp_path, '["test-rk45", {name = "test-rk4", options = {steps_per_sample = [2, 4, 4]}}]'
+        )
+    )
+    # 1 problem x 1 formalism x (1 + 2 distinct rk4 grids) x 2 tolerances
+    assert len(sweep.runs) == 6
+    assert all(r.atol == pytest.approx(r.rtol * 1e-3) for r in sweep.runs)
+    assert all(r.formalism_options["baumgarte_alpha"] == 10.0 for r in sweep.runs)
+    assert len({r.run_id for r in sweep.runs}) == 6
+
+
+def test_default_spec_is_valid() -> None:
+    sweep = load_spec(None)
+    assert sweep.runs and str(sweep.out) == "reports/latest"
+    assert {r.rtol for r in sweep.runs} == {1e-4, 1e-6, 1e-8}
+
+
+def test_misbehaving_plugins_give_rows_and_the_sweep_completes(fake_plugins, tmp_path) -> None:
+    integrators = '["test-rk45", "test-hang", "test-raise", "test-nan", "test-die"]'
+    text = spec_text(tmp_path, integrators, extra="")
+    text = text.replace(
+        '[{ name = "minimal-ode"',
+        '[{ name = "test-broken-build", options = { index = 1 } }, { name = "minimal-ode"',
+    )
+    started = time.monotonic()
+    summary = run_sweep(parse_spec(text), time_limit=3.0, show_progress=False)
+    assert time.monotonic() - started < 60
+    frame = store.load_results(tmp_path)
+    assert len(frame) == summary.total == 20 and frame["run_id"].is_unique
+    good = frame[frame["formalism"] == "minimal-ode"]
+    status = {n: set(g["status"]) for n, g in good.groupby("integrator")}
+    assert status == {
+        "test-rk45": {"ok"},
+        "test-hang": {"timeout"},
+        "test-raise": {"failed"},
+        "test-nan": {"failed"},
+        "test-die": {"failed"},
+    }
+    messages = good.set_index("integrator")["message"]
+    assert "time limit of 3 s" in messages["test-hang"].iloc[0]
+    assert "worker process died (exit code -9, SIGKILL)" in messages["test-die"].iloc[0]
+    assert "raised" in messages["test-raise"].iloc[0]
+    broken = frame[frame["formalism"] == "test-broken-build"]
+    assert set(broken["status"]) == {"failed"}
+    assert all(m.startswith("build:") for m in broken["message"])
+    assert (tmp_path / "results.parquet").is_file() and not list(tmp_path.rglob("*.tmp"))
+    # every ok row has its series
+    for run_id in frame.loc[frame["status"] == "ok", "run_id"]:
+        assert store.series_path(tmp_path, run_id).is_file()
+    # resume: nothing left to do
+    again = run_sweep(parse_spec(text), show_progress=False)
+    assert again.total == 0 and again.already_done == 20
+
+
+def test_killed_sweep_resumes_to_the_same_rows(tmp_path) -> None:
+    """SIGKILL the whole sweep mid-way; the re-run ends with exactly the full set of rows."""
+    integrators = (
+        '["test-rk45", {name = "test-rk4", options = {steps_per_sample = [1, 2, 3, 4, 5]}}]'
+    )
+    killed_out, clean_out = tmp_path / "killed", tmp_path / "clean"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    for out in (killed_out, clean_out):
+        (tmp_path / f"{out.name}.toml").write_text(
+            spec_text(out, integrators, problems='["test-pendulum", "test-slider-crank"]')
+        )
+    command = [sys.executable, "-m", "workbench", "sweep", "--jobs", "2"]
+    process = subprocess.Popen(
+        command + [str(tmp_path / "killed.toml")],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(store.completed_run_ids(killed_out)) < 3:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)  # the sweep and its workers
+    process.wait()
+    partial = store.completed_run_ids(killed_out)
+    assert 3 <= len(partial) < 24
+    for out in (killed_out, clean_out):
+        done = subprocess.run(
+            command + [str(tmp_path / f"{out.name}.toml")],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
+    killed, clean = store.load_results(killed_out), store.load_results(clean_out)
+    assert sorted(killed["run_id"]) == sorted(clean["run_id"]) and killed["run_id"].is_unique
+    assert len(clean) == 24 and set(killed["status"]) == {"ok"}
+    assert not list(killed_out.rglob("*.tmp"))
+
+
+# ---- the CLI ------------------------------------------------------------------------
+
+runner = CliRunner()
+
+
+@pytest.mark.parametrize(
+    "body, fragment",
+    [
+        (
+            'problems = "x"\nformalisms = ["minimal-ode"]\nintegrators = ["test-rk45"]\n'
+            'tolerances = [1e-6]\njobs = "two"',
+            "jobs",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = ["minimal-odee"]\n'
+            'integrators = ["test-rk45"]\ntolerances = [1e-6]',
+            "did you mean minimal-ode",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = [{name = "minimal-ode", options = '
+            '{indx = 1}}]\nintegrators = ["test-rk45"]\ntolerances = [1e-6]',
+            "unknown option",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
+            'integrators = ["test-rk45"]\ntolerances = [-1e-6]',
+            "tolerances[0]",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = [{name = "minimal-ode", options = '
+            '{index = []}}]\nintegrators = ["test-rk45"]\ntolerances = [1e-6]',
+            "empty grid",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
+            'integrators = ["test-rk45"]\ntolerances = []',
+            "tolerances",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
+            'integrators = ["test-rk45"]\ntolerances = [1e-6]\nspeed = 3',
+            "speed: unknown key",
+        ),
+        ('problems = ["test-pendulum"\nformalisms = 1', "line 4"),
+    ],
+)
+def test_malformed_specs_give_one_line_and_exit_2(tmp_path, body, fragment) -> None:
+    out = tmp_path / "out"
+    spec = tmp_path / "spec.toml"
+    spec.write_text(f'out = "{out.as_posix()}"\nplugins = ["tests.fake_plugins"]\n{body}\n')
+    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
+    try:
+        result = runner.invoke(app, ["sweep", str(spec)])
+    finally:
+        for kind, entries in saved.items():
+            REGISTRY.entries[kind] = entries
+        sys.modules.pop("tests.fake_plugins", None)
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:"), result.output
+    assert fragment in lines[0]
+    assert "Traceback" not in result.output
+    assert not out.exists()
+
+
+def test_missing_spec_file_and_bad_cli_values(tmp_path) -> None:
+    result = runner.invoke(app, ["sweep", str(tmp_path / "none.toml")])
+    assert result.exit_code == 2 and "cannot read" in result.output
+    result = runner.invoke(app, ["sweep", "--jobs", "0"])
+    assert result.exit_code == 2 and "--jobs" in result.output
+    result = runner.invoke(app, ["results", str(tmp_path)])
+    assert result.exit_code == 2 and "no results" in result.output
+
+
+def test_run_and_results_commands(fake_plugins, tmp_path) -> None:
+    result = runner.invoke(
+        app,
+        [
+            "run",
+            "test-pendulum",
+            "-f",
+            "minimal-ode",
+            "-i",
+            "test-rk4",
+            "--rtol",
+            "1e-6",
+            "-o",
+            "index=1",
+            "-o",
+            "integrator.steps_per_sample=3",
+            "--out",
+            str(tmp_path),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "energy_err_max" in result.output and "ok" in result.output
+    result = runner.invoke(
+        app, ["run", "test-pendulum", "-f", "minimal-ode", "-i", "test-rk4", "-o", "nonsense=1"]
+    )
+    assert result.exit_code == 2 and "nonsense" in result.output
+    result = runner.invoke(app, ["results", str(tmp_path)])
+    assert result.exit_code == 0 and "test-pendulum" in result.output
+
+
+TOML_VALUES = st.recursive(
+    st.one_of(
+        st.integers(-3, 3),
+        st.floats(allow_nan=False, width=32),
+        st.booleans(),
+        st.sampled_from(["test-pendulum", "minimal-ode", "test-rk45", "all", "", "x"]),
+    ),
+    lambda children: (
+        st.lists(children, max_size=3)
+        | st.dictionaries(
+            st.sampled_from(["name", "options", "index", "bad"]), children, max_size=2
+        )
+    ),
+    max_leaves=6,
+)
+
+
+def _toml(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, float):
+        return repr(value) if value == value and abs(value) != float("inf") else "1.0"
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+@settings(
+    max_examples=50, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    values=st.dictionaries(
+        st.sampled_from(
+            [
+                "problems",
+                "formalisms",
+                "integrators",
+                "tolerances",
+                "jobs",
+                "time_limit",
+                "atol_factor",
+                "missing_plugins",
+                "out",
+                "bogus",
+            ]
+        ),
+        TOML_VALUES,
+        max_size=6,
+    )
+)
+def test_generated_specs_never_give_a_traceback(tmp_path_factory, values) -> None:
+    directory = tmp_path_factory.mktemp("spec")
+    values.pop("out", None)
+    spec = directory / "spec.toml"
+    spec.write_text(
+        f'out = "{(directory / "out").as_posix()}"\njobs = 1\ntime_limit = 20\n'
+        + "\n".join(
+            f"{k} = {_toml(v)}" for k, v in values.items() if k != "jobs" and k != "time_limit"
+        )
+    )
+    try:
+        sweep = parse_spec(spec.read_text())
+    except ConfigError:
+        sweep = None
+    if sweep is not None and len(sweep.runs) > 4:
+        return  # a valid, large sweep: not run here
+    result = runner.invoke(app, ["sweep", str(spec)])
+    assert result.exit_code in (0, 2), result.output
+    assert "Traceback" not in result.output
+    if result.exit_code == 2:
+        assert result.output.startswith("error:")
+        assert not (directory / "out").exists()
