@@ -445,6 +445,45 @@ def report(
     typer.echo(f"report: {index}")
 
 
+@app.command()
+def view(
+    path: Annotated[
+        str,
+        typer.Argument(help="A Rerun recording (.rrd) or a directory with recording.rrd."),
+    ] = "recording.rrd",
+) -> None:
+    """Open a Rerun recording in the Rerun viewer (or say how, when there is no display)."""
+    import os
+    import shlex
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    from workbench.errors import ConfigError
+    from workbench.recording import RECORDING_FILE
+
+    recording = Path(path)
+    if recording.is_dir():
+        recording = recording / RECORDING_FILE
+    if not recording.is_file():
+        raise ConfigError(
+            f"no recording at {recording}: give a .rrd file written by RerunSink.save "
+            "(e.g. the recording.rrd of a sweep's output directory)"
+        )
+    executable = shutil.which("rerun")
+    viewer = [executable] if executable else [sys.executable, "-m", "rerun"]
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        typer.echo(
+            f"no display (DISPLAY / WAYLAND_DISPLAY unset); to look at {recording}:\n"
+            f"  on a machine with a display:  rerun {shlex.quote(str(recording))}\n"
+            f"  in a browser:  rerun --serve-web {shlex.quote(str(recording))}  "
+            "(then open the printed URL; forward its ports over ssh if remote)"
+        )
+        return
+    subprocess.Popen([*viewer, str(recording)], start_new_session=True)
+    typer.echo(f"opened {recording} in the Rerun viewer")
+
+
 def main() -> None:
     """Console-script entry point (``workbench``)."""
     try:

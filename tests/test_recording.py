@@ -1,0 +1,238 @@
+"""Rerun recordings read back with Rerun's chunk reader: entities, sim_time, values."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+import rerun as rr
+from typer.testing import CliRunner
+
+from workbench.cli import app
+from workbench.model import Frame, Model, Shape
+from workbench.recording import (
+    SERIES_QUANTITIES,
+    RerunSink,
+    entity_path,
+    merge_recordings,
+    quaternion_xyzw,
+    split_entity_path,
+)
+
+
+class FakeObservables:
+    """Body 'arm' spins about z at 1 rad/s at the origin; 'tip' sits at (t, 0, 0) unrotated."""
+
+    body_names = ["arm", "tip"]
+
+    def poses(self, t: float, q: np.ndarray) -> np.ndarray:
+        half = 0.5 * t
+        return np.array(
+            [
+                [0.0, 0.0, 0.0, np.cos(half), 0.0, 0.0, np.sin(half)],
+                [t, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+            ]
+        )
+
+
+def fake_equations() -> SimpleNamespace:
+    model = Model("fake", kind="spatial")
+    model.add_body(
+        "arm",
+        1.0,
+        inertia=(1.0, 1.0, 1.0),
+        shapes=[
+            Shape("box", (1.0, 0.1, 0.1), Frame.at(0.5, 0, 0)),
+            Shape("capsule", (0.02, 1.0), Frame.at(0, 0, 0.5)),
+            Shape("cylinder", (0.05, 0.2)),
+        ],
+    )
+    model.add_point_mass("tip", 0.5, shapes=[Shape("sphere", (0.05,), color=(200, 50, 50))])
+    model.add_joint("hinge", "revolute", "ground", "arm")
+    model.add_joint("slide", "prismatic", "arm", "tip", parent_frame=Frame.at(1.0, 0, 0))
+    return SimpleNamespace(model=model, observables=FakeObservables(), nq=2)
+
+
+def fake_run(
+    rtol: float = 1e-6, n: int = 50
+) -> tuple[SimpleNamespace, SimpleNamespace, pd.DataFrame]:
+    spec = SimpleNamespace(
+        problem="fake-problem",
+        formalism="minimal-ode",
+        integrator="radau",
+        rtol=rtol,
+        run_id=f"run-{rtol:g}",
+    )
+    times = np.linspace(0.0, 2.0, n)
+    trajectory = SimpleNamespace(times=times, y=np.zeros((n, 4)))
+    series = pd.DataFrame(
+        {
+            "run_id": spec.run_id,
+            "t": times,
+            "drift_pos": 1e-9 * times,
+            "drift_vel": 2e-9 * times,
+            "drift_nh": np.nan,  # no nonholonomic constraint: not logged
+            "energy_err": 1e-7 * np.sin(times),
+            "ref_err": rtol * times**2,
+        }
+    )
+    return spec, trajectory, series
+
+
+def read_chunks(path: Path) -> dict[str, list[pd.DataFrame]]:
+    """Entity path -> the record batches (as DataFrames) logged to it."""
+    chunks: dict[str, list[pd.DataFrame]] = {}
+    for chunk in rr.chunk.RrdReader(path).stream().to_chunks():
+        chunks.setdefault(chunk.entity_path, []).append(chunk.to_record_batch().to_pandas())
+    return chunks
+
+
+def column(frames: list[pd.DataFrame], name: str) -> pd.DataFrame:
+    """The rows of ``frames`` that carry ``name``, sorted by sim_time when it is there."""
+    rows = pd.concat([f for f in frames if name in f.columns], ignore_index=True)
+    return rows.sort_values("sim_time") if "sim_time" in rows else rows
+
+
+def seconds(values: pd.Series) -> np.ndarray:
+    return values.to_numpy().astype("timedelta64[ns]").astype(np.int64) / 1e9
+
+
+def test_log_run_is_read_back(tmp_path: Path) -> None:
+    sink = RerunSink()
+    spec, trajectory, series = fake_run()
+    run = sink.log_run(spec, fake_equations(), None, trajectory, series)
+    assert run == "runs/fake-problem/minimal-ode/radau/rtol\\=1e-06"
+    path = sink.save(tmp_path)
+    assert path == tmp_path / "recording.rrd"
+    assert rr.chunk.RrdReader(path).blueprints(), "the blueprint is in the file"
+    chunks = read_chunks(path)
+    base = "/" + run
+    expected = {
+        f"{base}/bodies/arm",
+        f"{base}/bodies/tip",
+        f"{base}/bodies/arm/boxes",
+        f"{base}/bodies/arm/capsules",
+        f"{base}/bodies/arm/cylinders",
+        f"{base}/bodies/tip/spheres",
+        f"{base}/ground/joints/hinge",
+        f"{base}/bodies/arm/joints/hinge",
+        f"{base}/bodies/arm/joints/slide",
+        f"{base}/bodies/tip/joints/slide",
+    } | {f"{base}/series/{q}" for q in SERIES_QUANTITIES if q != "drift_nh"}
+    assert expected <= set(chunks)
+    assert f"{base}/series/drift_nh" not in chunks
+
+    for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err"):
+        logged = column(chunks[f"{base}/series/{quantity}"], "Scalars:scalars")
+        np.testing.assert_allclose(seconds(logged["sim_time"]), series["t"], atol=1e-9)
+        values = np.array([v[0] for v in logged["Scalars:scalars"]])
+        np.testing.assert_allclose(values, series[quantity].to_numpy(), rtol=1e-15)
+
+    arm = column(chunks[f"{base}/bodies/arm"], "Transform3D:quaternion")
+    t = seconds(arm["sim_time"])
+    np.testing.assert_allclose(t, trajectory.times, atol=1e-9)
+    quaternions = np.array([v[0] for v in arm["Transform3D:quaternion"]])
+    expected_xyzw = np.column_stack([0 * t, 0 * t, np.sin(t / 2), np.cos(t / 2)])
+    np.testing.assert_allclose(quaternions, expected_xyzw, atol=1e-6)
+    tip = column(chunks[f"{base}/bodies/tip"], "Transform3D:translation")
+    translations = np.array([v[0] for v in tip["Transform3D:translation"]])
+    np.testing.assert_allclose(translations[:, 0], trajectory.times, rtol=1e-6)
+
+    joint = column(chunks[f"{base}/bodies/arm/joints/slide"], "Transform3D:translation")
+    np.testing.assert_allclose(joint["Transform3D:translation"].iloc[0][0], [1.0, 0.0, 0.0])
+    assert "TransformAxes3D:axis_length" in joint
+
+
+def test_runs_with_other_tolerances_and_repeated_keys(tmp_path: Path) -> None:
+    sink = RerunSink(max_frames=10)
+    paths = [sink.log_run(*_args(fake_run(rtol))) for rtol in (1e-3, 1e-6)]
+    repeated = sink.log_run(*_args(fake_run(1e-6)))
+    assert len({*paths, repeated}) == 3 and "run-1e-06" in repeated
+    chunks = read_chunks(sink.save(tmp_path / "r.rrd"))
+    arm = column(chunks[f"/{paths[0]}/bodies/arm"], "Transform3D:quaternion")
+    assert len(arm) == 10  # poses strided to max_frames; series are whole
+    assert len(column(chunks[f"/{paths[0]}/series/ref_err"], "Scalars:scalars")) == 50
+
+
+def _args(run: tuple) -> tuple:
+    spec, trajectory, series = run
+    return spec, fake_equations(), None, trajectory, series
+
+
+def test_merge_recordings_of_workers(tmp_path: Path) -> None:
+    files = []
+    for rtol in (1e-3, 1e-6):
+        sink = RerunSink()
+        sink.log_run(*_args(fake_run(rtol)))
+        files.append(sink.save(tmp_path / f"worker-{rtol:g}.rrd"))
+    merged = merge_recordings(files, tmp_path / "all.rrd")
+    chunks = read_chunks(merged)
+    for rtol in ("0.001", "1e-06"):
+        assert f"/runs/fake-problem/minimal-ode/radau/rtol\\={rtol}/series/ref_err" in chunks
+    assert rr.chunk.RrdReader(merged).blueprints()
+
+
+def test_entity_paths_escape_and_split() -> None:
+    path = entity_path("runs", "a/b", "rtol=1e-06", "x y")
+    assert split_entity_path(path) == ["runs", "a/b", "rtol=1e-06", "x y"]
+    np.testing.assert_array_equal(quaternion_xyzw(np.array([1.0, 2, 3, 4])), [2, 3, 4, 1])
+
+
+def test_sink_in_the_runner(tmp_path: Path) -> None:
+    """A real run: the runner calls log_run after the metrics."""
+    from workbench.runs import RunSpec, execute_run, normalized_spec
+
+    sink = RerunSink()
+    spec = normalized_spec(
+        RunSpec("simple-pendulum", "minimal-ode", "generalized-alpha", 1e-5, 1e-8)
+    )
+    result = execute_run(spec, sink=sink)
+    assert result.row["status"] == "ok", result.row["message"]
+    chunks = read_chunks(sink.save(tmp_path))
+    base = "/runs/simple-pendulum/minimal-ode/generalized-alpha/rtol\\=1e-05"
+    logged = column(chunks[f"{base}/series/energy_err"], "Scalars:scalars")
+    expected = result.series.dropna(subset=["energy_err"])
+    np.testing.assert_allclose(seconds(logged["sim_time"]), expected["t"], atol=1e-9)
+    np.testing.assert_allclose([v[0] for v in logged["Scalars:scalars"]], expected["energy_err"])
+    assert any(p.startswith(f"{base}/bodies/") for p in chunks)
+
+
+# -- workbench view ---------------------------------------------------------------------
+@pytest.fixture
+def recording_file(tmp_path: Path) -> Path:
+    sink = RerunSink()
+    sink.log_run(*_args(fake_run()))
+    return sink.save(tmp_path)
+
+
+def test_view_without_display_says_how(
+    recording_file: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    outcome = CliRunner().invoke(app, ["view", str(recording_file.parent)])
+    assert outcome.exit_code == 0, outcome.output
+    assert f"rerun {recording_file}" in outcome.output
+    assert "--serve-web" in outcome.output
+
+
+def test_view_with_display_starts_the_viewer(
+    recording_file: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import subprocess
+
+    started = []
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(subprocess, "Popen", lambda args, **kwargs: started.append(args))
+    outcome = CliRunner().invoke(app, ["view", str(recording_file)])
+    assert outcome.exit_code == 0, outcome.output
+    assert started and started[0][-1] == str(recording_file)
+
+
+def test_view_missing_recording_is_one_line_error(tmp_path: Path) -> None:
+    outcome = CliRunner().invoke(app, ["view", str(tmp_path / "none.rrd")])
+    assert outcome.exit_code == 2
+    assert "error: no recording at" in outcome.output

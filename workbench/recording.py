@@ -1,0 +1,328 @@
+"""Rerun recordings of runs: bodies moving in 3D beside their drift and energy error.
+
+:class:`RerunSink` is the runner's log sink (stage 5 of :mod:`workbench.runs`): the runner
+calls ``sink.log_run(spec, equations, problem, trajectory, series)`` after the metrics, and
+``sink.save(path)`` writes every logged run and a blueprint to one ``.rrd`` file. Open it
+with ``workbench view PATH`` (or ``rerun PATH``).
+
+Entity layout of one run (``<run>`` = ``runs/<problem>/<formalism>/<integrator>/rtol=<r>``)::
+
+    <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose)
+    <run>/bodies/<body>/<kind>s        its shapes (boxes, cylinders, spheres, capsules), static
+    <run>/bodies/<body>/joints/<joint> the joint's frame on that body (parent P or child C)
+    <run>/ground/joints/<joint>        a joint frame fixed on the ground
+    <run>/series/<quantity>            Scalars on ``sim_time``: drift_pos, drift_vel,
+                                       drift_nh, energy_err, ref_err
+
+``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
+``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
+x, y, z, w). Runs logged twice under the same path (same keys, other options) get the
+run id appended.
+
+The recording is kept in memory until :meth:`RerunSink.save`; a sink used in worker
+processes must be saved by each worker (one file each, same recording id: the viewer
+merges files of one recording id), since a recording stream cannot be pickled.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import uuid
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+SERIES_QUANTITIES: tuple[str, ...] = ("drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err")
+TIMELINE = "sim_time"
+APPLICATION_ID = "mbs-workbench"
+RECORDING_FILE = "recording.rrd"
+SHAPE_ENTITIES = {
+    "box": "boxes",
+    "cylinder": "cylinders",
+    "sphere": "spheres",
+    "capsule": "capsules",
+}
+
+
+def entity_path(*parts: str) -> str:
+    """Join path parts, each escaped for Rerun (so '/', '=' or spaces in names are kept)."""
+    import rerun as rr
+
+    return "/".join(rr.escape_entity_path_part(str(part)) for part in parts)
+
+
+def run_parts(spec: Any) -> tuple[str, ...]:
+    """The path parts of a run: runs, problem, formalism, integrator, rtol=<r>."""
+    return ("runs", spec.problem, spec.formalism, spec.integrator, f"rtol={float(spec.rtol):g}")
+
+
+def quaternion_xyzw(scalar_first: np.ndarray) -> np.ndarray:
+    """(..., 4) Euler parameters (p0, p1, p2, p3) -> Rerun's (x, y, z, w)."""
+    return np.asarray(scalar_first, dtype=float)[..., [1, 2, 3, 0]]
+
+
+def matrix_xyzw(rotation: np.ndarray) -> np.ndarray:
+    """A rotation matrix (3, 3) as a quaternion (x, y, z, w)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_quat()
+
+
+class RerunSink:
+    """Logs runs into one Rerun recording (see the module docstring for the layout).
+
+    application_id / recording_id: Rerun's; pass the same recording_id to sinks in several
+        processes to have their files merged by the viewer.
+    max_frames: at most this many poses per run (evenly strided); series are logged whole.
+    """
+
+    def __init__(
+        self,
+        application_id: str = APPLICATION_ID,
+        recording_id: str | uuid.UUID | None = None,
+        max_frames: int = 2000,
+    ) -> None:
+        import rerun as rr
+
+        self.recording_id = str(recording_id or uuid.uuid4())
+        self.recording = rr.RecordingStream(application_id, recording_id=self.recording_id)
+        self.max_frames = max(2, int(max_frames))
+        self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
+
+    # -- logging --------------------------------------------------------------------------
+    def log_run(
+        self, spec: Any, equations: Any, problem: Any, trajectory: Any, series: pd.DataFrame | None
+    ) -> str:
+        """Log one run: body poses, shapes and joint frames, and its time series.
+
+        spec: .problem, .formalism, .integrator, .rtol (and .run_id);
+        equations: a :class:`workbench.equations.Equations` (``observables.poses``,
+            ``model``, ``nq``); trajectory: ``times`` (n,) and ``y`` (n, >= nq) rows [q, v, ...];
+        series: columns t and :data:`SERIES_QUANTITIES` (a ``run_id`` column is filtered on).
+        Returns the run's entity path.
+        """
+        parts = run_parts(spec)
+        path = entity_path(*parts)
+        if path in self.runs:
+            parts = parts[:-1] + (f"{parts[-1]} {getattr(spec, 'run_id', len(self.runs))}",)
+            path = entity_path(*parts)
+        label = f"{spec.formalism} / {spec.integrator} rtol={float(spec.rtol):g}"
+        self.runs[path] = (str(spec.problem), label)
+        model = equations.model
+        self._log_geometry(path, model)
+        self._log_poses(path, equations, trajectory)
+        self._log_series(path, series, label, getattr(spec, "run_id", None))
+        return path
+
+    def _log_geometry(self, path: str, model: Any) -> None:
+        import rerun as rr
+
+        for name, body in model.bodies.items():
+            body_path = f"{path}/{entity_path('bodies', name)}"
+            for kind, archetype in _shape_archetypes(body.shapes).items():
+                self.recording.log(f"{body_path}/{SHAPE_ENTITIES[kind]}", archetype, static=True)
+        axis_length = 0.3 * _model_scale(model)
+        for joint in model.joints.values():
+            ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
+            for body, frame in ends:
+                owner = "ground" if body == "ground" else entity_path("bodies", body)
+                self.recording.log(
+                    f"{path}/{owner}/{entity_path('joints', joint.name)}",
+                    rr.Transform3D(translation=frame.position, mat3x3=frame.rotation),
+                    rr.TransformAxes3D(axis_length),
+                    static=True,
+                )
+
+    def _log_poses(self, path: str, equations: Any, trajectory: Any) -> None:
+        import rerun as rr
+
+        times = np.asarray(trajectory.times, dtype=float).reshape(-1)
+        y = np.atleast_2d(np.asarray(trajectory.y, dtype=float))
+        n = min(len(times), len(y))
+        if n == 0:
+            return
+        rows = np.unique(np.linspace(0, n - 1, min(n, self.max_frames)).round().astype(int))
+        nq = equations.nq
+        poses = np.stack([equations.observables.poses(times[k], y[k, :nq]) for k in rows])
+        timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
+        for b, name in enumerate(equations.observables.body_names):
+            self.recording.send_columns(
+                f"{path}/{entity_path('bodies', name)}",
+                indexes=[timeline],
+                columns=rr.Transform3D.columns(
+                    translation=poses[:, b, :3], quaternion=quaternion_xyzw(poses[:, b, 3:])
+                ),
+            )
+
+    def _log_series(
+        self, path: str, series: pd.DataFrame | None, label: str, run_id: str | None
+    ) -> None:
+        import rerun as rr
+
+        if series is None or len(series) == 0 or "t" not in series:
+            return
+        if run_id is not None and "run_id" in series:
+            series = series[series["run_id"].astype(str) == str(run_id)]
+        t = series["t"].to_numpy(dtype=float)
+        for quantity in SERIES_QUANTITIES:
+            if quantity not in series:
+                continue
+            values = series[quantity].to_numpy(dtype=float)
+            keep = np.isfinite(values) & np.isfinite(t)
+            if not keep.any():
+                continue
+            quantity_path = f"{path}/series/{quantity}"
+            self.recording.log(quantity_path, rr.SeriesLines(names=label), static=True)
+            self.recording.send_columns(
+                quantity_path,
+                indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
+                columns=rr.Scalars.columns(scalars=values[keep]),
+            )
+
+    # -- the file -------------------------------------------------------------------------
+    def blueprint(self) -> Any:
+        """A 3D view per problem (tabs) beside one time-series plot per quantity."""
+        import rerun.blueprint as rrb
+
+        problems = list(dict.fromkeys(problem for problem, _label in self.runs.values()))
+        spatial = [
+            rrb.Spatial3DView(origin=entity_path("runs", problem), name=problem)
+            for problem in problems
+        ] or [rrb.Spatial3DView(origin="runs", name="runs")]
+        plots = [
+            rrb.TimeSeriesView(
+                name=quantity,
+                origin="runs",
+                contents=[f"+ /{path}/series/{quantity}" for path in self.runs] or "$origin/**",
+            )
+            for quantity in SERIES_QUANTITIES
+        ]
+        return rrb.Blueprint(
+            rrb.Horizontal(rrb.Tabs(*spatial), rrb.Vertical(*plots), column_shares=[3, 2]),
+            collapse_panels=False,
+        )
+
+    def save(self, path: str | Path) -> Path:
+        """Write the recording (with its blueprint) to ``path``; a directory gets
+        ``recording.rrd``. Returns the file's path. Call once, after the last run.
+
+        The file is written beside the target and renamed over it, so a reader never
+        sees half a recording.
+        """
+        target = Path(path)
+        if target.is_dir() or target.suffix != ".rrd":
+            target = target / RECORDING_FILE
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
+        self.recording.save(partial, default_blueprint=self.blueprint())
+        self.recording.flush()
+        self.recording.disconnect()
+        os.replace(partial, target)
+        return target
+
+    # -- several files into one -----------------------------------------------------------
+    def add_recording(self, path: str | Path) -> list[str]:
+        """Copy the runs of a saved recording (e.g. one a worker wrote) into this one.
+
+        Returns the run paths found. Lets a sweep log each run in its worker process to
+        its own file and merge them at the end (see :func:`merge_recordings`).
+        """
+        import rerun as rr
+
+        found = []
+        for chunk in rr.chunk.RrdReader(path).stream().to_chunks():
+            parts = split_entity_path(chunk.entity_path)
+            if len(parts) < 6 or parts[0] != "runs":
+                continue  # recording properties and anything not a run
+            run = entity_path(*parts[:5])
+            if run not in self.runs:
+                label = f"{parts[2]} / {parts[3]} {parts[4]}"
+                self.runs[run] = (parts[1], label)
+                found.append(run)
+            self.recording.send_chunks(chunk)
+        return found
+
+
+def split_entity_path(path: str) -> list[str]:
+    """An entity path's parts, unescaped (the inverse of :func:`entity_path`)."""
+    parts = re.split(r"(?<!\\)/", path.strip("/"))
+    return [re.sub(r"\\(.)", r"\1", part) for part in parts if part]
+
+
+def merge_recordings(files: Iterable[str | Path], target: str | Path) -> Path:
+    """Merge saved recordings (one per run or per worker) into one file with a blueprint."""
+    sink = RerunSink()
+    for file in files:
+        sink.add_recording(file)
+    return sink.save(target)
+
+
+def _model_scale(model: Any) -> float:
+    """A length typical of the model (largest shape extent or joint offset), for axes."""
+    sizes = [max(shape.size) for body in model.bodies.values() for shape in body.shapes]
+    offsets = [
+        float(np.linalg.norm(frame.position))
+        for joint in model.joints.values()
+        for frame in (joint.parent_frame, joint.child_frame)
+    ]
+    scale = max(sizes + offsets, default=0.0)
+    return scale if scale > 0 else 1.0
+
+
+def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
+    """One Rerun archetype per shape kind, each shape placed at its frame in the body."""
+    import rerun as rr
+
+    by_kind: dict[str, list[Any]] = {}
+    for shape in shapes:
+        by_kind.setdefault(shape.kind, []).append(shape)
+    solid = rr.components.FillMode.Solid
+    archetypes: dict[str, Any] = {}
+    for kind, group in by_kind.items():
+        centers = np.array([s.frame.position for s in group])
+        quaternions = [rr.Quaternion(xyzw=matrix_xyzw(s.frame.rotation)) for s in group]
+        colors = [tuple(s.color) for s in group]
+        if kind == "box":
+            archetypes[kind] = rr.Boxes3D(
+                half_sizes=[np.asarray(s.size, dtype=float) / 2 for s in group],
+                centers=centers,
+                quaternions=quaternions,
+                colors=colors,
+                fill_mode=solid,
+            )
+        elif kind == "sphere":
+            archetypes[kind] = rr.Ellipsoids3D(
+                half_sizes=[[s.size[0]] * 3 for s in group],
+                centers=centers,
+                quaternions=quaternions,
+                colors=colors,
+                fill_mode=solid,
+            )
+        elif kind == "cylinder":
+            archetypes[kind] = rr.Cylinders3D(
+                radii=[s.size[0] for s in group],
+                lengths=[s.size[1] for s in group],
+                centers=centers,
+                quaternions=quaternions,
+                colors=colors,
+                fill_mode=solid,
+            )
+        elif kind == "capsule":
+            # Rerun's capsule runs from its origin along +z; ours is centred on its frame.
+            starts = [
+                s.frame.position - s.frame.rotation @ np.array([0.0, 0.0, s.size[1] / 2])
+                for s in group
+            ]
+            archetypes[kind] = rr.Capsules3D(
+                radii=[s.size[0] for s in group],
+                lengths=[s.size[1] for s in group],
+                translations=starts,
+                quaternions=quaternions,
+                colors=colors,
+                fill_mode=solid,
+            )
+    return archetypes
