@@ -131,6 +131,8 @@ def run(sizes: tuple[int, ...], max_build: float) -> list[dict]:
                         flush=True,
                     )
                     last = (n, float("inf"))
+                instructions = function.n_instructions()
+                del function  # free the graph here, not inside the next timed build
                 rows.append(
                     dict(
                         chain=kind,
@@ -138,13 +140,13 @@ def run(sizes: tuple[int, ...], max_build: float) -> list[dict]:
                         n=n,
                         status="ok",
                         build_s=f"{build:.3f}",
-                        instructions=function.n_instructions(),
+                        instructions=instructions,
                         eval_us=f"{seconds * 1e6:.3f}",
                     )
                 )
                 print(
                     f"{kind:8s} {formalism:12s} N={n:4d}  build {build:8.2f} s  "
-                    f"{function.n_instructions():9d} instr  {seconds * 1e6:10.2f} us",
+                    f"{instructions:9d} instr  {seconds * 1e6:10.2f} us",
                     flush=True,
                 )
     return rows
@@ -164,7 +166,11 @@ def summary(rows: list[dict]) -> None:
             )
             ok = [r for r in cells.values() if r["status"] == "ok"]
             p = fitted_exponent([r["n"] for r in ok], [float(r["eval_us"]) for r in ok])
-            print(f"{kind:8s} {formalism:12s} {line}   (us per call; N^{p:.2f} over N >= 10)")
+            p_instr = fitted_exponent([r["n"] for r in ok], [float(r["instructions"]) for r in ok])
+            print(
+                f"{kind:8s} {formalism:12s} {line}   (us per call; N >= 10: time "
+                f"N^{p:.2f}, instructions N^{p_instr:.2f})"
+            )
         both = {
             n: {
                 r["formalism"]: float(r["eval_us"])
@@ -173,7 +179,13 @@ def summary(rows: list[dict]) -> None:
             }
             for n in SIZES_RUN
         }
-        faster = [n for n, t in both.items() if len(t) == 2 and t["recursive"] < t["minimal-ode"]]
+        compared = [n for n, t in both.items() if len(t) == 2]
+        # crossover: the smallest N from which recursive is faster at every size compared
+        faster = [
+            n
+            for n in compared
+            if all(both[m]["recursive"] < both[m]["minimal-ode"] for m in compared if m >= n)
+        ]
         print(
             f"{kind:8s} recursive faster than minimal-ode from N = "
             f"{min(faster) if faster else 'never (in the sizes run)'}"
