@@ -398,7 +398,7 @@ def results(
 
 
 # -- reports --------------------------------------------------------------------------
-@app.command()
+@app.command("report")
 def report(
     results_path: Annotated[
         str,
@@ -445,7 +445,7 @@ def report(
     typer.echo(f"report: {index}")
 
 
-@app.command()
+@app.command("view")
 def view(
     path: Annotated[
         str,

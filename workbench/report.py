@@ -732,7 +732,7 @@ def _page(
             )
         body.append(f'<p class="links">{_links(name)}</p>')
     body += sections
-    body.append(_footer(command))
+    body.append(_footer(command, runs))
     body.append("</body></html>")
     return "\n".join(body) + "\n"
 
@@ -757,12 +757,29 @@ def machine_description() -> str:
     )
 
 
-def _footer(command: str) -> str:
+def run_environment(runs: pd.DataFrame) -> list[str]:
+    """What the runs recorded about where they ran: 'name: value[, value...]' per column
+    (``version_*``, ``machine``, ``cpu_count`` of the result rows; distinct values)."""
+    columns = [c for c in runs.columns if c.startswith("version_")]
+    columns += [c for c in ("machine", "cpu_count") if c in runs.columns]
+    lines = []
+    for column in columns:
+        values = [str(v) for v in runs[column].dropna().unique() if str(v) not in ("", "nan")]
+        if values:
+            name = column.removeprefix("version_")
+            lines.append(f"{name}: {', '.join(sorted(values)[:5])}")
+    return lines
+
+
+def _footer(command: str, runs: pd.DataFrame) -> str:
     versions = ", ".join(f"{name} {version}" for name, version in library_versions().items())
     date = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    environment = run_environment(runs)
+    ran = f"<p>Runs made with: {html.escape('; '.join(environment))}</p>" if environment else ""
     return (
         "<footer>"
-        f"<p>Libraries: {html.escape(versions)}</p>"
+        f"{ran}"
+        f"<p>Report made with: {html.escape(versions)}</p>"
         f"<p>Machine: {html.escape(machine_description())}</p>"
         f"<p>Date: {date}</p>"
         f"<p>Command: <code>{html.escape(command)}</code></p>"
