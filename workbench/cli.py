@@ -413,35 +413,15 @@ def report(
     ] = None,
 ) -> None:
     """Write an HTML report (figures, tables as CSV/Markdown/LaTeX) of a results directory."""
-    import shlex
     import warnings
-    from pathlib import Path
 
-    from workbench.errors import ConfigError
-    from workbench.report import write_report
-    from workbench.store import load_results, load_series
+    from workbench.report import report_directory
 
-    source = Path(results_path)
-    if not source.exists():
-        raise ConfigError(f"no results at {source}: give the output directory of `workbench sweep`")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        frame = load_results(source)
+        index = report_directory(results_path, out)
     for warning in caught:
         typer.echo(f"warning: {warning.message}", err=True)
-    if len(frame) == 0:
-        raise ConfigError(f"no result rows in {source}: run `workbench sweep --out {source}` first")
-    directory = source if source.is_dir() else source.parent
-    target = Path(out) if out else directory / "report"
-
-    def series_loader(run_id: str) -> Any:
-        try:
-            return load_series(directory, run_id)
-        except (ConfigError, OSError, ValueError):  # no or unreadable series: no curve
-            return None
-
-    command = shlex.join(["workbench", "report", str(results_path), "-o", str(target)])
-    index = write_report(frame, series_loader, target, command)
     typer.echo(f"report: {index}")
 
 

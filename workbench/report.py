@@ -139,6 +139,45 @@ def write_report(
     return index
 
 
+def report_directory(
+    results_path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str] | None = None,
+    command: str | None = None,
+    *,
+    progress: bool | None = None,
+) -> Path:
+    """The report of a results directory written by :mod:`workbench.store` (or of a
+    results.parquet); return the path of its ``index.html``.
+
+    out_dir: default ``<results directory>/report``. command: for the footer; default the
+    equivalent ``workbench report`` command line. Time series are read from the directory's
+    ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
+    results. Warnings of :func:`workbench.store.load_results` (unreadable rows) pass through.
+    """
+    import shlex
+
+    from workbench.store import load_results, load_series
+
+    source = Path(results_path)
+    if not source.exists():
+        raise ConfigError(f"no results at {source}: give the output directory of `workbench sweep`")
+    frame = load_results(source)
+    if len(frame) == 0:
+        raise ConfigError(f"no result rows in {source}: run `workbench sweep --out {source}` first")
+    directory = source if source.is_dir() else source.parent
+    target = Path(out_dir) if out_dir is not None else directory / "report"
+
+    def series_loader(run_id: str) -> pd.DataFrame | None:
+        try:
+            return load_series(directory, run_id)
+        except (ConfigError, OSError, ValueError):  # no or unreadable series: no curve
+            return None
+
+    if command is None:
+        command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
+    return write_report(frame, series_loader, target, command, progress=progress)
+
+
 def _load_series(
     runs: pd.DataFrame, series_loader: SeriesLoader | None
 ) -> dict[str, pd.DataFrame | None] | None:
