@@ -337,3 +337,26 @@ def test_generated_specs_never_give_a_traceback(tmp_path_factory, values) -> Non
     if result.exit_code == 2:
         assert result.output.startswith("error:")
         assert not (directory / "out").exists()
+
+
+@pytest.mark.slow
+def test_dask_scheduler_runs_and_kills_hung_runs(fake_plugins, tmp_path) -> None:
+    distributed = pytest.importorskip("distributed")
+    text = spec_text(tmp_path, '["test-rk45", "test-hang", "test-die"]')
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        summary = run_sweep(
+            parse_spec(text),
+            time_limit=8.0,
+            scheduler=cluster.scheduler_address,
+            show_progress=False,
+        )
+    assert summary.total == 6
+    assert rows_by_integrator(tmp_path) == {
+        "test-rk45": {"ok"},
+        "test-hang": {"timeout"},
+        "test-die": {"failed"},
+    }
+    ok = store.load_results(tmp_path).query("status == 'ok'")
+    assert all(store.series_path(tmp_path, r).is_file() for r in ok["run_id"])
