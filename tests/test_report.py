@@ -254,3 +254,22 @@ def test_cli_report_without_results_is_one_line_error(tmp_path: Path, make: str)
     assert outcome.exit_code == 2
     assert "error:" in outcome.output and "results" in outcome.output
     assert "Traceback" not in outcome.output
+
+
+def test_problem_without_successful_runs_and_broken_series(tmp_path: Path) -> None:
+    results = synthetic_results(problems=("p", "q"))
+    results.loc[results["problem"] == "q", "status"] = "failed"
+    results.loc[results["problem"] == "q", "message"] = "build: formalism raised"
+
+    def loader(run_id: str) -> pd.DataFrame:
+        if run_id.endswith("radau-1e-05"):
+            raise ConfigError(f"no time series for run {run_id!r}")
+        return synthetic_series(run_id)
+
+    with pytest.warns(UserWarning, match="no time series"):
+        index = write_report(results, loader, tmp_path, "cmd")
+    page = index.read_text(encoding="utf-8")
+    assert len(image_sources(index)) == 2  # only problem p has figures
+    assert "No successful run" in page
+    summary = pd.read_csv(tmp_path / "tables" / "summary.csv")
+    assert set(summary.loc[summary["problem"] == "q", "pair"]) == {"none reached"}

@@ -30,6 +30,7 @@ import os
 import platform
 import re
 import sys
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
@@ -40,7 +41,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, WorkbenchError
 
 STATUSES: tuple[str, ...] = ("ok", "failed", "timeout", "skipped")
 TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0)
@@ -185,7 +186,15 @@ def _load_series(
     if series_loader is None:
         return None
     _rtol, chosen = drift_runs(runs)
-    return {run_id: series_loader(run_id) for run_id in chosen["run_id"]}
+    series: dict[str, pd.DataFrame | None] = {}
+    for run_id in chosen["run_id"]:
+        try:
+            series[run_id] = series_loader(run_id)
+        except (WorkbenchError, OSError, ValueError, KeyError) as error:
+            # A missing or unreadable series costs one curve, never the report.
+            warnings.warn(f"no time series for run {run_id}: {error}", stacklevel=2)
+            series[run_id] = None
+    return series
 
 
 def _jobs(n_problems: int) -> int:
