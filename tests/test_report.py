@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import time
+from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
@@ -96,6 +97,32 @@ def synthetic_series(run_id: str, n: int = 200) -> pd.DataFrame:
     )
 
 
+VOID_ELEMENTS = {"meta", "img", "br", "hr", "link", "input"}
+
+
+class TagBalance(HTMLParser):
+    """Checks that every non-void element is closed, in order."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.stack: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list) -> None:
+        if tag not in VOID_ELEMENTS:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag: str) -> None:
+        assert self.stack and self.stack[-1] == tag, (tag, self.stack[-3:])
+        self.stack.pop()
+
+
+def assert_well_formed(page: str) -> None:
+    parser = TagBalance()
+    parser.feed(page)
+    parser.close()
+    assert parser.stack == []
+
+
 def image_sources(index: Path) -> list[str]:
     return re.findall(r'<img src="([^"]+)"', index.read_text(encoding="utf-8"))
 
@@ -119,6 +146,7 @@ def test_report_files_and_links(tmp_path: Path) -> None:
         assert "\\toprule" in (index.parent / "tables" / f"{name}.tex").read_text()
     assert (index.parent / "tables" / "results.csv").is_file()
     page = index.read_text(encoding="utf-8")
+    assert_well_formed(page)
     assert "workbench report x" in page
     assert "matplotlib" in page and "pandas" in page
     assert "Newton iteration diverged" in page  # a failure reason in the footnotes
