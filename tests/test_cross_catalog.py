@@ -10,7 +10,12 @@ import pytest
 from workbench.initial import consistent_initial_state
 from workbench.registry import get_formalism, list_plugins
 
-PAIRS = [("minimal-ode", {"index": 1}), ("absolute-dae", {"index": 1})]
+REFERENCE = ("minimal-ode", {"index": 1})
+OTHERS = [
+    ("absolute-dae", {"index": 1}),
+    ("recursive", {"index": 1}),
+    ("nonholonomic-projection", {}),
+]
 SKIP_LARGE = {"binary-tree", "spatial-chain", "planar-chain"}  # covered by recursive tests
 
 
@@ -33,12 +38,13 @@ def problems() -> list[str]:
     ]
 
 
+@pytest.mark.parametrize("other", OTHERS, ids=[name for name, _ in OTHERS])
 @pytest.mark.parametrize("name", problems())
-def test_body_accelerations_agree_between_formalisms(name):
+def test_body_accelerations_agree_between_formalisms(name, other):
     problem = next(i.plugin for i in list_plugins("problem") if i.name == name)()
     model = problem.model()
     results = []
-    for formalism_name, options in PAIRS:
+    for formalism_name, options in (REFERENCE, other):
         formalism = get_formalism(formalism_name)
         if formalism.unsupported(model):
             pytest.skip(f"{formalism_name} does not support {formalism.unsupported(model)}")

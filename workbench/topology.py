@@ -217,8 +217,21 @@ def _rank(
     evaluate = ca.Function(
         "topology_rank", [kinematics.t, kinematics.q], [ca.densify(W), ca.densify(g), ca.densify(H)]
     )
-    q_at, assembled = _assemble(kinematics, evaluate, q0, t, n_h)
-    W_at = np.asarray(evaluate(t, q_at)[0], dtype=float).reshape(-1, kinematics.nv)
+    rng = np.random.default_rng(0)
+    for _ in range(8):
+        q_at, assembled = _assemble(kinematics, evaluate, q0, t, n_h)
+        W_at = np.asarray(evaluate(t, q_at)[0], dtype=float).reshape(-1, kinematics.nv)
+        if np.all(np.isfinite(W_at)):
+            break
+        # W undefined here (a rolling disk lying flat has no contact point): move a little
+        q0 = q0 + rng.uniform(-0.1, 0.1, q0.size)
+        for s in _quaternion_slices(kinematics):
+            q0[s] /= np.linalg.norm(q0[s])
+    else:
+        raise ModelError(
+            f"model {model.name!r}: the constraint Jacobian is not finite near the given "
+            "configuration; pass a configuration where every contact is defined"
+        )
     names = list(kinematics.velocity_constraint_names)
     independent = _independent_rows(W_at, tolerance)
     redundant = [names[i] for i in range(len(names)) if i not in independent]
@@ -263,12 +276,14 @@ def _assemble(
         if g.size == 0 or np.max(np.abs(g)) <= 1e-12:
             return q, True
         W_h = W.reshape(-1, kinematics.nv)[:n_h]
+        if not (np.all(np.isfinite(W_h)) and np.all(np.isfinite(g))):
+            return q0, False  # e.g. a rolling disk lying flat: its contact point is undefined
         step, *_ = np.linalg.lstsq(W_h, -g, rcond=None)
         q = q + H.reshape(kinematics.nq, kinematics.nv) @ step
         for s in quaternion_slices:
             q[s] /= np.linalg.norm(q[s])
     g = np.asarray(evaluate(t, q)[1], dtype=float).reshape(-1)
-    if np.max(np.abs(g)) <= 1e-9:
+    if np.all(np.isfinite(g)) and np.max(np.abs(g)) <= 1e-9:
         return q, True
     return q0, False
 

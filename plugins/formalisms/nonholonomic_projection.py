@@ -9,8 +9,8 @@ with minimal velocities s (nv - rank W):
     v = F(t, q) s + f(t, q),    W F = 0,    W f + w = 0,
 
 by partitioning: the independent velocities v_i = s are a fixed selection, computed once
-by pivoted QR of W at a reference configuration (the neutral joint coordinates at t = 0,
-or a seeded random configuration if W is not finite there; option ``independent`` names
+by pivoted QR of W at a reference configuration (of the assembled neutral configuration
+and seeded random ones, the one where W has the highest rank; option ``independent`` names
 them instead), and the dependent ones follow from W_d v_d = -(W_i s + w):
 
     F = P^T [I; -W_d^-1 W_i],    f = P^T [0; -W_d^-1 w]    (symbolic W_d^-1).
@@ -102,17 +102,29 @@ def _rank(matrix: np.ndarray) -> tuple[int, np.ndarray]:
 def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] = ()) -> Partition:
     """Choose independent rows of W and independent velocities (see the module doc)."""
     k = kinematics
+    from workbench.topology import analyze
+
     w_function = ca.Function("W", [k.t, k.q], [ca.densify(k.velocity_constraint_matrix)])
-    for seed in range(6):
-        q_ref = reference_configuration(k, seed)
-        w_matrix = np.asarray(w_function(0.0, q_ref), dtype=float).reshape(-1, k.nv)
-        if np.all(np.isfinite(w_matrix)):
-            break
-    else:
+    # Candidates: the neutral configuration (unassembled, e.g. a folded four-bar, it can lose
+    # rank), seeded random ones, the assembled one; the first of highest rank wins.
+    candidates = [reference_configuration(k, s) for s in range(6)]
+    candidates.append(analyze(k.model).configuration)
+    best = None
+    for q_candidate in candidates:
+        if q_candidate is None:
+            continue
+        w_candidate = np.asarray(w_function(0.0, q_candidate), dtype=float).reshape(-1, k.nv)
+        if not np.all(np.isfinite(w_candidate)):
+            continue
+        candidate_rank = _rank(w_candidate.T)[0]
+        if best is None or candidate_rank > best[0]:
+            best = (candidate_rank, q_candidate, w_candidate)
+    if best is None:
         raise ModelError(
             f"model {k.model.name!r}: the velocity constraint matrix is not finite at any "
             "reference configuration tried"
         )
+    _, q_ref, w_matrix = best
     rank, row_pivots = _rank(w_matrix.T)
     rows = np.sort(row_pivots[:rank])
     w_rows = w_matrix[rows]
