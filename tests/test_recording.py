@@ -146,6 +146,31 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
     assert "TransformAxes3D:axis_length" in joint
 
 
+def blueprint_views(path: Path) -> dict[str, dict[str, list]]:
+    """View display name -> its class, origin and content queries, from the blueprint."""
+    reader = rr.chunk.RrdReader(path)
+    fields: dict[str, dict[str, list]] = {}
+    for chunk in reader.stream(store=reader.blueprints()[0]).to_chunks():
+        parts = chunk.entity_path.strip("/").split("/")
+        if parts[0] == "view":
+            data = chunk.to_record_batch().to_pydict()
+            fields.setdefault(parts[1], {}).update(
+                {k.split(":")[-1]: v[-1] for k, v in data.items() if ":" in k}
+            )
+    return {view.get("display_name", [""])[0]: view for view in fields.values()}
+
+
+def test_blueprint_has_a_3d_view_beside_the_plots(tmp_path: Path) -> None:
+    sink = RerunSink()
+    run = sink.log_run(*_args(fake_run()))
+    views = blueprint_views(sink.save(tmp_path))
+    assert views["fake-problem"]["class_identifier"] == ["3D"]
+    assert views["fake-problem"]["space_origin"] == ["runs/fake-problem"]
+    assert set(views) == {"fake-problem", "drift_pos", "drift_vel", "energy_err", "ref_err"}
+    assert views["ref_err"]["class_identifier"] == ["TimeSeries"]
+    assert views["ref_err"]["query"] == [f"+ /{run}/series/ref_err"]
+
+
 def test_runs_with_other_tolerances_and_repeated_keys(tmp_path: Path) -> None:
     sink = RerunSink(max_frames=10)
     paths = [sink.log_run(*_args(fake_run(rtol))) for rtol in (1e-3, 1e-6)]
@@ -230,6 +255,21 @@ def test_view_with_display_starts_the_viewer(
     outcome = CliRunner().invoke(app, ["view", str(recording_file)])
     assert outcome.exit_code == 0, outcome.output
     assert started and started[0][-1] == str(recording_file)
+
+
+def test_view_without_a_viewer_is_one_line_error(
+    recording_file: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import subprocess
+
+    def missing(args: list, **kwargs: object) -> None:
+        raise FileNotFoundError(2, "No such file or directory", args[0])
+
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(subprocess, "Popen", missing)
+    outcome = CliRunner().invoke(app, ["view", str(recording_file)])
+    assert outcome.exit_code == 2
+    assert "error: cannot start the Rerun viewer" in outcome.output
 
 
 def test_view_missing_recording_is_one_line_error(tmp_path: Path) -> None:

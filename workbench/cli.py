@@ -460,7 +460,13 @@ def view(
             "(then open the printed URL; forward its ports over ssh if remote)"
         )
         return
-    subprocess.Popen([*viewer, str(recording)], start_new_session=True)
+    try:
+        subprocess.Popen([*viewer, str(recording)], start_new_session=True)
+    except OSError as error:
+        raise ConfigError(
+            f"cannot start the Rerun viewer ({error}); install rerun-sdk or run "
+            f"`rerun {shlex.quote(str(recording))}` yourself"
+        ) from None
     typer.echo(f"opened {recording} in the Rerun viewer")
 
 

@@ -92,6 +92,7 @@ class RerunSink:
         self.recording = rr.RecordingStream(application_id, recording_id=self.recording_id)
         self.max_frames = max(2, int(max_frames))
         self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
+        self.quantities: set[str] = set()  # series logged by at least one run
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -175,6 +176,7 @@ class RerunSink:
             keep = np.isfinite(values) & np.isfinite(t)
             if not keep.any():
                 continue
+            self.quantities.add(quantity)
             quantity_path = f"{path}/series/{quantity}"
             self.recording.log(quantity_path, rr.SeriesLines(names=label), static=True)
             self.recording.send_columns(
@@ -185,7 +187,8 @@ class RerunSink:
 
     # -- the file -------------------------------------------------------------------------
     def blueprint(self) -> Any:
-        """A 3D view per problem (tabs) beside one time-series plot per quantity."""
+        """A 3D view per problem (tabs; its runs overlaid, so drift shows as bodies
+        parting) beside one time-series plot per quantity that some run logged."""
         import rerun.blueprint as rrb
 
         problems = list(dict.fromkeys(problem for problem, _label in self.runs.values()))
@@ -200,11 +203,14 @@ class RerunSink:
                 contents=[f"+ /{path}/series/{quantity}" for path in self.runs] or "$origin/**",
             )
             for quantity in SERIES_QUANTITIES
+            if quantity in self.quantities
         ]
-        return rrb.Blueprint(
-            rrb.Horizontal(rrb.Tabs(*spatial), rrb.Vertical(*plots), column_shares=[3, 2]),
-            collapse_panels=False,
+        layout = (
+            rrb.Horizontal(rrb.Tabs(*spatial), rrb.Vertical(*plots), column_shares=[3, 2])
+            if plots
+            else rrb.Tabs(*spatial)
         )
+        return rrb.Blueprint(layout, collapse_panels=False)
 
     def save(self, path: str | Path) -> Path:
         """Write the recording (with its blueprint) to ``path``; a directory gets
@@ -243,6 +249,8 @@ class RerunSink:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
                 found.append(run)
+            if len(parts) == 7 and parts[5] == "series" and parts[6] in SERIES_QUANTITIES:
+                self.quantities.add(parts[6])
             self.recording.send_chunks(chunk)
         return found
 
