@@ -118,9 +118,13 @@ def test_analytic_reference_and_non_conservative_notes(fake_plugins) -> None:
 
 
 def test_skip_reasons(fake_plugins) -> None:
-    form = execute_run(spec(formalism_options={"index": 3})).row
+    # a closed loop at index 3 has no ode form; a tree has one at every index
+    form = execute_run(spec("test-slider-crank", formalism_options={"index": 3})).row
     assert form["status"] == "skipped"
-    assert "test-rk45 accepts" in form["message"] and "minimal-ode offers" in form["message"]
+    assert "'test-rk45': accepts" in form["message"]
+    assert "minimal-ode offers" in form["message"]
+    tree = execute_run(spec(formalism_options={"index": 3})).row
+    assert tree["status"] == "ok" and tree["form"] == "ode"
     loops = execute_run(spec("test-slider-crank", formalism="test-trees-only")).row
     assert loops["status"] == "skipped" and "loop-closing" in loops["message"]
     picky = execute_run(spec(integrator="test-picky")).row

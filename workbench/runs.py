@@ -239,8 +239,15 @@ def execute_run(
             equations, reused = cached_equations(spec, model)
             row["equations_cached"] = reused
             stages.stop()
-            form = integrator.select_form(formalism_class.forms(formalism_options))
-            reason = integrator.incompatibility(equations, integrator_options)
+            # pair on the forms actually built: a model without constraints has an ode
+            # form at every index, which forms(options) cannot know
+            offered = {name: getattr(f, "index", 0) for name, f in equations.forms.items()}
+            form = integrator.select_form(offered)
+            reason = (
+                _form_mismatch(spec, integrator, offered)
+                if form is None
+                else integrator.incompatibility(equations, integrator_options)
+            )
             if reason:
                 row.update(status="skipped", message=f"integrator {spec.integrator!r}: {reason}")
             else:
@@ -314,15 +321,13 @@ def _pairing(
     if missing:
         names = ", ".join(FEATURES.get(f, f) for f in sorted(missing))
         return f"formalism {spec.formalism!r} does not support {names} (model {model.name!r})"
-    offered = formalism_class.forms(formalism_options)
-    if integrator.select_form(offered) is None:
-        accepts = ", ".join(f"{k} (index <= {v})" for k, v in integrator.accepts.items())
-        offers = ", ".join(f"{k} (index {v})" for k, v in offered.items())
-        return (
-            f"integrator {spec.integrator} accepts {{{accepts}}}; "
-            f"formalism {spec.formalism} offers {{{offers}}}"
-        )
     return None
+
+
+def _form_mismatch(spec: RunSpec, integrator: Any, offered: dict[str, int]) -> str:
+    accepts = ", ".join(f"{k} (index <= {v})" for k, v in integrator.accepts.items())
+    offers = ", ".join(f"{k} (index {v})" for k, v in offered.items())
+    return f"accepts {{{accepts}}}; formalism {spec.formalism} offers {{{offers}}}"
 
 
 def _record_trajectory(row: dict[str, Any], trajectory: Any) -> None:
