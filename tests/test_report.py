@@ -140,7 +140,7 @@ def test_report_files_and_links(tmp_path: Path) -> None:
     assert any(link.endswith(".pdf") for link in links)
     for link in links:
         assert (index.parent / link).is_file(), link
-    for name in ("summary", "status"):
+    for name in ("summary", "status", "drift-simple-pendulum", "drift-heavy-top"):
         for ext in ("csv", "md", "tex"):
             assert (index.parent / "tables" / f"{name}.{ext}").is_file()
         assert "\\toprule" in (index.parent / "tables" / f"{name}.tex").read_text()

@@ -610,6 +610,25 @@ def drift_runs(runs: pd.DataFrame) -> tuple[float | None, pd.DataFrame]:
     return rtol, chosen.drop_duplicates("pair").sort_values("pair")
 
 
+DRIFT_TABLE_COLUMNS: tuple[str, ...] = (
+    "drift_pos_max",
+    "drift_vel_max",
+    "drift_nh_max",
+    "energy_err_max",
+    "invariant_err_max",
+    "err_max",
+    "scd",
+)
+
+
+def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
+    """One row per pair at the middle tolerance: the maxima over time of the drifts and
+    errors (columns left out when no run measured them)."""
+    _rtol, chosen = drift_runs(runs)
+    columns = [c for c in DRIFT_TABLE_COLUMNS if chosen[c].notna().any()]
+    return chosen[["pair", *columns]].reset_index(drop=True)
+
+
 def drift_figure(
     runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path, problem: str
 ) -> tuple[FigureFiles | None, float | None]:
@@ -737,6 +756,15 @@ def _problem_section(
         parts.append("<p>No successful run: no drift plot.</p>")
     else:
         parts.append(f"<p>No time series for the runs at rtol = {rtol:g}: no drift plot.</p>")
+    if rtol is not None:
+        name = f"drift-{_slug(problem)}"
+        table = drift_table(runs)
+        write_table(table, out / "tables", name)
+        parts += [
+            f"<h3>Largest drift and errors at rtol = {rtol:g}</h3>",
+            _table_html(table, index=False),
+            f'<p class="links">{_links(name)}</p>',
+        ]
     parts.append("</section>")
     return "\n".join(parts)
 
