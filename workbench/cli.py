@@ -308,8 +308,16 @@ def run(
     options = _run_options(option or [])
     _assign_options(options, classes)
     spec = normalized_spec(
-        RunSpec(problem, formalism, integrator, rtol, atol if atol else rtol * 1e-3,
-                options["problem"], options["formalism"], options["integrator"])
+        RunSpec(
+            problem,
+            formalism,
+            integrator,
+            rtol,
+            atol if atol else rtol * 1e-3,
+            options["problem"],
+            options["formalism"],
+            options["integrator"],
+        )
     )
     reference_dir = Path(out) / "references" if out else None
     result = execute_run(spec, reference_dir=reference_dir)
@@ -359,15 +367,28 @@ def sweep(
         f"{summary.already_done} already done"
     )
     typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
-    if "report" in {c.name for c in app.registered_commands}:
-        typer.echo(f"report: workbench report {summary.out}")
-    else:
-        typer.echo(f"report: {summary.out}/report.html once `workbench report` exists")
+    from workbench.report import report_directory
+
+    index = report_directory(summary.out, command=" ".join(["workbench", *sys.argv[1:]]))
+    typer.echo(f"report: {index}")
+    if summary.recording is not None:
+        typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
 
 
 RESULT_COLUMNS = [
-    "problem", "formalism", "formalism_options", "integrator", "rtol", "status", "wall_s",
-    "n_rhs", "err_end", "scd", "drift_pos_max", "energy_err_max", "message",
+    "problem",
+    "formalism",
+    "formalism_options",
+    "integrator",
+    "rtol",
+    "status",
+    "wall_s",
+    "n_rhs",
+    "err_end",
+    "scd",
+    "drift_pos_max",
+    "energy_err_max",
+    "message",
 ]
 
 

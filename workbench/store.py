@@ -163,6 +163,14 @@ def read_row(path: Path) -> dict[str, Any] | None:
     return data
 
 
+def remove_stale_temporaries(out: Path) -> list[Path]:
+    """Delete temporary files left by writers killed mid-write (never read as results)."""
+    stale = [p for p in Path(out).rglob(".*.tmp") if p.is_file()]
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return stale
+
+
 def completed_run_ids(out: Path) -> set[str]:
     """Run ids with a readable row file (what a resumed sweep skips)."""
     directory = Path(out) / RUNS_DIR

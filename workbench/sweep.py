@@ -313,6 +313,7 @@ class SweepSummary:
     already_done: int
     seconds: float
     results: Path | None = None
+    recording: Path | None = None
 
     @property
     def total(self) -> int:
@@ -336,6 +337,7 @@ def run_sweep(
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if not limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {limit}")
+    store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
     done = store.completed_run_ids(out_dir)
     todo = [spec for spec in sweep.runs if spec.run_id not in done]
     (out_dir / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
@@ -354,8 +356,16 @@ def run_sweep(
         else:
             _run_local(todo, out_dir, limit, sweep.plugins, jobs, record)
     results = store.consolidate(out_dir)
+    recording = None
+    with contextlib.suppress(Exception):  # a recording is a view of the results, never fatal
+        recording = merge_run_recordings(out_dir)
     return SweepSummary(
-        out_dir, counts, len(sweep.runs) - len(todo), time.perf_counter() - started, results
+        out_dir,
+        counts,
+        len(sweep.runs) - len(todo),
+        time.perf_counter() - started,
+        results,
+        recording,
     )
 
 
@@ -432,11 +442,44 @@ def _worker_main(conn: Any, plugins: list[str], out: str, sys_path: list[str]) -
             return
         spec = RunSpec.from_dict(message)
         try:
-            result = execute_run(spec, reference_dir=reference_dir)
+            sink = _run_sink()
+            result = execute_run(spec, sink=sink, reference_dir=reference_dir)
             store.write_run(Path(out), result.row, result.series)
+            _save_recording(sink, Path(out), spec.run_id)
             conn.send(("done", spec.run_id, result.row["status"]))
         except Exception as error:  # noqa: BLE001 - reported to the parent as a row
             conn.send(("error", spec.run_id, f"{type(error).__name__}: {error}"))
+
+
+RECORDINGS_DIR = "recordings"
+
+
+def _run_sink() -> Any:
+    """A Rerun sink for one run, or None where rerun-sdk cannot be used."""
+    try:
+        from workbench.recording import RerunSink
+
+        return RerunSink(max_frames=200)
+    except Exception:  # noqa: BLE001 - a recording is a view of the results, never a failure
+        return None
+
+
+def _save_recording(sink: Any, out: Path, run_id: str) -> None:
+    """Write one run's recording beside its row; merged into recording.rrd at the end."""
+    if sink is None or not sink.runs:  # skipped or failed before integrating
+        return
+    with contextlib.suppress(Exception):
+        sink.save(out / RECORDINGS_DIR / f"{run_id}.rrd")
+
+
+def merge_run_recordings(out: Path) -> Path | None:
+    """Merge the per-run recordings of ``out`` into ``out/recording.rrd``."""
+    files = sorted((out / RECORDINGS_DIR).glob("*.rrd"))
+    if not files:
+        return None
+    from workbench.recording import merge_recordings
+
+    return merge_recordings(files, out / "recording.rrd")
 
 
 def _exit_with_parent() -> None:
