@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import workbench.registry
+from problems._parts import angular_momentum
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
 from workbench.problem import Invariant, Problem
@@ -44,28 +45,6 @@ TRANSVERSE_INERTIA = 4.0e-3  # kg m^2, A about the centre of mass
 AXIAL_INERTIA = 6.0e-3  # kg m^2, C about the symmetry axis
 GRAVITY = 9.81  # m/s^2
 FIXED_POINT = np.zeros(3)  # m, inertial
-
-
-def angular_momentum(
-    model: Model, poses: np.ndarray, twists: np.ndarray, point: np.ndarray
-) -> np.ndarray:
-    """Total angular momentum (3,) about a fixed ``point``, inertial coordinates.
-
-    poses (n_bodies, 7) [position, quaternion scalar-first], twists (n_bodies, 6)
-    [velocity of the body-frame origin, angular velocity], inertial, bodies in
-    ``model.bodies`` order: sum of m (r_c - point) x v_c + R I_c R^T omega.
-    """
-    total = np.zeros(3)
-    for i, body in enumerate(model.bodies.values()):
-        rotation = quaternion_to_matrix(np.asarray(poses[i, 3:7], dtype=float))
-        omega = np.asarray(twists[i, 3:6], dtype=float)
-        offset = rotation @ body.com
-        r_c = poses[i, :3] + offset
-        v_c = twists[i, :3] + np.cross(omega, offset)
-        total += body.mass * np.cross(r_c - point, v_c)
-        if not body.point_mass:
-            total += rotation @ body.inertia @ rotation.T @ omega
-    return total
 
 
 def vertical_angular_momentum(

@@ -18,9 +18,10 @@ naming the formalisms that do handle it.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
 
-from workbench.errors import PluginError
+from workbench.errors import ConfigError, PluginError
 from workbench.model import Model
 from workbench.options import NoOptions, parse_options
 
@@ -46,6 +47,28 @@ def model_features(model: Model) -> set[str]:
     if any(b.point_mass for b in model.bodies.values()):
         features.add("point-masses")
     return features
+
+
+@dataclass(frozen=True)
+class ConstraintOptions:
+    """Options shared by formalisms with constraint multipliers: the DAE index of the
+    ``dae`` form and the Baumgarte gains of index 1 (whose system is also the ``ode`` form)."""
+
+    index: Literal[1, 2, 3] = 3
+    baumgarte_alpha: float = 10.0
+    baumgarte_beta: float = 10.0
+
+    def __post_init__(self) -> None:
+        if self.baumgarte_alpha < 0 or self.baumgarte_beta < 0:
+            raise ConfigError("Baumgarte gains must be >= 0")
+
+
+def constrained_forms(options: ConstraintOptions) -> dict[str, int]:
+    """The forms of a constrained system: dae at the index, mechanical, ode at index 1."""
+    forms = {"dae": options.index, "mechanical": 0}
+    if options.index == 1:
+        forms["ode"] = 0
+    return forms
 
 
 class Formalism:

@@ -55,8 +55,8 @@ from workbench import forces as fm
 from workbench import joints as jk
 from workbench import rotations as rot
 from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
-from workbench.errors import ConfigError, ModelError
-from workbench.formalism import Formalism
+from workbench.errors import ModelError
+from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.kinematics import BodyState, TreeKinematics, contact_rows, initial_joint_values
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
 from workbench.registry import formalism
@@ -67,15 +67,8 @@ RANK_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
-class AbsoluteOptions:
-    index: Literal[1, 2, 3] = 3
-    baumgarte_alpha: float = 10.0
-    baumgarte_beta: float = 10.0
+class AbsoluteOptions(ConstraintOptions):
     redundant: Literal["remove", "error"] = "remove"
-
-    def __post_init__(self) -> None:
-        if self.baumgarte_alpha < 0 or self.baumgarte_beta < 0:
-            raise ConfigError("Baumgarte gains must be >= 0")
 
 
 # ---- coordinates ------------------------------------------------------------------------
@@ -351,10 +344,7 @@ class AbsoluteDae(Formalism):
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:
         options = cls.parse_options(options)
-        forms = {"dae": options.index, "mechanical": 0}
-        if options.index == 1:
-            forms["ode"] = 0
-        return forms
+        return constrained_forms(options)
 
     def build(self, model: Model, options: Any = None) -> Equations:
         options = self.parse_options(options)

@@ -29,23 +29,16 @@ import scipy.linalg
 
 from workbench import forces as fm
 from workbench.equations import Equations, MechanicalSystem, build_equations
-from workbench.errors import ConfigError, ModelError
-from workbench.formalism import Formalism
+from workbench.errors import ModelError
+from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.kinematics import TreeKinematics
 from workbench.model import Model
 from workbench.registry import formalism
 
 
 @dataclass(frozen=True)
-class MinimalOptions:
+class MinimalOptions(ConstraintOptions):
     loops: Literal["dae", "state-space"] = "dae"
-    index: Literal[1, 2, 3] = 3
-    baumgarte_alpha: float = 10.0
-    baumgarte_beta: float = 10.0
-
-    def __post_init__(self) -> None:
-        if self.baumgarte_alpha < 0 or self.baumgarte_beta < 0:
-            raise ConfigError("Baumgarte gains must be >= 0")
 
 
 def minimal_mechanical_system(model: Model, kinematics: TreeKinematics) -> MechanicalSystem:
@@ -96,10 +89,7 @@ class MinimalOde(Formalism):
         options = cls.parse_options(options)
         if options.loops == "state-space":
             return {"ode": 0, "dae": 0, "mechanical": 0}
-        forms = {"dae": options.index, "mechanical": 0}
-        if options.index == 1:
-            forms["ode"] = 0
-        return forms
+        return constrained_forms(options)
 
     def build(self, model: Model, options: Any = None) -> Equations:
         options = self.parse_options(options)

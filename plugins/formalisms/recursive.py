@@ -48,8 +48,7 @@ import numpy as np
 from workbench import forces as fm
 from workbench import joints as jk
 from workbench.equations import Equations, MechanicalSystem, build_equations
-from workbench.errors import ConfigError
-from workbench.formalism import Formalism
+from workbench.formalism import ConstraintOptions, Formalism
 from workbench.kinematics import TreeKinematics
 from workbench.model import GROUND, Joint, Model
 from workbench.registry import formalism
@@ -336,15 +335,8 @@ def composite_rigid_body_mass(tree: SpatialTree) -> Any:
 
 
 @dataclass(frozen=True)
-class RecursiveOptions:
+class RecursiveOptions(ConstraintOptions):
     algorithm: Literal["aba", "rnea-crba"] = "aba"
-    index: Literal[1, 2, 3] = 3
-    baumgarte_alpha: float = 10.0
-    baumgarte_beta: float = 10.0
-
-    def __post_init__(self) -> None:
-        if self.baumgarte_alpha < 0 or self.baumgarte_beta < 0:
-            raise ConfigError("Baumgarte gains must be >= 0")
 
 
 def recursive_mechanical_system(
