@@ -456,3 +456,30 @@ def joint_residuals(model: Model, t: Any, bodies: dict[str, BodyState]) -> Any:
         if height is not None:
             rows.append(height)
     return ca.vertcat(*rows) if rows else ca.DM.zeros(0, 1)
+
+
+def build_joint_space_equations(
+    formalism: str,
+    model: Model,
+    kinematics: Any,
+    system: MechanicalSystem,
+    options: Any,
+    ode: bool,
+    notes: list[str] | None = None,
+) -> Equations:
+    """:func:`build_equations` for formalisms whose coordinates are the tree's free joint
+    coordinates (``kinematics`` a TreeKinematics): the joint-space map is the identity.
+    ``options`` carries ``index``, ``baumgarte_alpha`` and ``baumgarte_beta``."""
+    k = kinematics
+    return build_equations(
+        formalism,
+        model,
+        system,
+        k.bodies,
+        ([k.t, k.q, k.v], [k.q, k.v]),
+        dae_index=options.index,
+        baumgarte=(options.baumgarte_alpha, options.baumgarte_beta),
+        ode=ode,
+        joint_coordinates={j.name: k.joint_coordinates(j)[0] for j in model.tree_joints},
+        notes=notes,
+    )

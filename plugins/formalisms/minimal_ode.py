@@ -28,7 +28,12 @@ import numpy as np
 import scipy.linalg
 
 from workbench import forces as fm
-from workbench.equations import Equations, MechanicalSystem, build_equations
+from workbench.equations import (
+    Equations,
+    MechanicalSystem,
+    build_equations,
+    build_joint_space_equations,
+)
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.kinematics import TreeKinematics
@@ -99,18 +104,8 @@ class MinimalOde(Formalism):
         system = minimal_mechanical_system(model, kinematics)
         if options.loops == "state-space" and system.n_constraints:
             return state_space_equations(self.name, model, kinematics, system)
-        joint_coordinates = {j.name: kinematics.joint_coordinates(j)[0] for j in model.tree_joints}
-        return build_equations(
-            self.name,
-            model,
-            system,
-            kinematics.bodies,
-            ([kinematics.t, kinematics.q, kinematics.v], [kinematics.q, kinematics.v]),
-            dae_index=options.index,
-            baumgarte=(options.baumgarte_alpha, options.baumgarte_beta),
-            ode=system.n_constraints == 0 or options.index == 1,
-            joint_coordinates=joint_coordinates,
-        )
+        ode = system.n_constraints == 0 or options.index == 1
+        return build_joint_space_equations(self.name, model, kinematics, system, options, ode)
 
 
 def independent_partition(model: Model, kinematics: TreeKinematics) -> np.ndarray:

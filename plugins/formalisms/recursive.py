@@ -47,7 +47,7 @@ import numpy as np
 
 from workbench import forces as fm
 from workbench import joints as jk
-from workbench.equations import Equations, MechanicalSystem, build_equations
+from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
 from workbench.formalism import ConstraintOptions, Formalism
 from workbench.kinematics import TreeKinematics
 from workbench.model import GROUND, Joint, Model
@@ -451,16 +451,6 @@ class Recursive(Formalism):
                 "closed loops: M by CRBA and h by RNEA, accelerations from the augmented "
                 "system (O(n^3)); the ode form is index 1 with Baumgarte stabilization"
             )
-        joint_coordinates = {j.name: kinematics.joint_coordinates(j)[0] for j in model.tree_joints}
-        return build_equations(
-            self.name,
-            model,
-            system,
-            kinematics.bodies,
-            ([kinematics.t, kinematics.q, kinematics.v], [kinematics.q, kinematics.v]),
-            dae_index=options.index,
-            baumgarte=(options.baumgarte_alpha, options.baumgarte_beta),
-            ode=True,
-            joint_coordinates=joint_coordinates,
-            notes=notes,
+        return build_joint_space_equations(
+            self.name, model, kinematics, system, options, ode=True, notes=notes
         )

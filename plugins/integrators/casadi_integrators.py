@@ -98,7 +98,8 @@ class CasadiBase(Integrator):
     plugin: ClassVar[str] = ""
 
     def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
-        raise NotImplementedError
+        """CasADi's dae dict and the state layout; by default the ode form as x' = f."""
+        return _ode_dae(task)
 
     def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
         raise NotImplementedError
@@ -192,10 +193,6 @@ class CasadiCvodes(CasadiBase):
     accepts: ClassVar[dict[str, int]] = {"ode": 0}
     plugin = "cvodes"
 
-    def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
-        dae, n = _ode_dae(task)
-        return dae, n
-
     def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
         method = task.options.method
         return {**_sundials_options(task), "linear_multistep_method": method}
@@ -254,10 +251,6 @@ class CasadiCollocation(CasadiBase):
     Options = CollocationOptions
     accepts: ClassVar[dict[str, int]] = {"ode": 0}
     plugin = "collocation"
-
-    def dae(self, task: IntegrationTask) -> tuple[dict[str, Any], Any]:
-        dae, n = _ode_dae(task)
-        return dae, n
 
     def n_elements(self, task: IntegrationTask) -> int:
         intervals = len(task.times) - 1
