@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from workbench import forces as fm
 from workbench import joints as jk
+from workbench.compiled import Compiler
 from workbench.evaluate import FastFunction, dense_function, lazy_dense_function
 from workbench.kinematics import BodyState, contact_rows
 from workbench.model import GROUND, Model
@@ -168,6 +169,7 @@ class Equations:
     joint_space_map: FastFunction  # (t, q_joint, v_joint) -> (q, v) in these coordinates
     notes: list[str] = field(default_factory=list)
     stiffness_hint: str = ""
+    compile_warnings: list[str] = field(default_factory=list)  # see workbench.compiled
 
     @property
     def nq(self) -> int:
@@ -258,6 +260,7 @@ def build_equations(
     ode: bool = True,
     joint_coordinates: dict[str, Any] | None = None,
     notes: list[str] | None = None,
+    compiler: Compiler | None = None,
 ) -> Equations:
     """Derive all forms and observables from a formalism's symbolic description.
 
@@ -269,8 +272,17 @@ def build_equations(
     and for the ode form of a constrained system. ``ode``: offer the ode form (for a
     constrained system it is the index-1 system, which drifts without stabilization).
     ``joint_coordinates``: q of each joint with a spring (for the potential energy);
-    recovered from the poses when not given.
+    recovered from the poses when not given. ``compiler``: how the functions of the forms
+    (evaluated in integrators' hot loops) run; observables stay in the CasADi VM.
     """
+    compiler = compiler if compiler is not None else Compiler()
+
+    def hot(name: str, inputs: list, outputs: list) -> FastFunction:
+        return dense_function(name, inputs, outputs, compiler=compiler)
+
+    def lazy_hot(name: str, inputs: list, outputs: Any) -> Any:
+        return lazy_dense_function(name, inputs, outputs, compiler=compiler)
+
     t, q, v = system.t, system.q, system.v
     nq, nv, nc, m = q.numel(), v.numel(), system.n_constraints, system.n_holonomic
     c = system.velocity_constraints
@@ -294,16 +306,16 @@ def build_equations(
     if nc:
         dyn = dyn + ca.mtimes(w_matrix.T, lam)
     forms["mechanical"] = MechanicalForm(
-        mass=dense_function("mass", [t, q], [system.mass]),
-        forces=dense_function("forces", [t, q, v], [system.forces]),
-        qdot=dense_function("qdot", [t, q, v], [system.qdot]),
-        kinematics=dense_function("kinematics", [t, q], [h_matrix]),
-        position_constraints=dense_function("g", [t, q], [g]),
-        position_jacobian=dense_function("g_q", [t, q], [ca.jacobian(g, q)]),
-        velocity_matrix=dense_function("W", [t, q], [w_matrix]),
-        velocity_constraints=dense_function("c", [t, q, v], [c]),
-        acceleration_rhs=dense_function("gamma", [t, q, v], [gamma]),
-        dynamics=lazy_dense_function(
+        mass=hot("mass", [t, q], [system.mass]),
+        forces=hot("forces", [t, q, v], [system.forces]),
+        qdot=hot("qdot", [t, q, v], [system.qdot]),
+        kinematics=hot("kinematics", [t, q], [h_matrix]),
+        position_constraints=hot("g", [t, q], [g]),
+        position_jacobian=hot("g_q", [t, q], [ca.jacobian(g, q)]),
+        velocity_matrix=hot("W", [t, q], [w_matrix]),
+        velocity_constraints=hot("c", [t, q, v], [c]),
+        acceleration_rhs=hot("gamma", [t, q, v], [gamma]),
+        dynamics=lazy_hot(
             "dynamics",
             [t, q, v, a, lam],
             lambda: [dyn, ca.jacobian(dyn, q), ca.jacobian(dyn, v), system.mass, w_matrix.T],
@@ -321,8 +333,8 @@ def build_equations(
         y = ca.vertcat(q_o, v_o)
         f = ca.vertcat(qdot, accel)
         forms["ode"] = OdeForm(
-            rhs=dense_function("ode_rhs", [t_o, y], [f]),
-            jacobian=lazy_dense_function("ode_jac", [t_o, y], lambda: [ca.jacobian(f, y)]),
+            rhs=hot("ode_rhs", [t_o, y], [f]),
+            jacobian=lazy_hot("ode_jac", [t_o, y], lambda: [ca.jacobian(f, y)]),
             n=nq + nv,
         )
 
@@ -367,8 +379,8 @@ def build_equations(
         return [ca.jacobian(residual, y_all) + coefficient * ca.jacobian(residual, yp_all)]
 
     forms["dae"] = DaeForm(
-        residual=dense_function("dae_residual", [t, y_all, yp_all], [residual]),
-        jacobian=lazy_dense_function("dae_jacobian", [t, y_all, yp_all, coefficient], dae_jacobian),
+        residual=hot("dae_residual", [t, y_all, yp_all], [residual]),
+        jacobian=lazy_hot("dae_jacobian", [t, y_all, yp_all, coefficient], dae_jacobian),
         algebraic=np.array(algebraic, dtype=bool),
         index=index,
         n=int(y_all.numel()),
@@ -388,6 +400,7 @@ def build_equations(
         observables=observables,
         joint_space_map=dense_function("joint_space_map", map_inputs, map_outputs),
         notes=list(notes or []),
+        compile_warnings=compiler.warnings,
     )
 
 
@@ -482,4 +495,5 @@ def build_joint_space_equations(
         ode=ode,
         joint_coordinates={j.name: k.joint_coordinates(j)[0] for j in model.tree_joints},
         notes=notes,
+        compiler=Compiler.from_options(options),
     )

@@ -3,7 +3,9 @@
 ``Function.__call__`` costs 10-40 us of Python overhead per call, more than the dynamics
 of a small mechanism. :class:`FastFunction` binds preallocated NumPy arrays to a
 ``Function.buffer()`` once and evaluates into them. Outputs are dense (the builder must
-``densify`` them: buffers hold only structural nonzeros).
+``densify`` them: buffers hold only structural nonzeros). With an active
+:class:`~workbench.compiled.Compiler` the Function is compiled to C at its first call
+and the same arrays are bound to the compiled function's buffer.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
+
+from workbench.compiled import Compiler
 
 
 class FastFunction:
@@ -22,19 +26,17 @@ class FastFunction:
     returns the internal arrays themselves (overwritten by the next call).
     """
 
-    def __init__(self, function: ca.Function) -> None:
-        self.function = function
+    def __init__(self, function: ca.Function, compiler: Compiler | None = None) -> None:
+        self.function = function  # the symbolic Function (CasADi integrators, pickling)
+        self.compiler = compiler if compiler is not None and compiler.active else None
         self.name = function.name()
         self.n_calls = 0
-        self._buffer, self._evaluate = function.buffer()
         self._inputs = []
         for i in range(function.n_in()):
             sparsity = function.sparsity_in(i)
             if not sparsity.is_dense():
                 raise ValueError(f"{self.name}: input {i} must be dense")
-            array = np.zeros(sparsity.numel())
-            self._buffer.set_arg(i, memoryview(array))
-            self._inputs.append(array)
+            self._inputs.append(np.zeros(sparsity.numel()))
         self._outputs = []
         self._views = []
         for i in range(function.n_out()):
@@ -43,9 +45,31 @@ class FastFunction:
                 raise ValueError(f"{self.name}: output {i} must be dense (use casadi.densify)")
             rows, cols = sparsity.shape
             array = np.zeros(rows * cols)
-            self._buffer.set_res(i, memoryview(array))
             self._outputs.append(array)
             self._views.append(array if cols == 1 else array.reshape(cols, rows).T)
+        self.evaluated = function  # what runs: ``function`` or its compiled C
+        if self.compiler is None:
+            self._bind(function)
+        else:  # compiled on first use: a run compiles only what its integrator calls
+            self._evaluate = self._compile_and_evaluate
+
+    def _bind(self, function: ca.Function) -> None:
+        self.evaluated = function
+        self._buffer, self._evaluate = function.buffer()
+        for i, array in enumerate(self._inputs):
+            self._buffer.set_arg(i, memoryview(array))
+        for i, array in enumerate(self._outputs):
+            self._buffer.set_res(i, memoryview(array))
+
+    def _compile_and_evaluate(self) -> None:
+        self.compile()
+        self._evaluate()
+
+    def compile(self) -> bool:
+        """Compile now (normally done at the first call); True if evaluation runs C."""
+        if self.compiler is not None and self.evaluated is self.function:
+            self._bind(self.compiler.load(self.function) or self.function)
+        return self.evaluated is not self.function
 
     def into(self, *args: object) -> tuple[np.ndarray, ...]:
         for array, value in zip(self._inputs, args, strict=True):
@@ -58,10 +82,10 @@ class FastFunction:
         return tuple(view.copy() for view in self.into(*args))
 
     def __getstate__(self) -> dict:
-        return {"function": self.function}
+        return {"function": self.function, "compiler": self.compiler}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["function"])  # type: ignore[misc]
+        self.__init__(state["function"], state.get("compiler"))  # type: ignore[misc]
 
 
 def dense_function(
@@ -70,14 +94,16 @@ def dense_function(
     outputs: list,
     input_names: list[str] | None = None,
     output_names: list[str] | None = None,
+    compiler: Compiler | None = None,
 ) -> FastFunction:
-    """Build a CasADi Function with dense outputs and wrap it for fast evaluation."""
+    """Build a CasADi Function with dense outputs and wrap it for fast evaluation
+    (compiled to C on first use if ``compiler`` is active)."""
     outputs = [ca.densify(o) for o in outputs]
     if input_names and output_names:
         function = ca.Function(name, inputs, outputs, input_names, output_names)
     else:
         function = ca.Function(name, inputs, outputs)
-    return FastFunction(function)
+    return FastFunction(function, compiler)
 
 
 class LazyFunction:
@@ -115,6 +141,9 @@ class LazyFunction:
     def into(self, *args: object) -> tuple[np.ndarray, ...]:
         return self.fast.into(*args)
 
+    def compile(self) -> bool:
+        return self.fast.compile()
+
     def __call__(self, *args: object) -> tuple[np.ndarray, ...]:
         return self.fast(*args)
 
@@ -125,6 +154,8 @@ class LazyFunction:
         self._builder, self._fast = None, state["fast"]
 
 
-def lazy_dense_function(name: str, inputs: list, outputs: Callable[[], list]) -> LazyFunction:
+def lazy_dense_function(
+    name: str, inputs: list, outputs: Callable[[], list], compiler: Compiler | None = None
+) -> LazyFunction:
     """:func:`dense_function` deferred until first use; ``outputs`` builds the expressions."""
-    return LazyFunction(lambda: dense_function(name, inputs, outputs()))
+    return LazyFunction(lambda: dense_function(name, inputs, outputs(), compiler=compiler))

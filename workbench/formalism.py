@@ -50,7 +50,17 @@ def model_features(model: Model) -> set[str]:
 
 
 @dataclass(frozen=True)
-class ConstraintOptions:
+class CompileOptions:
+    """Options of every formalism: how its equations are evaluated in hot loops,
+    ``compile`` = "none" (CasADi virtual machine) or "jit" (C compiled with the machine's
+    compiler and ``compile_flags``, cached on disk; see :mod:`workbench.compiled`)."""
+
+    compile: Literal["none", "jit"] = "none"
+    compile_flags: str = "-O1"
+
+
+@dataclass(frozen=True)
+class ConstraintOptions(CompileOptions):
     """Options shared by formalisms with constraint multipliers: the DAE index of the
     ``dae`` form and the Baumgarte gains of index 1 (whose system is also the ``ode`` form)."""
 

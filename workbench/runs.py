@@ -8,7 +8,11 @@ a column (MuJoCo-style pipeline stages):
    (``Integrator.select_form``); then the equations are built (``build_s``), or reused
    from this process's cache keyed by (problem, problem options, formalism, formalism
    options); finally ``Integrator.incompatibility`` may refuse them. A refusal makes the
-   row ``skipped`` with the reason in ``message``;
+   row ``skipped`` with the reason in ``message``. With the formalism option
+   ``compile = "jit"`` the seconds spent generating, compiling and loading C (at the first
+   call of each function, usually in the integrate stage) are taken out of the stage
+   they fall in and reported as ``compile_s``; why something was not compiled (no C
+   compiler) is added to ``message``;
 2. **initial state** — :func:`~workbench.initial.consistent_initial_state` (``init_s``);
 3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
    a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
@@ -37,8 +41,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from workbench import compiled, registry
 from workbench import metrics as metrics_module
-from workbench import registry
 from workbench.errors import ConfigError
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
@@ -167,6 +171,7 @@ class _Stages:
     def start(self, name: str) -> None:
         self.current, self.running = name, True
         self._wall, self._cpu = time.perf_counter(), time.process_time()
+        self._compile = compiled.STATS.seconds
 
     def stop(self) -> None:
         if not self.running:
@@ -176,6 +181,12 @@ class _Stages:
             time.perf_counter() - self._wall
         )
         self.cpu[self.current] = self.cpu.get(self.current, 0.0) + (time.process_time() - self._cpu)
+        compile_s = compiled.STATS.seconds - self._compile  # C compilation in this stage
+        if compile_s > 0:
+            self.wall[self.current] -= compile_s
+            self.cpu[self.current] = max(0.0, self.cpu[self.current] - compile_s)
+            self.wall["compile"] = self.wall.get("compile", 0.0) + compile_s
+            self.cpu["compile"] = self.cpu.get("compile", 0.0) + compile_s
 
 
 def base_row(spec: RunSpec) -> dict[str, Any]:
@@ -237,6 +248,7 @@ def execute_run(
         else:
             stages.start("build")
             equations, reused = cached_equations(spec, model)
+            state["equations"] = equations
             row["equations_cached"] = reused
             stages.stop()
             # pair on the forms actually built: a model without constraints has an ode
@@ -299,12 +311,16 @@ def execute_run(
         row.update(
             status="failed", stage=stages.current, message=f"{stages.current}: {_one_line(error)}"
         )
+    compile_warnings = getattr(state.get("equations"), "compile_warnings", [])
+    if compile_warnings:
+        row["message"] = " | ".join(filter(None, [row["message"], *compile_warnings]))
     row["build_s"] = stages.wall.get("build", 0.0)
+    row["compile_s"] = stages.wall.get("compile", 0.0)
     row["init_s"] = stages.wall.get("initial state", 0.0)
     row["integrate_s"] = stages.wall.get("integrate", 0.0)
     row["metrics_s"] = stages.wall.get("metrics", 0.0)
     row["log_s"] = stages.wall.get("log", 0.0)
-    main_stages = ("pairing", "build", "initial state", "integrate", "metrics")
+    main_stages = ("pairing", "build", "compile", "initial state", "integrate", "metrics")
     row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
     row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
     row.update(metrics_module.environment())

@@ -54,6 +54,7 @@ from scipy.spatial.transform import Rotation
 from workbench import forces as fm
 from workbench import joints as jk
 from workbench import rotations as rot
+from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
@@ -423,4 +424,5 @@ class AbsoluteDae(Formalism):
             baumgarte=(options.baumgarte_alpha, options.baumgarte_beta),
             ode=system.n_constraints == 0 or options.index == 1,
             notes=notes,
+            compiler=Compiler.from_options(options),
         )

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg
 
 from workbench import forces as fm
+from workbench.compiled import Compiler
 from workbench.equations import (
     Equations,
     MechanicalSystem,
@@ -103,7 +104,7 @@ class MinimalOde(Formalism):
         kinematics = TreeKinematics(model)
         system = minimal_mechanical_system(model, kinematics)
         if options.loops == "state-space" and system.n_constraints:
-            return state_space_equations(self.name, model, kinematics, system)
+            return state_space_equations(self.name, model, kinematics, system, options)
         ode = system.n_constraints == 0 or options.index == 1
         return build_joint_space_equations(self.name, model, kinematics, system, options, ode)
 
@@ -142,7 +143,11 @@ def _is_scalar_velocity(kinematics: TreeKinematics, index: int) -> bool:
 
 
 def state_space_equations(
-    name: str, model: Model, kinematics: TreeKinematics, system: MechanicalSystem
+    name: str,
+    model: Model,
+    kinematics: TreeKinematics,
+    system: MechanicalSystem,
+    options: Any = None,
 ) -> Equations:
     """Minimal form by coordinate partitioning (see the module docstring)."""
     k = kinematics
@@ -231,6 +236,7 @@ def state_space_equations(
         ([k.t, k.q, k.v], [k.q, k.v[list(independent)]]),
         joint_coordinates=joint_coordinates,
         notes=[f"state-space: independent velocities {names} (coordinate partitioning)"],
+        compiler=Compiler.from_options(options),
     )
 
 

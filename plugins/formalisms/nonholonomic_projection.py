@@ -38,9 +38,10 @@ import scipy.linalg
 
 from workbench import forces as fm
 from workbench import joints as jk
+from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.errors import ConfigError, ModelError
-from workbench.formalism import Formalism
+from workbench.formalism import CompileOptions, Formalism
 from workbench.kinematics import BodyState, TreeKinematics
 from workbench.model import Model
 from workbench.registry import formalism
@@ -49,7 +50,7 @@ RANK_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
-class ProjectionOptions:
+class ProjectionOptions(CompileOptions):
     """``independent``: names of tree-joint velocities (``TreeKinematics.v_names``) to keep
     as the minimal velocities s; empty: chosen by pivoted QR."""
 
@@ -264,4 +265,5 @@ class NonholonomicProjection(Formalism):
             ode=True,
             joint_coordinates={name: qv[0] for name, qv in joint_coordinates.items()},
             notes=notes,
+            compiler=Compiler.from_options(options),
         )

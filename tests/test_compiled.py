@@ -1,0 +1,138 @@
+"""Formalism option compile=jit: compiled C gives the CasADi VM's numbers, is cached on
+disk and reused, and falls back to the VM (with a warning in the run) without a compiler."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workbench import compiled
+from workbench.initial import consistent_initial_state
+from workbench.registry import get_formalism, get_problem
+from workbench.runs import RunSpec, clear_cache, execute_run
+
+
+@pytest.fixture(autouse=True)
+def cache(tmp_path, monkeypatch):
+    """A fresh compile cache and equations cache for every test."""
+    monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path / "cache"))
+    clear_cache()
+    yield tmp_path / "cache"
+    clear_cache()
+
+
+def build(problem: str, problem_options: dict, formalism: str, options: dict):
+    problem_ = get_problem(problem)(problem_options)
+    equations = get_formalism(formalism)().build(problem_.model(), options)
+    return problem_, equations
+
+
+def hot_functions(equations, state):
+    """(name, function, arguments) of the forms' functions at a perturbed consistent state."""
+    rng = np.random.default_rng(3)
+    calls = []
+    if "ode" in equations.forms:
+        y = state.y0(equations, "ode") + 0.1 * rng.standard_normal(equations.forms["ode"].n)
+        calls += [("ode.rhs", "ode", "rhs", (0.3, y)), ("ode.jac", "ode", "jacobian", (0.3, y))]
+    y, yp = state.y0(equations, "dae"), state.yp0(equations, "dae")
+    y = y + 0.1 * rng.standard_normal(y.size)
+    calls += [
+        ("dae.residual", "dae", "residual", (0.3, y, yp)),
+        ("dae.jacobian", "dae", "jacobian", (0.3, y, yp, 7.0)),
+    ]
+    nq, nv = equations.nq, equations.nv
+    q, v = y[:nq], y[nq : nq + nv]
+    calls += [
+        ("mechanical.mass", "mechanical", "mass", (0.3, q)),
+        ("mechanical.forces", "mechanical", "forces", (0.3, q, v)),
+    ]
+    return calls
+
+
+CASES = [
+    ("spatial-chain", {"n_links": 3}, "recursive"),
+    ("binary-tree", {"depth": 2}, "minimal-ode"),
+    ("slider-crank", {}, "absolute-dae"),
+]
+
+
+@pytest.mark.parametrize(("problem", "problem_options", "formalism"), CASES)
+def test_compiled_evaluation_equals_the_virtual_machine(problem, problem_options, formalism):
+    problem_, plain = build(problem, problem_options, formalism, {})
+    _, jit = build(problem, problem_options, formalism, {"compile": "jit"})
+    state = consistent_initial_state(plain, problem_)
+    for label, form, name, args in hot_functions(plain, state):
+        expected = getattr(plain.forms[form], name)(*args)[0]
+        function = getattr(jit.forms[form], name)
+        value = function(*args)[0]
+        assert function.compile(), f"{label} was not compiled: {jit.compile_warnings}"
+        assert np.all(np.isfinite(expected)) and np.abs(expected).max() > 0
+        np.testing.assert_allclose(value, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    assert jit.compile_warnings == []
+
+
+def test_the_cache_is_reused_by_a_second_build(cache):
+    args = (0.0, np.linspace(0.1, 0.8, 6))
+    _, first = build("spatial-chain", {"n_links": 3}, "recursive", {"compile": "jit"})
+    before = compiled.STATS.compiled
+    expected = first.forms["ode"].rhs(*args)[0]
+    assert compiled.STATS.compiled == before + 1  # the first call compiled one library
+    libraries = {path: path.stat().st_mtime_ns for path in cache.glob("*.so")}
+    assert len(libraries) == 1
+
+    _, second = build("spatial-chain", {"n_links": 3}, "recursive", {"compile": "jit"})
+    loaded = compiled.STATS.loaded
+    np.testing.assert_array_equal(second.forms["ode"].rhs(*args)[0], expected)
+    assert compiled.STATS.compiled == before + 1, "the second build invoked the compiler"
+    assert compiled.STATS.loaded == loaded + 1
+    assert {path: path.stat().st_mtime_ns for path in cache.glob("*.so")} == libraries
+
+    # other flags are another library
+    _, other = build(
+        "spatial-chain", {"n_links": 3}, "recursive", {"compile": "jit", "compile_flags": "-O0"}
+    )
+    np.testing.assert_allclose(other.forms["ode"].rhs(*args)[0], expected, rtol=1e-12)
+    assert compiled.STATS.compiled == before + 2 and len(list(cache.glob("*.so"))) == 2
+
+
+def test_without_a_compiler_jit_falls_back_with_a_warning(monkeypatch, tmp_path):
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    with pytest.warns(compiled.CompileWarning, match="no C compiler"):
+        _, equations = build("double-pendulum", {}, "recursive", {"compile": "jit"})
+    assert not equations.forms["ode"].rhs.compile()
+    assert "no C compiler" in equations.compile_warnings[0]
+
+    spec = RunSpec(
+        "double-pendulum", "recursive", "scipy-dop853", 1e-6, 1e-9, {}, {"compile": "jit"}
+    )
+    with pytest.warns(compiled.CompileWarning):
+        row = execute_run(spec, reference_dir=tmp_path).row
+    assert row["status"] == "ok"
+    assert "no C compiler" in row["message"] and "compile=none" in row["message"]
+    assert row["compile_s"] == 0.0
+
+
+def test_a_graph_that_does_not_compile_stays_in_the_vm_with_a_warning():
+    _, equations = build(
+        "double-pendulum", {}, "recursive", {"compile": "jit", "compile_flags": "-no-such-flag"}
+    )
+    with pytest.warns(compiled.CompileWarning, match="stays in the CasADi VM"):
+        assert not equations.forms["ode"].rhs.compile()
+    (value,) = equations.forms["ode"].rhs(0.0, np.array([0.1, 0.2, 0.0, 0.0]))
+    assert np.all(np.isfinite(value))
+
+
+def test_a_run_with_jit_end_to_end(tmp_path):
+    rows = {}
+    for mode in ("none", "jit"):
+        spec = RunSpec(
+            "spatial-chain", "recursive", "scipy-dop853", 1e-8, 1e-11, {"n_links": 3},
+            {"compile": mode},
+        )  # fmt: skip
+        rows[mode] = execute_run(spec, reference_dir=tmp_path).row
+    plain, jit = rows["none"], rows["jit"]
+    assert plain["status"] == jit["status"] == "ok" and jit["message"] == ""
+    assert plain["compile_s"] == 0.0 and jit["compile_s"] > 0.0
+    assert jit["n_rhs"] == plain["n_rhs"]  # the same numbers give the same steps
+    assert jit["err_end"] == pytest.approx(plain["err_end"], rel=1e-6, abs=1e-14)
+    assert jit["energy_err_max"] == pytest.approx(plain["energy_err_max"], rel=1e-6, abs=1e-14)
