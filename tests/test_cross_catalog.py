@@ -1,33 +1,24 @@
-"""Independent formalisms agree on every catalog problem they can both run: the time
-derivative of every body's twist (linear and angular acceleration of its frame) at the
-consistent initial state, computed exactly through CasADi from each formalism's own
-coordinates, accelerations and kinematics."""
+"""Independent formalisms agree on every catalog problem they can both run: body poses,
+twists, energies and the time derivative of every body's twist at random consistent
+states, computed exactly through CasADi from each formalism's own coordinates,
+accelerations and kinematics (:func:`workbench.testing.check_formalism`, check group
+"agreement", against minimal-ode)."""
 
-import casadi as ca
 import numpy as np
 import pytest
 
 from workbench.initial import consistent_initial_state
 from workbench.registry import get_formalism, list_plugins
+from workbench.testing import check_formalism
 
-REFERENCE = ("minimal-ode", {"index": 1})
 OTHERS = [
     ("absolute-dae", {"index": 1}),
     ("recursive", {"index": 1}),
     ("nonholonomic-projection", {}),
+    ("lagrange-ad", {"index": 1}),
+    ("hamilton", {}),
 ]
 SKIP_LARGE = {"binary-tree", "spatial-chain", "planar-chain"}  # covered by recursive tests
-
-
-def body_accelerations(equations, state) -> np.ndarray:
-    twists = equations.observables.twists.function
-    t, q, v = ca.SX.sym("t"), ca.SX.sym("q", equations.nq), ca.SX.sym("v", equations.nv)
-    twist = ca.vec(twists(t, q, v))
-    qdot, a = ca.SX.sym("qd", equations.nq), ca.SX.sym("a", equations.nv)
-    rate = ca.jacobian(twist, q) @ qdot + ca.jacobian(twist, v) @ a + ca.jacobian(twist, t)
-    function = ca.Function("rate", [t, q, v, qdot, a], [rate])
-    value = function(state.t0, state.q, state.v, state.qdot, state.acceleration)
-    return np.asarray(value).ravel()
 
 
 def problems() -> list[str]:
@@ -41,22 +32,12 @@ def problems() -> list[str]:
 @pytest.mark.parametrize("other", OTHERS, ids=[name for name, _ in OTHERS])
 @pytest.mark.parametrize("name", problems())
 def test_body_accelerations_agree_between_formalisms(name, other):
-    problem = next(i.plugin for i in list_plugins("problem") if i.name == name)()
-    model = problem.model()
-    results = []
-    for formalism_name, options in (REFERENCE, other):
-        formalism = get_formalism(formalism_name)
-        if formalism.unsupported(model):
-            pytest.skip(f"{formalism_name} does not support {formalism.unsupported(model)}")
-        equations = formalism().build(model, options)
-        state = consistent_initial_state(equations, problem)
-        results.append(
-            (body_accelerations(equations, state), equations.observables.poses(state.t0, state.q))
-        )
-    (acc_a, poses_a), (acc_b, poses_b) = results
-    assert np.allclose(poses_a, poses_b, atol=1e-10)
-    scale = max(1.0, np.abs(acc_a).max())
-    assert np.abs(acc_a - acc_b).max() <= 1e-9 * scale
+    formalism, options = other
+    report = check_formalism(formalism, [name], options, checks=["agreement"], n_states=2)
+    if any(r.check == "supported" for r in report.results):
+        pytest.skip(report.results[-1].message)
+    report.raise_if_failed()
+    assert {r.check for r in report.results} >= {"observables", "accelerations"}
 
 
 NONHOLONOMIC = ["ball-on-rotating-plane", "knife-edge-cart", "rolling-pendulum"]

@@ -1,0 +1,399 @@
+"""Conformance checks of a formalism plugin (:func:`check_formalism`).
+
+Structural (no physics needed): registered, metadata, options, capabilities, forms.
+Per catalog problem whose features the formalism supports (physics is the oracle):
+
+* ``build`` — builds, and the :class:`~workbench.equations.Equations` have consistent
+  sizes and the declared forms (``equations``);
+* ``observables`` — at random consistent states, body poses, twists and energies equal
+  those of a reference formalism at the same physical state (same quantities, same units);
+* ``accelerations`` — the time derivatives of the body twists agree with the reference;
+* ``jacobian-ode``, ``jacobian-dae``, ``jacobian-mechanical`` — exact Jacobians match
+  central finite differences;
+* over a short tight integration of the ode form: ``energy`` (conservative problems),
+  ``invariants``, ``constraints`` (residual drift) and ``trajectory`` (end poses against
+  the reference formalism's).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Collection
+from typing import Any
+
+import numpy as np
+
+from workbench.equations import FORMS, Equations
+from workbench.forces import is_conservative_model
+from workbench.formalism import FEATURES, Formalism
+from workbench.kinematics import TreeKinematics, initial_joint_values
+from workbench.metrics import length_scale, pose_error
+from workbench.registry import get_formalism
+from workbench.testing.common import check_structure, one_line, problem_instances, resolve_plugin
+from workbench.testing.report import ConformanceReport
+from workbench.testing.states import (
+    body_accelerations,
+    central_difference,
+    energy_scale,
+    formalism_state,
+    observed,
+    random_joint_states,
+    tight_run,
+)
+
+REFERENCES = (
+    ("minimal-ode", {"index": 1}),
+    ("recursive", {"index": 1}),
+    ("absolute-dae", {"index": 1}),
+)
+"""Reference formalisms: the first that is not the one under test and supports the model."""
+
+TOLERANCES = {
+    "observables": 1e-9,  # relative to the largest value
+    "accelerations": 1e-8,  # relative to max(1, largest body acceleration)
+    "jacobian": 1e-5,  # relative, central differences
+    "energy": 1e-7,  # relative to the energy in the motion, over the tight run
+    "invariants": 1e-7,
+    "constraints": 1e-6,  # absolute residuals (m, rad, m/s)
+    "trajectory": 1e-7,  # end pose error / length scale
+}
+
+GROUPS = {
+    "agreement": "observables and accelerations vs a reference formalism at random states",
+    "jacobians": "exact Jacobians of every form vs central differences",
+    "motion": "energy, invariants, constraint drift and end pose over a short tight run",
+}
+
+_REFERENCE_CACHE: dict[tuple[str, str, str], Equations] = {}
+
+
+def check_formalism(
+    formalism: str | type,
+    problems: Any = None,
+    options: dict[str, Any] | None = None,
+    checks: str | Collection[str] = "all",
+    n_states: int = 3,
+    horizon: float = 0.2,
+    seed: int = 0,
+) -> Any:
+    """Check a formalism (registered name or class); returns a ConformanceReport.
+
+    ``problems``: None (a fast subset, one problem per model feature), "all", or names /
+    Problem classes or instances. ``options``: the formalism's options (default ones if
+    None). ``checks``: "structural" (no build), "all", or some of :data:`GROUPS`
+    ("agreement", "jacobians", "motion"; build and equations are always checked).
+    ``n_states`` random consistent states per problem; ``horizon`` s of the tight run.
+    """
+    plugin = resolve_plugin("formalism", formalism)
+    report = ConformanceReport("formalism", getattr(plugin, "name", plugin.__qualname__))
+    defaults = check_structure(report, "formalism", plugin, Formalism)
+    parsed = _check_declarations(report, plugin, options, defaults)
+    groups = _groups(checks)
+    if not groups or parsed is None:
+        return report
+    for problem in problem_instances(problems):
+        _check_problem(report, plugin, options or {}, problem, groups, n_states, horizon, seed)
+    return report
+
+
+def _groups(checks: str | Collection[str]) -> set[str]:
+    if checks == "structural":
+        return set()
+    if checks == "all":
+        return set(GROUPS)
+    chosen = {checks} if isinstance(checks, str) else set(checks)
+    unknown = chosen - set(GROUPS)
+    if unknown:
+        raise ValueError(
+            f"unknown check groups {sorted(unknown)}; use 'structural', 'all' or {list(GROUPS)}"
+        )
+    return chosen
+
+
+def _check_declarations(
+    report: ConformanceReport, plugin: type, options: Any, defaults: Any
+) -> Any:
+    capabilities = getattr(plugin, "capabilities", None)
+    unknown = sorted(set(capabilities or ()) - set(FEATURES))
+    if not capabilities or unknown or not {"planar", "spatial"} & set(capabilities):
+        why = f"unknown features {unknown}" if unknown else "declare at least planar or spatial"
+        report.failed("capabilities", "", f"{why}; features: {', '.join(FEATURES)}")
+    else:
+        report.passed("capabilities", message=", ".join(sorted(capabilities)))
+    if defaults is None:
+        return None
+    try:
+        parsed = plugin.parse_options(options)
+        forms = plugin.forms(parsed)
+        bad = {k: v for k, v in dict(forms).items() if k not in FORMS or v not in (0, 1, 2, 3)}
+        if not forms or bad:
+            report.failed(
+                "forms",
+                "",
+                f"forms(options) must map some of {FORMS} to an index 0..3, got {forms!r}",
+            )
+            return None
+        report.passed("forms", message=", ".join(f"{k} ({v})" for k, v in forms.items()))
+        return parsed
+    except Exception as error:  # noqa: BLE001
+        report.failed("forms", "", f"forms(options) raised {one_line(error)}")
+        return None
+
+
+def reference_equations(problem: Any, model: Any, subject: str) -> tuple[str, Equations]:
+    """(name, equations) of the first reference formalism that is not ``subject``."""
+    name, options = next(
+        (n, o) for n, o in REFERENCES if n != subject and not get_formalism(n).unsupported(model)
+    )
+    key = (name, problem.name, repr(problem.options))
+    if key not in _REFERENCE_CACHE:
+        _REFERENCE_CACHE[key] = get_formalism(name)().build(model, options)
+    return name, _REFERENCE_CACHE[key]
+
+
+def _relative(a: np.ndarray, b: np.ndarray, floor: float = 1.0) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if a.shape != b.shape:
+        return math.inf
+    if not a.size:
+        return 0.0
+    return float(np.max(np.abs(a - b)) / max(floor, float(np.max(np.abs(b)))))
+
+
+def _check_problem(
+    report: ConformanceReport,
+    plugin: type,
+    options: dict[str, Any],
+    problem: Any,
+    groups: set[str],
+    n_states: int,
+    horizon: float,
+    seed: int,
+) -> None:
+    name = problem.name
+    model = problem.model()
+    missing = plugin.unsupported(model)
+    if missing:
+        report.skipped(
+            "supported",
+            name,
+            "does not support " + ", ".join(FEATURES.get(f, f) for f in sorted(missing)),
+        )
+        return
+    started = time.perf_counter()
+    try:
+        equations = plugin().build(model, options)
+    except Exception as error:  # noqa: BLE001
+        report.failed("build", name, one_line(error))
+        return
+    report.passed("build", name, f"{time.perf_counter() - started:.2f} s")
+    if not _check_equations(report, plugin, options, equations, name):
+        return
+    reference_name, reference = reference_equations(problem, model, plugin.name)
+    states = list(random_joint_states(problem, n_states, seed))
+    if "agreement" in groups:
+        _check_agreement(report, name, equations, reference, reference_name, states)
+    state = formalism_state(equations, *states[-1])
+    if "jacobians" in groups:
+        _check_jacobians(report, equations, state, name)
+    if "motion" in groups:
+        _check_motion(report, problem, model, equations, reference, reference_name, state, horizon)
+
+
+def _check_agreement(
+    report: ConformanceReport,
+    name: str,
+    equations: Equations,
+    reference: Equations,
+    reference_name: str,
+    states: list,
+) -> None:
+    worst = {"observables": 0.0, "accelerations": 0.0}
+    for t, q_joint, v_joint in states:
+        try:
+            ours = formalism_state(equations, t, q_joint, v_joint)
+        except Exception as error:  # noqa: BLE001
+            report.failed("accelerations", name, f"at t = {t:g}: {one_line(error)}")
+            return
+        theirs = formalism_state(reference, t, q_joint, v_joint)
+        a, b = observed(equations, ours), observed(reference, theirs)
+        worst["observables"] = max(
+            worst["observables"], *(_relative(a[k], b[k]) for k in ("poses", "twists", "energy"))
+        )
+        acc_a = body_accelerations(equations, ours)
+        acc_b = body_accelerations(reference, theirs)
+        worst["accelerations"] = max(worst["accelerations"], _relative(acc_a, acc_b))
+    against = f"vs {reference_name} at {len(states)} random consistent states"
+    for check in ("observables", "accelerations"):
+        report.add(check, name, worst[check], TOLERANCES[check], against)
+
+
+def _check_equations(
+    report: ConformanceReport, plugin: type, options: dict[str, Any], equations: Any, name: str
+) -> bool:
+    """Sizes, declared forms and observable shapes; False if unusable."""
+    problems = []
+    if not isinstance(equations, Equations):
+        report.failed(
+            "equations",
+            name,
+            f"build returned {type(equations).__name__}, not "
+            "workbench.equations.Equations (use build_equations)",
+        )
+        return False
+    model = equations.model
+    nq, nv = equations.nq, equations.nv
+    declared = set(plugin.forms(plugin.parse_options(options)))
+    if not declared <= set(equations.forms):
+        problems.append(f"declared forms {sorted(declared)} but built {sorted(equations.forms)}")
+    if "ode" in equations.forms and equations.forms["ode"].n != nq + nv:
+        problems.append(f"ode form has n = {equations.forms['ode'].n}, not nq + nv = {nq + nv}")
+    if "dae" in equations.forms:
+        dae = equations.forms["dae"]
+        if dae.n < nq + nv or dae.algebraic.size != dae.n:
+            problems.append(f"dae form n = {dae.n}, algebraic flags {dae.algebraic.size}")
+    obs = equations.observables
+    n_bodies = len(model.bodies)
+    if list(obs.body_names) != list(model.bodies):
+        problems.append(f"observables name bodies {obs.body_names}, model has {list(model.bodies)}")
+    t, q, v = 0.0, np.zeros(nq), np.zeros(nv)
+    kinematics = TreeKinematics(model)
+    q_joint = initial_joint_values(model, kinematics, {}, False)
+    try:
+        sizes = {
+            "frames": [np.size(x) for x in obs.frames(t, q)],
+            "twists": [np.size(x) for x in obs.twists(t, q, v)],
+            "energy": [np.size(x) for x in obs.energy(t, q, v)],
+            "joint_space_map": [
+                np.size(x) for x in equations.joint_space_map(t, q_joint, np.zeros(kinematics.nv))
+            ],
+        }
+        expected = {
+            "frames": [3 * n_bodies, 9 * n_bodies],
+            "twists": [6 * n_bodies],
+            "energy": [2],
+            "joint_space_map": [nq, nv],
+        }
+        for key, want in expected.items():
+            if sizes[key] != want:
+                problems.append(f"{key} has output sizes {sizes[key]}, expected {want}")
+        if len(obs.residuals(t, q, v)) != 3:
+            problems.append("residuals must return position, velocity, nonholonomic vectors")
+    except Exception as error:  # noqa: BLE001
+        problems.append(f"observables failed to evaluate: {one_line(error)}")
+    if len(equations.q_names) != nq or len(equations.v_names) != nv:
+        problems.append("q_names / v_names do not match the sizes")
+    if problems:
+        report.failed("equations", name, "; ".join(problems))
+        return False
+    report.passed("equations", name, f"nq = {nq}, nv = {nv}, forms " + ", ".join(equations.forms))
+    return True
+
+
+def _check_jacobians(
+    report: ConformanceReport, equations: Equations, state: Any, name: str
+) -> None:
+    t, q, v = state.t0, state.q, state.v
+    y = np.concatenate([q, v])
+    tol = TOLERANCES["jacobian"]
+    if "ode" in equations.forms:
+        ode = equations.forms["ode"]
+        exact = np.atleast_2d(ode.jacobian(t, y)[0])
+        numeric = central_difference(lambda x: ode.rhs(t, x)[0], y)
+        report.add("jacobian-ode", name, _relative(exact, numeric), tol, "df/dy")
+    if "dae" in equations.forms:
+        dae = equations.forms["dae"]
+        y_dae, yp_dae = state.y0(equations, "dae"), state.yp0(equations, "dae")
+        c = 0.37
+        exact = np.atleast_2d(dae.jacobian(t, y_dae, yp_dae, c)[0])
+        numeric = central_difference(lambda x: dae.residual(t, x, yp_dae)[0], y_dae) + c * (
+            central_difference(lambda x: dae.residual(t, y_dae, x)[0], yp_dae)
+        )
+        report.add("jacobian-dae", name, _relative(exact, numeric), tol, "dF/dy + c dF/dy'")
+    if "mechanical" in equations.forms:
+        mech = equations.forms["mechanical"]
+        a, lam = state.acceleration, state.multipliers
+        lam = np.resize(lam, mech.n_constraints) if lam.size != mech.n_constraints else lam
+        _, r_q, r_v, mass, _ = mech.dynamics(t, q, v, a, lam)
+
+        def residual(q_: np.ndarray, v_: np.ndarray, a_: np.ndarray) -> np.ndarray:
+            return mech.dynamics(t, q_, v_, a_, lam)[0]
+
+        error = max(
+            _relative(np.atleast_2d(r_q), central_difference(lambda x: residual(x, v, a), q)),
+            _relative(np.atleast_2d(r_v), central_difference(lambda x: residual(q, x, a), v)),
+            _relative(np.atleast_2d(mass), central_difference(lambda x: residual(q, v, x), a)),
+        )
+        report.add("jacobian-mechanical", name, error, tol, "dr/dq, dr/dv, M = dr/dv'")
+
+
+def _check_motion(
+    report: ConformanceReport,
+    problem: Any,
+    model: Any,
+    equations: Equations,
+    reference: Equations,
+    reference_name: str,
+    state: Any,
+    horizon: float,
+) -> None:
+    name = problem.name
+    t_end = state.t0 + horizon
+    try:
+        times, y = tight_run(equations, state, t_end)
+    except Exception as error:  # noqa: BLE001
+        report.skipped("energy", name, one_line(error))
+        return
+    obs, nq, nv = equations.observables, equations.nq, equations.nv
+    energies = np.array(
+        [np.ravel(obs.energy(t, r[:nq], r[nq : nq + nv])[0]) for t, r in zip(times, y, strict=True)]
+    )
+    run = f"over {horizon:g} s, DOP853 rtol 1e-10"
+    if problem.conservative and is_conservative_model(model):
+        total = energies.sum(axis=1)
+        error = float(np.max(np.abs(total - total[0]))) / energy_scale(energies)
+        report.add("energy", name, error, TOLERANCES["energy"], run)
+    else:
+        report.skipped("energy", name, "not a conservative problem")
+    if problem.invariants():
+        poses = [obs.poses(t, r[:nq]) for t, r in zip(times, y, strict=True)]
+        twists = [
+            np.reshape(obs.twists(t, r[:nq], r[nq : nq + nv])[0], (6, -1)).T
+            for t, r in zip(times, y, strict=True)
+        ]
+        worst, which = 0.0, ""
+        for invariant in problem.invariants():
+            values = np.array(
+                [
+                    invariant.function(model, t, p, w)
+                    for t, p, w in zip(times, poses, twists, strict=True)
+                ]
+            )
+            scale = abs(values[0]) if abs(values[0]) >= 1e-12 else 1.0
+            error = float(np.max(np.abs(values - values[0]))) / scale
+            if error >= worst:
+                worst, which = error, invariant.name
+        report.add("invariants", name, worst, TOLERANCES["invariants"], f"worst: {which}, {run}")
+    residuals = [obs.residuals(t, r[:nq], r[nq : nq + nv]) for t, r in zip(times, y, strict=True)]
+    sizes = [np.size(x) for x in residuals[0]]
+    if sizes[0] or sizes[2]:
+        drift = max(
+            float(np.max(np.abs(x))) if np.size(x) else 0.0 for row in residuals[1:] for x in row
+        )
+        report.add(
+            "constraints",
+            name,
+            drift,
+            TOLERANCES["constraints"],
+            f"largest residual (joints, contacts) {run}",
+        )
+    ref_state = formalism_state(reference, state.t0, state.q_joint, state.v_joint)
+    _, y_ref = tight_run(reference, ref_state, t_end)
+    ours = obs.poses(t_end, y[-1, :nq])[None]
+    theirs = reference.observables.poses(t_end, y_ref[-1, : reference.nq])[None]
+    length = length_scale(model, theirs)
+    error = float(pose_error(ours, theirs, length)[0]) / length
+    report.add(
+        "trajectory", name, error, TOLERANCES["trajectory"], f"end pose vs {reference_name} {run}"
+    )
