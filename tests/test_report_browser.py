@@ -1,0 +1,133 @@
+"""The HTML report in a real browser (headless Chromium): it renders, every image loads,
+every local link resolves, the console stays clean; a broken page fails the same checks.
+
+Skipped, with the reason, only where Chromium / chromedriver / selenium are missing and the
+environment variable CI is unset; under CI a missing browser fails the test.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from pathlib import Path
+from typing import Any
+from urllib.parse import unquote, urlsplit
+
+import pytest
+
+from tests.test_report import synthetic_results, synthetic_series
+from workbench.browser import INSTALL_HINT, find_chromium, headless_chromium, set_viewport
+from workbench.report import write_report
+
+WIDTH = 1280
+MAX_HEIGHT = 12000
+
+
+def browser_missing() -> str | None:
+    """Why the browser test cannot run here, or None."""
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        return 'selenium is not installed (pip install -e ".[test]")'
+    if find_chromium() is None:
+        return f"Chromium or chromedriver is not installed ({INSTALL_HINT})"
+    return None
+
+
+@pytest.fixture(scope="module")
+def browser() -> Any:
+    reason = browser_missing()
+    if reason is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"{reason}; CI is set, so the browser test must run")
+        pytest.skip(f"browser test: {reason}")
+    driver = headless_chromium(WIDTH, 900)
+    yield driver
+    driver.quit()
+
+
+def render(driver: Any, page: Path, screenshot: Path) -> dict[str, Any]:
+    """Load ``page`` with a viewport as tall as the page (so lazy images load and the
+    screenshot shows everything); return what the checks need."""
+    driver.get_log("browser")  # drop entries of earlier pages
+    driver.get(page.as_uri())
+    height = driver.execute_script("return document.documentElement.scrollHeight")
+    set_viewport(driver, WIDTH, min(int(height), MAX_HEIGHT))
+    driver.set_script_timeout(20)
+    images = driver.execute_async_script(
+        """
+        const done = arguments[arguments.length - 1];
+        const settled = img => img.complete ? Promise.resolve() : new Promise(
+            r => { img.addEventListener('load', r); img.addEventListener('error', r); });
+        Promise.all(Array.from(document.images, settled)).then(() => done(
+            Array.from(document.images, img => [img.src, img.naturalWidth])));
+        """
+    )
+    links = driver.execute_script(
+        """
+        const linking = 'a[href], link[href], object[data], embed[src]';
+        return Array.from(document.querySelectorAll(linking), e => e.href || e.data || e.src);
+        """
+    )
+    driver.save_screenshot(str(screenshot))
+    return {"images": images, "links": links, "console": driver.get_log("browser")}
+
+
+def problems(driver: Any, rendered: dict[str, Any]) -> list[str]:
+    """Every broken image, dangling local link or anchor, and console error."""
+    found = [f"image not loaded: {src}" for src, width in rendered["images"] if not width > 0]
+    for link in rendered["links"]:
+        parts = urlsplit(link)
+        if parts.scheme != "file":
+            continue
+        if not Path(unquote(parts.path)).is_file():
+            found.append(f"link to a missing file: {link}")
+        elif parts.fragment and not driver.execute_script(
+            "return document.getElementById(arguments[0]) !== null", unquote(parts.fragment)
+        ):
+            found.append(f"link to a missing anchor: {link}")
+    found += [
+        f"console: {entry['message']}"
+        for entry in rendered["console"]
+        if entry["level"] == "SEVERE"
+    ]
+    return found
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
+    return struct.unpack(">II", data[16:24])
+
+
+def test_report_renders_in_chromium(browser: Any, tmp_path: Path) -> None:
+    results = synthetic_results(problems=("heavy-top",))  # one problem keeps the test quick
+    index = write_report(results, synthetic_series, tmp_path / "report", "cmd")
+    screenshot = tmp_path / "report.png"
+    rendered = render(browser, index, screenshot)
+
+    assert problems(browser, rendered) == []
+    assert len(rendered["images"]) == 2  # work-precision and drift
+    assert all(width >= 600 for _src, width in rendered["images"])
+    assert any(link.endswith(".svg") for link in rendered["links"])
+    assert any(link.endswith("#heavy-top") for link in rendered["links"])
+    width, height = png_size(screenshot)
+    assert width == WIDTH and height > 1500  # the whole page, figures included
+    assert screenshot.stat().st_size > 100_000  # text, tables and plots, not a blank page
+    # The figures fit the page: nothing wider than the viewport.
+    assert browser.execute_script("return document.documentElement.scrollWidth") <= WIDTH
+
+
+def test_broken_page_fails_the_checks(browser: Any, tmp_path: Path) -> None:
+    page = tmp_path / "broken.html"
+    page.write_text(
+        '<!DOCTYPE html><html><head><meta charset="utf-8"><title>x</title></head><body>'
+        '<img src="figures/missing.png" alt="gone"><a href="tables/missing.csv">CSV</a>'
+        '<a href="#nowhere">here</a><script>console.error("boom")</script></body></html>',
+        encoding="utf-8",
+    )
+    found = problems(browser, render(browser, page, tmp_path / "broken.png"))
+    assert any(p.startswith("image not loaded") for p in found), found
+    assert any("missing.csv" in p for p in found), found
+    assert any("#nowhere" in p for p in found), found
+    assert any("boom" in p for p in found), found
