@@ -480,8 +480,13 @@ class FigureFiles:
 def _save(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
     import matplotlib.pyplot as plt
 
+    # Cropped to what is drawn (the legend's column would leave a blank margin); the box is
+    # measured once, since savefig(bbox_inches="tight") would lay out every format again.
+    box = figure.get_tightbbox(figure.canvas.get_renderer()).padded(0.1)
     for fmt in FIGURE_FORMATS:
-        figure.savefig(out / "figures" / f"{stem}.{fmt}", dpi=90 if fmt == "png" else None)
+        figure.savefig(
+            out / "figures" / f"{stem}.{fmt}", dpi=90 if fmt == "png" else None, bbox_inches=box
+        )
     plt.close(figure)
     return FigureFiles(stem, caption)
 
@@ -550,7 +555,7 @@ class PairStyles:
             labels,
             loc="upper left",
             bbox_to_anchor=(0.71, 0.92),
-            fontsize="x-small",
+            fontsize="small" if len(labels) <= 12 else "x-small",
             ncols=1 if len(labels) <= 30 else 2,
             frameon=False,
         )
@@ -590,7 +595,7 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
         ax.set_xlabel(xlabel)
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("scd (correct digits at the end)")
-    figure.suptitle(f"{problem}: work-precision (one point per tolerance)")
+    figure.suptitle(f"{problem}: work-precision (one point per tolerance)", x=0.38)
     styles.legend(figure)
     return _save(
         figure,
@@ -681,7 +686,7 @@ def drift_figure(
         ax.grid(True, alpha=0.3)
     for ax in axes[1]:
         ax.set_xlabel("time [s]")
-    figure.suptitle(f"{problem}: drift and energy error at rtol = {rtol:g}")
+    figure.suptitle(f"{problem}: drift and energy error at rtol = {rtol:g}", x=0.385)
     styles.legend(figure, markers=False)
     caption = f"{problem}: constraint drift and energy error over time at rtol = {rtol:g}"
     return _save(figure, out, f"{_slug(problem)}-drift", caption), rtol
@@ -714,6 +719,8 @@ def _figure_html(files: FigureFiles) -> str:
 
 
 def _table_html(table: pd.DataFrame, index: bool) -> str:
+    if index:  # the index name in the header row, not on a header row of its own
+        table, index = table.reset_index(), False
     return (
         '<div class="scroll">'
         + table.to_html(
