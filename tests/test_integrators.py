@@ -265,3 +265,24 @@ def test_dae_keeps_constraints_and_energy(name, slider_crank):
     assert np.abs(energy - energy[0]).max() / scale < 1e3 * rtol
     assert max(position) < 1e-6
     assert max(velocity) < 1e-5
+
+
+# (f) IDA at index 1: the multipliers are out of the error test -------------------------
+def test_ida_index_one_leaves_multipliers_out_of_the_error_test():
+    """At index 1 lambda follows v' (W v' = gamma), one order less accurate than v under
+    BDF; in the error test it forced ~20x more steps on the heavy top (absolute-dae)."""
+    from workbench.runs import RunSpec, execute_run, normalized_spec
+
+    def run(**options):
+        options = {"max_steps": 3000, **options}
+        spec = RunSpec(
+            "heavy-top", "absolute-dae", "sundials-ida", 1e-4, 1e-7, {}, {"index": 1}, options
+        )
+        return execute_run(normalized_spec(spec)).row
+
+    suppressed = run()
+    assert suppressed["status"] == "ok", suppressed["message"]
+    assert suppressed["n_steps"] < 1000
+    assert suppressed["err_max"] < 1e-3  # body poses against the reference, m
+    in_test = run(suppress_algebraic=False)
+    assert in_test["status"] == "failed" and "max_steps" in in_test["message"]
