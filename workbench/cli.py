@@ -491,6 +491,30 @@ def view(
     typer.echo(f"opened {recording} in the Rerun viewer")
 
 
+# -- stored references ----------------------------------------------------------------
+@app.command("reference")
+def reference_command(
+    problem: Annotated[str | None, typer.Argument(help="Problem name (or --all).")] = None,
+    rtol: Annotated[
+        float, typer.Option("--rtol", help="Relative tolerance of both pipelines (atol rtol/10).")
+    ] = 1e-11,
+    samples: Annotated[
+        int | None, typer.Option("--samples", help="Sample times (default: the problem's).")
+    ] = None,
+    out: Annotated[
+        str | None,
+        typer.Option("--out", help="Directory (default: references/ beside the problem module)."),
+    ] = None,
+    every: Annotated[
+        bool, typer.Option("--all", help="Every problem without an analytic reference.")
+    ] = False,
+) -> None:
+    """Compute body poses with two independent pipelines; if they agree, store them."""
+    from workbench.references import run_command
+
+    run_command(console(), problem, every, rtol, samples, out)
+
+
 def main() -> None:
     """Console-script entry point (``workbench``)."""
     try:
