@@ -5,7 +5,9 @@ problem's output times, so two formalisms are compared on the same footing.
 
 **Reference** (column ``reference_kind``):
 
-- ``analytic`` or ``stored``: the problem's own :meth:`~workbench.problem.Problem.reference`;
+- ``analytic`` or ``stored``: the problem's own :meth:`~workbench.problem.Problem.reference`
+  (stored: two independent pipelines that agree, :mod:`workbench.references`; used when
+  it holds the output times asked for, else the computed reference below);
 - ``computed``: when the problem gives none, a tight-tolerance run (rtol 1e-11,
   atol 1e-12) of a fixed pipeline: formalism ``minimal-ode`` at index 1 (for a tree this
   is the plain ODE in joint coordinates; for a closed loop the index-1 system with
@@ -13,9 +15,9 @@ problem's output times, so two formalisms are compared on the same footing.
   (closed loops or nonholonomic constraints). If that integrator is not registered, the
   same method is called directly through :func:`scipy.integrate.solve_ivp`. The body
   poses are cached in memory and on disk under ``<reference_dir>/<problem>-<hash>.parquet``
-  (the hash covers the problem's options, output times, pipeline and tolerances; the
-  file is written atomically, and a lock file keeps concurrent workers from computing it
-  twice);
+  (the hash covers the problem's options, output times, pipeline, tolerances and its
+  fingerprint: model parameters and initial condition; the file is written atomically,
+  and a lock file keeps concurrent workers from computing it twice);
 - ``none``: no reference could be obtained (error columns are NaN, the reason is in
   ``notes``).
 
@@ -61,6 +63,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import Equations
+from workbench.references import ReferenceTimesMismatch, problem_fingerprint
 
 REFERENCE_RTOL = 1e-11
 REFERENCE_ATOL = 1e-12
@@ -181,6 +184,9 @@ def computed_reference(
     key = _problem_key(problem_name, problem_options, times)
     key["pipeline"] = [formalism_name, formalism_options, integrator_name]
     key["tolerances"] = [REFERENCE_RTOL, REFERENCE_ATOL]
+    # the model and initial condition too: a cached reference of an edited problem (same
+    # name, options and times) was served as its reference before
+    key["fingerprint"] = problem_fingerprint(problem)
     digest = reference_hash(key)
     if digest in _REFERENCE_MEMORY:
         kind, poses, description = _REFERENCE_MEMORY[digest]
@@ -285,15 +291,22 @@ def problem_reference(
     times: np.ndarray,
     reference_dir: Path | None = None,
 ) -> ReferencePoses:
-    """The problem's own reference if it gives one, else the computed one; never raises."""
+    """The problem's own reference if it gives one, else the computed one; never raises.
+
+    A stored reference without samples at ``times`` (stored for other output times) gives
+    way to the computed one.
+    """
     started = time.perf_counter()
     try:
         given = problem.reference()
         if given is not None:
-            poses = np.asarray(given.poses(times), dtype=float)
-            return ReferencePoses(
-                given.kind, poses, given.description, time.perf_counter() - started
-            )
+            try:
+                poses = np.asarray(given.poses(times), dtype=float)
+                return ReferencePoses(
+                    given.kind, poses, given.description, time.perf_counter() - started
+                )
+            except ReferenceTimesMismatch:
+                pass
         return computed_reference(problem, problem_name, problem_options, times, reference_dir)
     except Exception as error:  # noqa: BLE001 - a missing reference leaves NaN, not a crash
         line = str(error).strip().splitlines()[-1:] or [type(error).__name__]

@@ -14,7 +14,8 @@ A problem plugin subclasses :class:`Problem` and registers with
    initial state is projected onto the loop-closure and nonholonomic constraints;
 6. declare ``conservative`` (energy conserved) and :meth:`invariants` (other conserved
    quantities);
-7. optionally give a :meth:`reference`: analytic body poses, or a stored trajectory.
+7. optionally give a :meth:`reference`: analytic body poses; without one, a stored
+   trajectory in ``references/`` beside the module (``workbench reference NAME``) is used.
 """
 
 from __future__ import annotations
@@ -83,7 +84,12 @@ class Problem:
         return []
 
     def reference(self) -> Reference | None:
-        return None
+        """Analytic poses (override this), else the stored reference written by
+        ``workbench reference NAME`` into ``references/`` beside the problem's module, when
+        it matches the problem's options and model (:mod:`workbench.references`), else None."""
+        from workbench.references import stored_reference
+
+        return stored_reference(self)
 
     def sample_times(self) -> np.ndarray:
         return np.linspace(self.t_start, self.t_end, self.n_samples)
