@@ -1,0 +1,60 @@
+"""The peers of benchmarks/peers.py model the same mechanism: our recursive formalism's
+accelerations equal Pinocchio's ``aba`` and MuJoCo's ``mj_forward`` at random states.
+(Pinocchio and MuJoCo are in the ``bench`` extra; without them these tests are skipped.)"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from benchmarks.peer_models import mujoco_model, pinocchio_model
+from workbench.registry import get_formalism, get_problem
+
+CASES = [("spatial-chain", {"n_links": 5}), ("planar-chain", {"n_links": 4}), ("binary-tree", {})]
+
+
+@functools.cache
+def recursive_rhs(problem: str, options: tuple):
+    model = get_problem(problem)(dict(options)).model()
+    return model, get_formalism("recursive")().build(model).forms["ode"].rhs
+
+
+def our_accelerations(problem: str, options: dict, states: int = 4):
+    model, rhs = recursive_rhs(problem, tuple(options.items()))
+    n = rhs.function.size1_in(1) // 2
+    rng = np.random.default_rng(7)
+    for _ in range(states):
+        q, v = rng.uniform(-2, 2, n), rng.uniform(-3, 3, n)
+        (f,) = rhs(0.0, np.concatenate([q, v]))
+        yield model, q, v, f[n:]
+
+
+@pytest.mark.parametrize(("problem", "options"), CASES)
+def test_recursive_equals_pinocchio_aba(problem, options):
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the bench extra")
+    for model, q, v, accelerations in our_accelerations(problem, options):
+        pin_model, order = pinocchio_model(model)
+        expected = pin.aba(pin_model, pin_model.createData(), q[order], v[order], np.zeros(q.size))
+        scale = np.abs(expected).max()
+        assert scale > 1.0
+        np.testing.assert_allclose(accelerations[order], expected, rtol=0, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize(("problem", "options"), CASES)
+def test_recursive_equals_mujoco_forward(problem, options):
+    mujoco = pytest.importorskip("mujoco", reason="MuJoCo is in the bench extra")
+    for model, q, v, accelerations in our_accelerations(problem, options):
+        mj_model, order = mujoco_model(model)
+        data = mujoco.MjData(mj_model)
+        data.qpos[:], data.qvel[:] = q[order], v[order]
+        mujoco.mj_forward(mj_model, data)
+        scale = np.abs(data.qacc).max()
+        np.testing.assert_allclose(accelerations[order], data.qacc, rtol=0, atol=1e-9 * scale)
+
+
+def test_peer_models_refuse_what_they_cannot_represent():
+    model = get_problem("slider-crank")().model()
+    with pytest.raises(ValueError, match="trees of free revolute joints only"):
+        pinocchio_model(model)
