@@ -187,7 +187,12 @@ def quaternion_distance(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return 2 * np.arctan2(np.linalg.norm(vector, axis=-1), np.abs(scalar))
 
 
-@pytest.mark.parametrize("name", [n for n in EXPECTED if make(n).reference() is not None])
+def has_analytic_reference(case: str) -> bool:
+    reference = make(case).reference()
+    return reference is not None and reference.kind == "analytic"
+
+
+@pytest.mark.parametrize("name", [n for n in EXPECTED if has_analytic_reference(n)])
 def test_analytic_reference_agrees_with_a_tight_run(name: str) -> None:
     problem, equations, times, q, v = simulate(name)
     reference = problem.reference()
