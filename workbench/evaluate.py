@@ -49,10 +49,12 @@ class FastFunction:
             self._views.append(array if cols == 1 else array.reshape(cols, rows).T)
         self._result = tuple(self._views)
         self.evaluated = function  # what runs: ``function`` or its compiled C
-        if self.compiler is None:
-            self._bind(function)
-        else:  # compiled on first use: a run compiles only what its integrator calls
+        self._pending = self.compiler is not None
+        if self._pending:  # compiled on first use: a run compiles only what is called
             self._evaluate = self._compile_and_evaluate
+            self.into = self._specialized_into()  # type: ignore[method-assign]
+        else:
+            self._bind(function)
 
     def _bind(self, function: ca.Function) -> None:
         self.evaluated = function
@@ -61,6 +63,43 @@ class FastFunction:
             self._buffer.set_arg(i, memoryview(array))
         for i, array in enumerate(self._outputs):
             self._buffer.set_res(i, memoryview(array))
+        self.into = self._specialized_into()  # type: ignore[method-assign]
+
+    def _specialized_into(self) -> Callable[..., tuple[np.ndarray, ...]]:
+        """:meth:`into` as a closure over the buffers, unrolled for 2 and 3 arguments:
+        the Python-side cost per call is then about 1 us, less than ``pin.aba``'s
+        (benchmarks/overhead.py). Anything but floats and 1-D arrays takes :meth:`into`."""
+        inputs, evaluate, result, general = self._inputs, self._evaluate, self._result, self._into
+        if len(inputs) == 2:
+            a0, a1 = inputs
+
+            def into2(x0: object, x1: object) -> tuple[np.ndarray, ...]:
+                try:
+                    a0[...] = x0
+                    a1[...] = x1
+                except ValueError:
+                    return general(x0, x1)
+                evaluate()
+                self.n_calls += 1
+                return result
+
+            return into2
+        if len(inputs) == 3:
+            a0, a1, a2 = inputs
+
+            def into3(x0: object, x1: object, x2: object) -> tuple[np.ndarray, ...]:
+                try:
+                    a0[...] = x0
+                    a1[...] = x1
+                    a2[...] = x2
+                except ValueError:
+                    return general(x0, x1, x2)
+                evaluate()
+                self.n_calls += 1
+                return result
+
+            return into3
+        return general
 
     def _compile_and_evaluate(self) -> None:
         self.compile()
@@ -68,13 +107,18 @@ class FastFunction:
 
     def compile(self) -> bool:
         """Compile now (normally done at the first call); True if evaluation runs C."""
-        if self.compiler is not None and self.evaluated is self.function:
+        if self._pending:
+            self._pending = False
+            assert self.compiler is not None
             self._bind(self.compiler.load(self.function) or self.function)
         return self.evaluated is not self.function
 
     def into(self, *args: object) -> tuple[np.ndarray, ...]:
-        # the fast path (floats and 1-D arrays) costs about 1 us: np.ravel/np.ndim on
-        # every argument cost 5-8 us (benchmarks/peers.py measures this overhead)
+        """Evaluate at ``args``; returns the internal output arrays (see the class)."""
+        return self._into(*args)
+
+    def _into(self, *args: object) -> tuple[np.ndarray, ...]:
+        # np.ravel/np.ndim on every argument would cost 5-8 us: only on the slow path
         if len(args) != len(self._inputs):
             raise TypeError(f"{self.name}: expected {len(self._inputs)} arguments")
         try:
