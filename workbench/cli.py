@@ -418,6 +418,26 @@ def results(
     out.print(table)
 
 
+# -- plugin authors -------------------------------------------------------------------
+@app.command("new")
+def new(
+    kind: Annotated[str, typer.Argument(help="formalism, integrator or problem.")],
+    name: Annotated[str, typer.Argument(help="The plugin name, e.g. my-formalism.")],
+    package: Annotated[
+        str | None,
+        typer.Option("--package", help="Write a separate installable package into this directory."),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing files.")] = False,
+) -> None:
+    """Write a ready-to-edit plugin: module, conformance test (and with --package, a package)."""
+    from workbench.scaffold import scaffold
+
+    written = scaffold(describe_kind(kind), name, package=package, force=force)
+    for path in written.files:
+        typer.echo(f"wrote {path}")
+    typer.echo("next: " + "\n      ".join(written.next_steps))
+
+
 # -- reports --------------------------------------------------------------------------
 @app.command("report")
 def report(

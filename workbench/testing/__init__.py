@@ -16,6 +16,8 @@ capabilities and forms). From a shell: ``python -m workbench.testing formalism N
 
 from workbench.testing.common import FAST_PROBLEMS
 from workbench.testing.formalism import check_formalism
+from workbench.testing.integrator import check_integrator
+from workbench.testing.problem import check_problem
 from workbench.testing.report import CheckResult, ConformanceError, ConformanceReport
 
 __all__ = [
@@ -24,4 +26,6 @@ __all__ = [
     "ConformanceError",
     "ConformanceReport",
     "check_formalism",
+    "check_integrator",
+    "check_problem",
 ]

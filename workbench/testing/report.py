@@ -30,7 +30,7 @@ class CheckResult:
         size = ""
         if not math.isnan(self.error):
             relation = "<=" if self.status == "pass" else ">"
-            bound = f" {relation} {self.tolerance:.0e}" if not math.isnan(self.tolerance) else ""
+            bound = f" {relation} {self.tolerance:.2g}" if not math.isnan(self.tolerance) else ""
             size = f"error {self.error:.2e}{bound}"
         parts = [f"{self.status.upper():4}", f"{self.check:22}", f"{self.problem or '-':26}"]
         return "  ".join(parts + [size, self.message]).rstrip()

@@ -1,0 +1,135 @@
+"""``workbench new formalism|integrator|problem NAME``: write a ready-to-edit plugin.
+
+Three layouts (:func:`scaffold`):
+
+* ``--package DIR``: a separate installable package: ``DIR/pyproject.toml`` with the
+  entry point in the group the registry reads (``workbench.formalisms`` ...),
+  ``DIR/<module>/plugin.py`` and ``DIR/tests/test_<module>.py``;
+* inside a workbench source tree (the current directory has ``plugins/`` and
+  ``problems/``): a built-in plugin, ``plugins/formalisms/<module>.py`` (or
+  ``plugins/integrators/``, ``problems/``) and ``tests/test_<module>.py``;
+* elsewhere: ``<module>.py`` and ``test_<module>.py`` in the current directory (for a
+  sweep, list the module under ``plugins``).
+
+The plugin module has the contract's methods and docstrings; the physics (a formalism's
+mass matrix and forces, an integrator's method) raises NotImplementedError until written,
+which only the conformance suite's physics checks reach: the plugin registers, lists and
+passes the structural checks as generated. The test module runs the conformance suite.
+"""
+
+from __future__ import annotations
+
+import keyword
+import re
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from string import Template
+
+from workbench.errors import ConfigError
+from workbench.registry import ENTRY_POINT_GROUPS, KINDS, Kind, plugin_names
+
+NAME = re.compile(r"^[a-z][a-z0-9]*(?:[-_][a-z0-9]+)*$")
+BUILTIN_DIRECTORIES = {
+    "formalism": "plugins/formalisms",
+    "integrator": "plugins/integrators",
+    "problem": "problems",
+}
+
+
+@dataclass
+class Scaffold:
+    """What :func:`scaffold` wrote and what to do next."""
+
+    files: list[Path] = field(default_factory=list)
+    next_steps: list[str] = field(default_factory=list)
+
+
+def check_name(name: str) -> str:
+    """The Python module name for plugin ``name``; ConfigError if ``name`` is not valid."""
+    module = name.replace("-", "_")
+    if not NAME.match(name) or keyword.iskeyword(module) or not module.isidentifier():
+        raise ConfigError(
+            f"plugin name {name!r} is not valid: use lowercase letters, digits and '-' "
+            "starting with a letter (e.g. my-formalism); it also names the Python module"
+        )
+    return module
+
+
+def _render(template: str, values: dict[str, str]) -> str:
+    text = resources.files("workbench").joinpath("templates", template).read_text("utf-8")
+    return Template(text).substitute(values)
+
+
+def scaffold(
+    kind: str,
+    name: str,
+    package: str | Path | None = None,
+    force: bool = False,
+    where: str | Path = ".",
+) -> Scaffold:
+    """Write the plugin ``name`` of ``kind`` (see the module docstring); returns the files.
+
+    Refuses (ConfigError) to overwrite an existing file unless ``force``; ``where`` is the
+    directory that counts as current.
+    """
+    if kind not in KINDS:
+        raise ConfigError(f"unknown plugin kind {kind!r}; use one of {', '.join(KINDS)}")
+    kind_: Kind = kind  # type: ignore[assignment]
+    module = check_name(name)
+    if name in plugin_names(kind_):
+        raise ConfigError(f"a {kind} named {name!r} is already registered; choose another name")
+    class_name = "".join(part.capitalize() for part in module.split("_"))
+    where = Path(where)
+    values = {"name": name, "kind": kind, "module": module, "class_name": class_name}
+    files: dict[Path, str] = {}
+    plugin_text = _render(f"{kind}.py.tmpl", values)
+    if package is not None:
+        root = where / Path(package)
+        values |= {
+            "package": module,
+            "module": "plugin",
+            "distribution": f"workbench-{name}",
+            "group": ENTRY_POINT_GROUPS[kind_],
+        }
+        files[root / "pyproject.toml"] = _render("pyproject.toml.tmpl", values)
+        files[root / module / "__init__.py"] = f'"""The {kind} {name} for mbs-workbench."""\n'
+        files[root / module / "plugin.py"] = plugin_text
+        test_path = root / "tests" / f"test_{module}.py"
+        import_line = ""  # found through its entry point
+        steps = [
+            f"pip install -e {root}   # registers {name!r} through its entry point",
+            f"workbench list {kind}s",
+            f"python -m workbench.testing {kind} {name}",
+            f"pytest {root / 'tests'}",
+        ]
+    elif all((where / d).is_dir() for d in ("plugins", "problems")):
+        directory = BUILTIN_DIRECTORIES[kind_]
+        files[where / directory / f"{module}.py"] = plugin_text
+        test_path = where / "tests" / f"test_{module}.py"
+        import_line = ""  # built-in plugins are discovered
+        steps = [
+            f"workbench list {kind}s",
+            f"python -m workbench.testing {kind} {name}",
+            f"pytest {test_path}",
+        ]
+    else:
+        files[where / f"{module}.py"] = plugin_text
+        test_path = where / f"test_{module}.py"
+        import_line = f"\nimport {module}  # noqa: F401, E402 - importing it registers the plugin\n"
+        steps = [
+            f"pytest {test_path}",
+            f'in a sweep spec: plugins = ["{module}"]  (or use --package for a package)',
+        ]
+    files[test_path] = _render(
+        "test_plugin.py.tmpl", values | {"import_line": import_line, "module": module}
+    )
+    existing = [path for path in files if path.exists()]
+    if existing and not force:
+        raise ConfigError(
+            f"{existing[0]} already exists; choose another name or pass --force to overwrite"
+        )
+    for path, text in files.items():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    return Scaffold(list(files), steps)

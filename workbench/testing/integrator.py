@@ -1,0 +1,207 @@
+"""Conformance checks of an integrator plugin (:func:`check_integrator`).
+
+Structural: registered, metadata, options, ``accepts`` (forms and indices). On problems
+with an analytic reference (default: the torque-free symmetric gyro and the knife-edge
+cart), over their first second, with a formalism offering a form the integrator accepts:
+
+* ``accuracy`` — the end pose error (relative to the length scale) at the tight tolerance;
+* ``convergence`` — tightening the tolerance does not make the error worse;
+* ``statistics`` — output times as requested, states shaped like the form, counts filled.
+
+``failure``: on y'' = y'^2 (a blow-up at t = 1 from y' = 1) integrated to t = 2, the
+integrator returns a failed trajectory with a reason and the time reached; it does not
+raise and does not claim success.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equations
+from workbench.formalism import ConstraintOptions
+from workbench.initial import consistent_initial_state
+from workbench.integrator import Integrator
+from workbench.kinematics import TreeKinematics
+from workbench.metrics import length_scale, pose_error
+from workbench.model import Model
+from workbench.registry import get_formalism
+from workbench.testing.common import check_structure, one_line, problem_instances, resolve_plugin
+from workbench.testing.report import ConformanceReport
+
+ANALYTIC_PROBLEMS = ("torque-free-symmetric-gyro", "knife-edge-cart")
+TOLERANCES = {"accuracy": 1e-4, "convergence": 1.5}  # relative error; growth factor allowed
+RTOLS = (1e-4, 1e-8)
+HORIZON = 1.0  # s
+
+
+def check_integrator(
+    integrator: str | type,
+    problems: Any = None,
+    options: dict[str, Any] | None = None,
+    checks: str = "all",
+) -> Any:
+    """Check an integrator (registered name or class); returns a ConformanceReport.
+
+    ``problems``: None (:data:`ANALYTIC_PROBLEMS`) or names / Problem instances with a
+    reference. ``checks``: "structural" or "all".
+    """
+    plugin = resolve_plugin("integrator", integrator)
+    report = ConformanceReport("integrator", getattr(plugin, "name", plugin.__qualname__))
+    defaults = check_structure(report, "integrator", plugin, Integrator)
+    accepts = getattr(plugin, "accepts", None)
+    bad = (
+        not isinstance(accepts, dict)
+        or not accepts
+        or any(k not in FORMS or v not in (0, 1, 2, 3) for k, v in accepts.items())
+    )
+    if bad:
+        report.failed(
+            "accepts",
+            "",
+            f"accepts must map some of {FORMS} to the highest dae index 0..3, got {accepts!r}",
+        )
+    else:
+        report.passed("accepts", message=", ".join(f"{k} (<= {v})" for k, v in accepts.items()))
+    if checks == "structural" or bad or defaults is None:
+        return report
+    for problem in problem_instances(problems or ANALYTIC_PROBLEMS):
+        _check_accuracy(report, plugin, options, problem)
+    _check_failure(report, plugin, options)
+    return report
+
+
+def formalism_for(accepts: dict[str, int], model: Model) -> tuple[str, dict[str, Any]]:
+    """A formalism and options offering a form ``accepts`` takes on ``model``."""
+    if "ode" in accepts:
+        name = "nonholonomic-projection" if model.nonholonomic else "minimal-ode"
+        return name, ({} if model.nonholonomic else {"index": 1})
+    index = min(accepts.get("dae", 3), 3) if "dae" in accepts else 3
+    return "minimal-ode", {"index": max(index, 1)}
+
+
+def _check_accuracy(report: ConformanceReport, plugin: type, options: Any, problem: Any) -> None:
+    name = problem.name
+    reference = problem.reference()
+    if reference is None:
+        report.skipped("accuracy", name, "the problem has no analytic or stored reference")
+        return
+    model = problem.model()
+    formalism, formalism_options = formalism_for(plugin.accepts, model)
+    equations = get_formalism(formalism)().build(model, formalism_options)
+    integrator = plugin()
+    offered = {key: getattr(form, "index", 0) for key, form in equations.forms.items()}
+    form = integrator.select_form(offered)
+    reason = integrator.incompatibility(equations, integrator.parse_options(options))
+    if form is None or reason:
+        report.skipped("accuracy", name, reason or f"no accepted form in {offered}")
+        return
+    state = consistent_initial_state(equations, problem)
+    times = problem.sample_times()
+    times = times[times <= times[0] + HORIZON + 1e-12]
+    expected = np.asarray(reference.poses(times), float)
+    length = length_scale(model, expected)
+    errors = []
+    for rtol in RTOLS:
+        trajectory = integrator.solve(
+            equations,
+            state.y0(equations, form),
+            state.yp0(equations, form),
+            times,
+            rtol,
+            rtol * 1e-3,
+            options,
+            form,
+        )
+        if not trajectory.success:
+            report.failed("accuracy", name, f"rtol {rtol:g}: {trajectory.message}")
+            return
+        _check_statistics(report, name, trajectory, times, equations.forms[form], rtol)
+        poses = equations.observables.poses(times[-1], trajectory.y[-1, : equations.nq])[None]
+        errors.append(float(pose_error(poses, expected[-1:], length)[0]) / length)
+    setup = f"{formalism} {formalism_options}, {form} form, {times[-1] - times[0]:g} s"
+    report.add(
+        "accuracy",
+        name,
+        errors[-1],
+        TOLERANCES["accuracy"],
+        f"end pose error / L at rtol {RTOLS[-1]:g} ({setup})",
+    )
+    growth = errors[-1] / max(errors[0], 1e-14)
+    report.add(
+        "convergence",
+        name,
+        growth,
+        TOLERANCES["convergence"],
+        f"error at rtol {RTOLS[-1]:g} / at {RTOLS[0]:g}: {errors[-1]:.1e} / {errors[0]:.1e}",
+    )
+
+
+def _check_statistics(
+    report: ConformanceReport, name: str, trajectory: Any, times: np.ndarray, form: Any, rtol: float
+) -> None:
+    problems = []
+    if not np.allclose(trajectory.times, times):
+        problems.append("output times differ from the requested ones")
+    n = getattr(form, "n", None) or trajectory.y.shape[1]
+    if np.shape(trajectory.y) != (times.size, n):
+        problems.append(f"y has shape {np.shape(trajectory.y)}, expected {(times.size, n)}")
+    stats = trajectory.stats
+    if stats.n_steps <= 0 and stats.n_rhs <= 0:
+        problems.append("neither n_steps nor n_rhs counted (set trajectory.stats.n_steps)")
+    if problems:
+        report.failed("statistics", name, f"rtol {rtol:g}: " + "; ".join(problems))
+    elif rtol == RTOLS[-1]:
+        report.passed(
+            "statistics",
+            name,
+            f"{stats.n_steps} steps, {stats.n_rhs} rhs, "
+            f"{stats.n_jac} Jacobians, {stats.n_rejected} rejected",
+        )
+
+
+def blow_up_equations() -> Any:
+    """Equations of y'' = y'^2 (a block on a prismatic joint), y'(0) = 1: y' = 1/(1 - t)."""
+    model = Model("blow-up", kind="planar", gravity=(0.0, 0.0, 0.0))
+    model.add_body("block", 1.0, inertia=1.0)
+    model.add_joint("slide", "prismatic", "ground", "block", axis=(1, 0, 0))
+    k = TreeKinematics(model)
+    system = MechanicalSystem(k.t, k.q, k.v, k.qdot, ca.SX.eye(1), k.v**2, k.q_names, k.v_names)
+    return build_joint_space_equations("blow-up", model, k, system, ConstraintOptions(), True)
+
+
+def _check_failure(report: ConformanceReport, plugin: type, options: Any) -> None:
+    equations = blow_up_equations()
+    integrator = plugin()
+    offered = {key: getattr(form, "index", 0) for key, form in equations.forms.items()}
+    form = integrator.select_form(offered)
+    reason = integrator.incompatibility(equations, integrator.parse_options(options))
+    if form is None or reason:
+        report.skipped("failure", "", reason or f"no accepted form in {offered}")
+        return
+    n = equations.forms[form].n if form != "mechanical" else 2
+    y0, yp0 = np.zeros(n), np.zeros(n)
+    y0[1], yp0[:2] = 1.0, [1.0, 1.0]
+    times = np.linspace(0.0, 2.0, 21)
+    try:
+        trajectory = integrator.solve(equations, y0, yp0, times, 1e-6, 1e-9, options, form)
+    except Exception as error:  # noqa: BLE001
+        report.failed("failure", "", f"solve raised instead of failing: {one_line(error)}")
+        return
+    problems = []
+    if trajectory.success:
+        problems.append("claimed success through a blow-up at t = 1")
+    if not trajectory.message:
+        problems.append("no message saying why it failed")
+    if not trajectory.t_reached < 2.0:
+        problems.append(f"t_reached = {trajectory.t_reached}, expected < 2")
+    if problems:
+        report.failed("failure", "blow-up y''=y'^2", "; ".join(problems))
+    else:
+        report.passed(
+            "failure",
+            "blow-up y''=y'^2",
+            f"t reached {trajectory.t_reached:g}: {trajectory.message[:80]}",
+        )

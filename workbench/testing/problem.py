@@ -1,0 +1,149 @@
+"""Conformance checks of a problem plugin (:func:`check_problem`).
+
+Structural: registered, metadata (plus ``source``), options, ``declarations`` (times,
+samples). Then: ``model`` (builds and validates), ``initial-state`` (a consistent state
+exists), ``conservative`` (a problem declared conservative has no damping, driving or
+applied forces), ``reference`` (if given: shaped (n_times, n_bodies, 7) with unit
+quaternions, the same on a second call, and matching a tight minimal-ode run over the
+first half second), ``energy`` and ``invariants`` (conserved over that tight run).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from workbench.forces import is_conservative_model
+from workbench.initial import consistent_initial_state
+from workbench.metrics import length_scale, pose_error
+from workbench.problem import Problem
+from workbench.registry import get_formalism
+from workbench.testing.common import check_structure, one_line, resolve_plugin
+from workbench.testing.report import ConformanceReport
+from workbench.testing.states import energy_scale, tight_run
+
+TOLERANCES = {"reference": 1e-6, "energy": 1e-7, "invariants": 1e-7}
+HORIZON = 0.5  # s
+
+
+def check_problem(problem: str | type | Problem, checks: str = "all") -> Any:
+    """Check a problem (registered name, class or instance); returns a ConformanceReport."""
+    instance = problem if isinstance(problem, Problem) else None
+    plugin = resolve_plugin("problem", type(problem) if instance else problem)
+    report = ConformanceReport("problem", getattr(plugin, "name", plugin.__qualname__))
+    defaults = check_structure(report, "problem", plugin, Problem)
+    problems = []
+    if not getattr(plugin, "source", ""):
+        problems.append("set source (the book section or paper it follows)")
+    if not plugin.t_end > plugin.t_start:
+        problems.append(f"t_end ({plugin.t_end}) must be > t_start ({plugin.t_start})")
+    if not (isinstance(plugin.n_samples, int) and plugin.n_samples >= 2):
+        problems.append(f"n_samples must be an integer >= 2, not {plugin.n_samples!r}")
+    if problems:
+        report.failed("declarations", "", "; ".join(problems))
+    else:
+        report.passed(
+            "declarations",
+            message=f"t in [{plugin.t_start:g}, {plugin.t_end:g}] s, "
+            f"{plugin.n_samples} samples, source {plugin.source}",
+        )
+    if checks == "structural" or defaults is None or problems:
+        return report
+    _check_physics(report, instance or plugin())
+    return report
+
+
+def _check_physics(report: ConformanceReport, problem: Problem) -> None:
+    name = problem.name
+    try:
+        model = problem.model()
+        model.validate()
+    except Exception as error:  # noqa: BLE001
+        report.failed("model", name, one_line(error))
+        return
+    report.passed(
+        "model", name, f"{model.kind}, {len(model.bodies)} bodies, {len(model.joints)} joints"
+    )
+    try:
+        equations = get_formalism("minimal-ode")().build(model, {"index": 1})
+        state = consistent_initial_state(equations, problem)
+    except Exception as error:  # noqa: BLE001
+        report.failed("initial-state", name, one_line(error))
+        return
+    report.passed("initial-state", name, f"{equations.nq} coordinates, {equations.nv} velocities")
+    if problem.conservative and not is_conservative_model(model):
+        report.failed(
+            "conservative",
+            name,
+            "declared conservative, but the model has damping, "
+            "joint or applied forces or driven joints; set conservative = False",
+        )
+    else:
+        report.passed("conservative", name, f"conservative = {problem.conservative}")
+    horizon = min(HORIZON, problem.t_end - problem.t_start)
+    times, y = tight_run(equations, state, problem.t_start + horizon, n=21)
+    nq, nv, obs = equations.nq, equations.nv, equations.observables
+    poses = np.stack([obs.poses(t, r[:nq]) for t, r in zip(times, y, strict=True)])
+    _check_reference(report, problem, model, times, poses)
+    run = f"minimal-ode + DOP853 rtol 1e-10 over {horizon:g} s"
+    if problem.conservative:
+        energies = np.array(
+            [
+                np.ravel(obs.energy(t, r[:nq], r[nq : nq + nv])[0])
+                for t, r in zip(times, y, strict=True)
+            ]
+        )
+        total = energies.sum(axis=1)
+        error = float(np.max(np.abs(total - total[0]))) / energy_scale(energies)
+        report.add("energy", name, error, TOLERANCES["energy"], run)
+    for invariant in problem.invariants():
+        values = np.array(
+            [
+                float(
+                    invariant.function(
+                        model,
+                        t,
+                        p,
+                        np.reshape(obs.twists(t, r[:nq], r[nq : nq + nv])[0], (6, -1)).T,
+                    )
+                )
+                for t, p, r in zip(times, poses, y, strict=True)
+            ]
+        )
+        scale = abs(values[0]) if abs(values[0]) >= 1e-12 else 1.0
+        error = float(np.max(np.abs(values - values[0]))) / scale
+        report.add("invariants", name, error, TOLERANCES["invariants"], f"{invariant.name}, {run}")
+
+
+def _check_reference(
+    report: ConformanceReport, problem: Problem, model: Any, times: np.ndarray, poses: np.ndarray
+) -> None:
+    name = problem.name
+    reference = problem.reference()
+    if reference is None:
+        report.skipped("reference", name, "none given: runs compute one (minimal-ode, tight)")
+        return
+    try:
+        first = np.asarray(reference.poses(times), float)
+        second = np.asarray(reference.poses(times), float)
+    except Exception as error:  # noqa: BLE001
+        report.failed("reference", name, f"poses(times) raised {one_line(error)}")
+        return
+    shape = (times.size, len(model.bodies), 7)
+    if first.shape != shape:
+        report.failed("reference", name, f"poses(times) has shape {first.shape}, expected {shape}")
+        return
+    norms = np.linalg.norm(first[..., 3:], axis=-1)
+    if not np.allclose(norms, 1.0, atol=1e-9) or not np.array_equal(first, second):
+        report.failed("reference", name, "quaternions are not unit, or a second call differs")
+        return
+    length = length_scale(model, first)
+    error = float(np.max(pose_error(poses, first, length))) / length
+    report.add(
+        "reference",
+        name,
+        error,
+        TOLERANCES["reference"],
+        f"{reference.kind} reference vs a tight minimal-ode run, pose error / L",
+    )
