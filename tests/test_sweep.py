@@ -183,7 +183,12 @@ runner = CliRunner()
         (
             'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
             'integrators = ["test-rk45"]\ntolerances = [-1e-6]',
-            "tolerances[0]",
+            "line 6: tolerances[0]",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = [{name = "all", options = '
+            '{indx = 1}}]\nintegrators = ["test-rk45"]\ntolerances = [1e-6]',
+            "line 4: formalisms[0].options.indx: no registered formalism has this option",
         ),
         (
             'problems = ["test-pendulum"]\nformalisms = [{name = "minimal-ode", options = '
@@ -220,6 +225,19 @@ def test_malformed_specs_give_one_line_and_exit_2(tmp_path, body, fragment) -> N
     assert fragment in lines[0]
     assert "Traceback" not in result.output
     assert not out.exists()
+
+
+def test_all_table_gives_its_options_to_the_plugins_that_have_them() -> None:
+    sweep = parse_spec(
+        'problems = ["slider-crank"]\nformalisms = [{ name = "all", options = { index = [1, 2] } },'
+        ' "minimal-ode"]\nintegrators = ["sundials-ida"]\ntolerances = [1e-6]'
+    )
+    indices: dict[str, set] = {}
+    for run in sweep.runs:
+        indices.setdefault(run.formalism, set()).add(run.formalism_options.get("index"))
+    assert indices["minimal-ode"] == {3}  # named explicitly: its own (default) options
+    assert indices["absolute-dae"] == indices["recursive"] == {1, 2}
+    assert indices["nonholonomic-projection"] == {None}  # no index option: defaults
 
 
 def test_missing_spec_file_and_bad_cli_values(tmp_path) -> None:

@@ -16,7 +16,11 @@ A sweep specification is a TOML file (the default one is ``workbench/default_swe
 
 Each of ``problems``, ``formalisms``, ``integrators`` is a list of names, of tables
 ``{name, options}``, or ``"all"`` (every registered, working plugin of that kind with its
-default options, except the ones named explicitly in the same list). In an options table a
+default options, except the ones named explicitly in the same list). A table
+``{ name = "all", options = {...} }`` is "all" with options given to every plugin that has
+them (the others keep their defaults), e.g. ``{ name = "all", options = { index = 1 } }``
+for every formalism with a DAE index; an option that no registered plugin has is an error.
+New plugins so join a sweep without editing it. In an options table a
 list is a grid: the runs take the cartesian product of all listed values (to pass a list
 as one value, wrap it in another list). The runs are every problem x formalism x
 integrator x tolerance; pairs that cannot work are recorded as ``skipped`` with the reason.
@@ -52,6 +56,7 @@ import math
 import multiprocessing
 import multiprocessing.connection
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -140,7 +145,9 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
         raise ConfigError(f"{source}: invalid TOML: {error}") from None
 
     def fail(key: str, message: str) -> ConfigError:
-        return ConfigError(f"{source}: {key}: {message}")
+        line = _key_line(text, key)
+        where = f"line {line}: " if line else ""
+        return ConfigError(f"{source}: {where}{key}: {message}")
 
     unknown = sorted(set(data) - set(TOP_LEVEL_KEYS))
     if unknown:
@@ -195,6 +202,16 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
     return SweepSpec(runs, Path(out), int(jobs), time_limit, list(plugins), source, text)
 
 
+def _key_line(text: str, key: str) -> int | None:
+    """The line (1-based) where the top-level ``key`` of a dotted/indexed key is set."""
+    top = re.split(r"[.\[]", key, maxsplit=1)[0]
+    pattern = re.compile(rf"^\s*(?:{re.escape(top)}|\[\[?\s*{re.escape(top)}\s*\]\]?)\s*(?:=|$)")
+    for number, line in enumerate(text.splitlines(), start=1):
+        if pattern.match(line):
+            return number
+    return None
+
+
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -220,11 +237,19 @@ def _entries(
             f", not {value!r}",
         )
     named: list[tuple[str, Any, str]] = []
-    wants_all = False
+    wants_all, all_options, all_key = False, {}, f"{key}[all]"
     for index, item in enumerate(value):
         item_key = f"{key}[{index}]"
         if item == "all":
             wants_all = True
+        elif isinstance(item, dict) and item.get("name") == "all":
+            wants_all, all_key = True, item_key
+            all_options = item.get("options", {})
+            extra = sorted(set(item) - {"name", "options"})
+            if extra:
+                raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
+            if not isinstance(all_options, dict):
+                raise fail(f"{item_key}.options", f"must be a table, not {all_options!r}")
         elif isinstance(item, str):
             named.append((item, {}, item_key))
         elif isinstance(item, dict):
@@ -242,9 +267,17 @@ def _entries(
             raise fail(item_key, f"must be a name or a {{name, options}} table, not {item!r}")
     explicit = {name for name, _, _ in named}
     if wants_all:
+        declared: set[str] = set()
         for info in registry.list_plugins(kind):
-            if info.plugin is not None and info.name not in explicit:
-                named.append((info.name, {}, f"{key}[all]"))
+            if info.plugin is not None:
+                fields = _option_names(info.plugin)
+                declared |= fields
+                if info.name not in explicit:
+                    mine = {k: v for k, v in all_options.items() if k in fields}
+                    named.append((info.name, mine, all_key))
+        unknown = sorted(set(all_options) - declared)
+        if unknown:
+            raise fail(f"{all_key}.options.{unknown[0]}", f"no registered {kind} has this option")
     entries = []
     for name, options, item_key in named:
         try:
@@ -260,6 +293,12 @@ def _entries(
     if not entries:
         raise fail(key, f"no registered {kind} left to run (empty grid)")
     return entries
+
+
+def _option_names(plugin: Any) -> set[str]:
+    from workbench.options import option_fields
+
+    return {name for name, _, _ in option_fields(plugin.Options)}
 
 
 def _grid(
@@ -345,7 +384,8 @@ def run_sweep(
     if sweep.text:
         store.write_text_atomic(sweep.text, out_dir / "sweep.toml")
     counts: Counter = Counter()
-    with _progress(len(todo), show_progress) as advance:
+    # the local pool forks its workers: no thread may be running then (see _context)
+    with _progress(len(todo), show_progress, threaded=bool(scheduler)) as advance:
 
         def record(status: str) -> None:
             counts[status] += 1
@@ -354,7 +394,7 @@ def run_sweep(
         if scheduler:
             _run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record)
         else:
-            _run_local(todo, out_dir, limit, sweep.plugins, jobs, record)
+            _run_local(todo, out_dir, limit, sweep.plugins, jobs, record, lambda: advance(None))
     results = store.consolidate(out_dir)
     recording = None
     with contextlib.suppress(Exception):  # a recording is a view of the results, never fatal
@@ -370,7 +410,9 @@ def run_sweep(
 
 
 @contextlib.contextmanager
-def _progress(total: int, show: bool):
+def _progress(total: int, show: bool, threaded: bool = True):
+    """advance(counts) for the bar; ``threaded=False`` redraws it on each call instead of
+    from rich's refresh thread (the local pool calls advance(None) at every wake-up)."""
     if not show:
         yield lambda counts: None
         return
@@ -385,14 +427,18 @@ def _progress(total: int, show: bool):
         TextColumn("{task.fields[counts]}"),
         console=Console(file=sys.stderr, highlight=False, markup=False),
         transient=False,
+        auto_refresh=threaded,
     )
     task = progress.add_task("sweep", total=total, counts="")
 
-    def advance(counts: Counter) -> None:
-        text = "  ".join(
-            f"{s} {counts[s]}" for s in ("ok", "failed", "skipped", "timeout") if counts[s]
-        )
-        progress.update(task, completed=sum(counts.values()), counts=text)
+    def advance(counts: Counter | None) -> None:
+        if counts is not None:
+            text = "  ".join(
+                f"{s} {counts[s]}" for s in ("ok", "failed", "skipped", "timeout") if counts[s]
+            )
+            progress.update(task, completed=sum(counts.values()), counts=text)
+        if not threaded:
+            progress.refresh()
 
     with progress:
         yield advance
@@ -434,6 +480,9 @@ def _worker_main(conn: Any, plugins: list[str], out: str, sys_path: list[str]) -
     warnings.filterwarnings("ignore")
     import_plugin_modules(plugins)
     registry.REGISTRY.discover()
+    with contextlib.suppress(Exception):  # imported here, not within a run's time limit
+        importlib.import_module("workbench.recording")
+        importlib.import_module("rerun")
     conn.send(("ready", os.getpid()))
     reference_dir = Path(out) / "references"
     while True:
@@ -505,11 +554,41 @@ class _Worker:
     deadline: float = math.inf
 
 
+# imported in the parent before forking workers (so a worker starts in milliseconds
+# instead of importing CasADi, SciPy, SUNDIALS, pandas and the plugins: ~2 s a worker)
+WORKER_MODULES = ("workbench.runs", "workbench.metrics", "workbench.initial", "workbench.store")
+# modules that start threads of their own: a parent that loaded one forks no workers
+FORK_UNSAFE_MODULES = ("rerun", "distributed", "torch")
+
+
 def _context() -> Any:
+    """fork when it is safe, else forkserver (preloaded), else spawn.
+
+    A forked worker inherits the parent's imported modules and discovered plugins, so it
+    is ready at once (forkserver and spawn re-import them in a fresh interpreter: seconds
+    of fixed cost per sweep, which capped the 2-worker speed-up of short sweeps). Forking
+    is only safe while the parent runs no other thread (a lock held by one stays held in
+    the child): the sweep's progress bar then redraws without its thread, and a parent
+    that loaded a module with threads of its own (Rerun, Dask) uses the forkserver.
+    """
+    import threading
+
     methods = multiprocessing.get_all_start_methods()
+    for name in WORKER_MODULES:
+        importlib.import_module(name)
+    registry.REGISTRY.discover()
+    loaded = [m for m in FORK_UNSAFE_MODULES if m in sys.modules]
+    if "fork" in methods and threading.active_count() == 1 and not loaded:
+        return multiprocessing.get_context("fork")
     if "forkserver" in methods:
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["workbench.runs"])
+        plugin_modules = [
+            info.module
+            for kind in ("problem", "formalism", "integrator")
+            for info in registry.list_plugins(kind)
+            if info.plugin is not None and info.module
+        ]
+        context.set_forkserver_preload([*WORKER_MODULES, *dict.fromkeys(plugin_modules)])
         return context
     return multiprocessing.get_context("spawn")
 
@@ -521,6 +600,7 @@ def _run_local(
     plugins: list[str],
     jobs: int,
     record: Callable[[str], None],
+    tick: Callable[[], None] = lambda: None,
 ) -> None:
     context = _context()
     queue = deque(todo)
@@ -560,6 +640,7 @@ def _run_local(
             timeout = max(0.0, min(deadline - now, 1.0))
             waitables = [w.conn for w in workers] + [w.process.sentinel for w in workers]
             multiprocessing.connection.wait(waitables, timeout)
+            tick()
             for worker in list(workers):
                 try:
                     while worker.conn.poll():
