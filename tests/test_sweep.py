@@ -75,6 +75,13 @@ def test_default_spec_is_valid() -> None:
     sweep = load_spec(None)
     assert sweep.runs and str(sweep.out) == "reports/latest"
     assert {r.rtol for r in sweep.runs} == {1e-4, 1e-6, 1e-8}
+    # "all": every working problem and formalism, including ones registered later
+    for kind, names in (
+        ("problem", {r.problem for r in sweep.runs}),
+        ("formalism", {r.formalism for r in sweep.runs}),
+    ):
+        registered = {i.name for i in REGISTRY.list(kind) if i.plugin is not None}
+        assert names == registered
 
 
 def test_misbehaving_plugins_give_rows_and_the_sweep_completes(fake_plugins, tmp_path) -> None:
