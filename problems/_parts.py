@@ -48,17 +48,19 @@ def angular_momentum(
     ``model.bodies`` order: sum of m (r_c - point) x v_c + R I_c R^T omega.
     """
     point = np.zeros(3) if point is None else np.asarray(point, dtype=float)
-    total = np.zeros(3)
-    for i, body in enumerate(model.bodies.values()):
-        rotation = quaternion_to_matrix(np.asarray(poses[i, 3:7], dtype=float))
-        omega = np.asarray(twists[i, 3:6], dtype=float)
-        offset = rotation @ body.com
-        r_c = poses[i, :3] + offset
-        v_c = twists[i, :3] + np.cross(omega, offset)
-        total += body.mass * np.cross(r_c - point, v_c)
-        if not body.point_mass:
-            total += rotation @ body.inertia @ rotation.T @ omega
-    return total
+    bodies = list(model.bodies.values())
+    poses, twists = np.asarray(poses, dtype=float), np.asarray(twists, dtype=float)
+    # all bodies at once: metrics call this at every output sample
+    rotations = np.stack([quaternion_to_matrix(p) for p in poses[: len(bodies), 3:7]])
+    omega = twists[: len(bodies), 3:6]
+    offset = np.einsum("bij,bj->bi", rotations, np.array([b.com for b in bodies], dtype=float))
+    r_c = poses[: len(bodies), :3] + offset
+    v_c = twists[: len(bodies), :3] + np.cross(omega, offset)
+    masses = np.array([b.mass for b in bodies], dtype=float)
+    total = masses @ np.cross(r_c - point, v_c)
+    inertia = np.array([np.zeros((3, 3)) if b.point_mass else b.inertia for b in bodies])
+    spin = np.einsum("bij,bjk,blk,bl->bi", rotations, inertia, rotations, omega)
+    return total + spin.sum(axis=0)
 
 
 def quaternion_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
