@@ -346,7 +346,7 @@ def sweep(
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Dask scheduler address (tcp://host:port).")
     ] = None,
-    out: Annotated[str | None, typer.Option("--out", help="Output directory.")] = None,
+    out: Annotated[str | None, typer.Option("--out", "-o", help="Output directory.")] = None,
     time_limit: Annotated[
         float | None, typer.Option("--time-limit", help="Seconds per run before it is killed.")
     ] = None,
