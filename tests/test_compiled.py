@@ -136,3 +136,17 @@ def test_a_run_with_jit_end_to_end(tmp_path):
     assert jit["n_rhs"] == plain["n_rhs"]  # the same numbers give the same steps
     assert jit["err_end"] == pytest.approx(plain["err_end"], rel=1e-6, abs=1e-14)
     assert jit["energy_err_max"] == pytest.approx(plain["energy_err_max"], rel=1e-6, abs=1e-14)
+
+
+def test_casadi_cvodes_integrates_the_compiled_right_hand_side(tmp_path):
+    rows = {}
+    for mode in ("none", "jit"):
+        spec = RunSpec(
+            "spatial-chain", "recursive", "casadi-cvodes", 1e-8, 1e-10, {"n_links": 3},
+            {"compile": mode}, {"method": "adams", "iteration": "functional"},
+        )  # fmt: skip
+        rows[mode] = execute_run(spec, reference_dir=tmp_path).row
+    plain, jit = rows["none"], rows["jit"]
+    assert plain["status"] == jit["status"] == "ok", jit["message"]
+    assert jit["compile_s"] > 0.0 and jit["err_end"] < 1e-5
+    assert jit["err_end"] == pytest.approx(plain["err_end"], rel=1e-3)

@@ -111,7 +111,8 @@ def compile_function(function: ca.Function, flags: str = DEFAULT_FLAGS) -> ca.Fu
         path = library_path(code, flags, compiler, function.name())
         if not path.exists():
             build_library(code, flags, compiler, path)
-        loaded = ca.external(function.name(), str(path))
+        # finite differences where a CasADi solver needs derivatives (Newton in CVODES)
+        loaded = ca.external(function.name(), str(path), {"enable_fd": True})
         STATS.loaded += 1
         return loaded
     finally:

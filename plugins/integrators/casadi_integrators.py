@@ -52,8 +52,11 @@ def _symbols_for(*functions: ca.Function) -> type:
 
 
 def _ode_dae(task: IntegrationTask) -> tuple[dict[str, Any], int]:
-    """{t, x, ode} from the ode form; the number of differential states."""
-    function = task.form.rhs.function
+    """{t, x, ode} from the ode form; the number of differential states. With formalism
+    option compile=jit the compiled right-hand side is used (its derivatives for Newton
+    iterations by finite differences)."""
+    rhs = task.form.rhs
+    function = rhs.evaluated if hasattr(rhs, "compile") and rhs.compile() else rhs.function
     sym = _symbols_for(function)
     t, y = sym.sym("t"), sym.sym("y", task.form.n)
     return {"t": t, "x": y, "ode": function(t, y)}, task.form.n
@@ -182,7 +185,12 @@ def _sundials_options(task: IntegrationTask) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class CvodesOptions(SundialsOptions):
+    """``iteration``: how the implicit stage equations are solved, "newton" (with the
+    Jacobian) or "functional" (fixed point: no Jacobian, the cheapest for non-stiff
+    problems with Adams)."""
+
     method: Literal["bdf", "adams"] = "bdf"
+    iteration: Literal["newton", "functional"] = "newton"
 
 
 @integrator
@@ -194,8 +202,12 @@ class CasadiCvodes(CasadiBase):
     plugin = "cvodes"
 
     def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
-        method = task.options.method
-        return {**_sundials_options(task), "linear_multistep_method": method}
+        method, iteration = task.options.method, task.options.iteration
+        return {
+            **_sundials_options(task),
+            "linear_multistep_method": method,
+            "nonlinear_solver_iteration": iteration,
+        }
 
 
 @integrator
