@@ -102,9 +102,15 @@ def observed(equations: Equations, state: InitialState) -> dict[str, np.ndarray]
 
 
 def tight_run(
-    equations: Equations, state: InitialState, t_end: float, n: int = 11, rtol: float = 1e-10
+    equations: Equations,
+    state: InitialState,
+    t_end: float,
+    n: int = 11,
+    rtol: float = 1e-10,
+    times: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(times, y) of the ode form from ``state`` to ``t_end`` with SciPy's DOP853.
+    """(times, y) of the ode form from ``state`` to ``t_end`` with SciPy's DOP853, at
+    ``n`` equally spaced times or at ``times`` (starting at the state's time).
 
     Raises WorkbenchError if the formalism offers no ode form or the run fails.
     """
@@ -116,7 +122,8 @@ def tight_run(
             "offer one, e.g. index=1)"
         )
     rhs = equations.forms["ode"].rhs
-    times = np.linspace(state.t0, t_end, n)
+    times = np.linspace(state.t0, t_end, n) if times is None else np.asarray(times, float)
+    n = times.size
     solution = scipy.integrate.solve_ivp(
         lambda t, y: rhs.into(t, y)[0].copy(),
         (times[0], times[-1]),

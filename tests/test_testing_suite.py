@@ -1,0 +1,198 @@
+"""The conformance suite (workbench.testing) passes the real plugins and catches wrong
+ones, naming the check, the problem and the size of the error."""
+
+import numpy as np
+import pytest
+
+from plugins.formalisms.minimal_ode import MinimalOde, minimal_mechanical_system
+from workbench.equations import build_joint_space_equations
+from workbench.integrator import Integrator
+from workbench.kinematics import TreeKinematics
+from workbench.problem import Reference
+from workbench.registry import REGISTRY, PluginInfo
+from workbench.testing import (
+    ConformanceError,
+    check_formalism,
+    check_integrator,
+    check_problem,
+)
+from workbench.testing.__main__ import main
+
+
+@pytest.fixture
+def register(monkeypatch):
+    """Register plugin classes in the global registry for one test."""
+    REGISTRY.discover()
+
+    def add(kind, plugin):
+        info = PluginInfo(kind, plugin.name, plugin, plugin.__module__)
+        monkeypatch.setitem(REGISTRY.entries[kind], plugin.name, info)
+        return plugin
+
+    return add
+
+
+class ScaledForces(MinimalOde):
+    """minimal-ode with every generalized force 1 % too large (a deliberate bug)."""
+
+    name = "test-scaled-forces"
+    summary = "minimal-ode with forces 1 % too large (test)"
+
+    def build(self, model, options=None):
+        options = self.parse_options(options)
+        kinematics = TreeKinematics(model)
+        system = minimal_mechanical_system(model, kinematics)
+        system.forces = 1.01 * system.forces
+        ode = system.n_constraints == 0 or options.index == 1
+        return build_joint_space_equations(self.name, model, kinematics, system, options, ode)
+
+
+class WrongJacobian(MinimalOde):
+    """minimal-ode whose ode Jacobian is twice the true one (a deliberate bug)."""
+
+    name = "test-wrong-jacobian"
+    summary = "minimal-ode with a wrong ode Jacobian (test)"
+
+    def build(self, model, options=None):
+        equations = super().build(model, options)
+        jacobian = equations.forms["ode"].jacobian
+        equations.forms["ode"].jacobian = lambda t, y: (2.0 * jacobian(t, y)[0],)
+        return equations
+
+
+def failure(report, check, problem=""):
+    found = [r for r in report.failures if r.check == check and r.problem == problem]
+    assert found, f"expected a {check} failure on {problem!r} in\n{report}"
+    return found[0]
+
+
+def test_real_formalism_passes_everything():
+    report = check_formalism("minimal-ode", options={"index": 1})
+    report.raise_if_failed()
+    checks = {r.check for r in report.results if r.status == "pass"}
+    assert {"accelerations", "jacobian-ode", "energy", "invariants", "trajectory"} <= checks
+
+
+def test_a_force_error_of_one_percent_is_caught_with_its_size(register):
+    register("formalism", ScaledForces)
+    report = check_formalism(ScaledForces, ["double-pendulum"], {"index": 1})
+    wrong = failure(report, "accelerations", "double-pendulum")
+    assert 1e-3 < wrong.error < 0.1 and wrong.tolerance == 1e-8
+    assert "vs recursive" in wrong.message or "vs minimal-ode" in wrong.message
+    failure(report, "energy", "double-pendulum")
+    # the same state gives the same poses and energies: only the dynamics are wrong
+    assert all(r.status == "pass" for r in report.results if r.check == "observables")
+    with pytest.raises(ConformanceError, match=r"FAIL  accelerations .* double-pendulum"):
+        report.raise_if_failed()
+
+
+def test_a_wrong_jacobian_is_caught(register):
+    register("formalism", WrongJacobian)
+    report = check_formalism(WrongJacobian, ["simple-pendulum"], checks=["jacobians"])
+    wrong = failure(report, "jacobian-ode", "simple-pendulum")
+    assert wrong.error > 0.1
+    assert not any(
+        r.check.startswith("jacobian-") and r.status == "fail" and r.check != "jacobian-ode"
+        for r in report.results
+    )
+
+
+def test_structural_failures_name_what_to_fix():
+    class Nameless(MinimalOde):
+        name = "Not A Name"
+        summary = ""
+        capabilities = frozenset({"planar", "warp-drive"})
+
+    report = check_formalism(Nameless, checks="structural")
+    assert "lowercase" in failure(report, "metadata").message
+    assert "summary" in failure(report, "metadata").message
+    assert "warp-drive" in failure(report, "capabilities").message
+    assert "@workbench.registry.formalism" in failure(report, "registered").message
+    assert not any(r.problem for r in report.results)  # nothing was built
+
+
+def test_unsupported_problems_are_skipped_with_the_reason():
+    report = check_formalism("recursive", ["rolling-pendulum"])
+    (skip,) = [r for r in report.results if r.status == "skip"]
+    assert skip.check == "supported" and "nonholonomic" in skip.message
+
+
+class CoarseEuler(Integrator):
+    """Explicit Euler with a 10 ms step, whatever the tolerance: inaccurate (test)."""
+
+    name = "test-coarse-euler"
+    summary = "explicit Euler, 10 ms steps (test)"
+    accepts = {"ode": 0}
+
+    def integrate(self, task, trajectory):
+        rhs, y, t = task.form.rhs, task.y0.copy(), task.times[0]
+        out = [y.copy()]
+        for t_next in task.times[1:]:
+            while t < t_next - 1e-12:
+                h = min(1e-2, t_next - t)
+                y = y + h * rhs(t, y)[0]
+                t += h
+            out.append(y.copy())
+        trajectory.times, trajectory.y = task.times, np.array(out)
+        trajectory.stats.n_steps = len(task.times)
+
+
+class Clamped(CoarseEuler):
+    """Clamps the state so it never blows up, hiding the failure (test)."""
+
+    name = "test-clamped"
+    summary = "hides a blow-up by clamping (test)"
+
+    def integrate(self, task, trajectory):
+        super().integrate(task, trajectory)
+        trajectory.y = np.clip(np.nan_to_num(trajectory.y), -1e3, 1e3)
+
+
+def test_real_integrator_passes():
+    check_integrator("scipy-dop853").raise_if_failed()
+
+
+def test_an_inaccurate_integrator_fails_accuracy_with_its_error(register):
+    register("integrator", CoarseEuler)
+    report = check_integrator(CoarseEuler, ["torque-free-symmetric-gyro"])
+    wrong = failure(report, "accuracy", "torque-free-symmetric-gyro")
+    assert wrong.error > 1e-4 and "rtol 1e-08" in wrong.message
+
+
+def test_an_integrator_hiding_a_blow_up_fails_the_failure_check(register):
+    register("integrator", Clamped)
+    report = check_integrator(Clamped, ["torque-free-symmetric-gyro"])
+    assert "claimed success" in failure(report, "failure", "blow-up y''=y'^2").message
+
+
+def test_real_problems_pass_including_an_analytic_reference():
+    check_problem("rotating-ring").raise_if_failed()
+    gyro = check_problem("torque-free-symmetric-gyro").raise_if_failed()
+    (reference,) = [r for r in gyro.results if r.check == "reference"]
+    assert reference.status == "pass" and reference.error < 1e-8
+
+
+def test_a_wrong_analytic_reference_is_caught_with_its_error(register):
+    from problems.ch4_gyros import TorqueFreeSymmetricGyro
+
+    class SlowGyro(TorqueFreeSymmetricGyro):
+        name = "test-slow-gyro"
+
+        def reference(self):
+            right = super().reference()
+            return Reference("analytic", lambda times: right.poses(0.99 * np.asarray(times)))
+
+    register("problem", SlowGyro)
+    wrong = failure(check_problem(SlowGyro), "reference", "test-slow-gyro")
+    assert 1e-5 < wrong.error < 1.0
+
+
+def test_command_line_prints_the_report_and_exits_1_on_failure(register, capsys):
+    register("formalism", ScaledForces)
+    assert (
+        main(["formalism", "test-scaled-forces", "--problems", "simple-pendulum", "--failures"])
+        == 1
+    )
+    out = capsys.readouterr().out
+    assert "FAIL  accelerations" in out and "simple-pendulum" in out
+    assert main(["formalism", "nope"]) == 2
