@@ -1,0 +1,68 @@
+"""The performance benchmarks of the README in one command, and their summary.
+
+Run: ``python -m benchmarks`` (runs benchmarks.overhead, benchmarks.peers and
+benchmarks.simulation, then summarizes; about 15 minutes on 2 cores, most of it
+compiling the 200-body models) or ``python -m benchmarks --summary`` (summarizes the
+CSVs already in benchmarks/results/). The summary gives, per family and N, our
+compiled and uncompiled recursive forward dynamics over ``pin.aba`` and over
+``mj_forward``, the compile time at N = 50 and the simulation ratio, each against the
+issue's target.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import pandas as pd
+
+from benchmarks import overhead, peers, simulation
+
+RESULTS = peers.RESULTS
+
+
+def verdict(value: float, target: float) -> str:
+    if pd.isna(value):
+        return "n/a"
+    return f"{value:.2f} ({'met' if value <= target else 'missed'}, target <= {target:g})"
+
+
+def summary() -> None:
+    table = pd.read_csv(RESULTS / "peers.csv")
+    columns = [c for c in ("jit/pin", "vm/pin", "jit/mj", "vm/mj") if c in table]
+    print("forward dynamics per call, ours / peer (lower is faster):")
+    print(table.pivot(index="N", columns="family", values=columns).round(2).to_string())
+    spatial = table[table.family == "spatial"].set_index("N")
+    if "jit/pin" in spatial:
+        small = spatial.loc[spatial.index <= 50, "jit/pin"].max()
+        print("spatial chain, jit / pin.aba, worst N <= 50:", verdict(small, 0.5))
+        if 200 in spatial.index:
+            print("spatial chain, jit / pin.aba, N = 200:", verdict(spatial.loc[200, "jit/pin"], 1))
+        print("spatial chain, vm / pin.aba, worst N:", verdict(spatial["vm/pin"].max(), 5))
+    if 50 in spatial.index:
+        print("compile time at N = 50 (s):", verdict(spatial.loc[50, "compile_s"], 2))
+    sim = RESULTS / "simulation.csv"
+    if sim.exists():
+        runs = pd.read_csv(sim).dropna(subset=["end_error"])
+        ours = runs[runs.pipeline.str.startswith("recursive")]
+        best = ours.loc[ours.wall_s.idxmin()]
+        print(f"simulation, best ({best.pipeline}) / DOP853 + pin.aba:", verdict(best.ratio, 0.5))
+    calls = RESULTS / "overhead.csv"
+    if calls.exists():
+        frame = pd.read_csv(calls)
+        print("FastFunction.into overhead per call (us):", frame.overhead_us.round(2).tolist())
+
+
+def main(argv: list[str]) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    parser.add_argument("--summary", action="store_true", help="only summarize the CSVs")
+    args = parser.parse_args(argv)
+    if not args.summary:
+        overhead.main([])
+        peers.main([])
+        simulation.main([])
+    summary()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
