@@ -150,3 +150,16 @@ def test_casadi_cvodes_integrates_the_compiled_right_hand_side(tmp_path):
     assert plain["status"] == jit["status"] == "ok", jit["message"]
     assert jit["compile_s"] > 0.0 and jit["err_end"] < 1e-5
     assert jit["err_end"] == pytest.approx(plain["err_end"], rel=1e-3)
+
+
+@pytest.mark.slow
+def test_minimal_ode_beyond_the_symbolic_limit_compiles_and_agrees_with_recursive():
+    """Above SYMBOLIC_SOLVE_LIMIT M is factorized numerically by CasADi's LDL^T (LAPACK's
+    LU cannot be compiled); the accelerations equal the articulated-body algorithm's."""
+    _, minimal = build("spatial-chain", {"n_links": 9}, "minimal-ode", {"compile": "jit"})
+    _, recursive = build("spatial-chain", {"n_links": 9}, "recursive", {})
+    y = np.random.default_rng(0).uniform(-1, 1, 18)
+    rhs = minimal.forms["ode"].rhs
+    assert rhs.compile(), minimal.compile_warnings
+    expected = recursive.forms["ode"].rhs(0.0, y)[0]
+    np.testing.assert_allclose(rhs(0.0, y)[0], expected, atol=1e-10 * np.abs(expected).max())

@@ -219,8 +219,11 @@ def constraint_acceleration_rhs(system: MechanicalSystem) -> Any:
 
 
 SYMBOLIC_SOLVE_LIMIT = 8
-"""Linear systems larger than this are solved numerically (LU inside an MX graph): a
-symbolic LU of [M W^T; W 0] grows so fast that building takes seconds at 6 spatial bodies.
+"""Linear systems larger than this are solved numerically inside an MX graph (M alone:
+CasADi's sparse LDL^T, which compiles to C; with constraints: LAPACK LU of [M W^T; W 0]);
+smaller ones symbolically (M: LDL^T, a third of the instructions of the QR used for the
+indefinite [M W^T; W 0]). A symbolic factorization grows as n^3 instructions, so building
+takes seconds at 6 spatial bodies. The crossover was not re-measured for LDL^T.
 Measured with benchmarks/build_and_eval.py; see the README's Performance section."""
 
 
@@ -237,15 +240,20 @@ def _augmented_acceleration(system: MechanicalSystem, gamma: Any) -> tuple[Any, 
     w_matrix = ca.jacobian(system.velocity_constraints, v)
     zeros = (ca.MX if isinstance(q, ca.MX) else ca.SX).zeros(nc, nc)
     kkt = ca.vertcat(ca.horzcat(system.mass, w_matrix.T), ca.horzcat(w_matrix, zeros))
-    rhs = ca.vertcat(system.forces, gamma)
+    rhs = ca.vertcat(system.forces, gamma) if nc else system.forces
     symbols = (t, q, v)
-    method = "symbolicqr"
     if nv + nc > SYMBOLIC_SOLVE_LIMIT or isinstance(q, ca.MX):
         if isinstance(q, ca.SX):
             symbols = (ca.MX.sym("t"), ca.MX.sym("q", q.numel()), ca.MX.sym("v", nv))
             kkt, rhs = ca.Function("kkt", [t, q, v], [kkt, rhs])(*symbols)
-        method = "lapacklu"
-    solution = ca.solve(kkt, rhs) if method == "symbolicqr" else ca.solve(kkt, rhs, method)
+        # M alone is symmetric positive definite: CasADi's sparse LDL^T, which (unlike
+        # LAPACK's LU) can be compiled to C (compile=jit)
+        solution = ca.solve(kkt, rhs, "ldl" if nc == 0 else "lapacklu")
+    elif nc == 0:  # symbolic LDL^T of M: a third of the instructions of a symbolic QR
+        d, lt, p = ca.ldl(kkt)
+        solution = ca.ldl_solve(rhs, d, lt, p)
+    else:
+        solution = ca.solve(kkt, rhs)  # symbolic QR of the indefinite [M W^T; W 0]
     return solution[:nv], solution[nv:], symbols
 
 
