@@ -276,3 +276,19 @@ def test_view_missing_recording_is_one_line_error(tmp_path: Path) -> None:
     outcome = CliRunner().invoke(app, ["view", str(tmp_path / "none.rrd")])
     assert outcome.exit_code == 2
     assert "error: no recording at" in outcome.output
+
+
+def test_view_up_is_against_gravity() -> None:
+    from types import SimpleNamespace
+
+    from workbench.recording import view_coordinates
+
+    def up(kind: str, gravity: tuple[float, float, float]) -> object:
+        return view_coordinates(SimpleNamespace(kind=kind, gravity=np.array(gravity)))
+
+    views = rr.ViewCoordinates
+    assert up("planar", (0, -9.81, 0)) == views.RIGHT_HAND_Y_UP
+    assert up("spatial", (0, 0, -9.81)) == views.RIGHT_HAND_Z_UP
+    assert up("spatial", (0, 0, 9.81)) == views.RIGHT_HAND_Z_DOWN
+    assert up("planar", (0, 0, 0)) == views.RIGHT_HAND_Y_UP  # facing a horizontal plane
+    assert up("spatial", (0, 0, 0)) == views.RIGHT_HAND_Z_UP

@@ -114,6 +114,7 @@ class RerunSink:
         label = f"{spec.formalism} / {spec.integrator} rtol={float(spec.rtol):g}"
         self.runs[path] = (str(spec.problem), label)
         model = equations.model
+        self.recording.log(entity_path("runs", spec.problem), view_coordinates(model), static=True)
         self._log_geometry(path, model)
         self._log_poses(path, equations, trajectory)
         self._log_series(path, series, label, getattr(spec, "run_id", None))
@@ -201,6 +202,7 @@ class RerunSink:
                 name=quantity,
                 origin="runs",
                 contents=[f"+ /{path}/series/{quantity}" for path in self.runs] or "$origin/**",
+                plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),  # errors grow to the right
             )
             for quantity in SERIES_QUANTITIES
             if quantity in self.quantities
@@ -210,7 +212,14 @@ class RerunSink:
             if plots
             else rrb.Tabs(*spatial)
         )
-        return rrb.Blueprint(layout, collapse_panels=False)
+        # The views get the room: the selection panel is closed and the time panel shows
+        # only its controls (both open with a click).
+        return rrb.Blueprint(
+            layout,
+            rrb.SelectionPanel(state="collapsed"),
+            rrb.TimePanel(state="collapsed", timeline=TIMELINE),
+            collapse_panels=False,
+        )
 
     def save(self, path: str | Path) -> Path:
         """Write the recording (with its blueprint) to ``path``; a directory gets
@@ -242,8 +251,11 @@ class RerunSink:
         found = []
         for chunk in rr.chunk.RrdReader(path).stream().to_chunks():
             parts = split_entity_path(chunk.entity_path)
-            if len(parts) < 6 or parts[0] != "runs":
-                continue  # recording properties and anything not a run
+            if parts[:1] != ["runs"] or (len(parts) < 6 and len(parts) != 2):
+                continue  # recording properties and anything not a run or a problem
+            if len(parts) == 2:  # the problem's view coordinates
+                self.recording.send_chunks(chunk)
+                continue
             run = entity_path(*parts[:5])
             if run not in self.runs:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
@@ -267,6 +279,20 @@ def merge_recordings(files: Iterable[str | Path], target: str | Path) -> Path:
     for file in files:
         sink.add_recording(file)
     return sink.save(target)
+
+
+def view_coordinates(model: Any) -> Any:
+    """Rerun's up axis for a model's 3D view: against gravity, so the mechanism hangs as
+    it should; y for a planar model without gravity (the view then faces its plane)."""
+    import rerun as rr
+
+    gravity = np.asarray(getattr(model, "gravity", np.zeros(3)), dtype=float).reshape(-1)
+    if not np.any(gravity):
+        planar = getattr(model, "kind", "spatial") == "planar"
+        return getattr(rr.ViewCoordinates, "RIGHT_HAND_Y_UP" if planar else "RIGHT_HAND_Z_UP")
+    axis = int(np.argmax(np.abs(gravity)))
+    up = "UP" if gravity[axis] < 0 else "DOWN"
+    return getattr(rr.ViewCoordinates, f"RIGHT_HAND_{'XYZ'[axis]}_{up}")
 
 
 def _model_scale(model: Any) -> float:
