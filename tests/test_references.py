@@ -242,12 +242,20 @@ def test_an_edited_problem_gets_no_stale_reference(tmp_path: Path) -> None:
 
 # ---- item 4: every compatible formalism follows the reference early -------------------------
 
-FORMALISMS = [
-    ("minimal-ode", {"index": 1}),
-    ("absolute-dae", {"index": 1}),
-    ("recursive", {"index": 1}),
-    ("nonholonomic-projection", {}),
-]
+
+def ode_formalisms() -> list[tuple[str, dict]]:
+    """Every registered formalism with the options that give it an ode form (index 1)."""
+    found = []
+    for info in list_plugins("formalism"):
+        if info.plugin is None:
+            continue
+        options = {"index": 1} if hasattr(info.plugin.parse_options({}), "index") else {}
+        if "ode" in info.plugin.forms(info.plugin.parse_options(options)):
+            found.append((info.name, options))
+    return found
+
+
+FORMALISMS = ode_formalisms()
 LARGE = {"articulated-arm", "parallel-robot", "binary-tree", "spatial-chain", "planar-chain"}
 EARLY_FRACTION = 0.1  # of the time span
 EARLY_TOLERANCE = 1e-6  # pose error / L at rtol 1e-9
