@@ -146,3 +146,11 @@ integrators = ["scipy-dop853", "sundials-ida"]
         assert row["err_max"] < max(1e-4, 10 * baseline) and row["energy_err_max"] < 1e-6
     assert frame.loc[("slider-crank", "hamilton", "scipy-dop853"), "status"] == "skipped"
     assert frame.loc[("slider-crank", "lagrange-ad", "sundials-ida"), "status"] == "ok"
+
+
+def test_hamilton_beyond_the_symbolic_solve_limit_uses_a_numeric_solve():
+    """10 links > SYMBOLIC_SOLVE_LIMIT: q' = M^-1 p by LU inside an MX graph, same physics."""
+    problem = get_problem("planar-chain")({"n_links": 10})
+    equations = get_formalism("hamilton")().build(problem.model())
+    assert equations.forms["ode"].rhs.function.is_a("MXFunction")
+    check_formalism("hamilton", [problem], checks=["agreement"], n_states=2).raise_if_failed()

@@ -80,9 +80,10 @@ def body_accelerations(equations: Equations, state: InitialState) -> np.ndarray:
     function = getattr(equations, "_twist_rate", None)
     if function is None:  # built once per Equations
         twists = equations.observables.twists.function
-        t, q, v = ca.SX.sym("t"), ca.SX.sym("q", equations.nq), ca.SX.sym("v", equations.nv)
+        kind = ca.MX if twists.is_a("MXFunction") else ca.SX  # MX: numeric solves inside
+        t, q, v = kind.sym("t"), kind.sym("q", equations.nq), kind.sym("v", equations.nv)
         twist = ca.vec(twists(t, q, v))
-        qdot, a = ca.SX.sym("qd", equations.nq), ca.SX.sym("a", equations.nv)
+        qdot, a = kind.sym("qd", equations.nq), kind.sym("a", equations.nv)
         rate = ca.jacobian(twist, q) @ qdot + ca.jacobian(twist, v) @ a + ca.jacobian(twist, t)
         function = ca.Function("twist_rate", [t, q, v, qdot, a], [rate])
         equations._twist_rate = function
