@@ -35,6 +35,7 @@ ANALYTIC_PROBLEMS = ("torque-free-symmetric-gyro", "knife-edge-cart")
 TOLERANCES = {"accuracy": 1e-4, "convergence": 1.5}  # relative error; growth factor allowed
 RTOLS = (1e-4, 1e-8)
 HORIZON = 1.0  # s
+FAILURE_TIME_LIMIT = 30.0  # s for the blow-up
 
 
 def check_integrator(
@@ -162,6 +163,39 @@ def _check_statistics(
         )
 
 
+def with_time_limit(function: Any, seconds: float) -> Any:
+    """``function()`` in a forked child process; TimeoutError if it takes longer.
+
+    Without fork (not POSIX) it runs here, unlimited.
+    """
+    import multiprocessing
+
+    try:
+        context = multiprocessing.get_context("fork")
+    except ValueError:
+        return function()
+    receiver, sender = context.Pipe(duplex=False)
+
+    def child() -> None:
+        try:
+            sender.send((True, function()))
+        except BaseException as error:  # noqa: BLE001 - sent back to the parent
+            sender.send((False, error))
+
+    process = context.Process(target=child, daemon=True)
+    process.start()
+    ready = receiver.poll(seconds)
+    if not ready:
+        process.kill()
+        process.join()
+        raise TimeoutError
+    ok, value = receiver.recv()
+    process.join()
+    if not ok:
+        raise value
+    return value
+
+
 def blow_up_equations() -> Any:
     """Equations of y'' = y'^2 (a block on a prismatic joint), y'(0) = 1: y' = 1/(1 - t)."""
     model = Model("blow-up", kind="planar", gravity=(0.0, 0.0, 0.0))
@@ -186,7 +220,19 @@ def _check_failure(report: ConformanceReport, plugin: type, options: Any) -> Non
     y0[1], yp0[:2] = 1.0, [1.0, 1.0]
     times = np.linspace(0.0, 2.0, 21)
     try:
-        trajectory = integrator.solve(equations, y0, yp0, times, 1e-6, 1e-9, options, form)
+        trajectory = with_time_limit(
+            lambda: integrator.solve(equations, y0, yp0, times, 1e-6, 1e-9, options, form),
+            FAILURE_TIME_LIMIT,
+        )
+    except TimeoutError:
+        report.failed(
+            "failure",
+            "blow-up y''=y'^2",
+            f"no answer within {FAILURE_TIME_LIMIT:g} s "
+            "(a sweep would record a timeout): stop on a step size underflow or a "
+            "maximum number of steps",
+        )
+        return
     except Exception as error:  # noqa: BLE001
         report.failed("failure", "", f"solve raised instead of failing: {one_line(error)}")
         return
