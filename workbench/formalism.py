@@ -13,7 +13,10 @@ A formalism plugin subclasses :class:`Formalism`, registers with
    :func:`~workbench.equations.build_equations`.
 
 A feature the formalism cannot handle raises :class:`PluginError` from :meth:`check`,
-naming the formalisms that do handle it.
+naming the formalisms that do handle it. A limit that is not one of :data:`FEATURES`
+(e.g. quaternion joints, :func:`workbench.lagrangian.quaternion_joints`) is declared by
+extending :meth:`Formalism.unsupported`; the runner and the conformance suite
+(:mod:`workbench.testing`, docs/plugins.md) then skip such models with that reason.
 """
 
 from __future__ import annotations
