@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 
 import numpy as np
 import pytest
@@ -267,3 +268,30 @@ def test_scalable_options_rejected(options: dict) -> None:
     name = "planar-chain" if "n_links" in options else "binary-tree"
     with pytest.raises(ConfigError):
         get_problem(name)(options)
+
+
+@pytest.mark.parametrize(
+    "name", [case for case, (options, _, _) in EXPECTED.items() if not options]
+)
+def test_describe_shows_dof_parameters_invariants_and_reference(name: str) -> None:
+    """``workbench describe`` (default options): the hand-derived DOF at the initial
+    configuration (the folded neutral four-bar once showed 2), every body's mass, the
+    source section, the invariants and the reference kind."""
+    from typer.testing import CliRunner
+
+    from workbench import cli
+
+    result = CliRunner().invoke(cli.app, ["describe", name], env={"COLUMNS": "250"})
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    problem = make(name)
+    _, dof, loops = EXPECTED[name]
+    assert re.search(rf"│ DOF\s+│ {dof}( \(Gruebler count \d+\))?\s+│", out), out
+    assert re.search(rf"│ loops\s+│ {loops}\s+│", out)
+    assert f"source: {problem.source}" in out and "parameters (SI units)" in out
+    for body in problem.model().bodies.values():
+        assert re.search(rf"│ {body.name}\s+│ (point )?mass\s+│ {body.mass:.4g} kg", out), body.name
+    invariants = ["energy"] * problem.conservative + [i.name for i in problem.invariants()]
+    assert re.search(rf"│ invariants\s+│ {', '.join(invariants) or 'none'}\s+│", out)
+    reference = problem.reference()
+    assert re.search(rf"│ reference\s+│ {reference.kind if reference else 'none'}\s+│", out)

@@ -156,6 +156,7 @@ def describe(
     out.print(_options_table(plugin))
     if kind == "problem":
         out.print(_problem_table(plugin))
+        out.print(_parameters_table(plugin))
 
 
 def _options_table(plugin: type) -> Table | str:
@@ -182,7 +183,7 @@ def _problem_table(problem_class: type) -> Table:
     table.add_row("kind", model.kind)
     table.add_row("bodies", f"{len(model.bodies)}: {', '.join(model.bodies)}")
     table.add_row("joints", f"{len(model.joints)}: {', '.join(model.joints)}")
-    for label, value in _topology_rows(model):
+    for label, value in _topology_rows(problem, model):
         table.add_row(label, value)
     invariants = (["energy"] if problem.conservative else []) + [
         invariant.name for invariant in problem.invariants()
@@ -194,8 +195,38 @@ def _problem_table(problem_class: type) -> Table:
     return table
 
 
-def _topology_rows(model: Any) -> list[tuple[str, str]]:
-    """DOF, loops and constraint counts from workbench.topology; a note if it is missing."""
+def _parameters_table(problem_class: type) -> Table:
+    """The model's physical parameters (SI units) and the problem's initial condition."""
+    from workbench.parameters import model_parameters
+
+    problem = problem_class()
+    table = Table(title="parameters (SI units)", title_justify="left")
+    for column in ("element", "quantity", "value"):
+        table.add_column(column)
+    for row in model_parameters(problem.model()):
+        table.add_row(*row)
+    for label, values in (
+        ("initial joint coordinates", problem.initial_joint_coordinates()),
+        ("initial joint velocities", problem.initial_joint_velocities()),
+    ):
+        text = ", ".join(f"{joint} = {_values(value)}" for joint, value in values.items())
+        table.add_row("initial state", label, text or "neutral / at rest")
+    return table
+
+
+def _values(value: Any) -> str:
+    import numpy as np
+
+    array = np.atleast_1d(np.asarray(value, dtype=float))
+    text = ", ".join(f"{x:.4g}" for x in array)
+    return text if array.size == 1 else f"({text})"
+
+
+def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
+    """DOF, loops and constraint counts from workbench.topology; a note if it is missing.
+
+    The rank is taken at the problem's initial configuration: the neutral one of a closed
+    loop can be folded (a four-bar with all angles zero), where W loses rank."""
     try:
         from workbench.topology import analyze
     except ImportError:
@@ -204,7 +235,12 @@ def _topology_rows(model: Any) -> list[tuple[str, str]]:
             ("nonholonomic constraints", str(len(model.nonholonomic))),
             ("DOF", "unknown (workbench.topology not available)"),
         ]
-    topology = analyze(model)
+    from workbench.kinematics import TreeKinematics, initial_joint_values
+
+    q0 = initial_joint_values(
+        model, TreeKinematics(model), problem.initial_joint_coordinates(), velocities=False
+    )
+    topology = analyze(model, q=q0)
     dof = topology.dof
     if dof is None:
         dof_text = f"{topology.dof_gruebler} (Gruebler count; rank not computed)"
