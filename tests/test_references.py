@@ -135,8 +135,13 @@ def test_every_stored_reference_reproduced_by_both_pipelines(path: Path) -> None
     samples = meta["times"]["n"] if "--samples" in meta["command"] else None
     again = compute_reference(meta["problem"], meta["rtol"], samples)
     length = meta["agreement"]["length_scale_m"]
-    assert pose_error(again.poses, stored.poses, length).max() <= max(
-        meta["agreement"]["max_pose_error_m"], 1e-12 * length
+    error = pose_error(again.poses, stored.poses, length).max()
+    # a change to a formalism's arithmetic (e.g. another factorization) moves the result
+    # at round-off times the problem's sensitivity: the stored file must then be remade
+    assert error <= max(meta["agreement"]["max_pose_error_m"], 1e-12 * length), (
+        f"{meta['problem']}: recomputed poses differ from the stored ones by {error:.2g} m, "
+        f"more than the pipelines' recorded agreement; if the formalisms or integrators "
+        f"changed on purpose, regenerate it: {meta['command']}"
     )
 
 
