@@ -34,12 +34,13 @@ def _state(bodies: Mapping[str, BodyState], name: str) -> BodyState:
 
 
 def body_wrenches(
-    model: Model, t: Any, bodies: Mapping[str, BodyState]
+    model: Model, t: Any, bodies: Mapping[str, BodyState], gravity: bool = True
 ) -> dict[str, tuple[Any, Any]]:
     """Applied force and torque on each body, about its frame's origin, inertial coordinates.
 
-    Includes gravity, point-to-point spring-dampers and applied forces (not joint forces:
-    see :func:`joint_generalized_forces`).
+    Includes gravity (unless ``gravity=False``: a recursive formalism can apply it as an
+    acceleration of the ground instead), point-to-point spring-dampers and applied forces
+    (not joint forces: see :func:`joint_generalized_forces`).
     """
     wrenches = {name: [ca.SX.zeros(3), ca.SX.zeros(3)] for name in model.bodies}
 
@@ -51,9 +52,10 @@ def body_wrenches(
         wrenches[body][0] += force
         wrenches[body][1] += ca.cross(arm, force) + (0 if torque is None else torque)
 
-    gravity = ca.DM(model.gravity)
-    for name, body in model.bodies.items():
-        add(name, body.com, body.mass * gravity)
+    if gravity:
+        g = ca.DM(model.gravity)
+        for name, body in model.bodies.items():
+            add(name, body.com, body.mass * g)
     for element in model.forces:
         if isinstance(element, SpringDamper):
             s1, s2 = _state(bodies, element.body1), _state(bodies, element.body2)
@@ -112,9 +114,7 @@ def relative_joint_coordinates(
     joint = model.joints[joint_name]
     r_p, rot_p = _state(bodies, joint.parent).frame(joint.parent_frame)
     r_c, rot_c = _state(bodies, joint.child).frame(joint.child_frame)
-    return jk.relative_coordinates(
-        joint, ca.mtimes(rot_p.T, r_c - r_p), ca.mtimes(rot_p.T, rot_c)
-    )
+    return jk.relative_coordinates(joint, ca.mtimes(rot_p.T, r_c - r_p), ca.mtimes(rot_p.T, rot_c))
 
 
 def generalized_forces(
