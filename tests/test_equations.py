@@ -101,6 +101,12 @@ def test_fast_function_matches_casadi_and_survives_pickling():
     restored = pickle.loads(pickle.dumps(fast))
     assert np.array_equal(restored(*args)[1], fast(*args)[1])
     assert fast.n_calls == 2
+    # the time as any scalar-like value, the state as a row or a column: same numbers
+    x0 = args[1]
+    for time in (0.7, np.float64(0.7), np.array([0.7]), np.array(0.7), [0.7]):
+        for state in (x0, x0.reshape(3, 1), list(x0)):
+            assert np.array_equal(fast(time, state)[0], reference[0].ravel())
+    assert np.array_equal(fast(2, x0)[0], np.sin(x0) * 2)
 
 
 class ImpossibleLoop(Problem):

@@ -8,7 +8,9 @@ the shared library is kept in an on-disk cache (``$WORKBENCH_CACHE``, else
 compiler and the CasADi version: a sweep compiles each model once, whatever the number
 of processes. A library is written to a temporary file in the cache directory and
 renamed into place (:func:`os.replace` is atomic), so concurrent processes never see a
-partial file; two that compile the same code at once both produce the same bytes.
+partial file; two that compile the same code at once both produce the same bytes. Long
+straight-line bodies are cut into parts before compiling (:func:`split_long_bodies`), which
+keeps the compile time about linear in the size of the graph.
 
 Without a C compiler, or when CasADi cannot generate C for a graph, evaluation stays in
 the virtual machine and a warning is recorded (:attr:`Compiler.warnings`) for the run's
@@ -21,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -66,11 +69,64 @@ def c_compiler() -> str | None:
     return shutil.which(command[0]) if command else None
 
 
-def generate_c(function: ca.Function) -> str:
-    """The C source of ``function`` (and what it calls), as CasADi generates it."""
-    generator = ca.CodeGenerator(function.name(), {"with_header": False})
+STATEMENTS_PER_PART = 100
+_BODY_START = re.compile(
+    r"^static int (casadi_f\d+)\(const casadi_real\*\* arg, casadi_real\*\* res, "
+    r"casadi_int\* iw, casadi_real\* w, int mem\) \{$"
+)
+_SIMPLE_STATEMENT = re.compile(
+    r"^  (w\[\d+\]=[^;{}]*;|if \(res\[\d+\]!=0\) res\[\d+\]\[\d+\]=w\[\d+\];)$"
+)
+
+
+def generate_c(function: ca.Function, statements_per_part: int = STATEMENTS_PER_PART) -> str:
+    """The C source of ``function`` (and what it calls), as CasADi generates it, with long
+    straight-line bodies cut into parts (:func:`split_long_bodies`)."""
+    generator = ca.CodeGenerator(function.name(), {"with_header": False, "avoid_stack": True})
     generator.add(function)
-    return generator.dump()
+    return split_long_bodies(generator.dump(), statements_per_part)
+
+
+def split_long_bodies(code: str, statements_per_part: int) -> str:
+    """Cut every long straight-line function body of CasADi's C into sequential parts.
+
+    Generated with ``avoid_stack``, an SX function is one statement a line over the work
+    array ``w`` (``w[7]=(w[3]*w[5]);``): a body of such statements can run as several
+    functions in a row sharing ``w``, with nothing copied. The C compiler's register
+    allocation grows faster than linearly with a function's size: a 50-link spatial chain
+    (33,000 statements) took 8.6 s at -O1 in one body and 2.6 s in parts of 100, and
+    evaluated no slower (7.2 us against 8.0 us). A body with anything else in it
+    (loops, calls) is left whole.
+    """
+    lines = code.split("\n")
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        start = _BODY_START.match(lines[i])
+        if start is None:
+            out.append(lines[i])
+            i += 1
+            continue
+        end = lines.index("}", i)
+        statements, last = lines[i + 1 : end - 1], lines[end - 1]
+        simple = last == "  return 0;" and all(map(_SIMPLE_STATEMENT.match, statements))
+        if not simple or len(statements) <= statements_per_part:
+            out.extend(lines[i : end + 1])
+            i = end + 1
+            continue
+        parts = []
+        for first in range(0, len(statements), statements_per_part):
+            part = f"{start.group(1)}_part{len(parts)}"
+            out.append(f"static void {part}(const casadi_real** arg, casadi_real** res, "
+                       "casadi_real* w) {")  # fmt: skip
+            out.extend(statements[first : first + statements_per_part])
+            out.extend(("}", ""))
+            parts.append(part)
+        out.append(lines[i])
+        out.extend(f"  {part}(arg, res, w);" for part in parts)
+        out.extend(("  return 0;", "}"))
+        i = end + 1
+    return "\n".join(out)
 
 
 def library_path(code: str, flags: str, compiler: str, name: str) -> Path:
