@@ -200,6 +200,31 @@ def test_merge_recordings_of_workers(tmp_path: Path) -> None:
     assert rr.chunk.RrdReader(merged).blueprints()
 
 
+def test_one_sink_writes_a_file_a_run(tmp_path: Path) -> None:
+    """A worker's sink: each file holds its own run's values only (read back), a file
+    with nothing logged is not left behind, and the files merge as separate ones do."""
+    sink = RerunSink()
+    files = []
+    for rtol in (1e-3, 1e-6, 1e-9):
+        sink.begin_file(tmp_path / f"{rtol:g}.rrd")
+        if rtol != 1e-9:  # the last run is skipped: nothing logged
+            sink.log_run(*_args(fake_run(rtol)))
+        files.append(sink.end_file())
+    assert files[2] is None and sorted(p.name for p in tmp_path.iterdir()) == [
+        "0.001.rrd",
+        "1e-06.rrd",
+    ]
+    for path, rtol in zip(files[:2], (1e-3, 1e-6), strict=True):
+        chunks = read_chunks(path)
+        runs = {key.split("/series/")[0] for key in chunks if "/series/" in key}
+        assert runs == {f"/runs/fake-problem/minimal-ode/radau/rtol\\={rtol:g}"}
+        ref_err = column(chunks[f"{runs.pop()}/series/ref_err"], "Scalars:scalars")
+        times = np.linspace(0.0, 2.0, 50)
+        np.testing.assert_allclose(np.concatenate(ref_err["Scalars:scalars"]), rtol * times**2)
+    merged = read_chunks(merge_recordings(files[:2], tmp_path / "all.rrd"))
+    assert sum("/series/ref_err" in key for key in merged) == 2
+
+
 def test_entity_paths_escape_and_split() -> None:
     path = entity_path("runs", "a/b", "rtol=1e-06", "x y")
     assert split_entity_path(path) == ["runs", "a/b", "rtol=1e-06", "x y"]

@@ -21,7 +21,11 @@ run id appended.
 
 The recording is kept in memory until :meth:`RerunSink.save`; a sink used in worker
 processes must be saved by each worker (one file each, same recording id: the viewer
-merges files of one recording id), since a recording stream cannot be pickled.
+merges files of one recording id), since a recording stream cannot be pickled. A sweep's
+worker keeps one sink for all its runs and writes a file a run with
+:meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: a recording stream a run leaks
+in rerun-sdk 0.41 (about 1.7 MB a run: 3.5 GB over the default sweep's 1,080 runs), one
+stream moved from file to file does not.
 """
 
 from __future__ import annotations
@@ -93,6 +97,7 @@ class RerunSink:
         self.max_frames = max(2, int(max_frames))
         self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
         self.quantities: set[str] = set()  # series logged by at least one run
+        self._file: tuple[Path, Path] = (Path(), Path())  # partial, target (begin_file)
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -148,8 +153,13 @@ class RerunSink:
         if n == 0:
             return
         rows = np.unique(np.linspace(0, n - 1, min(n, self.max_frames)).round().astype(int))
-        nq = equations.nq
-        poses = np.stack([equations.observables.poses(times[k], y[k, :nq]) for k in rows])
+        nq, nv = equations.nq, getattr(equations, "nv", 0)
+        if nv and y.shape[1] >= nq + nv:
+            poses = equations.observables.along(
+                times[rows], y[rows, :nq], y[rows, nq : nq + nv]
+            ).poses
+        else:  # only positions known
+            poses = np.stack([equations.observables.poses(times[k], y[k, :nq]) for k in rows])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
         for b, name in enumerate(equations.observables.body_names):
             self.recording.send_columns(
@@ -236,6 +246,30 @@ class RerunSink:
         self.recording.save(partial, default_blueprint=self.blueprint())
         self.recording.flush()
         self.recording.disconnect()
+        os.replace(partial, target)
+        return target
+
+    def begin_file(self, path: str | Path) -> None:
+        """Send what is logged from now on to the file ``path`` (a hidden partial file
+        until :meth:`end_file`), forgetting the runs logged before: one file a run
+        through one recording stream (see the module docstring)."""
+        target = Path(path)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
+        self.recording.save(partial)
+        self._file = (partial, target)
+        self.runs.clear()
+        self.quantities.clear()
+
+    def end_file(self) -> Path | None:
+        """Close the file of :meth:`begin_file` and move it into place; None, and no
+        file, when nothing was logged into it (a skipped or failed run)."""
+        partial, target = self._file
+        self.recording.flush()
+        self.recording.disconnect()
+        if not self.runs:
+            partial.unlink(missing_ok=True)
+            return None
         os.replace(partial, target)
         return target
 

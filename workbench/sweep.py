@@ -49,6 +49,7 @@ the rows are consolidated into ``<out>/results.parquet``.
 from __future__ import annotations
 
 import contextlib
+import gc
 import importlib
 import itertools
 import json
@@ -485,16 +486,19 @@ def _worker_main(conn: Any, plugins: list[str], out: str, sys_path: list[str]) -
         importlib.import_module("rerun")
     conn.send(("ready", os.getpid()))
     reference_dir = Path(out) / "references"
+    sink = None  # one Rerun sink for all of this worker's runs, a file a run
     while True:
         message = conn.recv()
         if message is None:
             return
         spec = RunSpec.from_dict(message)
         try:
-            sink = _run_sink()
-            result = execute_run(spec, sink=sink, reference_dir=reference_dir)
-            store.write_run(Path(out), result.row, result.series)
-            _save_recording(sink, Path(out), spec.run_id)
+            sink = _begin_recording(sink, Path(out), spec.run_id)
+            try:
+                result = execute_run(spec, sink=sink, reference_dir=reference_dir)
+                store.write_run(Path(out), result.row, result.series)
+            finally:
+                _end_recording(sink)
             conn.send(("done", spec.run_id, result.row["status"]))
         except Exception as error:  # noqa: BLE001 - reported to the parent as a row
             conn.send(("error", spec.run_id, f"{type(error).__name__}: {error}"))
@@ -503,22 +507,26 @@ def _worker_main(conn: Any, plugins: list[str], out: str, sys_path: list[str]) -
 RECORDINGS_DIR = "recordings"
 
 
-def _run_sink() -> Any:
-    """A Rerun sink for one run, or None where rerun-sdk cannot be used."""
+def _begin_recording(sink: Any, out: Path, run_id: str) -> Any:
+    """The worker's Rerun sink (made at its first run), now writing the file of one run
+    beside its row (merged into recording.rrd at the end); None where rerun-sdk cannot be
+    used: a recording is a view of the results, never a failure."""
     try:
-        from workbench.recording import RerunSink
+        if sink is None:
+            from workbench.recording import RerunSink
 
-        return RerunSink(max_frames=200)
-    except Exception:  # noqa: BLE001 - a recording is a view of the results, never a failure
+            sink = RerunSink(max_frames=200)
+        sink.begin_file(out / RECORDINGS_DIR / f"{run_id}.rrd")
+        return sink
+    except Exception:  # noqa: BLE001
         return None
 
 
-def _save_recording(sink: Any, out: Path, run_id: str) -> None:
-    """Write one run's recording beside its row; merged into recording.rrd at the end."""
-    if sink is None or not sink.runs:  # skipped or failed before integrating
-        return
-    with contextlib.suppress(Exception):
-        sink.save(out / RECORDINGS_DIR / f"{run_id}.rrd")
+def _end_recording(sink: Any) -> None:
+    """Close the run's file (none is left for a run skipped or failed before integrating)."""
+    if sink is not None:
+        with contextlib.suppress(Exception):
+            sink.end_file()
 
 
 def merge_run_recordings(out: Path) -> Path | None:
@@ -614,7 +622,13 @@ def _run_local(
             args=(child_end, plugins, str(out), list(sys.path)),
             daemon=True,
         )
-        process.start()
+        # a forked worker's garbage collector would visit every object it inherited and
+        # so copy their pages (copy-on-write): frozen, they stay shared with the parent
+        gc.freeze()
+        try:
+            process.start()
+        finally:
+            gc.unfreeze()
         child_end.close()
         return _Worker(process, parent_end)
 
