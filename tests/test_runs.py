@@ -179,3 +179,24 @@ def test_pose_error_and_length_scale() -> None:
     assert error[0] == 0 and error[1] == pytest.approx(0.003 + 2.0 * angle)
     assert metrics.length_scale(None, reference) == 2.0
     assert metrics.length_scale(None, np.zeros((1, 1, 7))) == metrics.MIN_LENGTH_SCALE
+
+
+def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch) -> None:
+    """The worker's equations cache is bounded (least recently used out): a reused entry
+    is the same object, an evicted one is built again."""
+    from workbench import runs
+    from workbench.registry import get_problem
+
+    runs.clear_cache()
+    monkeypatch.setattr(runs, "EQUATIONS_CACHE_SIZE", 2)
+    specs = [spec(formalism_options={"index": 1, "baumgarte_alpha": a}) for a in (1.0, 2.0, 3.0)]
+    model = get_problem("test-pendulum")().model()
+    first, built = runs.cached_equations(specs[0], model)
+    second, _ = runs.cached_equations(specs[1], model)
+    assert not built and runs.cached_equations(specs[0], model) == (first, True)  # 0 now newest
+    runs.cached_equations(specs[2], model)  # evicts 1, the least recently used
+    assert len(runs._EQUATIONS) == 2
+    assert runs.cached_equations(specs[0], model) == (first, True)
+    again, reused = runs.cached_equations(specs[1], model)
+    assert not reused and again is not second
+    runs.clear_cache()

@@ -34,6 +34,7 @@ import json
 import math
 import time
 import traceback
+from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -133,7 +134,11 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
 
 # ---- equations cache (one per worker process) ---------------------------------------
 
-_EQUATIONS: dict[tuple[str, str, str, str], Any] = {}
+# A sweep lists the runs of one (problem, formalism) together (integrators x tolerances),
+# so a few entries keep nearly every hit; unbounded, a worker of the default sweep held
+# every model it had seen (hundreds of MB of CasADi graphs and built Jacobians).
+EQUATIONS_CACHE_SIZE = 8
+_EQUATIONS: OrderedDict[tuple[str, str, str, str], Any] = OrderedDict()
 
 
 def clear_cache() -> None:
@@ -149,10 +154,13 @@ def cached_equations(spec: RunSpec, model: Any) -> tuple[Any, bool]:
         canonical_json(spec.formalism_options),
     )
     if key in _EQUATIONS:
+        _EQUATIONS.move_to_end(key)
         return _EQUATIONS[key], True
     formalism = registry.get_formalism(spec.formalism)()
     equations = formalism.build(model, spec.formalism_options)
     _EQUATIONS[key] = equations
+    while len(_EQUATIONS) > EQUATIONS_CACHE_SIZE:
+        _EQUATIONS.popitem(last=False)  # the least recently used
     return equations, False
 
 
