@@ -135,3 +135,77 @@ def test_unassemblable_loop_names_the_worst_constraint():
     equations = get_formalism("minimal-ode")().build(problem.model(), {"index": 1})
     with pytest.raises(IntegrationError, match=r"pin\[\d\]"):
         consistent_initial_state(equations, problem)
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism"),
+    [
+        ("double-pendulum", "minimal-ode"),
+        ("slider-crank", "absolute-dae"),
+        ("heavy-top", "recursive"),
+        ("rolling-pendulum", "nonholonomic-projection"),
+        ("spatial-chain", "absolute-dae"),
+    ],
+)
+def test_observables_along_states_equal_one_state_at_a_time(problem, formalism):
+    """Observables.along (one mapped call a quantity) gives what the per-state functions
+    give, at perturbed states: poses, twists, energy and every residual."""
+    from workbench.registry import get_formalism, get_problem
+
+    problem_ = get_problem(problem)()
+    equations = get_formalism(formalism)().build(problem_.model(), {})
+    state = consistent_initial_state(equations, problem_)
+    rng = np.random.default_rng(7)
+    nq, nv = equations.nq, equations.nv
+    times = np.linspace(0.0, 1.0, 6)
+    q = state.q + 0.05 * rng.standard_normal((6, nq))
+    v = state.v + 0.05 * rng.standard_normal((6, nv))
+    sampled = equations.observables.along(times, q, v)
+    observables = equations.observables
+    for k, t in enumerate(times):
+        np.testing.assert_allclose(sampled.poses[k], observables.poses(t, q[k]), atol=1e-14)
+        twists = np.reshape(observables.twists(t, q[k], v[k])[0], (6, -1)).T
+        np.testing.assert_allclose(sampled.twists[k], twists, atol=1e-13)
+        energy = np.ravel(observables.energy(t, q[k], v[k])[0])[:2]
+        np.testing.assert_allclose(sampled.energy[k], energy, rtol=1e-14, atol=1e-14)
+        for mapped, single in zip(
+            sampled.residuals, observables.residuals(t, q[k], v[k]), strict=True
+        ):
+            np.testing.assert_allclose(mapped[k], np.ravel(single), atol=1e-14)
+    assert sampled.poses.shape == (6, len(observables.body_names), 7)
+    assert observables.along(times[:0], q[:0], v[:0]).poses.shape[0] == 0
+
+
+@pytest.mark.parametrize(
+    ("problem", "options", "formalism"),
+    [
+        ("binary-tree", {"depth": 2}, "absolute-dae"),  # [M W^T; W 0] by LU, 35 unknowns
+        ("slider-crank", {}, "absolute-dae"),  # planar, LU
+        ("spatial-chain", {"n_links": 10}, "minimal-ode"),  # M alone by LDL^T, 10 unknowns
+    ],
+)
+def test_ode_jacobian_through_a_numeric_solve_equals_casadis(problem, options, formalism):
+    """Beyond SYMBOLIC_SOLVE_LIMIT the ode Jacobian comes from the implicit function
+    theorem (ds/dy = -K^-1 d(Ks - b)/dy): equal to CasADi's derivative of the solve and to
+    central differences of the right-hand side, at a perturbed state."""
+    from workbench.equations import SYMBOLIC_SOLVE_LIMIT
+    from workbench.registry import get_formalism, get_problem
+
+    problem_ = get_problem(problem)(options)
+    equations = get_formalism(formalism)().build(problem_.model(), {"index": 1})
+    form = equations.forms["ode"]
+    assert equations.nv + equations.n_constraints > SYMBOLIC_SOLVE_LIMIT
+    state = consistent_initial_state(equations, problem_)
+    y = state.y0(equations, "ode") + 0.01 * np.random.default_rng(2).standard_normal(form.n)
+    ours = form.jacobian(0.3, y)[0]
+    rhs = form.rhs.function
+    t_sym, y_sym = ca.MX.sym("t"), ca.MX.sym("y", form.n)
+    automatic = ca.Function("automatic", [t_sym, y_sym], [ca.jacobian(rhs(t_sym, y_sym), y_sym)])
+    expected = np.asarray(automatic(0.3, y))
+    np.testing.assert_allclose(ours, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    step = 1e-6
+    columns = [
+        (form.rhs(0.3, y + step * e)[0] - form.rhs(0.3, y - step * e)[0]) / (2 * step)
+        for e in np.eye(form.n)
+    ]
+    np.testing.assert_allclose(ours, np.column_stack(columns), atol=1e-5 * np.abs(ours).max())

@@ -22,6 +22,7 @@ Every numeric function is a :class:`~workbench.evaluate.FastFunction`; Jacobians
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -136,6 +137,7 @@ class Observables:
     twists(t, q, v) -> (6, n_bodies) [velocity of frame origin; angular velocity];
     energy(t, q, v) -> (2,) [T, V];
     residuals(t, q, v) -> position, velocity and nonholonomic residual vectors.
+    :meth:`along` gives them all at many states in one call each.
     """
 
     frames: FastFunction
@@ -143,15 +145,78 @@ class Observables:
     energy: FastFunction
     residuals: FastFunction
     body_names: list[str]
+    _mapped: dict = field(default_factory=dict, repr=False)  # (name, n) -> Function.map(n)
 
     def poses(self, t: float, q: np.ndarray) -> np.ndarray:
         """(n_bodies, 7): position and unit quaternion (scalar first) of every body."""
         positions, rotations = self.frames(t, q)
-        n = len(self.body_names)
-        matrices = rotations.reshape(3, n, 3).transpose(1, 0, 2)  # (n, 3, 3)
-        quats = Rotation.from_matrix(matrices).as_quat()[:, [3, 0, 1, 2]]
-        quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
-        return np.hstack([np.reshape(positions, (3, n)).T, quats])
+        return _poses(positions[None], rotations[None], len(self.body_names))[0]
+
+    def along(self, times: np.ndarray, q: np.ndarray, v: np.ndarray) -> SampledObservables:
+        """Every quantity at n states: ``times`` (n,), ``q`` (n, nq), ``v`` (n, nv).
+
+        One evaluation of each function mapped over the n states (``Function.map``):
+        metrics of a run with 500 output times called the functions 2,000 times one state
+        at a time, which cost more than many integrations.
+        """
+        times = np.asarray(times, dtype=float).reshape(-1)
+        n = times.size
+        q, v = np.atleast_2d(q), np.atleast_2d(v)
+        if n == 0:
+            return SampledObservables.empty(len(self.body_names))
+        row = times.reshape(1, n)
+        positions, rotations = self._map("frames", n, row, q.T)
+        (twists,) = self._map("twists", n, row, q.T, v.T)
+        (energy,) = self._map("energy", n, row, q.T, v.T)
+        residuals = self._map("residuals", n, row, q.T, v.T)
+        n_bodies = len(self.body_names)
+        return SampledObservables(
+            poses=_poses(positions, rotations, n_bodies),
+            twists=twists.reshape(n, 6, -1).transpose(0, 2, 1),  # as reshape(6, -1).T
+            energy=energy.reshape(n, -1)[:, :2],
+            residuals=[r.reshape(n, -1) for r in residuals],
+        )
+
+    def _map(self, name: str, n: int, *args: np.ndarray) -> list[np.ndarray]:
+        """Outputs of observable ``name`` at n states, each stacked as (n, rows, cols)."""
+        function = getattr(self, name).function
+        key = (name, n)
+        if key not in self._mapped:
+            self._mapped[key] = function.map(n)
+        outputs = self._mapped[key].call(list(args))
+        stacked = []
+        for i, value in enumerate(outputs):
+            rows, cols = function.sparsity_out(i).shape
+            stacked.append(np.asarray(value).reshape(rows, n, cols).transpose(1, 0, 2))
+        return stacked
+
+
+@dataclass
+class SampledObservables:
+    """Observables at n states: ``poses`` (n, n_bodies, 7) [position, Euler parameters];
+    ``twists`` (n, n_bodies, 6) [velocity of the frame origin, angular velocity];
+    ``energy`` (n, 2) [T, V]; ``residuals``: position, velocity and nonholonomic
+    residuals, each (n, rows)."""
+
+    poses: np.ndarray
+    twists: np.ndarray
+    energy: np.ndarray
+    residuals: list[np.ndarray]
+
+    @classmethod
+    def empty(cls, n_bodies: int) -> SampledObservables:
+        return cls(np.zeros((0, n_bodies, 7)), np.zeros((0, n_bodies, 6)), np.zeros((0, 2)), [])
+
+
+def _poses(positions: np.ndarray, rotations: np.ndarray, n_bodies: int) -> np.ndarray:
+    """(m, n_bodies, 7) poses from m stacked frames outputs: positions (m, 3, n_bodies) and
+    rotations (m, 3, 3 n_bodies); quaternions scalar first with p0 >= 0."""
+    m = positions.shape[0]
+    matrices = rotations.reshape(m, 3, n_bodies, 3).transpose(0, 2, 1, 3)  # (m, nb, 3, 3)
+    quats = Rotation.from_matrix(matrices.reshape(-1, 3, 3)).as_quat()[:, [3, 0, 1, 2]]
+    quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
+    origins = positions.reshape(m, 3, n_bodies).transpose(0, 2, 1)
+    return np.concatenate([origins, quats.reshape(m, n_bodies, 4)], axis=2)
 
 
 @dataclass
@@ -227,34 +292,55 @@ takes seconds at 6 spatial bodies. The crossover was not re-measured for LDL^T.
 Measured with benchmarks/build_and_eval.py; see the README's Performance section."""
 
 
-def _augmented_acceleration(system: MechanicalSystem, gamma: Any) -> tuple[Any, Any, Any]:
-    """(v', lambda, y symbols) solving [M W^T; W 0] [v'; lambda] = [Q; gamma].
+def _augmented_acceleration(
+    system: MechanicalSystem, gamma: Any
+) -> tuple[Any, Any, Any, Callable[[], Any] | None]:
+    """(v', lambda, y symbols, Jacobian builder) solving [M W^T; W 0] [v'; lambda] = [Q; gamma].
 
     Returns v' and lambda as expressions in symbols t, q, v that may be fresh MX symbols
-    (returned as a triple) when the system is too large for a symbolic solve.
+    (returned as a triple) when the system is too large for a symbolic solve. Then the
+    builder gives dv'/d[q; v] by the implicit function theorem: with K s = b,
+    ds/dy = -K^-1 d(K s - b)/dy at fixed s, one Jacobian of the nv + nc residuals and a
+    second solve with the same K. CasADi's own derivative of the solve differentiates
+    every entry of K: for the binary tree in absolute coordinates (77 unknowns, 91
+    states) that took 270 MB and 1.2 s to build. None: ``casadi.jacobian`` will do.
     """
     t, q, v = system.t, system.q, system.v
     nv, nc = v.numel(), system.n_constraints
     if nc == 0 and system.acceleration is not None:
-        return system.acceleration, q[0:0], (t, q, v)
+        return system.acceleration, q[0:0], (t, q, v), None
     w_matrix = ca.jacobian(system.velocity_constraints, v)
     zeros = (ca.MX if isinstance(q, ca.MX) else ca.SX).zeros(nc, nc)
     kkt = ca.vertcat(ca.horzcat(system.mass, w_matrix.T), ca.horzcat(w_matrix, zeros))
     rhs = ca.vertcat(system.forces, gamma) if nc else system.forces
     symbols = (t, q, v)
+    jacobian = None
     if nv + nc > SYMBOLIC_SOLVE_LIMIT or isinstance(q, ca.MX):
-        if isinstance(q, ca.SX):
-            symbols = (ca.MX.sym("t"), ca.MX.sym("q", q.numel()), ca.MX.sym("v", nv))
-            kkt, rhs = ca.Function("kkt", [t, q, v], [kkt, rhs])(*symbols)
         # M alone is symmetric positive definite: CasADi's sparse LDL^T, which (unlike
         # LAPACK's LU) can be compiled to C (compile=jit)
-        solution = ca.solve(kkt, rhs, "ldl" if nc == 0 else "lapacklu")
+        method = "ldl" if nc == 0 else "lapacklu"
+        if isinstance(q, ca.SX):
+            s = ca.SX.sym("s", nv + nc)
+            residual = ca.mtimes(kkt, s) - rhs
+            residual_jacobian = ca.Function(
+                "kkt_residual_jacobian", [t, q, v, s], [ca.jacobian(residual, ca.vertcat(q, v))]
+            )
+            symbols = (ca.MX.sym("t"), ca.MX.sym("q", q.numel()), ca.MX.sym("v", nv))
+            kkt, rhs = ca.Function("kkt", [t, q, v], [kkt, rhs])(*symbols)
+            solution = ca.solve(kkt, rhs, method)
+
+            def jacobian() -> Any:
+                d_residual = residual_jacobian(*symbols, solution)
+                return -ca.solve(kkt, d_residual, method)[:nv, :]
+
+        else:
+            solution = ca.solve(kkt, rhs, method)
     elif nc == 0:  # symbolic LDL^T of M: a third of the instructions of a symbolic QR
         d, lt, p = ca.ldl(kkt)
         solution = ca.ldl_solve(rhs, d, lt, p)
     else:
         solution = ca.solve(kkt, rhs)  # symbolic QR of the indefinite [M W^T; W 0]
-    return solution[:nv], solution[nv:], symbols
+    return solution[:nv], solution[nv:], symbols, jacobian
 
 
 def build_equations(
@@ -334,15 +420,21 @@ def build_equations(
 
     # ode form: [q' ; v'] with v' from the (augmented) system
     if ode or nc == 0:
-        accel, _, (t_o, q_o, v_o) = _augmented_acceleration(system, stabilized)
+        accel, _, (t_o, q_o, v_o), accel_jacobian = _augmented_acceleration(system, stabilized)
         qdot = system.qdot
         if q_o is not q:
             qdot = ca.Function("qdot", [t, q, v], [qdot])(t_o, q_o, v_o)
         y = ca.vertcat(q_o, v_o)
         f = ca.vertcat(qdot, accel)
+
+        def ode_jacobian() -> list:
+            if accel_jacobian is None:
+                return [ca.jacobian(f, y)]
+            return [ca.vertcat(ca.jacobian(qdot, y), accel_jacobian())]
+
         forms["ode"] = OdeForm(
             rhs=hot("ode_rhs", [t_o, y], [f]),
-            jacobian=lazy_hot("ode_jac", [t_o, y], lambda: [ca.jacobian(f, y)]),
+            jacobian=lazy_hot("ode_jac", [t_o, y], ode_jacobian),
             n=nq + nv,
         )
 

@@ -49,6 +49,7 @@ says so.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import math
@@ -324,10 +325,6 @@ def problem_reference(
 # ---- the metrics ---------------------------------------------------------------------
 
 
-def _max_abs(vector: np.ndarray) -> float:
-    return float(np.max(np.abs(vector))) if np.size(vector) else math.nan
-
-
 def _max(values: np.ndarray) -> float:
     finite = values[np.isfinite(values)]
     return float(np.max(finite)) if finite.size else math.nan
@@ -352,22 +349,16 @@ def trajectory_metrics(
     time (else the end error and scd are NaN). ``reference.poses`` covers all the problem's
     output times; the first ``len(times)`` are used.
     """
-    observables = equations.observables
     nq, nv = equations.nq, equations.nv
     n = len(times)
     notes: list[str] = []
+    sampled = equations.observables.along(times, y[:n, :nq], y[:n, nq : nq + nv])
     drift = np.full((n, 3), math.nan)
-    energy = np.full((n, 2), math.nan)
-    poses = []
-    twists = []
-    for i, (t, row) in enumerate(zip(times, y, strict=True)):
-        q, v = row[:nq], row[nq : nq + nv]
-        poses.append(observables.poses(t, q))
-        twists.append(np.reshape(observables.twists(t, q, v)[0], (6, -1)).T)
-        residuals = observables.residuals(t, q, v)
-        drift[i] = [_max_abs(r) for r in residuals]
-        energy[i] = np.ravel(observables.energy(t, q, v)[0])[:2]
-    pose_array = np.stack(poses) if poses else np.zeros((0, len(observables.body_names), 7))
+    for k, residual in enumerate(sampled.residuals[:3]):
+        if residual.shape[1]:
+            drift[:, k] = np.abs(residual).max(axis=1)
+    energy = sampled.energy if n else np.full((0, 2), math.nan)
+    pose_array, twists = sampled.poses, sampled.twists
 
     # error against the reference
     ref_err = np.full(n, math.nan)
@@ -397,7 +388,7 @@ def trajectory_metrics(
         values = np.array(
             [
                 float(invariant.function(equations.model, t, p, w))
-                for t, p, w in zip(times, poses, twists, strict=True)
+                for t, p, w in zip(times, pose_array, twists, strict=True)
             ]
         )
         if not values.size:
@@ -445,8 +436,18 @@ def empty_series(run_id: str) -> pd.DataFrame:
     )[SERIES_COLUMNS]
 
 
+@functools.cache
+def _environment() -> tuple[tuple[str, Any], ...]:
+    return tuple(_read_environment().items())
+
+
 def environment() -> dict[str, Any]:
-    """Versions of the libraries used and the machine, as row columns."""
+    """Versions of the libraries used and the machine, as row columns (read once a
+    process: importlib.metadata scans the installed distributions on every call)."""
+    return dict(_environment())
+
+
+def _read_environment() -> dict[str, Any]:
     import platform
     from importlib import metadata
 
