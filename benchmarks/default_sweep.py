@@ -1,0 +1,151 @@
+"""The default sweep end to end: wall time, peak memory, and where the time goes.
+
+Run: ``python -m benchmarks.default_sweep [--jobs N] [--out DIR]``. Runs the README's
+main command, ``workbench sweep`` (the default sweep; here into a fresh directory so
+nothing is resumed), as a subprocess and measures:
+
+- wall time of the whole command, of its runs phase (as the command reports it) and of
+  the rest (report, recording, start-up);
+- peak memory of the command and all its worker processes together, sampled every
+  0.1 s: the sum of PSS (proportional set size: a page shared by forked workers counts
+  once, split between them), and the sum of RSS for comparison (counts shared pages in
+  every process). Issue target: < 1 GiB;
+- the share of time outside the integrators: of the runs' own stages (pairing, build,
+  compile, initial state, integrate, metrics, reference, log: summed over the runs that
+  were not skipped), and of the workers' whole time (jobs x runs phase, which also counts idle
+  workers at the end and process start-up). Issue target: < 10 %.
+
+Prints a table, writes ``benchmarks/results/default_sweep.csv`` (one row) and the
+seconds spent in each stage summed over runs, per formalism, in
+``benchmarks/results/default_sweep_stages.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+import psutil
+
+RESULTS = Path(__file__).parent / "results"
+STAGES = ("build_s", "compile_s", "init_s", "integrate_s", "metrics_s", "reference_s", "log_s")
+NOT_IN_WALL = ("reference_s", "log_s")
+GIB = 1024**3
+
+
+def tree_memory(root: psutil.Process) -> tuple[int, int]:
+    """(sum of PSS, sum of RSS) in bytes over ``root`` and its descendants."""
+    pss = rss = 0
+    for process in [root, *root.children(recursive=True)]:
+        try:
+            info = process.memory_full_info()
+        except (psutil.NoSuchProcess, psutil.AccessDenied, psutil.ZombieProcess):
+            continue
+        pss += getattr(info, "pss", info.rss)
+        rss += info.rss
+    return pss, rss
+
+
+def run_sweep_command(out: Path, jobs: int | None) -> dict:
+    """Run ``workbench sweep --out OUT`` and sample its memory; returns the measurements."""
+    command = [sys.executable, "-m", "workbench", "sweep", "--out", str(out)]
+    if jobs:
+        command += ["--jobs", str(jobs)]
+    started = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                               text=True)  # fmt: skip
+    root = psutil.Process(process.pid)
+    peak_pss = peak_rss = 0
+    while process.poll() is None:
+        pss, rss = tree_memory(root)
+        peak_pss, peak_rss = max(peak_pss, pss), max(peak_rss, rss)
+        time.sleep(0.1)
+    total = time.perf_counter() - started
+    output = process.stdout.read() if process.stdout else ""
+    if process.returncode != 0:
+        raise SystemExit(f"workbench sweep exited with {process.returncode}:\n{output}")
+    runs_phase = float(re.search(r"runs in ([0-9.]+) s", output).group(1))
+    return {
+        "command": " ".join(["workbench", *command[3:]]),
+        "wall_s": total,
+        "runs_phase_s": runs_phase,
+        "after_runs_s": total - runs_phase,
+        "peak_pss_gib": peak_pss / GIB,
+        "peak_rss_sum_gib": peak_rss / GIB,
+        "output": output,
+    }
+
+
+def time_shares(out: Path, jobs: int, runs_phase: float) -> tuple[dict, pd.DataFrame]:
+    """Shares of time outside the integrators, and stage seconds per formalism."""
+    from workbench import load_results
+
+    rows = load_results(out)
+    ran = rows[rows.status != "skipped"].copy()
+    for column in (*STAGES, "wall_s"):
+        ran[column] = pd.to_numeric(ran.get(column, 0.0), errors="coerce").fillna(0.0)
+    # wall_s = pairing + build + compile + init + integrate + metrics (pairing: model,
+    # options, compatibility; it has no column of its own)
+    ran["pairing_s"] = ran.wall_s - ran[[s for s in STAGES if s not in NOT_IN_WALL]].sum(axis=1)
+    stage_total = ran[["pairing_s", *STAGES]].sum()
+    in_runs = float(stage_total.sum())
+    integrate = float(stage_total["integrate_s"])
+    shares = {
+        "runs": len(rows),
+        "ran": len(ran),
+        "jobs": jobs,
+        "stages_s": in_runs,
+        "integrate_s": integrate,
+        "outside_share_of_stages": 1 - integrate / in_runs,
+        "outside_share_of_worker_time": 1 - integrate / (jobs * runs_phase),
+        **{f"total_{stage}": float(stage_total[stage]) for stage in stage_total.index},
+    }
+    per_formalism = ran.groupby("formalism")[["pairing_s", *STAGES]].sum()
+    return shares, per_formalism
+
+
+def main(argv: list[str] | None = None) -> pd.DataFrame:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.default_sweep",
+                                     description=__doc__)  # fmt: skip
+    parser.add_argument("--jobs", type=int, default=None, help="workers (default: the spec's)")
+    parser.add_argument("--out", type=Path, default=None, help="keep the sweep here")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="default-sweep-") as scratch:
+        out = args.out or Path(scratch) / "sweep"
+        if out.exists() and any(out.iterdir()):
+            raise SystemExit(f"{out} is not empty: the benchmark needs a sweep from scratch")
+        measured = run_sweep_command(out, args.jobs)
+        jobs = args.jobs or int(re.search(r"jobs\s*=\s*(\d+)", _spec_text()).group(1))
+        shares, per_formalism = time_shares(out, jobs, measured["runs_phase_s"])
+    print(measured.pop("output").strip())
+    row = {**measured, **shares, "load_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
+    table = pd.DataFrame([row])
+    RESULTS.mkdir(exist_ok=True)
+    table.to_csv(RESULTS / "default_sweep.csv", index=False)
+    per_formalism.to_csv(RESULTS / "default_sweep_stages.csv")
+    shown = {k: v for k, v in row.items() if not k.startswith("total_")}
+    print(pd.Series(shown).to_string(float_format=lambda x: f"{x:.3g}"))
+    print("\nseconds per stage, summed over runs:")
+    print(per_formalism.round(1).to_string())
+    print(f"peak memory (PSS, all processes): {row['peak_pss_gib']:.2f} GiB (target < 1)")
+    print(f"time outside integrators: {row['outside_share_of_stages']:.0%} of the runs' "
+          f"stages, {row['outside_share_of_worker_time']:.0%} of the workers' time "
+          "(target < 10 %)")  # fmt: skip
+    return table
+
+
+def _spec_text() -> str:
+    from workbench.sweep import default_spec_text
+
+    return default_spec_text()
+
+
+if __name__ == "__main__":
+    main()
