@@ -38,29 +38,37 @@ def planar_rod(mass: float, start: np.ndarray, end: np.ndarray) -> tuple[np.ndar
     return (start + end) / 2, mass * length**2 / 12
 
 
+def rotation_matrices(quaternions: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of Euler parameters (..., 4), scalar first."""
+    matrices = quaternion_to_matrix(np.moveaxis(np.asarray(quaternions, dtype=float), -1, 0))
+    return np.moveaxis(matrices, (0, 1), (-2, -1))
+
+
 def angular_momentum(
     model: Model, poses: np.ndarray, twists: np.ndarray, point: np.ndarray | None = None
 ) -> np.ndarray:
-    """Total angular momentum (3,) in kg m^2/s about a fixed ``point`` (default origin).
+    """Total angular momentum (..., 3) in kg m^2/s about a fixed ``point`` (default origin).
 
-    poses (n_bodies, 7) [position, quaternion scalar-first] and twists (n_bodies, 6)
-    [velocity of the body-frame origin, angular velocity], inertial, bodies in
-    ``model.bodies`` order: sum of m (r_c - point) x v_c + R I_c R^T omega.
+    poses (..., n_bodies, 7) [position, quaternion scalar-first] and twists
+    (..., n_bodies, 6) [velocity of the body-frame origin, angular velocity], inertial,
+    bodies in ``model.bodies`` order; leading axes are samples (metrics pass a whole
+    trajectory at once): sum of m (r_c - point) x v_c + R I_c R^T omega.
     """
     point = np.zeros(3) if point is None else np.asarray(point, dtype=float)
     bodies = list(model.bodies.values())
+    nb = len(bodies)
     poses, twists = np.asarray(poses, dtype=float), np.asarray(twists, dtype=float)
-    # all bodies at once: metrics call this at every output sample
-    rotations = np.stack([quaternion_to_matrix(p) for p in poses[: len(bodies), 3:7]])
-    omega = twists[: len(bodies), 3:6]
-    offset = np.einsum("bij,bj->bi", rotations, np.array([b.com for b in bodies], dtype=float))
-    r_c = poses[: len(bodies), :3] + offset
-    v_c = twists[: len(bodies), :3] + np.cross(omega, offset)
+    rotations = rotation_matrices(poses[..., :nb, 3:7])
+    omega = twists[..., :nb, 3:6]
+    offset = np.einsum("...bij,bj->...bi", rotations, np.array([b.com for b in bodies], dtype=float))
+    r_c = poses[..., :nb, :3] + offset
+    v_c = twists[..., :nb, :3] + np.cross(omega, offset)
     masses = np.array([b.mass for b in bodies], dtype=float)
-    total = masses @ np.cross(r_c - point, v_c)
+    total = np.einsum("b,...bi->...i", masses, np.cross(r_c - point, v_c))
     inertia = np.array([np.zeros((3, 3)) if b.point_mass else b.inertia for b in bodies])
-    spin = np.einsum("bij,bjk,blk,bl->bi", rotations, inertia, rotations, omega)
-    return total + spin.sum(axis=0)
+    body_omega = np.einsum("...bji,...bj->...bi", rotations, omega)  # R^T omega
+    spin = np.einsum("...bij,bjk,...bk->...i", rotations, inertia, body_omega)
+    return total + spin
 
 
 def quaternion_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:

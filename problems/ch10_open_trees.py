@@ -95,9 +95,9 @@ def add_link(
 
 def vertical_angular_momentum(
     model: Model, t: float, poses: np.ndarray, twists: np.ndarray
-) -> float:
-    """Angular momentum (kg m^2/s) about the vertical axis through the origin."""
-    return float(angular_momentum(model, poses, twists)[2])
+) -> np.ndarray:
+    """Angular momentum (kg m^2/s) about the vertical axis through the origin (vectorized)."""
+    return angular_momentum(model, poses, twists)[..., 2]
 
 
 @workbench.registry.problem
@@ -125,4 +125,4 @@ class ArticulatedArm(Problem):
         return {joint: rate for (joint, _), rate in zip(JOINTS, INITIAL_RATES, strict=True)}
 
     def invariants(self) -> list[Invariant]:
-        return [Invariant("vertical_angular_momentum", vertical_angular_momentum)]
+        return [Invariant("vertical_angular_momentum", vertical_angular_momentum, vectorized=True)]

@@ -53,14 +53,19 @@ MASS = 1.0  # kg (does not enter the rotational motion)
 
 def angular_momentum_component(
     axis: int, model: Model, t: float, poses: np.ndarray, twists: np.ndarray
-) -> float:
-    """Component ``axis`` (0, 1, 2 = x, y, z) of the angular momentum about the origin."""
-    return float(angular_momentum(model, poses, twists)[axis])
+) -> np.ndarray:
+    """Component ``axis`` (0, 1, 2 = x, y, z) of the angular momentum about the origin
+    (vectorized)."""
+    return angular_momentum(model, poses, twists)[..., axis]
 
 
 def angular_momentum_invariants() -> list[Invariant]:
     return [
-        Invariant(f"angular_momentum_{'xyz'[i]}", partial(angular_momentum_component, i))
+        Invariant(
+            f"angular_momentum_{'xyz'[i]}",
+            partial(angular_momentum_component, i),
+            vectorized=True,
+        )
         for i in range(3)
     ]
 

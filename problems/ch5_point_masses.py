@@ -156,19 +156,22 @@ BEAD_MASS = 0.2  # kg
 BEAD_ANGLE = 0.2  # rad from the bottom of the ring
 
 
-def jacobi_integral(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
+def jacobi_integral(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
     """h = m |v_rel|^2 / 2 - m |w x r|^2 / 2 + V (J) of the bead on the rotating ring.
 
     v_rel = v - w x r is the bead's velocity relative to the ring (which turns at w
-    about an axis through the origin), V = -m g.r its potential energy.
+    about an axis through the origin), V = -m g.r its potential energy. Vectorized over
+    leading sample axes.
     """
     names = list(model.bodies)
     ring, bead = names.index("ring"), names.index("bead")
     mass = model.bodies["bead"].mass
-    r, v = poses[bead, :3], twists[bead, :3]
-    carried = np.cross(twists[ring, 3:6], r)
+    poses, twists = np.asarray(poses, dtype=float), np.asarray(twists, dtype=float)
+    r, v = poses[..., bead, :3], twists[..., bead, :3]
+    carried = np.cross(twists[..., ring, 3:6], r)
     relative = v - carried
-    return float(mass * (relative @ relative - carried @ carried) / 2 - mass * (model.gravity @ r))
+    kinetic = np.sum(relative * relative - carried * carried, axis=-1) / 2
+    return mass * kinetic - mass * (r @ model.gravity)
 
 
 @workbench.registry.problem
@@ -221,7 +224,7 @@ class RotatingRing(Problem):
         return {"slide": 0.0}
 
     def invariants(self) -> list[Invariant]:
-        return [Invariant("jacobi_integral", jacobi_integral)]
+        return [Invariant("jacobi_integral", jacobi_integral, vectorized=True)]
 
 
 def _x_to_y_normal() -> np.ndarray:

@@ -70,27 +70,30 @@ def circle_rate(plane_rate: float = PLANE_RATE) -> float:
 
 
 def circle_center(position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """Centre (2,) of the circle the ball's centre runs on, from its position and velocity."""
+    """Centre (..., 2) of the circle the ball's centre runs on, from its position and
+    velocity (..., 3)."""
     rate = circle_rate()
-    return np.asarray(position[:2]) + np.array([-velocity[1], velocity[0]]) / rate
+    position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+    turned = np.stack([-velocity[..., 1], velocity[..., 0]], axis=-1)
+    return position[..., :2] + turned / rate
 
 
 def _ball_index(model: Model) -> int:
     return list(model.bodies).index("ball")
 
 
-def circle_center_x(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
+def circle_center_x(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
     i = _ball_index(model)
-    return float(circle_center(poses[i, :3], twists[i, :3])[0])
+    return circle_center(np.asarray(poses)[..., i, :3], np.asarray(twists)[..., i, :3])[..., 0]
 
 
-def circle_center_y(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
+def circle_center_y(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
     i = _ball_index(model)
-    return float(circle_center(poses[i, :3], twists[i, :3])[1])
+    return circle_center(np.asarray(poses)[..., i, :3], np.asarray(twists)[..., i, :3])[..., 1]
 
 
-def vertical_spin(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
-    return float(twists[_ball_index(model), 5])
+def vertical_spin(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
+    return np.asarray(twists, dtype=float)[..., _ball_index(model), 5]
 
 
 def ball_initial_angular_velocity() -> np.ndarray:
@@ -150,9 +153,9 @@ class BallOnRotatingPlane(Problem):
 
     def invariants(self) -> list[Invariant]:
         return [
-            Invariant("circle_center_x", circle_center_x),
-            Invariant("circle_center_y", circle_center_y),
-            Invariant("vertical_spin", vertical_spin),
+            Invariant("circle_center_x", circle_center_x, vectorized=True),
+            Invariant("circle_center_y", circle_center_y, vectorized=True),
+            Invariant("vertical_spin", vertical_spin, vectorized=True),
         ]
 
     def reference(self) -> Reference:
@@ -182,16 +185,16 @@ class KnifeEdgeOptions:
 
 def _cart(model: Model, poses: np.ndarray, twists: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     i = list(model.bodies).index("cart")
-    return poses[i], twists[i]
+    return np.asarray(poses, dtype=float)[..., i, :], np.asarray(twists, dtype=float)[..., i, :]
 
 
-def yaw_rate(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
-    return float(_cart(model, poses, twists)[1][5])
+def yaw_rate(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
+    return _cart(model, poses, twists)[1][..., 5]
 
 
-def speed(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
+def speed(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
     """Speed (m/s) of the axle midpoint (the body frame's origin)."""
-    return float(np.linalg.norm(_cart(model, poses, twists)[1][:3]))
+    return np.linalg.norm(_cart(model, poses, twists)[1][..., :3], axis=-1)
 
 
 def cart_reference_poses(times: np.ndarray) -> np.ndarray:
@@ -249,7 +252,7 @@ class KnifeEdgeCart(Problem):
     def invariants(self) -> list[Invariant]:
         if self.options.com_offset != 0.0:
             return []
-        return [Invariant("yaw_rate", yaw_rate), Invariant("speed", speed)]
+        return [Invariant("yaw_rate", yaw_rate, vectorized=True), Invariant("speed", speed, vectorized=True)]
 
     def reference(self) -> Reference | None:
         if self.options.com_offset != 0.0:

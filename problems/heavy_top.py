@@ -33,11 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 
 import workbench.registry
-from problems._parts import angular_momentum
+from problems._parts import angular_momentum, rotation_matrices
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
 from workbench.problem import Invariant, Problem
-from workbench.rotations import quaternion_to_matrix
 
 MASS = 1.0  # kg
 COM_DISTANCE = 0.1  # m, tip to centre of mass along the symmetry axis
@@ -49,17 +48,19 @@ FIXED_POINT = np.zeros(3)  # m, inertial
 
 def vertical_angular_momentum(
     model: Model, t: float, poses: np.ndarray, twists: np.ndarray
-) -> float:
-    """Angular momentum (kg m^2/s) about the vertical (against gravity) through the tip."""
+) -> np.ndarray:
+    """Angular momentum (kg m^2/s) about the vertical (against gravity) through the tip
+    (vectorized)."""
     up = -model.gravity / np.linalg.norm(model.gravity)
-    return float(up @ angular_momentum(model, poses, twists, FIXED_POINT))
+    return angular_momentum(model, poses, twists, FIXED_POINT) @ up
 
 
-def spin(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> float:
-    """Angular velocity component (rad/s) along the top's symmetry axis (body z)."""
+def spin(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
+    """Angular velocity component (rad/s) along the top's symmetry axis (body z)
+    (vectorized)."""
     i = list(model.bodies).index("top")
-    axis = quaternion_to_matrix(np.asarray(poses[i, 3:7], dtype=float))[:, 2]
-    return float(axis @ twists[i, 3:6])
+    axis = rotation_matrices(np.asarray(poses, dtype=float)[..., i, 3:7])[..., :, 2]
+    return np.sum(axis * np.asarray(twists, dtype=float)[..., i, 3:6], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -108,6 +109,6 @@ class HeavyTop(Problem):
 
     def invariants(self) -> list[Invariant]:
         return [
-            Invariant("vertical_angular_momentum", vertical_angular_momentum),
-            Invariant("spin", spin),
+            Invariant("vertical_angular_momentum", vertical_angular_momentum, vectorized=True),
+            Invariant("spin", spin, vectorized=True),
         ]

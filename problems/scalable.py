@@ -49,9 +49,9 @@ GRAVITY = 9.81  # m/s^2
 
 def vertical_angular_momentum(
     model: Model, t: float, poses: np.ndarray, twists: np.ndarray
-) -> float:
-    """Angular momentum (kg m^2/s) about the vertical axis through the origin."""
-    return float(angular_momentum(model, poses, twists)[2])
+) -> np.ndarray:
+    """Angular momentum (kg m^2/s) about the vertical axis through the origin (vectorized)."""
+    return angular_momentum(model, poses, twists)[..., 2]
 
 
 @dataclass(frozen=True)
@@ -147,7 +147,7 @@ class SpatialChain(Problem):
         return {"joint1": 2.0}
 
     def invariants(self) -> list[Invariant]:
-        return [Invariant("vertical_angular_momentum", vertical_angular_momentum)]
+        return [Invariant("vertical_angular_momentum", vertical_angular_momentum, vectorized=True)]
 
 
 TREE_LENGTH = 0.4  # m, root
@@ -200,4 +200,4 @@ class BinaryTree(Problem):
         return {"j1": 1.0}
 
     def invariants(self) -> list[Invariant]:
-        return [Invariant("vertical_angular_momentum", vertical_angular_momentum)]
+        return [Invariant("vertical_angular_momentum", vertical_angular_momentum, vectorized=True)]

@@ -174,6 +174,8 @@ def test_observables_along_states_equal_one_state_at_a_time(problem, formalism):
             np.testing.assert_allclose(mapped[k], np.ravel(single), atol=1e-14)
     assert sampled.poses.shape == (6, len(observables.body_names), 7)
     assert observables.along(times[:0], q[:0], v[:0]).poses.shape[0] == 0
+    np.testing.assert_array_equal(observables.poses_along(times, q), sampled.poses)
+    assert observables.poses_along(times[:0], q[:0]).shape == (0, len(observables.body_names), 7)
 
 
 @pytest.mark.parametrize(

@@ -37,6 +37,9 @@ class FakeObservables:
             ]
         )
 
+    def poses_along(self, times: np.ndarray, q: np.ndarray) -> np.ndarray:
+        return np.stack([self.poses(t, qi) for t, qi in zip(times, q, strict=True)])
+
 
 def fake_equations() -> SimpleNamespace:
     model = Model("fake", kind="spatial")

@@ -200,3 +200,31 @@ def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch)
     again, reused = runs.cached_equations(specs[1], model)
     assert not reused and again is not second
     runs.clear_cache()
+
+
+def test_initial_state_is_computed_once_per_cached_equations() -> None:
+    """The consistent initial state is kept with the cached equations: the same object
+    for every integrator and tolerance, equal to a fresh computation, and consistent
+    (closure residual of the four-bar ~ 0); other equations get their own."""
+    from workbench import runs
+    from workbench.initial import consistent_initial_state
+    from workbench.registry import get_problem
+
+    runs.clear_cache()
+    specs = [
+        normalized_spec(RunSpec("four-bar", "absolute-dae", integrator, rtol, rtol * 1e-3))
+        for integrator, rtol in (("scipy-dop853", 1e-4), ("sundials-ida", 1e-8))
+    ]
+    problem = get_problem("four-bar")()
+    equations, _ = runs.cached_equations(specs[0], problem.model())
+    first = runs.cached_initial_state(specs[0], equations, problem)
+    assert runs.cached_initial_state(specs[1], equations, problem) is first
+    fresh = consistent_initial_state(equations, problem)
+    np.testing.assert_array_equal(first.q, fresh.q)
+    np.testing.assert_array_equal(first.v, fresh.v)
+    residuals = equations.observables.residuals(0.0, first.q, first.v)
+    assert np.abs(np.asarray(residuals[0])).max() < 1e-10
+    other = normalized_spec(RunSpec("four-bar", "minimal-ode", "scipy-dop853", 1e-4, 1e-7))
+    other_equations, _ = runs.cached_equations(other, problem.model())
+    assert runs.cached_initial_state(other, other_equations, problem) is not first
+    runs.clear_cache()

@@ -385,3 +385,32 @@ def test_dask_scheduler_runs_and_kills_hung_runs(fake_plugins, tmp_path) -> None
     }
     ok = store.load_results(tmp_path).query("status == 'ok'")
     assert all(store.series_path(tmp_path, r).is_file() for r in ok["run_id"])
+
+
+def test_workers_take_runs_of_the_equations_they_built() -> None:
+    """Dispatch order: a worker's own (problem, formalism) first, then equations no other
+    worker is on, so each model is built by about one worker; nothing lost or repeated."""
+    from collections import deque
+
+    from workbench.runs import RunSpec, equations_key
+    from workbench.sweep import _take_next
+
+    runs = [
+        RunSpec(problem, "minimal-ode", integrator, rtol, rtol * 1e-3)
+        for problem in ("a", "b", "c")
+        for integrator in ("i", "j")
+        for rtol in (1e-4, 1e-8)
+    ]
+    queue = deque(runs)
+    pairs: dict[str, tuple | None] = {"w1": None, "w2": None}
+    taken: dict[str, list[str]] = {"w1": [], "w2": []}
+    while queue:
+        for worker in ("w1", "w2"):
+            if not queue:
+                break
+            others = {p for w, p in pairs.items() if w != worker}
+            spec = _take_next(queue, pairs[worker], others)
+            pairs[worker] = equations_key(spec)
+            taken[worker].append(spec.problem)
+    assert sorted(taken["w1"] + taken["w2"]) == sorted(r.problem for r in runs)
+    assert taken["w1"] == ["a"] * 4 + ["c"] * 2 and taken["w2"] == ["b"] * 4 + ["c"] * 2

@@ -8,7 +8,7 @@ from plugins.formalisms.minimal_ode import MinimalOde, minimal_mechanical_system
 from workbench.equations import build_joint_space_equations
 from workbench.integrator import Integrator
 from workbench.kinematics import TreeKinematics
-from workbench.problem import Reference
+from workbench.problem import Invariant, Reference
 from workbench.registry import REGISTRY, PluginInfo
 from workbench.testing import (
     ConformanceError,
@@ -170,6 +170,32 @@ def test_real_problems_pass_including_an_analytic_reference():
     gyro = check_problem("torque-free-symmetric-gyro").raise_if_failed()
     (reference,) = [r for r in gyro.results if r.check == "reference"]
     assert reference.status == "pass" and reference.error < 1e-8
+
+
+def test_a_reference_with_unknown_orientations_is_checked_on_positions():
+    # the rolling ball's reference knows the centre's circle, not the ball's orientation
+    report = check_problem("ball-on-rotating-plane").raise_if_failed()
+    (reference,) = [r for r in report.results if r.check == "reference"]
+    assert reference.status == "pass" and reference.error < 1e-8
+    vectorized = [r for r in report.results if r.check == "vectorized-invariant"]
+    assert len(vectorized) == 3 and all(r.status == "pass" for r in vectorized)
+
+
+def test_an_invariant_declared_vectorized_that_does_not_broadcast_is_caught(register):
+    from problems.ch4_gyros import TorqueFreeSymmetricGyro
+
+    def spin_rate(model, t, poses, twists):  # the norm of every sample at once: a scalar
+        return np.linalg.norm(np.asarray(twists)[..., 0, 3:6])
+
+    class FlatGyro(TorqueFreeSymmetricGyro):
+        name = "test-flat-gyro"
+
+        def invariants(self):
+            return [Invariant("spin_rate", spin_rate, vectorized=True)]
+
+    register("problem", FlatGyro)
+    wrong = failure(check_problem(FlatGyro), "invariants", "test-flat-gyro")
+    assert "declared vectorized but returned shape ()" in wrong.message
 
 
 def test_a_wrong_analytic_reference_is_caught_with_its_error(register):

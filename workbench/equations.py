@@ -152,6 +152,14 @@ class Observables:
         positions, rotations = self.frames(t, q)
         return _poses(positions[None], rotations[None], len(self.body_names))[0]
 
+    def poses_along(self, times: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(n, n_bodies, 7) poses at n configurations in one mapped call (see :meth:`along`)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        if times.size == 0:
+            return np.zeros((0, len(self.body_names), 7))
+        positions, rotations = self._map("frames", times.size, times[None], np.atleast_2d(q).T)
+        return _poses(positions, rotations, len(self.body_names))
+
     def along(self, times: np.ndarray, q: np.ndarray, v: np.ndarray) -> SampledObservables:
         """Every quantity at n states: ``times`` (n,), ``q`` (n, nq), ``v`` (n, nv).
 

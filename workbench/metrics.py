@@ -385,12 +385,7 @@ def trajectory_metrics(
     # invariants
     invariant_errors = []
     for invariant in problem.invariants():
-        values = np.array(
-            [
-                float(invariant.function(equations.model, t, p, w))
-                for t, p, w in zip(times, pose_array, twists, strict=True)
-            ]
-        )
+        values = invariant.along(equations.model, times, pose_array, twists)
         if not values.size:
             continue
         scale = abs(values[0]) if abs(values[0]) >= 1e-12 else 1.0

@@ -37,10 +37,34 @@ class Invariant:
     ``function(model, t, poses, twists)`` -> float, where poses is (n_bodies, 7)
     [position, quaternion scalar-first] and twists is (n_bodies, 6) [velocity of the
     body frame origin, angular velocity], both in inertial coordinates.
+
+    ``vectorized=True`` declares that ``function`` also broadcasts over a leading sample
+    axis: t (n,), poses (n, n_bodies, 7), twists (n, n_bodies, 6) -> (n,). Metrics then
+    evaluate it along a trajectory in one call instead of one call per output sample
+    (which cost the default sweep seconds of Python); the conformance suite checks that
+    both give the same values.
     """
 
     name: str
-    function: Callable[[Model, float, np.ndarray, np.ndarray], float]
+    function: Callable[[Model, Any, np.ndarray, np.ndarray], Any]
+    vectorized: bool = False
+
+    def along(
+        self, model: Model, times: np.ndarray, poses: np.ndarray, twists: np.ndarray
+    ) -> np.ndarray:
+        """Values (n,) at the samples: times (n,), poses (n, n_bodies, 7), twists (n, n_bodies, 6)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        if self.vectorized:
+            values = np.asarray(self.function(model, times, poses, twists), dtype=float)
+            if values.shape != times.shape:
+                raise ValueError(
+                    f"invariant {self.name!r} is declared vectorized but returned shape "
+                    f"{values.shape} for {times.size} samples (expected {times.shape}); make "
+                    "it broadcast over the leading sample axis or set vectorized=False"
+                )
+            return values
+        samples = zip(times, poses, twists, strict=True)
+        return np.array([float(self.function(model, t, p, w)) for t, p, w in samples])
 
 
 @dataclass(frozen=True)

@@ -153,13 +153,7 @@ class RerunSink:
         if n == 0:
             return
         rows = np.unique(np.linspace(0, n - 1, min(n, self.max_frames)).round().astype(int))
-        nq, nv = equations.nq, getattr(equations, "nv", 0)
-        if nv and y.shape[1] >= nq + nv:
-            poses = equations.observables.along(
-                times[rows], y[rows, :nq], y[rows, nq : nq + nv]
-            ).poses
-        else:  # only positions known
-            poses = np.stack([equations.observables.poses(times[k], y[k, :nq]) for k in rows])
+        poses = equations.observables.poses_along(times[rows], y[rows, : equations.nq])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
         for b, name in enumerate(equations.observables.body_names):
             self.recording.send_columns(

@@ -13,7 +13,9 @@ a column (MuJoCo-style pipeline stages):
    call of each function, usually in the integrate stage) are taken out of the stage
    they fall in and reported as ``compile_s``; why something was not compiled (no C
    compiler) is added to ``message``;
-2. **initial state** — :func:`~workbench.initial.consistent_initial_state` (``init_s``);
+2. **initial state** — :func:`~workbench.initial.consistent_initial_state` (``init_s``),
+   kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
+   first run of a (problem, formalism) in a worker and about 0 for the others;
 3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
    a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
    the metrics are still taken over the part that was reached;
@@ -138,30 +140,59 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
 # so a few entries keep nearly every hit; unbounded, a worker of the default sweep held
 # every model it had seen (hundreds of MB of CasADi graphs and built Jacobians).
 EQUATIONS_CACHE_SIZE = 8
-_EQUATIONS: OrderedDict[tuple[str, str, str, str], Any] = OrderedDict()
+
+
+@dataclass
+class _Cached:
+    """A cache entry: the built equations and, once computed, the consistent initial
+    state (it depends on the problem and the equations, not on integrator or tolerance)."""
+
+    equations: Any
+    initial: Any = None
+
+
+_EQUATIONS: OrderedDict[tuple[str, str, str, str], _Cached] = OrderedDict()
 
 
 def clear_cache() -> None:
     _EQUATIONS.clear()
 
 
-def cached_equations(spec: RunSpec, model: Any) -> tuple[Any, bool]:
-    """(equations, reused?) for the spec's problem and formalism (+ options)."""
-    key = (
+def equations_key(spec: RunSpec) -> tuple[str, str, str, str]:
+    """What the equations (and the initial state) of a run depend on."""
+    return (
         spec.problem,
         canonical_json(spec.problem_options),
         spec.formalism,
         canonical_json(spec.formalism_options),
     )
+
+
+def cached_equations(spec: RunSpec, model: Any) -> tuple[Any, bool]:
+    """(equations, reused?) for the spec's problem and formalism (+ options)."""
+    key = equations_key(spec)
     if key in _EQUATIONS:
         _EQUATIONS.move_to_end(key)
-        return _EQUATIONS[key], True
+        return _EQUATIONS[key].equations, True
     formalism = registry.get_formalism(spec.formalism)()
     equations = formalism.build(model, spec.formalism_options)
-    _EQUATIONS[key] = equations
+    _EQUATIONS[key] = _Cached(equations)
     while len(_EQUATIONS) > EQUATIONS_CACHE_SIZE:
         _EQUATIONS.popitem(last=False)  # the least recently used
     return equations, False
+
+
+def cached_initial_state(spec: RunSpec, equations: Any, problem: Any) -> Any:
+    """The consistent initial state of ``problem`` in ``equations``' coordinates, computed
+    once per cache entry (Newton iterations are not the integrator's cost)."""
+    from workbench.initial import consistent_initial_state
+
+    entry = _EQUATIONS.get(equations_key(spec))
+    if entry is None or entry.equations is not equations:
+        return consistent_initial_state(equations, problem)
+    if entry.initial is None:
+        entry.initial = consistent_initial_state(equations, problem)
+    return entry.initial
 
 
 # ---- the run -------------------------------------------------------------------------
@@ -273,9 +304,7 @@ def execute_run(
             else:
                 row["form"] = form
                 stages.start("initial state")
-                from workbench.initial import consistent_initial_state
-
-                initial = consistent_initial_state(equations, problem)
+                initial = cached_initial_state(spec, equations, problem)
                 y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
                 stages.stop()
 

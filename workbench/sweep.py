@@ -74,7 +74,7 @@ from typing import Any
 from workbench import registry, store
 from workbench.errors import ConfigError, PluginError, WorkbenchError
 from workbench.registry import Kind
-from workbench.runs import RunSpec, execute_run, status_row
+from workbench.runs import RunSpec, equations_key, execute_run, status_row
 
 DEFAULT_OUT = "reports/latest"
 DEFAULT_TIME_LIMIT = 120.0  # s
@@ -560,6 +560,25 @@ class _Worker:
     ready: bool = False
     spec: RunSpec | None = None
     deadline: float = math.inf
+    pair: tuple[str, ...] | None = None  # equations_key of its last run: built, cached
+
+
+def _take_next(queue: deque[RunSpec], own: tuple[str, ...] | None, others: set) -> RunSpec:
+    """Pop the next run for a worker: a run of the equations it built last (in its cache),
+    else the first of equations no other worker is on, else the first. Each model is
+    then built (and its initial state found) by about one worker instead of every one."""
+    chosen = None
+    for i, spec in enumerate(queue):
+        key = equations_key(spec)
+        if key == own:
+            chosen = i
+            break
+        if chosen is None and key not in others:
+            chosen = i
+    chosen = 0 if chosen is None else chosen
+    spec = queue[chosen]
+    del queue[chosen]
+    return spec
 
 
 # imported in the parent before forking workers (so a worker starts in milliseconds
@@ -647,7 +666,9 @@ def _run_local(
             now = time.monotonic()
             for worker in workers:
                 if worker.ready and worker.spec is None and queue:
-                    worker.spec = queue.popleft()
+                    others = {w.pair for w in workers if w is not worker}
+                    worker.spec = _take_next(queue, worker.pair, others)
+                    worker.pair = equations_key(worker.spec)
                     worker.deadline = now + limit
                     worker.conn.send(worker.spec.to_dict())
             deadline = min((w.deadline for w in workers), default=math.inf)

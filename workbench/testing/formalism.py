@@ -364,12 +364,7 @@ def _check_motion(
         ]
         worst, which = 0.0, ""
         for invariant in problem.invariants():
-            values = np.array(
-                [
-                    invariant.function(model, t, p, w)
-                    for t, p, w in zip(times, poses, twists, strict=True)
-                ]
-            )
+            values = invariant.along(model, times, np.stack(poses), np.stack(twists))
             scale = abs(values[0]) if abs(values[0]) >= 1e-12 else 1.0
             error = float(np.max(np.abs(values - values[0]))) / scale
             if error >= worst:
