@@ -60,7 +60,8 @@ def angular_momentum(
     poses, twists = np.asarray(poses, dtype=float), np.asarray(twists, dtype=float)
     rotations = rotation_matrices(poses[..., :nb, 3:7])
     omega = twists[..., :nb, 3:6]
-    offset = np.einsum("...bij,bj->...bi", rotations, np.array([b.com for b in bodies], dtype=float))
+    centres = np.array([b.com for b in bodies], dtype=float)
+    offset = np.einsum("...bij,bj->...bi", rotations, centres)
     r_c = poses[..., :nb, :3] + offset
     v_c = twists[..., :nb, :3] + np.cross(omega, offset)
     masses = np.array([b.mass for b in bodies], dtype=float)

@@ -252,7 +252,10 @@ class KnifeEdgeCart(Problem):
     def invariants(self) -> list[Invariant]:
         if self.options.com_offset != 0.0:
             return []
-        return [Invariant("yaw_rate", yaw_rate, vectorized=True), Invariant("speed", speed, vectorized=True)]
+        return [
+            Invariant("yaw_rate", yaw_rate, vectorized=True),
+            Invariant("speed", speed, vectorized=True),
+        ]
 
     def reference(self) -> Reference | None:
         if self.options.com_offset != 0.0:

@@ -158,9 +158,8 @@ def test_energy_and_invariants_conserved(name: str) -> None:
     poses = np.stack([p for p, _ in samples])
     twists = np.stack([w for _, w in samples])
     for invariant in invariants:
-        values = np.array(
-            [float(invariant.function(model, t, p, w)) for t, (p, w) in zip(times, samples)]
-        )
+        pairs = zip(times, samples, strict=True)
+        values = np.array([float(invariant.function(model, t, p, w)) for t, (p, w) in pairs])
         scale = max(np.abs(values).max(), invariant_scale(name, equations, times, q, v))
         assert relative_drift(values, scale) < 1e-6, invariant.name
         # what metrics use: one call along the whole run (vectorized) gives the same values

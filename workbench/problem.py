@@ -52,7 +52,8 @@ class Invariant:
     def along(
         self, model: Model, times: np.ndarray, poses: np.ndarray, twists: np.ndarray
     ) -> np.ndarray:
-        """Values (n,) at the samples: times (n,), poses (n, n_bodies, 7), twists (n, n_bodies, 6)."""
+        """Values (n,) at n samples: times (n,), poses (n, n_bodies, 7), twists
+        (n, n_bodies, 6)."""
         times = np.asarray(times, dtype=float).reshape(-1)
         if self.vectorized:
             values = np.asarray(self.function(model, times, poses, twists), dtype=float)
