@@ -97,7 +97,8 @@ class RerunSink:
         self.max_frames = max(2, int(max_frames))
         self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
         self.quantities: set[str] = set()  # series logged by at least one run
-        self._file: tuple[Path, Path] = (Path(), Path())  # partial, target (begin_file)
+        self._file = Path()  # the file of begin_file
+        self._stream: Any = None  # its binary stream, until end_file
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -244,27 +245,31 @@ class RerunSink:
         return target
 
     def begin_file(self, path: str | Path) -> None:
-        """Send what is logged from now on to the file ``path`` (a hidden partial file
-        until :meth:`end_file`), forgetting the runs logged before: one file a run
-        through one recording stream (see the module docstring)."""
-        target = Path(path)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
-        self.recording.save(partial)
-        self._file = (partial, target)
+        """Send what is logged from now on to the file ``path``, forgetting the runs
+        logged before: one file a run through one recording stream (see the module
+        docstring). The run is kept in memory (a Rerun binary stream) until
+        :meth:`end_file` writes it: a file sink a run cost 2-4 ms of thread start-up and
+        flushing, the binary stream about 0.7 ms."""
+        self._stream = self.recording.binary_stream()
+        self._file = Path(path)
         self.runs.clear()
         self.quantities.clear()
 
     def end_file(self) -> Path | None:
-        """Close the file of :meth:`begin_file` and move it into place; None, and no
-        file, when nothing was logged into it (a skipped or failed run)."""
-        partial, target = self._file
-        self.recording.flush()
-        self.recording.disconnect()
-        if not self.runs:
-            partial.unlink(missing_ok=True)
+        """Write what was logged since :meth:`begin_file` to its file (atomically: a
+        temporary file renamed into place); None, and no file, when nothing was logged
+        (a skipped or failed run)."""
+        stream, target = self._stream, self._file
+        self._stream = None
+        if stream is None:
             return None
-        os.replace(partial, target)
+        data = stream.read()
+        if not self.runs:
+            return None
+        target.parent.mkdir(parents=True, exist_ok=True)
+        temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+        temporary.write_bytes(data)
+        os.replace(temporary, target)
         return target
 
     # -- several files into one -----------------------------------------------------------
