@@ -30,6 +30,7 @@ stream moved from file to file does not.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import uuid
@@ -99,6 +100,7 @@ class RerunSink:
         self.quantities: set[str] = set()  # series logged by at least one run
         self._file = Path()  # the file of begin_file
         self._stream: Any = None  # its binary stream, until end_file
+        self._geometry_cache: dict[str, list[tuple[str, list[Any]]]] = {}
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -121,29 +123,40 @@ class RerunSink:
         self.runs[path] = (str(spec.problem), label)
         model = equations.model
         self.recording.log(entity_path("runs", spec.problem), view_coordinates(model), static=True)
-        self._log_geometry(path, model)
+        options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
+        self._log_geometry(path, model, f"{spec.problem} {options} {model.name}")
         self._log_poses(path, equations, trajectory)
         self._log_series(path, series, label, getattr(spec, "run_id", None))
         return path
 
-    def _log_geometry(self, path: str, model: Any) -> None:
+    def _log_geometry(self, path: str, model: Any, key: str) -> None:
+        for relative, archetypes in self._geometry(model, key):
+            self.recording.log(f"{path}/{relative}", *archetypes, static=True)
+
+    def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
+        """(entity path below the run, archetypes) of the shapes and joint frames; made
+        once per model ``key`` (problem and options): the runs of a sweep share models."""
         import rerun as rr
 
+        if key in self._geometry_cache:
+            return self._geometry_cache[key]
+        entries: list[tuple[str, list[Any]]] = []
         for name, body in model.bodies.items():
-            body_path = f"{path}/{entity_path('bodies', name)}"
+            body_path = entity_path("bodies", name)
             for kind, archetype in _shape_archetypes(body.shapes).items():
-                self.recording.log(f"{body_path}/{SHAPE_ENTITIES[kind]}", archetype, static=True)
+                entries.append((f"{body_path}/{SHAPE_ENTITIES[kind]}", [archetype]))
         axis_length = 0.3 * _model_scale(model)
         for joint in model.joints.values():
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
             for body, frame in ends:
                 owner = "ground" if body == "ground" else entity_path("bodies", body)
-                self.recording.log(
-                    f"{path}/{owner}/{entity_path('joints', joint.name)}",
+                frame_archetypes = [
                     rr.Transform3D(translation=frame.position, mat3x3=frame.rotation),
                     rr.TransformAxes3D(axis_length),
-                    static=True,
-                )
+                ]
+                entries.append((f"{owner}/{entity_path('joints', joint.name)}", frame_archetypes))
+        self._geometry_cache[key] = entries
+        return entries
 
     def _log_poses(self, path: str, equations: Any, trajectory: Any) -> None:
         import rerun as rr

@@ -98,16 +98,21 @@ RESULTS_FILE = "results.parquet"
 # ---- atomic writes -------------------------------------------------------------------
 
 
-def _atomic_write(path: Path, write: Any) -> None:
-    """Call ``write(temp_path)`` then rename the temporary file over ``path``."""
+def _atomic_write(path: Path, write: Any, durable: bool = True) -> None:
+    """Call ``write(temp_path)`` then rename the temporary file over ``path``.
+
+    ``durable``: fsync the file before the rename, so that after a crash of the machine
+    (not only of the process: a rename alone covers that) the file is whole if present.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(handle)
     try:
         write(temp_name)
-        with open(temp_name, "rb+") as written:
-            os.fsync(written.fileno())
+        if durable:
+            with open(temp_name, "rb+") as written:
+                os.fsync(written.fileno())
         os.replace(temp_name, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -115,8 +120,9 @@ def _atomic_write(path: Path, write: Any) -> None:
         raise
 
 
-def write_json_atomic(data: dict[str, Any], path: Path) -> None:
-    write_text_atomic(json.dumps(_jsonable(data), indent=1, allow_nan=True), path)
+def write_json_atomic(data: dict[str, Any], path: Path, durable: bool = True) -> None:
+    text = json.dumps(_jsonable(data), indent=1, allow_nan=True)
+    _atomic_write(path, lambda name: Path(name).write_text(text, encoding="utf-8"), durable)
 
 
 def write_parquet_atomic(frame: pd.DataFrame, path: Path) -> None:
@@ -146,11 +152,17 @@ def series_path(out: Path, run_id: str) -> Path:
 
 
 def write_run(out: Path, row: dict[str, Any], series: pd.DataFrame | None) -> None:
-    """Persist one run: the series first, then the row (so a row implies its series)."""
+    """Persist one run: the series first, then the row (so a row implies its series).
+
+    The series is synced to disk before the row is renamed into place; the row itself is
+    not: after a machine crash a row lost or left corrupt reads as not done
+    (:func:`read_row`), so the run is simply run again (and two syncs a run made two
+    workers wait on each other's journal commits).
+    """
     run_id = row["run_id"]
     if series is not None:
         write_parquet_atomic(series, series_path(out, run_id))
-    write_json_atomic(row, row_path(out, run_id))
+    write_json_atomic(row, row_path(out, run_id), durable=False)
 
 
 def read_row(path: Path) -> dict[str, Any] | None:
