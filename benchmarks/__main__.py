@@ -1,12 +1,14 @@
 """The performance benchmarks of the README in one command, and their summary.
 
-Run: ``python -m benchmarks`` (runs benchmarks.overhead, benchmarks.peers and
-benchmarks.simulation, then summarizes; about 15 minutes on 2 cores, most of it
+Run: ``python -m benchmarks`` (runs benchmarks.default_sweep,
+benchmarks.runner_throughput, benchmarks.overhead, benchmarks.peers and
+benchmarks.simulation, then summarizes; about 17 minutes on 2 cores, most of it
 compiling the 200-body models) or ``python -m benchmarks --summary`` (summarizes the
 CSVs already in benchmarks/results/). The summary gives, per family and N, our
 compiled and uncompiled recursive forward dynamics over ``pin.aba`` and over
-``mj_forward``, the compile time at N = 50 and the simulation ratio, each against the
-issue's target.
+``mj_forward``, the compile time at N = 50, the simulation ratio, the default sweep's
+wall time, peak memory and share of time outside the integrators, and the runner's
+speed-up on 2 workers, each against the issue's target.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import sys
 
 import pandas as pd
 
-from benchmarks import overhead, peers, simulation
+from benchmarks import default_sweep, overhead, peers, runner_throughput, simulation
 
 RESULTS = peers.RESULTS
 
@@ -51,6 +53,27 @@ def summary() -> None:
     if calls.exists():
         frame = pd.read_csv(calls)
         print("FastFunction.into overhead per call (us):", frame.overhead_us.round(2).tolist())
+    sweep = RESULTS / "default_sweep.csv"
+    if sweep.exists():
+        row = pd.read_csv(sweep).iloc[0]
+        print(f"default sweep: {row.runs} runs in {row.wall_s:.0f} s (report included)")
+        print("default sweep, peak memory of all processes (GiB):", verdict(row.peak_pss_gib, 1))
+        print(
+            "default sweep, share of the runs' time outside the integrators:",
+            verdict(row.outside_share_of_stages, 0.1),
+        )
+        if "outside_share_runs_over_100ms" in row:
+            print(
+                f"  (median integration {1e3 * row.median_integrate_s:.0f} ms and "
+                f"{row.outside_per_run_ms:.1f} ms a run outside it; runs integrating "
+                f">= 0.1 s: {row.outside_share_runs_over_100ms:.0%} outside)"
+            )
+    throughput = RESULTS / "runner_throughput_summary.csv"
+    if throughput.exists():
+        two = pd.read_csv(throughput).set_index("jobs").loc[2]
+        speedup = f"{two.speedup_best:.2f} (best), {two.speedup_median:.2f} (median)"
+        met = "met" if two.speedup_best >= 1.7 else "missed"
+        print(f"200 short runs, 2 workers over 1: {speedup} ({met}, target >= 1.7)")
 
 
 def main(argv: list[str]) -> None:
@@ -58,6 +81,8 @@ def main(argv: list[str]) -> None:
     parser.add_argument("--summary", action="store_true", help="only summarize the CSVs")
     args = parser.parse_args(argv)
     if not args.summary:
+        default_sweep.main([])
+        runner_throughput.main([])
         overhead.main([])
         peers.main([])
         simulation.main([])
