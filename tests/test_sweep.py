@@ -401,7 +401,7 @@ def test_workers_take_runs_of_the_equations_they_built() -> None:
         for integrator in ("i", "j")
         for rtol in (1e-4, 1e-8)
     ]
-    queue = deque(runs)
+    queue = deque((equations_key(run), run) for run in runs)
     pairs: dict[str, tuple | None] = {"w1": None, "w2": None}
     taken: dict[str, list[str]] = {"w1": [], "w2": []}
     while queue:
@@ -409,8 +409,8 @@ def test_workers_take_runs_of_the_equations_they_built() -> None:
             if not queue:
                 break
             others = {p for w, p in pairs.items() if w != worker}
-            spec = _take_next(queue, pairs[worker], others)
-            pairs[worker] = equations_key(spec)
+            pairs[worker], spec = _take_next(queue, pairs[worker], others)
+            assert pairs[worker] == equations_key(spec)
             taken[worker].append(spec.problem)
     assert sorted(taken["w1"] + taken["w2"]) == sorted(r.problem for r in runs)
     assert taken["w1"] == ["a"] * 4 + ["c"] * 2 and taken["w2"] == ["b"] * 4 + ["c"] * 2

@@ -25,7 +25,8 @@ merges files of one recording id), since a recording stream cannot be pickled. A
 worker keeps one sink for all its runs and writes a file a run with
 :meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: a recording stream a run leaks
 in rerun-sdk 0.41 (about 1.7 MB a run: 3.5 GB over the default sweep's 1,080 runs), one
-stream moved from file to file does not.
+stream given a new in-memory binary stream a run (written to the run's file at its end)
+does not.
 """
 
 from __future__ import annotations

@@ -563,22 +563,24 @@ class _Worker:
     pair: tuple[str, ...] | None = None  # equations_key of its last run: built, cached
 
 
-def _take_next(queue: deque[RunSpec], own: tuple[str, ...] | None, others: set) -> RunSpec:
+Keyed = tuple[tuple[str, ...], RunSpec]  # (equations_key, run), the key computed once
+
+
+def _take_next(queue: deque[Keyed], own: tuple[str, ...] | None, others: set) -> Keyed:
     """Pop the next run for a worker: a run of the equations it built last (in its cache),
     else the first of equations no other worker is on, else the first. Each model is
     then built (and its initial state found) by about one worker instead of every one."""
     chosen = None
-    for i, spec in enumerate(queue):
-        key = equations_key(spec)
+    for i, (key, _spec) in enumerate(queue):
         if key == own:
             chosen = i
             break
         if chosen is None and key not in others:
             chosen = i
     chosen = 0 if chosen is None else chosen
-    spec = queue[chosen]
+    taken = queue[chosen]
     del queue[chosen]
-    return spec
+    return taken
 
 
 # imported in the parent before forking workers (so a worker starts in milliseconds
@@ -630,7 +632,7 @@ def _run_local(
     tick: Callable[[], None] = lambda: None,
 ) -> None:
     context = _context()
-    queue = deque(todo)
+    queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     workers: list[_Worker] = []
     start_failures = 0
 
@@ -667,8 +669,7 @@ def _run_local(
             for worker in workers:
                 if worker.ready and worker.spec is None and queue:
                     others = {w.pair for w in workers if w is not worker}
-                    worker.spec = _take_next(queue, worker.pair, others)
-                    worker.pair = equations_key(worker.spec)
+                    worker.pair, worker.spec = _take_next(queue, worker.pair, others)
                     worker.deadline = now + limit
                     worker.conn.send(worker.spec.to_dict())
             deadline = min((w.deadline for w in workers), default=math.inf)

@@ -10,6 +10,7 @@ first half second), ``energy`` and ``invariants`` (conserved over that tight run
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -136,8 +137,7 @@ def _check_vectorized(
     values: np.ndarray,
 ) -> None:
     """A vectorized invariant gives, in one call, what it gives one sample at a time."""
-    samples = zip(times, poses, twists, strict=True)
-    one_by_one = np.array([float(invariant.function(model, t, p, w)) for t, p, w in samples])
+    one_by_one = replace(invariant, vectorized=False).along(model, times, poses, twists)
     scale = max(float(np.max(np.abs(one_by_one))), 1e-12)
     error = float(np.max(np.abs(values - one_by_one))) / scale
     report.add(
