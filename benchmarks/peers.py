@@ -40,11 +40,11 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.peer_models import mujoco_model, pinocchio_model
-from plugins.formalisms.recursive import ode_function
-from problems.scalable import BinaryTree
 from workbench.compiled import Compiler
 from workbench.evaluate import FastFunction
 from workbench.model import Model
+from workbench.plugins.formalisms.recursive import ode_function
+from workbench.problems.scalable import BinaryTree
 from workbench.registry import get_problem
 
 RESULTS = Path(__file__).parent / "results"

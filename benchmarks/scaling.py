@@ -33,11 +33,11 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from plugins.formalisms import recursive as rec
-from plugins.formalisms.minimal_ode import minimal_mechanical_system
 from workbench.evaluate import FastFunction
 from workbench.kinematics import TreeKinematics
 from workbench.model import Frame, Model
+from workbench.plugins.formalisms import recursive as rec
+from workbench.plugins.formalisms.minimal_ode import minimal_mechanical_system
 
 SIZES = (2, 5, 10, 20, 50, 100, 200)
 FORMALISMS = ("recursive", "minimal-ode")

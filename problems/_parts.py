@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.model import Model
-from workbench.rotations import quaternion_to_matrix
+from workbench.numerics.rotations import quaternion_to_matrix
 
 
 def rod(

@@ -39,9 +39,9 @@ from __future__ import annotations
 import numpy as np
 
 import workbench.registry
-from problems._parts import angular_momentum, rod
 from workbench.model import Frame, Model, Shape
 from workbench.problem import Invariant, Problem
+from workbench.problems._parts import angular_momentum, rod
 
 GRAVITY = 9.81  # m/s^2
 

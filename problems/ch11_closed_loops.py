@@ -66,11 +66,11 @@ from dataclasses import dataclass
 import numpy as np
 
 import workbench.registry
-from problems._parts import planar_rod, rod
-from problems.ch10_open_trees import rod_shape
 from workbench.errors import ConfigError
 from workbench.model import Frame, JointSpringDamper, Model, Shape
 from workbench.problem import Problem
+from workbench.problems._parts import planar_rod, rod
+from workbench.problems.ch10_open_trees import rod_shape
 
 GRAVITY = 9.81  # m/s^2
 

@@ -38,10 +38,14 @@ from scipy.integrate import quad
 from scipy.special import ellipj, ellipkinc
 
 import workbench.registry
-from problems._parts import angular_momentum, axis_angle_quaternion, quaternion_product
 from workbench.model import Frame, Model, Shape
+from workbench.numerics.rotations import (
+    euler_zxz_to_matrix,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+)
 from workbench.problem import Invariant, Problem, Reference
-from workbench.rotations import euler_zxz_to_matrix, matrix_to_quaternion, quaternion_to_matrix
+from workbench.problems._parts import angular_momentum, axis_angle_quaternion, quaternion_product
 
 ASYMMETRIC_INERTIA = (0.02, 0.03, 0.04)  # kg m^2, principal (A, B, C)
 ASYMMETRIC_OMEGA = (0.2, 6.0, 0.2)  # rad/s, body frame, near the intermediate axis

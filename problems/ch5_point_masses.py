@@ -43,9 +43,9 @@ import math
 import numpy as np
 
 import workbench.registry
-from problems._parts import planar_rod
 from workbench.model import Drive, Frame, Model, Shape
 from workbench.problem import Invariant, Problem
+from workbench.problems._parts import planar_rod
 
 GRAVITY = 9.81  # m/s^2
 

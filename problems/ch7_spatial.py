@@ -27,9 +27,9 @@ from __future__ import annotations
 import casadi as ca
 
 import workbench.registry
-from problems._parts import rod
 from workbench.model import Frame, JointForce, Model, Shape
 from workbench.problem import Problem
+from workbench.problems._parts import rod
 
 GRAVITY = 9.81  # m/s^2
 TURRET_RADIUS = 0.1  # m

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 
 import workbench.registry
-from problems._parts import angular_momentum, rotation_matrices
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
 from workbench.problem import Invariant, Problem
+from workbench.problems._parts import angular_momentum, rotation_matrices
 
 MASS = 1.0  # kg
 COM_DISTANCE = 0.1  # m, tip to centre of mass along the symmetry axis

@@ -38,11 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 
 import workbench.registry
-from problems._parts import angular_momentum, planar_rod
-from problems.ch10_open_trees import add_link
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
 from workbench.problem import Invariant, Problem
+from workbench.problems._parts import angular_momentum, planar_rod
+from workbench.problems.ch10_open_trees import add_link
 
 GRAVITY = 9.81  # m/s^2
 

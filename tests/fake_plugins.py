@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.integrate
 
-from plugins.formalisms.minimal_ode import MinimalOde
 from workbench.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.model import Frame, Model
+from workbench.plugins.formalisms.minimal_ode import MinimalOde
 from workbench.problem import Problem, Reference
 from workbench.registry import formalism, integrator, problem
 

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plugins.formalisms.minimal_ode import MinimalOde
 from workbench.initial import consistent_initial_state
 from workbench.kinematics import TreeKinematics, initial_joint_values
+from workbench.plugins.formalisms.minimal_ode import MinimalOde
 from workbench.registry import REGISTRY, get_problem
 from workbench.topology import analyze
 
@@ -227,7 +227,7 @@ def test_symmetric_gyro_reference_starts_at_the_initial_pose() -> None:
 @pytest.mark.parametrize("near", [False, True])
 @pytest.mark.parametrize("angle", [0.0, 1.0, 3.0, math.pi, -2.0])
 def test_four_bar_state_closes_the_loop(near: bool, angle: float) -> None:
-    from problems.ch11_closed_loops import four_bar_state
+    from workbench.problems.ch11_closed_loops import four_bar_state
 
     problem = get_problem("four-bar")({"near_change_point": near})
     model = problem.model()

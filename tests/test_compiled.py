@@ -171,7 +171,7 @@ def test_long_bodies_are_split_and_give_the_same_numbers(cache):
     same operations in the same order); a body with loops is left whole."""
     import casadi as ca
 
-    from plugins.formalisms.recursive import ode_function
+    from workbench.plugins.formalisms.recursive import ode_function
 
     function = ode_function(get_problem("spatial-chain")({"n_links": 12}).model())
     code = compiled.generate_c(function)

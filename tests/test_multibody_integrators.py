@@ -16,16 +16,16 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plugins.formalisms.minimal_ode import MinimalOde
-from plugins.integrators.generalized_alpha import GeneralizedAlpha
-from plugins.integrators.projection import Projected, project_state
-from plugins.integrators.rattle import Rattle
 from workbench.equations import MechanicalSystem, build_equations
 from workbench.errors import PluginError
 from workbench.forces import generalized_forces, potential_energy
 from workbench.initial import accelerations, consistent_initial_state
 from workbench.kinematics import BodyState
 from workbench.model import AppliedForce, Frame, Model
+from workbench.plugins.formalisms.minimal_ode import MinimalOde
+from workbench.plugins.integrators.generalized_alpha import GeneralizedAlpha
+from workbench.plugins.integrators.projection import Projected, project_state
+from workbench.plugins.integrators.rattle import Rattle
 from workbench.problem import Problem
 from workbench.registry import get_formalism, get_integrator
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from problems import double_pendulum
 from workbench.model import Frame, Model
 from workbench.parameters import model_parameters, vector
+from workbench.problems import double_pendulum
 from workbench.registry import get_problem
 
 

@@ -8,8 +8,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from problems import heavy_top, simple_pendulum
 from workbench.kinematics import TreeKinematics, initial_joint_values
+from workbench.problems import heavy_top, simple_pendulum
 from workbench.registry import get_problem
 from workbench.topology import analyze
 
@@ -173,7 +173,7 @@ def test_heavy_top_invariants_conserved_along_euler_equations() -> None:
     from scipy.integrate import solve_ivp
     from scipy.spatial.transform import Rotation
 
-    from workbench.rotations import quaternion_rate_matrix
+    from workbench.numerics.rotations import quaternion_rate_matrix
 
     problem = get_problem("heavy-top")()
     model = problem.model()

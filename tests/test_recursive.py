@@ -9,8 +9,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from plugins.formalisms import recursive as rec
-from plugins.formalisms.minimal_ode import minimal_mechanical_system
 from workbench.kinematics import TreeKinematics
 from workbench.model import (
     AppliedForce,
@@ -21,6 +19,8 @@ from workbench.model import (
     Model,
     SpringDamper,
 )
+from workbench.plugins.formalisms import recursive as rec
+from workbench.plugins.formalisms.minimal_ode import minimal_mechanical_system
 from workbench.registry import get_formalism
 
 JOINT_TYPES = ("revolute", "prismatic", "universal", "spherical", "cylindrical", "planar")

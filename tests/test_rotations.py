@@ -8,8 +8,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from workbench import rotations as rot
 from workbench.errors import WorkbenchError
+from workbench.numerics import rotations as rot
 
 settings.register_profile("rotations", deadline=None, max_examples=60)
 settings.load_profile("rotations")

@@ -4,10 +4,10 @@ ones, naming the check, the problem and the size of the error."""
 import numpy as np
 import pytest
 
-from plugins.formalisms.minimal_ode import MinimalOde, minimal_mechanical_system
 from workbench.equations import build_joint_space_equations
 from workbench.integrator import Integrator
 from workbench.kinematics import TreeKinematics
+from workbench.plugins.formalisms.minimal_ode import MinimalOde, minimal_mechanical_system
 from workbench.problem import Invariant, Reference
 from workbench.registry import REGISTRY, PluginInfo
 from workbench.testing import (
@@ -182,7 +182,7 @@ def test_a_reference_with_unknown_orientations_is_checked_on_positions():
 
 
 def test_an_invariant_declared_vectorized_that_does_not_broadcast_is_caught(register):
-    from problems.ch4_gyros import TorqueFreeSymmetricGyro
+    from workbench.problems.ch4_gyros import TorqueFreeSymmetricGyro
 
     def spin_rate(model, t, poses, twists):  # the norm of every sample at once: a scalar
         return np.linalg.norm(np.asarray(twists)[..., 0, 3:6])
@@ -199,7 +199,7 @@ def test_an_invariant_declared_vectorized_that_does_not_broadcast_is_caught(regi
 
 
 def test_a_wrong_analytic_reference_is_caught_with_its_error(register):
-    from problems.ch4_gyros import TorqueFreeSymmetricGyro
+    from workbench.problems.ch4_gyros import TorqueFreeSymmetricGyro
 
     class SlowGyro(TorqueFreeSymmetricGyro):
         name = "test-slow-gyro"

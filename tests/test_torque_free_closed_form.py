@@ -8,17 +8,17 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from problems.ch4_gyros import (
+from workbench.initial import consistent_initial_state
+from workbench.metrics import rotation_angle
+from workbench.numerics.rotations import quaternion_to_matrix
+from workbench.problems.ch4_gyros import (
     ASYMMETRIC_INERTIA,
     ASYMMETRIC_OMEGA,
     torque_free_body_rates,
     torque_free_quaternions,
 )
-from workbench.initial import consistent_initial_state
-from workbench.metrics import rotation_angle
 from workbench.references import PIPELINE_JOINT, solve_poses
 from workbench.registry import get_formalism, get_problem
-from workbench.rotations import quaternion_to_matrix
 
 TIMES = np.linspace(0.0, 5.0, 51)
 

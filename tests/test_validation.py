@@ -21,7 +21,7 @@ from workbench.model import (
     Shape,
     SpringDamper,
 )
-from workbench.rotations import axis_angle_to_matrix
+from workbench.numerics.rotations import axis_angle_to_matrix
 from workbench.validation import validate_model
 
 CUBE = np.diag([0.1, 0.1, 0.1])

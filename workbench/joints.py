@@ -28,9 +28,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from workbench import rotations as rot
-from workbench.backend import is_symbolic, matmul, ops, vector
 from workbench.model import Joint
+from workbench.numerics import rotations as rot
+from workbench.numerics.backend import is_symbolic, matmul, ops, vector
 
 DIMENSIONS: dict[str, tuple[int, int]] = {
     "revolute": (1, 1),

@@ -117,7 +117,8 @@ def _canonical(value: Any) -> Any:
             for v in [*(getattr(value, "__defaults__", None) or ()), *closure]
             if isinstance(v, float | int | np.ndarray | tuple)
         ]
-        name = f"{getattr(value, '__module__', '')}.{getattr(value, '__qualname__', '')}"
+        # the qualified name, not the module: where a package is installed is not physics
+        name = getattr(value, "__qualname__", "")
         return [name, numbers]
     return value if value is None or isinstance(value, str | bool) else repr(value)
 

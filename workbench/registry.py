@@ -2,7 +2,8 @@
 
 Built-in plugins register with the decorators :func:`problem`, :func:`formalism` and
 :func:`integrator`; the workbench finds them by importing every module of the built-in
-packages (``problems``, ``plugins.formalisms``, ``plugins.integrators``) and then the
+packages (``workbench.problems``, ``workbench.plugins.formalisms``,
+``workbench.plugins.integrators``) and then the
 entry-point groups ``workbench.problems``, ``workbench.formalisms`` and
 ``workbench.integrators`` of other installed packages. A module that fails to import is
 listed as *broken* with its error; the others keep working.
@@ -26,9 +27,9 @@ from workbench.options import option_fields
 Kind = Literal["problem", "formalism", "integrator"]
 KINDS: tuple[Kind, ...] = ("problem", "formalism", "integrator")
 BUILTIN_PACKAGES: dict[Kind, str] = {
-    "problem": "problems",
-    "formalism": "plugins.formalisms",
-    "integrator": "plugins.integrators",
+    "problem": "workbench.problems",
+    "formalism": "workbench.plugins.formalisms",
+    "integrator": "workbench.plugins.integrators",
 }
 ENTRY_POINT_GROUPS: dict[Kind, str] = {
     "problem": "workbench.problems",

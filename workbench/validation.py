@@ -241,7 +241,7 @@ def _check_frame(model: Model, what: str, name: str, frame: Frame, planar: bool)
         raise ModelError(
             f"{_where(model, what)}: {name} rotation is not a rotation matrix (it must be "
             "orthonormal with determinant +1); build it with "
-            "workbench.rotations.axis_angle_to_matrix"
+            "workbench.numerics.rotations.axis_angle_to_matrix"
         )
     if planar:
         if abs(position[2]) > TOLERANCE * max(1.0, np.linalg.norm(position)):

@@ -7,7 +7,7 @@ body gets its own coordinates, independent of the joints:
 * spatial model: q_b = (r (3), p (4)), the body frame origin in the inertial frame and
   Euler parameters (scalar first); v_b = (r' (3), omega_b (3)), with omega_b the angular
   velocity in the *body* frame, and q_b' = (r', H(p) omega_b), H from
-  :func:`workbench.rotations.quaternion_rate_matrix` (p, "body").
+  :func:`workbench.numerics.rotations.quaternion_rate_matrix` (p, "body").
 
 The Newton-Euler equations of each body, written as in minimal-ode through the Jacobians
 J_T = d v_com / d v and J_R = d omega / d v of its own twist (so the centre of mass need
@@ -53,15 +53,15 @@ from scipy.spatial.transform import Rotation
 
 from workbench import forces as fm
 from workbench import joints as jk
-from workbench import rotations as rot
 from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.kinematics import BodyState, TreeKinematics, contact_rows, initial_joint_values
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
+from workbench.numerics import rotations as rot
+from workbench.numerics.rotations import axis_angle_to_quaternion, quaternion_multiply
 from workbench.registry import formalism
-from workbench.rotations import axis_angle_to_quaternion, quaternion_multiply
 
 RANK_TOLERANCE = 1e-9
 """Singular values below this fraction of the largest one count as zero (redundancy)."""

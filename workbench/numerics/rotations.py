@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from workbench.backend import entries, is_symbolic, matmul, matrix, ops, vector
 from workbench.errors import WorkbenchError
+from workbench.numerics.backend import entries, is_symbolic, matmul, matrix, ops, vector
 
 SINGULAR_TOL = 1e-9
 """Default ``tol`` of the singularity checks (see the module docstring)."""
