@@ -1,11 +1,11 @@
-"""workbench.parameters: the rows ``workbench describe`` prints are the model's numbers."""
+"""workbench.model.parameters: the rows ``workbench describe`` prints are the model's numbers."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from workbench.model import Frame, Model
-from workbench.parameters import model_parameters, vector
+from workbench.model.parameters import model_parameters, vector
 from workbench.problems import double_pendulum
 from workbench.registry import get_problem
 

@@ -1,4 +1,5 @@
-"""Every bad model raises a ModelError naming the element and the fix (workbench.validation)."""
+"""Every bad model raises a ModelError naming the element and the fix
+(workbench.model.validation)."""
 
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ from workbench.model import (
     Shape,
     SpringDamper,
 )
+from workbench.model.validation import validate_model
 from workbench.numerics.rotations import axis_angle_to_matrix
-from workbench.validation import validate_model
 
 CUBE = np.diag([0.1, 0.1, 0.1])
 

@@ -197,7 +197,7 @@ def _problem_table(problem_class: type) -> Table:
 
 def _parameters_table(problem_class: type) -> Table:
     """The model's physical parameters (SI units) and the problem's initial condition."""
-    from workbench.parameters import model_parameters
+    from workbench.model.parameters import model_parameters
 
     problem = problem_class()
     table = Table(title="parameters (SI units)", title_justify="left")

@@ -31,7 +31,7 @@ import scipy.linalg
 from workbench import joints as jk
 from workbench.errors import ModelError
 from workbench.model import GROUND, Joint, KnifeEdge, Model, RollingDisk, RollingSphere
-from workbench.validation import validate_model
+from workbench.model.validation import validate_model
 
 RANK_TOLERANCE = 1e-9
 """Singular values below this fraction of the largest one count as zero."""

@@ -12,18 +12,18 @@ from typing import Any
 
 import numpy as np
 
-from workbench.model import (
+from workbench.model.elements import (
     AppliedForce,
     Body,
     Joint,
     JointForce,
     JointSpringDamper,
     KnifeEdge,
-    Model,
     RollingDisk,
     RollingSphere,
     SpringDamper,
 )
+from workbench.model.model import Model
 
 Row = tuple[str, str, str]
 

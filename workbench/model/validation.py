@@ -20,12 +20,12 @@ Numbers are compared with a small relative tolerance (``TOLERANCE``).
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from workbench.errors import ModelError
-from workbench.model import (
+from workbench.model.elements import (
     GROUND,
     JOINT_TYPES,
     PLANAR_JOINT_TYPES,
@@ -36,11 +36,13 @@ from workbench.model import (
     JointForce,
     JointSpringDamper,
     KnifeEdge,
-    Model,
     RollingDisk,
     RollingSphere,
     SpringDamper,
 )
+
+if TYPE_CHECKING:  # validation judges a Model; it does not need the class to run
+    from workbench.model.model import Model
 
 TOLERANCE = 1e-9
 """Relative tolerance of symmetry, orthonormality, planarity and the triangle inequality."""

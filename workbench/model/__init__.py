@@ -1,0 +1,51 @@
+"""The model layer: a mechanism described once, for every formalism (DESIGN.md, "The model").
+
+``elements`` holds the plain data (frames, bodies, joints, forces, constraints), ``model``
+the :class:`Model` that gathers and validates them, ``validation`` the checks that name
+each fault and its fix, ``parameters`` the rows ``workbench describe`` prints. Import the
+names from here: ``from workbench.model import Model, Frame``.
+"""
+
+from workbench.model.elements import (
+    GROUND,
+    JOINT_TYPES,
+    PLANAR_JOINT_TYPES,
+    AppliedForce,
+    Body,
+    Drive,
+    ForceElement,
+    Frame,
+    Joint,
+    JointForce,
+    JointSpringDamper,
+    JointType,
+    KnifeEdge,
+    NonholonomicConstraint,
+    RollingDisk,
+    RollingSphere,
+    Shape,
+    SpringDamper,
+)
+from workbench.model.model import Model
+
+__all__ = [
+    "GROUND",
+    "JOINT_TYPES",
+    "PLANAR_JOINT_TYPES",
+    "AppliedForce",
+    "Body",
+    "Drive",
+    "ForceElement",
+    "Frame",
+    "Joint",
+    "JointForce",
+    "JointSpringDamper",
+    "JointType",
+    "KnifeEdge",
+    "Model",
+    "NonholonomicConstraint",
+    "RollingDisk",
+    "RollingSphere",
+    "Shape",
+    "SpringDamper",
+]

@@ -1,0 +1,173 @@
+"""The formalism-neutral description of a mechanism (DESIGN.md, "The model").
+
+A :class:`Model` is plain data: bodies, joints (tree and loop-closing), force elements,
+nonholonomic constraints and visual shapes. It knows nothing of coordinates chosen by a
+formalism. Build one with the ``add_*`` methods, then call :meth:`Model.validate` (done by
+every formalism) which raises :class:`~workbench.errors.ModelError` on bad input.
+
+Conventions: SI units; a body's frame is its reference frame; centre of mass and inertia
+tensor are given in the body frame (inertia about the centre of mass). Planar models move
+in the x-y plane with rotations about z; they are described with the same 3D data (all
+z components zero) so every formalism may treat them as spatial ones.
+
+Joint convention: a joint connects a frame P fixed on the parent (``parent_frame``, in
+the parent's body frame; the ground's frame is the inertial frame) and a frame C fixed on
+the child (``child_frame``, in the child's body frame). The joint's coordinates q give the
+pose of C relative to P; at the neutral q, C coincides with P. See
+:mod:`workbench.joints` for each type's coordinates and velocities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from workbench.errors import ModelError
+from workbench.model.elements import (
+    GROUND,
+    Body,
+    Drive,
+    ForceElement,
+    Frame,
+    Joint,
+    NonholonomicConstraint,
+    Shape,
+)
+from workbench.model.validation import validate_model
+
+
+@dataclass
+class Model:
+    """A mechanism: ``kind`` is "planar" or "spatial"; ``gravity`` in m/s^2 (inertial)."""
+
+    name: str
+    kind: Literal["planar", "spatial"] = "spatial"
+    gravity: np.ndarray | None = None
+    bodies: dict[str, Body] = field(default_factory=dict)
+    joints: dict[str, Joint] = field(default_factory=dict)
+    forces: list[ForceElement] = field(default_factory=list)
+    nonholonomic: list[NonholonomicConstraint] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.gravity is None:
+            self.gravity = (
+                np.array([0.0, -9.81, 0.0]) if self.kind == "planar" else np.array([0, 0, -9.81])
+            )
+        self.gravity = np.asarray(self.gravity, dtype=float)
+
+    # -- building ---------------------------------------------------------------------
+    def add_body(
+        self,
+        name: str,
+        mass: float,
+        com: Any = (0.0, 0.0, 0.0),
+        inertia: Any = None,
+        shapes: tuple[Shape, ...] | list[Shape] = (),
+    ) -> Body:
+        """Add a rigid body. ``inertia``: 3x3 about the centre of mass in the body frame,
+        three principal moments, or (planar models) a scalar Izz."""
+        inertia_matrix = _inertia_matrix(inertia, self.kind)
+        body = Body(name, float(mass), np.asarray(com, dtype=float), inertia_matrix, False,
+                    tuple(shapes))
+        self._add(self.bodies, name, body)
+        return body
+
+    def add_point_mass(
+        self, name: str, mass: float, shapes: tuple[Shape, ...] | list[Shape] = ()
+    ) -> Body:
+        """Add a point mass at its body frame's origin (no rotational inertia)."""
+        body = Body(name, float(mass), np.zeros(3), np.zeros((3, 3)), True, tuple(shapes))
+        self._add(self.bodies, name, body)
+        return body
+
+    def add_joint(
+        self,
+        name: str,
+        type: str,
+        parent: str,
+        child: str,
+        parent_frame: Frame | None = None,
+        child_frame: Frame | None = None,
+        axis: Any = (0.0, 0.0, 1.0),
+        axis2: Any = (0.0, 1.0, 0.0),
+        cut: bool = False,
+        drive: Drive | None = None,
+    ) -> Joint:
+        """Add a joint; ``cut=True`` marks a loop-closing joint."""
+        joint = Joint(
+            name,
+            type,
+            parent,
+            child,
+            parent_frame or Frame(),
+            child_frame or Frame(),
+            np.asarray(axis, dtype=float).reshape(-1),
+            np.asarray(axis2, dtype=float).reshape(-1),
+            cut,
+            drive,
+        )
+        self._add(self.joints, name, joint)
+        return joint
+
+    def add_force(self, element: ForceElement) -> ForceElement:
+        self._check_new_name(element.name)
+        self.forces.append(element)
+        return element
+
+    def add_nonholonomic(self, constraint: NonholonomicConstraint) -> NonholonomicConstraint:
+        self._check_new_name(constraint.name)
+        self.nonholonomic.append(constraint)
+        return constraint
+
+    def _add(self, table: dict, name: str, item: Any) -> None:
+        self._check_new_name(name)
+        table[name] = item
+
+    def _check_new_name(self, name: str) -> None:
+        if not isinstance(name, str) or not name:
+            raise ModelError(f"model {self.name!r}: every element needs a non-empty name")
+        if name == GROUND:
+            raise ModelError(f"model {self.name!r}: {GROUND!r} is reserved for the inertial frame")
+        taken = set(self.bodies) | set(self.joints)
+        taken |= {f.name for f in self.forces} | {c.name for c in self.nonholonomic}
+        if name in taken:
+            raise ModelError(
+                f"model {self.name!r}: duplicate name {name!r}; give every body, joint, "
+                "force and constraint its own name"
+            )
+
+    # -- queries ----------------------------------------------------------------------
+    @property
+    def body_names(self) -> list[str]:
+        return list(self.bodies)
+
+    @property
+    def tree_joints(self) -> list[Joint]:
+        """The spanning-tree joints, in the order they were added."""
+        return [j for j in self.joints.values() if not j.cut]
+
+    @property
+    def cut_joints(self) -> list[Joint]:
+        return [j for j in self.joints.values() if j.cut]
+
+    def validate(self) -> Model:
+        """Raise ModelError naming the fault and its fix; return self when the model is sound."""
+        validate_model(self)
+        return self
+
+
+def _inertia_matrix(inertia: Any, kind: str) -> np.ndarray:
+    if inertia is None:
+        return np.zeros((3, 3)) * np.nan  # caught by validation: rigid bodies need inertia
+    array = np.asarray(inertia, dtype=float)
+    if array.ndim == 0:
+        if kind != "planar":
+            return np.full((3, 3), np.nan)  # validation says: give a 3x3 tensor
+        izz = float(array)
+        # a thin disk with this Izz: satisfies the triangle inequality, out-of-plane unused
+        return np.diag([izz / 2, izz / 2, izz])
+    if array.shape == (3,):
+        return np.diag(array)
+    return array.reshape(3, 3) if array.size == 9 else np.full((3, 3), np.nan)
