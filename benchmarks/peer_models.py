@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Frame, Model
 
 

@@ -34,7 +34,7 @@ import casadi as ca
 import numpy as np
 
 from workbench.evaluate import FastFunction
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Frame, Model
 from workbench.plugins.formalisms import recursive as rec
 from workbench.plugins.formalisms.minimal_ode import minimal_mechanical_system

@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from workbench.errors import ModelError
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Drive, Frame, KnifeEdge, Model, RollingDisk
 from workbench.registry import get_formalism
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench import joints as jk
+from workbench.mechanics import joints as jk
 from workbench.model import Joint
 
 RNG = np.random.default_rng(7)

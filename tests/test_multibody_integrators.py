@@ -18,9 +18,9 @@ from scipy.integrate import solve_ivp
 
 from workbench.equations import MechanicalSystem, build_equations
 from workbench.errors import PluginError
-from workbench.forces import generalized_forces, potential_energy
 from workbench.initial import accelerations, consistent_initial_state
-from workbench.kinematics import BodyState
+from workbench.mechanics.forces import generalized_forces, potential_energy
+from workbench.mechanics.kinematics import BodyState
 from workbench.model import AppliedForce, Frame, Model
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
 from workbench.plugins.integrators.generalized_alpha import GeneralizedAlpha

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from workbench.errors import ConfigError
 from workbench.initial import project_joint_state
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import KnifeEdge, Model, RollingDisk, RollingSphere
 from workbench.registry import get_formalism
 
@@ -154,7 +154,7 @@ def test_closed_loop_projection_matches_minimal_ode() -> None:
     equations = build(model)
     assert len(equations.v_names) == 1
     kinematics = TreeKinematics(model)
-    from workbench.kinematics import initial_joint_values
+    from workbench.mechanics.kinematics import initial_joint_values
 
     q0 = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
     v0 = initial_joint_values(model, kinematics, problem.initial_joint_velocities(), True)

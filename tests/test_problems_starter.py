@@ -8,10 +8,10 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from workbench.kinematics import TreeKinematics, initial_joint_values
+from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+from workbench.mechanics.topology import analyze
 from workbench.problems import heavy_top, simple_pendulum
 from workbench.registry import get_problem
-from workbench.topology import analyze
 
 STARTERS = {
     # name: (dof, loops)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import (
     AppliedForce,
     Drive,

@@ -131,7 +131,7 @@ def test_command_line_errors_are_one_line_with_exit_code_2(tmp_path, monkeypatch
 # -- the "done when" test: a separate package in a fresh virtual environment -------------
 
 PHYSICS = """
-        from workbench.lagrangian import joint_space_lagrangian
+        from workbench.mechanics.lagrangian import joint_space_lagrangian
 
         kinetic, potential, nonconservative = joint_space_lagrangian(model, k)
         momentum = ca.gradient(kinetic, k.v)

@@ -6,7 +6,7 @@ import pytest
 
 from workbench.equations import build_joint_space_equations
 from workbench.integrator import Integrator
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.plugins.formalisms.minimal_ode import MinimalOde, minimal_mechanical_system
 from workbench.problem import Invariant, Reference
 from workbench.registry import REGISTRY, PluginInfo

@@ -1,4 +1,4 @@
-"""Spanning tree, loops and degrees of freedom (workbench.topology)."""
+"""Spanning tree, loops and degrees of freedom (workbench.mechanics.topology)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from workbench.errors import ModelError
+from workbench.mechanics.topology import analyze
 from workbench.model import Drive, Frame, KnifeEdge, Model, RollingSphere
-from workbench.topology import analyze
 
 CUBE = np.diag([0.1, 0.1, 0.1])
 

@@ -223,19 +223,19 @@ def _values(value: Any) -> str:
 
 
 def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
-    """DOF, loops and constraint counts from workbench.topology; a note if it is missing.
+    """DOF, loops and constraint counts from workbench.mechanics.topology; a note if it is missing.
 
     The rank is taken at the problem's initial configuration: the neutral one of a closed
     loop can be folded (a four-bar with all angles zero), where W loses rank."""
     try:
-        from workbench.topology import analyze
+        from workbench.mechanics.topology import analyze
     except ImportError:
         return [
             ("loops", str(len(model.cut_joints))),
             ("nonholonomic constraints", str(len(model.nonholonomic))),
-            ("DOF", "unknown (workbench.topology not available)"),
+            ("DOF", "unknown (workbench.mechanics.topology not available)"),
         ]
-    from workbench.kinematics import TreeKinematics, initial_joint_values
+    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 
     q0 = initial_joint_values(
         model, TreeKinematics(model), problem.initial_joint_coordinates(), velocities=False

@@ -30,11 +30,11 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench import forces as fm
-from workbench import joints as jk
 from workbench.compiled import Compiler
 from workbench.evaluate import FastFunction, dense_function, lazy_dense_function
-from workbench.kinematics import BodyState, contact_rows
+from workbench.mechanics import forces as fm
+from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import BodyState, contact_rows
 from workbench.model import GROUND, Model
 
 FORMS = ("ode", "dae", "mechanical")
@@ -368,7 +368,7 @@ def build_equations(
 
     ``bodies``: symbolic pose and twist of every model body in (t, q, v).
     ``joint_space_map``: ([t, q_joint, v_joint] symbols, [q, v] expressions) mapping the
-    free tree-joint coordinates (see :class:`~workbench.kinematics.TreeKinematics`) to
+    free tree-joint coordinates (see :class:`~workbench.mechanics.kinematics.TreeKinematics`) to
     this formalism's q and v. ``dae_index``: 3, 2 or 1 for the dae form (0 is used
     automatically when there are no constraints). ``baumgarte``: (alpha, beta) for index 1
     and for the ode form of a constrained system. ``ode``: offer the ode form (for a

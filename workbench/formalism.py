@@ -14,7 +14,7 @@ A formalism plugin subclasses :class:`Formalism`, registers with
 
 A feature the formalism cannot handle raises :class:`PluginError` from :meth:`check`,
 naming the formalisms that do handle it. A limit that is not one of :data:`FEATURES`
-(e.g. quaternion joints, :func:`workbench.lagrangian.quaternion_joints`) is declared by
+(e.g. quaternion joints, :func:`workbench.mechanics.lagrangian.quaternion_joints`) is declared by
 extending :meth:`Formalism.unsupported`; the runner and the conformance suite
 (:mod:`workbench.testing`, docs/plugins.md) then skip such models with that reason.
 """

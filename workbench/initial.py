@@ -17,7 +17,7 @@ import scipy.linalg
 
 from workbench.equations import Equations
 from workbench.errors import IntegrationError
-from workbench.kinematics import TreeKinematics, initial_joint_values
+from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 
 
 @dataclass

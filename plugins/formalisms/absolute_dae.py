@@ -16,7 +16,7 @@ not be at the body frame origin), give a block-diagonal
     M = blockdiag(m J_T^T J_T + J_R^T I J_R),   Q - h = sum J^T F - (m J_T^T a_bias + ...),
 
 and every joint, tree and cut alike, becomes implicit holonomic constraints g(t, q) = 0
-(book 9.4, :func:`workbench.joints.implicit_constraints` between the world frames P and
+(book 9.4, :func:`workbench.mechanics.joints.implicit_constraints` between the world frames P and
 C, P moved by the drive of a driven joint), plus contact heights and nonholonomic rows of
 rolling and knife-edge constraints. The velocity constraints are d/dt g followed by the
 nonholonomic rows; the equations are M v' = Q - h - W^T lambda.
@@ -51,13 +51,18 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench import forces as fm
-from workbench import joints as jk
 from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
-from workbench.kinematics import BodyState, TreeKinematics, contact_rows, initial_joint_values
+from workbench.mechanics import forces as fm
+from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import (
+    BodyState,
+    TreeKinematics,
+    contact_rows,
+    initial_joint_values,
+)
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
 from workbench.numerics import rotations as rot
 from workbench.numerics.rotations import axis_angle_to_quaternion, quaternion_multiply

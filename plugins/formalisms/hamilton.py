@@ -38,8 +38,8 @@ from workbench.equations import (
     build_equations,
 )
 from workbench.formalism import Formalism
-from workbench.kinematics import BodyState, TreeKinematics
-from workbench.lagrangian import joint_space_lagrangian, quaternion_joints
+from workbench.mechanics.kinematics import BodyState, TreeKinematics
+from workbench.mechanics.lagrangian import joint_space_lagrangian, quaternion_joints
 from workbench.model import Model
 from workbench.registry import formalism
 

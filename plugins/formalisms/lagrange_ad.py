@@ -10,11 +10,12 @@ differentiation gives
     M = d^2 T / dq'^2,   M q'' = dT/dq - dV/dq - (d^2 T / dq' dq) q' - d^2 T / dq' dt + Q_nc,
 
 where Q_nc are the non-conservative generalized forces (damping, joint and applied
-forces); T, V and Q_nc come from :func:`workbench.lagrangian.joint_space_lagrangian`. Driven
-joints enter through the explicit time dependence of T. Closed loops and nonholonomic
-constraints are appended as in Lagrange's equations of the first kind (multipliers,
-option ``index``). Spherical and free joints are not supported: their quaternion
-coordinates have q' != v, where Lagrange's equations in this form do not hold.
+forces); T, V and Q_nc come from
+:func:`workbench.mechanics.lagrangian.joint_space_lagrangian`. Driven joints enter through
+the explicit time dependence of T. Closed loops and nonholonomic constraints are appended
+as in Lagrange's equations of the first kind (multipliers, option ``index``). Spherical
+and free joints are not supported: their quaternion coordinates have q' != v, where
+Lagrange's equations in this form do not hold.
 
 Written only against the public plugin API, as a worked example for plugin authors.
 """
@@ -27,8 +28,8 @@ import casadi as ca
 
 from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
-from workbench.kinematics import TreeKinematics
-from workbench.lagrangian import joint_space_lagrangian, quaternion_joints
+from workbench.mechanics.kinematics import TreeKinematics
+from workbench.mechanics.lagrangian import joint_space_lagrangian, quaternion_joints
 from workbench.model import Model
 from workbench.registry import formalism
 

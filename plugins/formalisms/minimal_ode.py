@@ -1,7 +1,7 @@
 """Formalism ``minimal-ode``: joint coordinates, M(q) q'' = Q - h (book 5.6.2, 6.6.2, 7.6.2, 10.5).
 
 The generalized coordinates are the free joint coordinates of the spanning tree. The
-explicit constraints (forward kinematics, :class:`~workbench.kinematics.TreeKinematics`)
+explicit constraints (forward kinematics, :class:`~workbench.mechanics.kinematics.TreeKinematics`)
 give each body's centre-of-mass velocity v_c = J_T v and angular velocity w = J_R v; then
 
     M = sum J_T^T m J_T + J_R^T I J_R,     h = sum J_T^T m a_c,bias + J_R^T (I a_R,bias + w x I w),
@@ -27,7 +27,6 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from workbench import forces as fm
 from workbench.compiled import Compiler
 from workbench.equations import (
     Equations,
@@ -37,7 +36,8 @@ from workbench.equations import (
 )
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics import forces as fm
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Model
 from workbench.registry import formalism
 
@@ -111,7 +111,7 @@ class MinimalOde(Formalism):
 
 def independent_partition(model: Model, kinematics: TreeKinematics) -> np.ndarray:
     """Indices of the dependent velocities, by pivoted QR of W at the assembled neutral pose."""
-    from workbench.topology import analyze
+    from workbench.mechanics.topology import analyze
 
     topology = analyze(model)
     if model.nonholonomic:
@@ -220,7 +220,7 @@ def state_space_equations(
         ],
     )
     values = body_function(t, q_star, v_full)
-    from workbench.kinematics import BodyState
+    from workbench.mechanics.kinematics import BodyState
 
     bodies = {b: BodyState(*values[4 * i : 4 * i + 4]) for i, b in enumerate(model.bodies)}
     joint_coordinates = {

@@ -3,7 +3,7 @@
 Book 8.1.3 (minimal velocities), 8.2.2 (equations of motion in minimal form) and 8.3.2
 (the ball on a rotating plane). The tree joint velocities v (nv) obey the velocity
 constraints W(t, q) v + w(t, q) = 0 (closure rows of the cut joints and contact heights,
-then nonholonomic rows; :class:`~workbench.kinematics.TreeKinematics`). They are written
+then nonholonomic rows; :class:`~workbench.mechanics.kinematics.TreeKinematics`). They are written
 with minimal velocities s (nv - rank W):
 
     v = F(t, q) s + f(t, q),    W F = 0,    W f + w = 0,
@@ -36,13 +36,13 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from workbench import forces as fm
-from workbench import joints as jk
 from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.errors import ConfigError, ModelError
 from workbench.formalism import CompileOptions, Formalism
-from workbench.kinematics import BodyState, TreeKinematics
+from workbench.mechanics import forces as fm
+from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import BodyState, TreeKinematics
 from workbench.model import Model
 from workbench.registry import formalism
 
@@ -103,7 +103,7 @@ def _rank(matrix: np.ndarray) -> tuple[int, np.ndarray]:
 def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] = ()) -> Partition:
     """Choose independent rows of W and independent velocities (see the module doc)."""
     k = kinematics
-    from workbench.topology import analyze
+    from workbench.mechanics.topology import analyze
 
     w_function = ca.Function("W", [k.t, k.q], [ca.densify(k.velocity_constraint_matrix)])
     # Candidates: the neutral configuration (unassembled, e.g. a folded four-bar, it can lose

@@ -17,9 +17,9 @@ formalism 10.6.1-10.6.2), with no mass matrix formed:
 Spatial vectors are Featherstone's: motion [angular; linear], force [moment; force],
 in the coordinates of each body's reference frame, about its origin. S_i maps the joint
 velocities to the twist of body i relative to its parent body, in body-i coordinates;
-it is derived from :func:`workbench.joints.relative_twist` (the one joint dispatch), so
+it is derived from :func:`workbench.mechanics.joints.relative_twist` (the one joint dispatch), so
 every joint type of the model is handled. Applied forces: body wrenches of
-:func:`workbench.forces.body_wrenches` (gravity, springs, applied forces) are external
+:func:`workbench.mechanics.forces.body_wrenches` (gravity, springs, applied forces) are external
 spatial forces f^x_i; joint springs and forces are the joint forces tau_i. A driven
 (rheonomic) joint has its acceleration prescribed: S_i v_drive' is added to c_i and the
 joint has no unknown.
@@ -45,11 +45,11 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from workbench import forces as fm
-from workbench import joints as jk
 from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
 from workbench.formalism import ConstraintOptions, Formalism
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics import forces as fm
+from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Joint, Model
 from workbench.registry import formalism
 
@@ -214,8 +214,8 @@ class SpatialTree:
     ``links`` in parents-first order; ``velocities`` V_i (6,) and ``bias`` c_i (6,) of
     every link from the outward velocity pass; ``base_acceleration`` [0; -g] (6,): gravity
     as an upward acceleration of the ground, so ``f_ext`` holds only the other applied
-    wrenches (:func:`~workbench.forces.body_wrenches` without gravity, from the world poses
-    of ``kinematics.bodies``).
+    wrenches (:func:`~workbench.mechanics.forces.body_wrenches` without gravity, from the
+    world poses of ``kinematics.bodies``).
     """
 
     def __init__(self, model: Model, kinematics: TreeKinematics) -> None:
@@ -444,7 +444,7 @@ def inverse_dynamics(model: Model, q: Any, v: Any, a: Any, t: float = 0.0) -> np
     """tau (nv) = M(q) a + h(t, q, v) - Q(t, q, v) by recursive Newton-Euler.
 
     q (nq), v (nv), a (nv): free tree-joint coordinates, velocities and accelerations
-    (as :class:`~workbench.kinematics.TreeKinematics` orders them). tau: the joint forces
+    (as :class:`~workbench.mechanics.kinematics.TreeKinematics` orders them). tau: the joint forces
     to add to the model's applied forces so that v' = a.
     """
     k, tree = _numeric_tree(model)

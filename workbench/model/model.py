@@ -14,7 +14,7 @@ Joint convention: a joint connects a frame P fixed on the parent (``parent_frame
 the parent's body frame; the ground's frame is the inertial frame) and a frame C fixed on
 the child (``child_frame``, in the child's body frame). The joint's coordinates q give the
 pose of C relative to P; at the neutral q, C coincides with P. See
-:mod:`workbench.joints` for each type's coordinates and velocities.
+:mod:`workbench.mechanics.joints` for each type's coordinates and velocities.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equat
 from workbench.formalism import ConstraintOptions
 from workbench.initial import consistent_initial_state
 from workbench.integrator import Integrator
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.metrics import length_scale, pose_error
 from workbench.model import Model
 from workbench.registry import get_formalism

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from workbench.forces import is_conservative_model
 from workbench.initial import consistent_initial_state
+from workbench.mechanics.forces import is_conservative_model
 from workbench.metrics import length_scale, pose_error
 from workbench.problem import Problem
 from workbench.registry import get_formalism

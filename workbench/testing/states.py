@@ -21,7 +21,7 @@ import numpy as np
 from workbench.equations import Equations
 from workbench.errors import WorkbenchError
 from workbench.initial import InitialState, accelerations, project_joint_state
-from workbench.kinematics import TreeKinematics, initial_joint_values
+from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 
 QUATERNION_JOINTS = ("spherical", "free")
 

@@ -17,8 +17,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from workbench import joints as jk
 from workbench.errors import ModelError
+from workbench.mechanics import joints as jk
 from workbench.model import GROUND, Frame, Joint, KnifeEdge, Model, RollingDisk, RollingSphere
 
 

@@ -1,6 +1,6 @@
 """Force elements and energies from body poses and twists, formalism-neutral (book 4.6, 5.4).
 
-Formalisms pass symbolic :class:`~workbench.kinematics.BodyState` objects (pose and twist
+Formalisms pass symbolic :class:`~workbench.mechanics.kinematics.BodyState` objects (pose and twist
 of every body in their own coordinates); this module returns the applied wrenches, the
 generalized forces Q = sum J^T F (by the Jacobian of the twists with respect to the
 velocities) and the kinetic and potential energy, so every formalism sees the same forces
@@ -15,8 +15,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from workbench import joints as jk
-from workbench.kinematics import BodyState
+from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import BodyState
 from workbench.model import (
     GROUND,
     AppliedForce,

@@ -28,8 +28,8 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from workbench import joints as jk
 from workbench.errors import ModelError
+from workbench.mechanics import joints as jk
 from workbench.model import GROUND, Joint, KnifeEdge, Model, RollingDisk, RollingSphere
 from workbench.model.validation import validate_model
 
@@ -198,7 +198,7 @@ def _element_of(row_name: str) -> str:
 def _rank(
     model: Model, topology: Topology, q: np.ndarray | None, t: float, tolerance: float
 ) -> None:
-    from workbench.kinematics import TreeKinematics, initial_joint_values
+    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 
     kinematics = TreeKinematics(model)
     if q is None:

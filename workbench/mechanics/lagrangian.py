@@ -3,7 +3,7 @@
 Public plugin API (used by ``lagrange-ad`` and ``hamilton``): :func:`joint_space_lagrangian`
 gives the kinetic energy T(t, q, v), the potential energy V(t, q) and the
 non-conservative generalized forces Q_nc(t, q, v) as CasADi SX expressions in the symbols
-of a :class:`~workbench.kinematics.TreeKinematics`, from the same formalism-neutral
+of a :class:`~workbench.mechanics.kinematics.TreeKinematics`, from the same formalism-neutral
 kinematics and force elements every formalism uses. Q_nc is the workbench's generalized
 force minus its conservative part -dV/dq, so it is valid only where q' = v, i.e. without
 spherical or free joints (:func:`quaternion_joints`).
@@ -15,8 +15,8 @@ from typing import Any
 
 import casadi as ca
 
-from workbench.forces import generalized_forces, kinetic_energy, potential_energy
-from workbench.kinematics import TreeKinematics
+from workbench.mechanics.forces import generalized_forces, kinetic_energy, potential_energy
+from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import AppliedForce, JointForce, JointSpringDamper, Model, SpringDamper
 
 QUATERNION_JOINTS = ("spherical", "free")

@@ -1,0 +1,7 @@
+"""The mechanics layer: what a model's elements do, symbolically (book ch. 4, 9, 10.2, 11.1).
+
+``joints`` (one dispatch over every joint type), ``kinematics`` (the spanning tree in joint
+coordinates), ``forces`` (force elements and energies), ``lagrangian`` (L in joint
+coordinates for energy-based formalisms), ``topology`` (tree, loops and degrees of freedom).
+Generic over NumPy and CasADi; no formalism and no integrator appear here.
+"""
