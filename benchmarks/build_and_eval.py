@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.registry import list_plugins
 
 RESULTS = Path(__file__).parent / "results"

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.registry import get_formalism, list_plugins
 
 RESULTS = Path(__file__).parent / "results"

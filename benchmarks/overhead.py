@@ -5,7 +5,7 @@ and 200 states (so the arithmetic itself is negligible) it times, best of 5 auto
 :mod:`timeit` repeats:
 
 - ``buffer_us``: the bare ``Function.buffer()`` evaluation, arguments already in place;
-- ``into_us``: :meth:`FastFunction.into(t, y) <workbench.evaluate.FastFunction.into>`,
+- ``into_us``: :meth:`FastFunction.into(t, y) <workbench.equations.evaluate.FastFunction.into>`,
   what integrators call (copies t and y into the buffers, evaluates, counts the call);
 - ``call_us``: ``FastFunction(t, y)``, the same plus copies of the outputs;
 - ``casadi_call_us``: ``Function.__call__(t, y)`` (DM conversion in and out).
@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.peers import best_us
-from workbench.evaluate import FastFunction
+from workbench.equations.evaluate import FastFunction
 
 RESULTS = Path(__file__).parent / "results"
 

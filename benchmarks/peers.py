@@ -11,7 +11,7 @@ For every family and size N:
 
 Ours is the ``recursive`` formalism's ode right-hand side [q'; v'] (articulated bodies,
 :func:`plugins.formalisms.recursive.ode_function`) through a
-:class:`~workbench.evaluate.FastFunction`, in the CasADi VM (``vm``) and compiled to C
+:class:`~workbench.equations.evaluate.FastFunction`, in the CasADi VM (``vm``) and compiled to C
 (``jit``, ``-O1``); ``jit_raw`` is the compiled buffer call alone, without copying the
 arguments in (what the Python-side overhead adds is ``jit - jit_raw``). The peers are
 ``pinocchio.aba`` (a ``pin.Model`` built from ours) and ``mujoco.mj_forward`` (MJCF from
@@ -40,8 +40,8 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.peer_models import mujoco_model, pinocchio_model
-from workbench.compiled import Compiler
-from workbench.evaluate import FastFunction
+from workbench.equations.compiled import Compiler
+from workbench.equations.evaluate import FastFunction
 from workbench.model import Model
 from workbench.plugins.formalisms.recursive import ode_function
 from workbench.problems.scalable import BinaryTree

@@ -9,7 +9,7 @@ Compares the formalisms ``recursive`` (articulated bodies, O(n)) and ``minimal-o
 For each (chain, formalism, N) the ode right-hand side [q'; v'] is built exactly as
 :func:`workbench.equations.build_equations` builds it for an unconstrained model (only
 that function: the other forms' Jacobians would dominate the build time of large
-models), wrapped in a :class:`~workbench.evaluate.FastFunction`, and timed through
+models), wrapped in a :class:`~workbench.equations.evaluate.FastFunction`, and timed through
 ``.into`` with :mod:`timeit` (best of several repeats). minimal-ode is skipped at the
 sizes whose build time, extrapolated as N^3 (minimal-ode; N^1.5 for recursive) from
 the last size built,, exceeds
@@ -33,7 +33,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from workbench.evaluate import FastFunction
+from workbench.equations.evaluate import FastFunction
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Frame, Model
 from workbench.plugins.formalisms import recursive as rec

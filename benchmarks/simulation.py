@@ -34,7 +34,7 @@ import pandas as pd
 from scipy.integrate import solve_ivp
 
 from benchmarks.peer_models import pinocchio_model
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.registry import get_formalism, get_integrator, get_problem
 
 RESULTS = Path(__file__).parent / "results"

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
 from workbench.plugins.formalisms.minimal_ode import MinimalOde

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench import compiled
-from workbench.initial import consistent_initial_state
+from workbench.equations import compiled
+from workbench.equations.initial import consistent_initial_state
 from workbench.registry import get_formalism, get_problem
 from workbench.runs import RunSpec, clear_cache, execute_run
 

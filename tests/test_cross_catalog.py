@@ -7,7 +7,7 @@ accelerations and kinematics (:func:`workbench.testing.check_formalism`, check g
 import numpy as np
 import pytest
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.registry import get_formalism, list_plugins
 from workbench.testing import check_formalism
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from workbench.equations.evaluate import dense_function
+from workbench.equations.initial import consistent_initial_state
 from workbench.errors import IntegrationError
-from workbench.evaluate import dense_function
-from workbench.initial import consistent_initial_state
 from workbench.model import Frame, Model
 from workbench.problem import Problem
 from workbench.registry import get_formalism, get_problem

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import scipy.special
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.model import AppliedForce, Frame, JointSpringDamper, Model
 from workbench.problem import Problem
 from workbench.registry import get_formalism, get_integrator, list_plugins

@@ -6,8 +6,8 @@ import pytest
 import scipy.integrate
 
 from workbench import store
+from workbench.equations.initial import consistent_initial_state
 from workbench.errors import PluginError
-from workbench.initial import consistent_initial_state
 from workbench.model import JointSpringDamper, Model
 from workbench.registry import get_formalism, get_problem
 from workbench.sweep import parse_spec, run_sweep

@@ -4,7 +4,7 @@ loop describe the same motion, and the state-space form stays on the constraint 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.registry import get_formalism, get_problem
 
 

@@ -17,8 +17,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from workbench.equations import MechanicalSystem, build_equations
+from workbench.equations.initial import accelerations, consistent_initial_state
 from workbench.errors import PluginError
-from workbench.initial import accelerations, consistent_initial_state
 from workbench.mechanics.forces import generalized_forces, potential_energy
 from workbench.mechanics.kinematics import BodyState
 from workbench.model import AppliedForce, Frame, Model

@@ -9,8 +9,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
+from workbench.equations.initial import project_joint_state
 from workbench.errors import ConfigError
-from workbench.initial import project_joint_state
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import KnifeEdge, Model, RollingDisk, RollingSphere
 from workbench.registry import get_formalism

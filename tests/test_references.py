@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 from typer.testing import CliRunner
 
 from workbench import cli
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.metrics import computed_reference, length_scale, pose_error
 from workbench.references import (
     AGREEMENT_THRESHOLD,

@@ -207,7 +207,7 @@ def test_initial_state_is_computed_once_per_cached_equations() -> None:
     for every integrator and tolerance, equal to a fresh computation, and consistent
     (closure residual of the four-bar ~ 0); other equations get their own."""
     from workbench import runs
-    from workbench.initial import consistent_initial_state
+    from workbench.equations.initial import consistent_initial_state
     from workbench.registry import get_problem
 
     runs.clear_cache()

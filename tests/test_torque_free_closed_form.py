@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.metrics import rotation_angle
 from workbench.numerics.rotations import quaternion_to_matrix
 from workbench.problems.ch4_gyros import (

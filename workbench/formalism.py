@@ -56,7 +56,7 @@ def model_features(model: Model) -> set[str]:
 class CompileOptions:
     """Options of every formalism: how its equations are evaluated in hot loops,
     ``compile`` = "none" (CasADi virtual machine) or "jit" (C compiled with the machine's
-    compiler and ``compile_flags``, cached on disk; see :mod:`workbench.compiled`)."""
+    compiler and ``compile_flags``, cached on disk; see :mod:`workbench.equations.compiled`)."""
 
     compile: Literal["none", "jit"] = "none"
     compile_flags: str = "-O1"

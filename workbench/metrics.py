@@ -215,7 +215,7 @@ def computed_reference(
                 pass
         formalism_class = registry.get_formalism(formalism_name)
         equations = formalism_class().build(model, formalism_options)
-        from workbench.initial import consistent_initial_state
+        from workbench.equations.initial import consistent_initial_state
 
         state = consistent_initial_state(equations, problem)
         method = "DOP853" if tree else "Radau"

@@ -150,7 +150,7 @@ def solve_poses(
 ) -> tuple[np.ndarray, list[str], dict[str, Any]]:
     """Body poses (n_times, n_bodies, 7) of ``problem`` along ``pipeline``, body names, cost."""
     from workbench import registry
-    from workbench.initial import consistent_initial_state
+    from workbench.equations.initial import consistent_initial_state
 
     model = problem.model()
     formalism_class = registry.get_formalism(pipeline.formalism)

@@ -13,7 +13,7 @@ a column (MuJoCo-style pipeline stages):
    call of each function, usually in the integrate stage) are taken out of the stage
    they fall in and reported as ``compile_s``; why something was not compiled (no C
    compiler) is added to ``message``;
-2. **initial state** — :func:`~workbench.initial.consistent_initial_state` (``init_s``),
+2. **initial state** — :func:`~workbench.equations.initial.consistent_initial_state` (``init_s``),
    kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
    first run of a (problem, formalism) in a worker and about 0 for the others;
 3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
@@ -44,8 +44,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench import compiled, registry
 from workbench import metrics as metrics_module
+from workbench import registry
+from workbench.equations import compiled
 from workbench.errors import ConfigError
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
@@ -185,7 +186,7 @@ def cached_equations(spec: RunSpec, model: Any) -> tuple[Any, bool]:
 def cached_initial_state(spec: RunSpec, equations: Any, problem: Any) -> Any:
     """The consistent initial state of ``problem`` in ``equations``' coordinates, computed
     once per cache entry (Newton iterations are not the integrator's cost)."""
-    from workbench.initial import consistent_initial_state
+    from workbench.equations.initial import consistent_initial_state
 
     entry = _EQUATIONS.get(equations_key(spec))
     if entry is None or entry.equations is not equations:

@@ -585,7 +585,12 @@ def _take_next(queue: deque[Keyed], own: tuple[str, ...] | None, others: set) ->
 
 # imported in the parent before forking workers (so a worker starts in milliseconds
 # instead of importing CasADi, SciPy, SUNDIALS, pandas and the plugins: ~2 s a worker)
-WORKER_MODULES = ("workbench.runs", "workbench.metrics", "workbench.initial", "workbench.store")
+WORKER_MODULES = (
+    "workbench.runs",
+    "workbench.metrics",
+    "workbench.equations.initial",
+    "workbench.store",
+)
 # modules that start threads of their own: a parent that loaded one forks no workers
 FORK_UNSAFE_MODULES = ("rerun", "distributed", "torch")
 

@@ -51,8 +51,8 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
+from workbench.equations.compiled import Compiler
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.mechanics import forces as fm

@@ -27,13 +27,13 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from workbench.compiled import Compiler
 from workbench.equations import (
     Equations,
     MechanicalSystem,
     build_equations,
     build_joint_space_equations,
 )
+from workbench.equations.compiled import Compiler
 from workbench.errors import ModelError
 from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.mechanics import forces as fm

@@ -36,8 +36,8 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from workbench.compiled import Compiler
 from workbench.equations import Equations, MechanicalSystem, build_equations
+from workbench.equations.compiled import Compiler
 from workbench.errors import ConfigError, ModelError
 from workbench.formalism import CompileOptions, Formalism
 from workbench.mechanics import forces as fm

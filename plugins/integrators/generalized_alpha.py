@@ -59,8 +59,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
+from workbench.equations.initial import accelerations
 from workbench.errors import ConfigError, IntegrationError
-from workbench.initial import accelerations
 from workbench.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.registry import integrator
 

@@ -21,8 +21,8 @@ import casadi as ca
 import numpy as np
 
 from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equations
+from workbench.equations.initial import consistent_initial_state
 from workbench.formalism import ConstraintOptions
-from workbench.initial import consistent_initial_state
 from workbench.integrator import Integrator
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.metrics import length_scale, pose_error

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from workbench.initial import consistent_initial_state
+from workbench.equations.initial import consistent_initial_state
 from workbench.mechanics.forces import is_conservative_model
 from workbench.metrics import length_scale, pose_error
 from workbench.problem import Problem

@@ -19,8 +19,8 @@ import casadi as ca
 import numpy as np
 
 from workbench.equations import Equations
+from workbench.equations.initial import InitialState, accelerations, project_joint_state
 from workbench.errors import WorkbenchError
-from workbench.initial import InitialState, accelerations, project_joint_state
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 
 QUATERNION_JOINTS = ("spherical", "free")

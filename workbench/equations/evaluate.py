@@ -4,7 +4,7 @@
 of a small mechanism. :class:`FastFunction` binds preallocated NumPy arrays to a
 ``Function.buffer()`` once and evaluates into them. Outputs are dense (the builder must
 ``densify`` them: buffers hold only structural nonzeros). With an active
-:class:`~workbench.compiled.Compiler` the Function is compiled to C at its first call
+:class:`~workbench.equations.compiled.Compiler` the Function is compiled to C at its first call
 and the same arrays are bound to the compiled function's buffer.
 """
 
@@ -15,7 +15,7 @@ from collections.abc import Callable
 import casadi as ca
 import numpy as np
 
-from workbench.compiled import Compiler
+from workbench.equations.compiled import Compiler
 
 
 class FastFunction:

@@ -1,0 +1,46 @@
+"""The equations layer: from a formalism's symbolic system to numbers an integrator uses.
+
+``contract`` (what a formalism returns: forms and observables), ``forms`` (the mechanical,
+dae and ode forms derived once, for every formalism), ``observables`` (poses, energies and
+residuals measured the same way for all), ``evaluate`` (CasADi functions through
+preallocated buffers), ``compiled`` (the same functions as C), ``initial`` (a consistent
+initial state). Import the contract from here: ``from workbench.equations import Equations``.
+"""
+
+from workbench.equations.contract import (
+    FORMS,
+    DaeForm,
+    Equations,
+    MechanicalForm,
+    MechanicalSystem,
+    OdeForm,
+)
+from workbench.equations.forms import (
+    SYMBOLIC_SOLVE_LIMIT,
+    build_equations,
+    build_joint_space_equations,
+    constraint_acceleration_rhs,
+)
+from workbench.equations.observables import (
+    Observables,
+    SampledObservables,
+    build_observables,
+    joint_residuals,
+)
+
+__all__ = [
+    "FORMS",
+    "SYMBOLIC_SOLVE_LIMIT",
+    "DaeForm",
+    "Equations",
+    "MechanicalForm",
+    "MechanicalSystem",
+    "Observables",
+    "OdeForm",
+    "SampledObservables",
+    "build_equations",
+    "build_joint_space_equations",
+    "build_observables",
+    "constraint_acceleration_rhs",
+    "joint_residuals",
+]

@@ -1,0 +1,167 @@
+"""The equations contract: what a formalism returns for one model (DESIGN.md).
+
+A formalism describes its equations symbolically as a :class:`MechanicalSystem` (CasADi
+SX or MX expressions in its own t, q, v) and hands it to
+:func:`workbench.equations.forms.build_equations`, which derives the forms below. An
+integrator consumes one form:
+
+* ``mechanical``: M(q) v' = Q(t, q, v) - W^T lambda, g(t, q) = 0, W v + w = 0
+  (holonomic rows then nonholonomic rows), q' = H(q) v;
+* ``dae``: 0 = F(t, y, y') at index 3, 2 (GGL), 1 (Baumgarte) or 0 (implicit ODE);
+* ``ode``: y' = f(t, y) with df/dy.
+
+State vectors are ordered [q, v, (lambda), (mu)]; their names are ``Equations.y_names``.
+Every numeric function is a :class:`~workbench.equations.evaluate.FastFunction`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from workbench.equations.evaluate import FastFunction
+from workbench.equations.observables import Observables
+from workbench.errors import PluginError
+from workbench.model import Model
+
+FORMS = ("ode", "dae", "mechanical")
+
+
+@dataclass
+class MechanicalSystem:
+    """Symbolic equations of motion in a formalism's coordinates.
+
+    t (1), q (nq), v (nv): symbols (all SX or all MX). qdot (nq): q' = H(q) v.
+    mass (nv, nv), forces (nv): M and Q (applied minus gyroscopic/centrifugal terms).
+    position_constraints (m): holonomic g(t, q). velocity_constraints (m + k): W v + w,
+    linear in v, its first m rows the time derivative of g. ``acceleration``: an explicit
+    v' when the formalism computes it without forming M (recursive); optional.
+    """
+
+    t: Any
+    q: Any
+    v: Any
+    qdot: Any
+    mass: Any
+    forces: Any
+    q_names: list[str]
+    v_names: list[str]
+    position_constraints: Any = None
+    velocity_constraints: Any = None
+    constraint_names: list[str] = field(default_factory=list)
+    acceleration: Any = None
+
+    def __post_init__(self) -> None:
+        zero = self.q[0:0]  # empty expression of the right type
+        if self.position_constraints is None:
+            self.position_constraints = zero
+        if self.velocity_constraints is None:
+            self.velocity_constraints = zero
+
+    @property
+    def n_holonomic(self) -> int:
+        return int(self.position_constraints.numel())
+
+    @property
+    def n_constraints(self) -> int:
+        return int(self.velocity_constraints.numel())
+
+
+@dataclass
+class OdeForm:
+    """y' = rhs(t, y); jacobian(t, y) = df/dy. y = [q, v]."""
+
+    rhs: FastFunction
+    jacobian: FastFunction
+    n: int
+
+
+@dataclass
+class DaeForm:
+    """0 = residual(t, y, y'); jacobian(t, y, y', c) = dF/dy + c dF/dy'.
+
+    ``algebraic``: True for components whose derivative does not appear (lambda, mu).
+    ``index``: differentiation index of the formulation (0 = implicit ODE).
+    """
+
+    residual: FastFunction
+    jacobian: FastFunction
+    algebraic: np.ndarray
+    index: int
+    n: int
+
+
+@dataclass
+class MechanicalForm:
+    """Numeric pieces of M v' = Q - W^T lambda, g = 0, W v + w = 0, q' = H v.
+
+    mass(t, q) -> M; forces(t, q, v) -> Q; qdot(t, q, v) -> H v; kinematics(t, q) -> H;
+    position_constraints(t, q) -> g; position_jacobian(t, q) -> dg/dq (m, nq);
+    velocity_matrix(t, q) -> W; velocity_constraints(t, q, v) -> W v + w;
+    acceleration_rhs(t, q, v) -> gamma with W v' = gamma;
+    dynamics(t, q, v, a, lam) -> (r = M a - Q + W^T lam, dr/dq (nv, nq), dr/dv, M, W^T).
+    """
+
+    mass: FastFunction
+    forces: FastFunction
+    qdot: FastFunction
+    kinematics: FastFunction
+    position_constraints: FastFunction
+    position_jacobian: FastFunction
+    velocity_matrix: FastFunction
+    velocity_constraints: FastFunction
+    acceleration_rhs: FastFunction
+    dynamics: FastFunction
+    n_holonomic: int
+    n_constraints: int
+
+
+@dataclass
+class Equations:
+    """What a formalism built for one model. ``forms`` maps form name -> form object."""
+
+    formalism: str
+    model: Model
+    q_names: list[str]
+    v_names: list[str]
+    constraint_names: list[str]
+    n_holonomic: int
+    forms: dict[str, Any]
+    observables: Observables
+    joint_space_map: FastFunction  # (t, q_joint, v_joint) -> (q, v) in these coordinates
+    notes: list[str] = field(default_factory=list)
+    stiffness_hint: str = ""
+    compile_warnings: list[str] = field(default_factory=list)  # see workbench.equations.compiled
+
+    @property
+    def nq(self) -> int:
+        return len(self.q_names)
+
+    @property
+    def nv(self) -> int:
+        return len(self.v_names)
+
+    @property
+    def n_constraints(self) -> int:
+        return len(self.constraint_names)
+
+    def form(self, name: str) -> Any:
+        if name not in self.forms:
+            raise PluginError(
+                f"formalism {self.formalism!r} did not provide the {name!r} form "
+                f"(it provides {', '.join(self.forms) or 'none'})"
+            )
+        return self.forms[name]
+
+    def y_names(self, form: str) -> list[str]:
+        """Names of the state components of ``form`` ("ode" or "dae")."""
+        names = list(self.q_names) + list(self.v_names)
+        if form == "dae":
+            dae = self.forms["dae"]
+            extra = dae.n - len(names)
+            lam = [f"lambda:{n}" for n in self.constraint_names][:extra]
+            mu = [f"mu:{n}" for n in self.constraint_names[: self.n_holonomic]]
+            names += (lam + mu)[:extra]
+        return names

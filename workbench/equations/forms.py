@@ -1,0 +1,303 @@
+"""Deriving every form of the equations from a formalism's :class:`MechanicalSystem`.
+
+A formalism describes its equations symbolically as a :class:`MechanicalSystem`
+(CasADi SX or MX expressions in its own t, q, v) together with the pose and twist of
+every body, and calls :func:`build_equations`. The shared code here then derives
+
+* the ``mechanical`` form M(q) v' = Q(t, q, v) - W^T lambda, g(t, q) = 0,
+  W v + w = 0 (holonomic rows then nonholonomic rows), q' = H(q) v;
+* the ``dae`` form 0 = F(t, y, y') at the requested index: 3 (positions), 2 (stabilized
+  Gear-Gupta-Leimkuhler), 1 (accelerations with Baumgarte stabilization) or 0 (no
+  constraints: implicit ODE);
+* the ``ode`` form y' = f(t, y) with df/dy, when there are no constraints or at index 1
+  (the augmented system [M W^T; W 0] solved inside f);
+* formalism-neutral observables: body poses and twists, kinetic and potential energy,
+  and residuals of every joint constraint evaluated on the body poses (so drift is
+  measured the same way for all formalisms).
+
+State vectors are ordered [q, v, (lambda), (mu)]; their names are ``Equations.y_names``.
+Every numeric function is a :class:`~workbench.equations.evaluate.FastFunction`;
+Jacobians are :class:`~workbench.equations.evaluate.LazyFunction`s, built on first use.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from workbench.equations.compiled import Compiler
+from workbench.equations.contract import (
+    DaeForm,
+    Equations,
+    MechanicalForm,
+    MechanicalSystem,
+    OdeForm,
+)
+from workbench.equations.evaluate import FastFunction, dense_function, lazy_dense_function
+from workbench.equations.observables import build_observables
+from workbench.mechanics.kinematics import BodyState
+from workbench.model import Model
+
+# ---- building -------------------------------------------------------------------------
+
+
+def _sym_like(x: Any, name: str, n: int) -> Any:
+    return (ca.MX if isinstance(x, ca.MX) else ca.SX).sym(name, n)
+
+
+def constraint_acceleration_rhs(system: MechanicalSystem) -> Any:
+    """gamma(t, q, v) with W v' = gamma: minus the derivative of W v + w at fixed v'."""
+    c = system.velocity_constraints
+    return -(ca.mtimes(ca.jacobian(c, system.q), system.qdot) + ca.jacobian(c, system.t))
+
+
+SYMBOLIC_SOLVE_LIMIT = 8
+"""Linear systems larger than this are solved numerically inside an MX graph (M alone:
+CasADi's sparse LDL^T, which compiles to C; with constraints: LAPACK LU of [M W^T; W 0]);
+smaller ones symbolically (M: LDL^T, a third of the instructions of the QR used for the
+indefinite [M W^T; W 0]). A symbolic factorization grows as n^3 instructions, so building
+takes seconds at 6 spatial bodies. The crossover was not re-measured for LDL^T.
+Measured with benchmarks/build_and_eval.py; see the README's Performance section."""
+
+
+def _augmented_acceleration(
+    system: MechanicalSystem, gamma: Any
+) -> tuple[Any, Any, Any, Callable[[], Any] | None]:
+    """(v', lambda, y symbols, Jacobian builder) solving [M W^T; W 0] [v'; lambda] = [Q; gamma].
+
+    Returns v' and lambda as expressions in symbols t, q, v that may be fresh MX symbols
+    (returned as a triple) when the system is too large for a symbolic solve. Then the
+    builder gives dv'/d[q; v] by the implicit function theorem: with K s = b,
+    ds/dy = -K^-1 d(K s - b)/dy at fixed s, one Jacobian of the nv + nc residuals and a
+    second solve with the same K. CasADi's own derivative of the solve differentiates
+    every entry of K: for the binary tree in absolute coordinates (77 unknowns, 91
+    states) that took 270 MB and 1.2 s to build. None: ``casadi.jacobian`` will do.
+    """
+    t, q, v = system.t, system.q, system.v
+    nv, nc = v.numel(), system.n_constraints
+    if nc == 0 and system.acceleration is not None:
+        return system.acceleration, q[0:0], (t, q, v), None
+    w_matrix = ca.jacobian(system.velocity_constraints, v)
+    zeros = (ca.MX if isinstance(q, ca.MX) else ca.SX).zeros(nc, nc)
+    kkt = ca.vertcat(ca.horzcat(system.mass, w_matrix.T), ca.horzcat(w_matrix, zeros))
+    rhs = ca.vertcat(system.forces, gamma) if nc else system.forces
+    symbols = (t, q, v)
+    jacobian = None
+    if nv + nc > SYMBOLIC_SOLVE_LIMIT or isinstance(q, ca.MX):
+        # M alone is symmetric positive definite: CasADi's sparse LDL^T, which (unlike
+        # LAPACK's LU) can be compiled to C (compile=jit)
+        method = "ldl" if nc == 0 else "lapacklu"
+        if isinstance(q, ca.SX):
+            s = ca.SX.sym("s", nv + nc)
+            residual = ca.mtimes(kkt, s) - rhs
+            residual_jacobian = ca.Function(
+                "kkt_residual_jacobian", [t, q, v, s], [ca.jacobian(residual, ca.vertcat(q, v))]
+            )
+            symbols = (ca.MX.sym("t"), ca.MX.sym("q", q.numel()), ca.MX.sym("v", nv))
+            kkt, rhs = ca.Function("kkt", [t, q, v], [kkt, rhs])(*symbols)
+            solution = ca.solve(kkt, rhs, method)
+
+            def jacobian() -> Any:
+                d_residual = residual_jacobian(*symbols, solution)
+                return -ca.solve(kkt, d_residual, method)[:nv, :]
+
+        else:
+            solution = ca.solve(kkt, rhs, method)
+    elif nc == 0:  # symbolic LDL^T of M: a third of the instructions of a symbolic QR
+        d, lt, p = ca.ldl(kkt)
+        solution = ca.ldl_solve(rhs, d, lt, p)
+    else:
+        solution = ca.solve(kkt, rhs)  # symbolic QR of the indefinite [M W^T; W 0]
+    return solution[:nv], solution[nv:], symbols, jacobian
+
+
+def build_equations(
+    formalism: str,
+    model: Model,
+    system: MechanicalSystem,
+    bodies: dict[str, BodyState],
+    joint_space_map: tuple[list[Any], list[Any]],
+    dae_index: int = 3,
+    baumgarte: tuple[float, float] = (0.0, 0.0),
+    ode: bool = True,
+    joint_coordinates: dict[str, Any] | None = None,
+    notes: list[str] | None = None,
+    compiler: Compiler | None = None,
+) -> Equations:
+    """Derive all forms and observables from a formalism's symbolic description.
+
+    ``bodies``: symbolic pose and twist of every model body in (t, q, v).
+    ``joint_space_map``: ([t, q_joint, v_joint] symbols, [q, v] expressions) mapping the
+    free tree-joint coordinates (see :class:`~workbench.mechanics.kinematics.TreeKinematics`) to
+    this formalism's q and v. ``dae_index``: 3, 2 or 1 for the dae form (0 is used
+    automatically when there are no constraints). ``baumgarte``: (alpha, beta) for index 1
+    and for the ode form of a constrained system. ``ode``: offer the ode form (for a
+    constrained system it is the index-1 system, which drifts without stabilization).
+    ``joint_coordinates``: q of each joint with a spring (for the potential energy);
+    recovered from the poses when not given. ``compiler``: how the functions of the forms
+    (evaluated in integrators' hot loops) run; observables stay in the CasADi VM.
+    """
+    compiler = compiler if compiler is not None else Compiler()
+
+    def hot(name: str, inputs: list, outputs: list) -> FastFunction:
+        return dense_function(name, inputs, outputs, compiler=compiler)
+
+    def lazy_hot(name: str, inputs: list, outputs: Any) -> Any:
+        return lazy_dense_function(name, inputs, outputs, compiler=compiler)
+
+    t, q, v = system.t, system.q, system.v
+    nq, nv, nc, m = q.numel(), v.numel(), system.n_constraints, system.n_holonomic
+    c = system.velocity_constraints
+    g = system.position_constraints
+    gamma = constraint_acceleration_rhs(system) if nc else q[0:0]
+    alpha, beta = baumgarte
+    stabilized = gamma
+    if nc and (alpha or beta):
+        position_term = ca.vertcat(g, ca.DM.zeros(nc - m)) if nc > m else g
+        stabilized = gamma - 2 * alpha * c - beta**2 * position_term
+    forms: dict[str, Any] = {}
+
+    # mechanical form; H and W do not depend on v, but MX Jacobians of call nodes keep v
+    # as a structural input: substitute it away so they are functions of (t, q)
+    zero_v = ca.DM.zeros(nv)
+    w_matrix = ca.substitute(ca.jacobian(c, v), v, zero_v) if nc else ca.DM.zeros(0, nv)
+    h_matrix = ca.substitute(ca.jacobian(system.qdot, v), v, zero_v)
+    a = _sym_like(q, "a", nv)
+    lam = _sym_like(q, "lam", nc)
+    dyn = ca.mtimes(system.mass, a) - system.forces
+    if nc:
+        dyn = dyn + ca.mtimes(w_matrix.T, lam)
+    forms["mechanical"] = MechanicalForm(
+        mass=hot("mass", [t, q], [system.mass]),
+        forces=hot("forces", [t, q, v], [system.forces]),
+        qdot=hot("qdot", [t, q, v], [system.qdot]),
+        kinematics=hot("kinematics", [t, q], [h_matrix]),
+        position_constraints=hot("g", [t, q], [g]),
+        position_jacobian=hot("g_q", [t, q], [ca.jacobian(g, q)]),
+        velocity_matrix=hot("W", [t, q], [w_matrix]),
+        velocity_constraints=hot("c", [t, q, v], [c]),
+        acceleration_rhs=hot("gamma", [t, q, v], [gamma]),
+        dynamics=lazy_hot(
+            "dynamics",
+            [t, q, v, a, lam],
+            lambda: [dyn, ca.jacobian(dyn, q), ca.jacobian(dyn, v), system.mass, w_matrix.T],
+        ),
+        n_holonomic=m,
+        n_constraints=nc,
+    )
+
+    # ode form: [q' ; v'] with v' from the (augmented) system
+    if ode or nc == 0:
+        accel, _, (t_o, q_o, v_o), accel_jacobian = _augmented_acceleration(system, stabilized)
+        qdot = system.qdot
+        if q_o is not q:
+            qdot = ca.Function("qdot", [t, q, v], [qdot])(t_o, q_o, v_o)
+        y = ca.vertcat(q_o, v_o)
+        f = ca.vertcat(qdot, accel)
+
+        def ode_jacobian() -> list:
+            if accel_jacobian is None:
+                return [ca.jacobian(f, y)]
+            return [ca.vertcat(ca.jacobian(qdot, y), accel_jacobian())]
+
+        forms["ode"] = OdeForm(
+            rhs=hot("ode_rhs", [t_o, y], [f]),
+            jacobian=lazy_hot("ode_jac", [t_o, y], ode_jacobian),
+            n=nq + nv,
+        )
+
+    # dae form
+    index = dae_index if nc else 0
+    qp, vp = _sym_like(q, "qp", nq), _sym_like(q, "vp", nv)
+    kinematic = qp - system.qdot
+    dynamic = ca.mtimes(system.mass, vp) - system.forces
+    if nc:
+        dynamic = dynamic + ca.mtimes(w_matrix.T, lam)
+    parts, y_parts, yp_parts, algebraic = (
+        [kinematic, dynamic],
+        [q, v],
+        [qp, vp],
+        [False] * (nq + nv),
+    )
+    if index == 3:
+        nonholonomic = c[m:] if nc > m else q[0:0]
+        parts += [g, nonholonomic]
+        y_parts.append(lam)
+        yp_parts.append(_sym_like(q, "lamp", nc))
+        algebraic += [True] * nc
+    elif index == 2:
+        mu = _sym_like(q, "mu", m)
+        parts[0] = kinematic + ca.mtimes(ca.jacobian(g, q).T, mu)
+        parts += [c, g]
+        y_parts += [lam, mu]
+        yp_parts += [_sym_like(q, "lamp", nc), _sym_like(q, "mup", m)]
+        algebraic += [True] * (nc + m)
+    elif index == 1:
+        parts.append(ca.mtimes(w_matrix, vp) - stabilized)
+        y_parts.append(lam)
+        yp_parts.append(_sym_like(q, "lamp", nc))
+        algebraic += [True] * nc
+    elif index != 0:
+        raise ValueError(f"dae index must be 0, 1, 2 or 3, not {index}")
+    residual = ca.vertcat(*parts)
+    y_all, yp_all = ca.vertcat(*y_parts), ca.vertcat(*yp_parts)
+    coefficient = _sym_like(q, "c", 1)
+
+    def dae_jacobian() -> list:
+        return [ca.jacobian(residual, y_all) + coefficient * ca.jacobian(residual, yp_all)]
+
+    forms["dae"] = DaeForm(
+        residual=hot("dae_residual", [t, y_all, yp_all], [residual]),
+        jacobian=lazy_hot("dae_jacobian", [t, y_all, yp_all, coefficient], dae_jacobian),
+        algebraic=np.array(algebraic, dtype=bool),
+        index=index,
+        n=int(y_all.numel()),
+    )
+
+    observables = build_observables(model, t, q, v, system.qdot, bodies, joint_coordinates)
+    constraint_names = list(system.constraint_names) or [f"c[{i}]" for i in range(nc)]
+    map_inputs, map_outputs = joint_space_map
+    return Equations(
+        formalism=formalism,
+        model=model,
+        q_names=list(system.q_names),
+        v_names=list(system.v_names),
+        constraint_names=constraint_names,
+        n_holonomic=m,
+        forms=forms,
+        observables=observables,
+        joint_space_map=dense_function("joint_space_map", map_inputs, map_outputs),
+        notes=list(notes or []),
+        compile_warnings=compiler.warnings,
+    )
+
+
+def build_joint_space_equations(
+    formalism: str,
+    model: Model,
+    kinematics: Any,
+    system: MechanicalSystem,
+    options: Any,
+    ode: bool,
+    notes: list[str] | None = None,
+) -> Equations:
+    """:func:`build_equations` for formalisms whose coordinates are the tree's free joint
+    coordinates (``kinematics`` a TreeKinematics): the joint-space map is the identity.
+    ``options`` carries ``index``, ``baumgarte_alpha`` and ``baumgarte_beta``."""
+    k = kinematics
+    return build_equations(
+        formalism,
+        model,
+        system,
+        k.bodies,
+        ([k.t, k.q, k.v], [k.q, k.v]),
+        dae_index=options.index,
+        baumgarte=(options.baumgarte_alpha, options.baumgarte_beta),
+        ode=ode,
+        joint_coordinates={j.name: k.joint_coordinates(j)[0] for j in model.tree_joints},
+        notes=notes,
+        compiler=Compiler.from_options(options),
+    )

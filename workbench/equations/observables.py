@@ -1,0 +1,187 @@
+"""Formalism-neutral observables of a state: body poses and twists, energies, residuals.
+
+Metrics, the Rerun recording and the conformance suite measure every formalism on these,
+so drift and error mean the same thing whatever coordinates a formalism chose: every
+joint's implicit constraint is evaluated on the body poses, not on the formalism's own
+constraint rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from workbench.equations.evaluate import FastFunction, dense_function
+from workbench.mechanics import forces as fm
+from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import BodyState, contact_rows
+from workbench.model import GROUND, Model
+
+
+@dataclass
+class Observables:
+    """Formalism-neutral quantities of a state (t, q, v).
+
+    frames(t, q) -> (3, n_bodies) positions and (3, 3 n_bodies) rotations;
+    twists(t, q, v) -> (6, n_bodies) [velocity of frame origin; angular velocity];
+    energy(t, q, v) -> (2,) [T, V];
+    residuals(t, q, v) -> position, velocity and nonholonomic residual vectors.
+    :meth:`along` gives them all at many states in one call each.
+    """
+
+    frames: FastFunction
+    twists: FastFunction
+    energy: FastFunction
+    residuals: FastFunction
+    body_names: list[str]
+    _mapped: dict = field(default_factory=dict, repr=False)  # (name, n) -> Function.map(n)
+
+    def poses(self, t: float, q: np.ndarray) -> np.ndarray:
+        """(n_bodies, 7): position and unit quaternion (scalar first) of every body."""
+        positions, rotations = self.frames(t, q)
+        return _poses(positions[None], rotations[None], len(self.body_names))[0]
+
+    def poses_along(self, times: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(n, n_bodies, 7) poses at n configurations in one mapped call (see :meth:`along`)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        if times.size == 0:
+            return np.zeros((0, len(self.body_names), 7))
+        positions, rotations = self._map("frames", times.size, times[None], np.atleast_2d(q).T)
+        return _poses(positions, rotations, len(self.body_names))
+
+    def along(self, times: np.ndarray, q: np.ndarray, v: np.ndarray) -> SampledObservables:
+        """Every quantity at n states: ``times`` (n,), ``q`` (n, nq), ``v`` (n, nv).
+
+        One evaluation of each function mapped over the n states (``Function.map``):
+        metrics of a run with 500 output times called the functions 2,000 times one state
+        at a time, which cost more than many integrations.
+        """
+        times = np.asarray(times, dtype=float).reshape(-1)
+        n = times.size
+        q, v = np.atleast_2d(q), np.atleast_2d(v)
+        if n == 0:
+            return SampledObservables.empty(len(self.body_names))
+        row = times.reshape(1, n)
+        positions, rotations = self._map("frames", n, row, q.T)
+        (twists,) = self._map("twists", n, row, q.T, v.T)
+        (energy,) = self._map("energy", n, row, q.T, v.T)
+        residuals = self._map("residuals", n, row, q.T, v.T)
+        n_bodies = len(self.body_names)
+        return SampledObservables(
+            poses=_poses(positions, rotations, n_bodies),
+            twists=twists.reshape(n, 6, -1).transpose(0, 2, 1),  # as reshape(6, -1).T
+            energy=energy.reshape(n, -1)[:, :2],
+            residuals=[r.reshape(n, -1) for r in residuals],
+        )
+
+    def _map(self, name: str, n: int, *args: np.ndarray) -> list[np.ndarray]:
+        """Outputs of observable ``name`` at n states, each stacked as (n, rows, cols)."""
+        function = getattr(self, name).function
+        key = (name, n)
+        if key not in self._mapped:
+            self._mapped[key] = function.map(n)
+        outputs = self._mapped[key].call(list(args))
+        stacked = []
+        for i, value in enumerate(outputs):
+            rows, cols = function.sparsity_out(i).shape
+            stacked.append(np.asarray(value).reshape(rows, n, cols).transpose(1, 0, 2))
+        return stacked
+
+
+@dataclass
+class SampledObservables:
+    """Observables at n states: ``poses`` (n, n_bodies, 7) [position, Euler parameters];
+    ``twists`` (n, n_bodies, 6) [velocity of the frame origin, angular velocity];
+    ``energy`` (n, 2) [T, V]; ``residuals``: position, velocity and nonholonomic
+    residuals, each (n, rows)."""
+
+    poses: np.ndarray
+    twists: np.ndarray
+    energy: np.ndarray
+    residuals: list[np.ndarray]
+
+    @classmethod
+    def empty(cls, n_bodies: int) -> SampledObservables:
+        return cls(np.zeros((0, n_bodies, 7)), np.zeros((0, n_bodies, 6)), np.zeros((0, 2)), [])
+
+
+def _poses(positions: np.ndarray, rotations: np.ndarray, n_bodies: int) -> np.ndarray:
+    """(m, n_bodies, 7) poses from m stacked frames outputs: positions (m, 3, n_bodies) and
+    rotations (m, 3, 3 n_bodies); quaternions scalar first with p0 >= 0."""
+    m = positions.shape[0]
+    matrices = rotations.reshape(m, 3, n_bodies, 3).transpose(0, 2, 1, 3)  # (m, nb, 3, 3)
+    quats = Rotation.from_matrix(matrices.reshape(-1, 3, 3)).as_quat()[:, [3, 0, 1, 2]]
+    quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
+    origins = positions.reshape(m, 3, n_bodies).transpose(0, 2, 1)
+    return np.concatenate([origins, quats.reshape(m, n_bodies, 4)], axis=2)
+
+
+def build_observables(
+    model: Model,
+    t: Any,
+    q: Any,
+    v: Any,
+    qdot: Any,
+    bodies: dict[str, BodyState],
+    joint_coordinates: dict[str, Any] | None = None,
+) -> Observables:
+    """Poses, twists, energies and constraint residuals from symbolic body states."""
+    names = list(model.bodies)
+    zero_v = ca.DM.zeros(v.numel())  # poses depend on (t, q) only; see build_equations
+    positions = ca.substitute(ca.horzcat(*[bodies[b].position for b in names]), v, zero_v)
+    rotations = ca.substitute(ca.horzcat(*[bodies[b].rotation for b in names]), v, zero_v)
+    twists = ca.horzcat(
+        *[ca.vertcat(bodies[b].velocity, bodies[b].angular_velocity) for b in names]
+    )
+    spring_joints = {f.joint for f in model.forces if isinstance(f, fm.JointSpringDamper)}
+    coordinates = dict(joint_coordinates or {})
+    for joint in spring_joints - set(coordinates):
+        coordinates[joint] = fm.relative_joint_coordinates(model, bodies, joint)
+    energy = ca.vertcat(
+        fm.kinetic_energy(model, bodies), fm.potential_energy(model, bodies, coordinates)
+    )
+    position_residual = ca.substitute(joint_residuals(model, t, bodies), v, zero_v)
+    velocity_residual = ca.mtimes(ca.jacobian(position_residual, q), qdot) + ca.jacobian(
+        position_residual, t
+    )
+    nonholonomic = [
+        contact_rows(model.kind == "planar", bodies[c.body], c)[1] for c in model.nonholonomic
+    ]
+    nh_residual = ca.vertcat(*nonholonomic) if nonholonomic else ca.DM.zeros(0, 1)
+    return Observables(
+        frames=dense_function("frames", [t, q], [positions, rotations]),
+        twists=dense_function("twists", [t, q, v], [twists]),
+        energy=dense_function("energy", [t, q, v], [energy]),
+        residuals=dense_function(
+            "residuals", [t, q, v], [position_residual, velocity_residual, nh_residual]
+        ),
+        body_names=names,
+    )
+
+
+def joint_residuals(model: Model, t: Any, bodies: dict[str, BodyState]) -> Any:
+    """Implicit constraints of every joint (tree and cut) and contact height, on body poses."""
+    rows = []
+    planar = model.kind == "planar"
+    ground = BodyState(ca.DM.zeros(3), ca.DM.eye(3), ca.DM.zeros(3), ca.DM.zeros(3))
+    for joint in model.joints.values():
+        parent = ground if joint.parent == GROUND else bodies[joint.parent]
+        r_p, rot_p = parent.frame(joint.parent_frame)
+        if joint.drive is not None:
+            q_d, _, _ = jk.drive_values(joint, t)
+            r_rel, rot_rel = jk.relative_transform(joint, q_d)
+            r_p, rot_p = r_p + ca.mtimes(rot_p, r_rel), ca.mtimes(rot_p, rot_rel)
+        child = ground if joint.child == GROUND else bodies[joint.child]
+        r_c, rot_c = child.frame(joint.child_frame)
+        residual = jk.implicit_constraints(joint, planar, r_p, rot_p, r_c, rot_c)
+        if np.size(residual) if not isinstance(residual, ca.SX | ca.MX) else residual.numel():
+            rows.append(residual)
+    for constraint in model.nonholonomic:
+        height, _ = contact_rows(planar, bodies[constraint.body], constraint)
+        if height is not None:
+            rows.append(height)
+    return ca.vertcat(*rows) if rows else ca.DM.zeros(0, 1)
