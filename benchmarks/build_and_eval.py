@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations.initial import consistent_initial_state
-from workbench.registry import list_plugins
+from workbench.plugin.registry import list_plugins
 
 RESULTS = Path(__file__).parent / "results"
 OPTIONS = {"minimal-ode": {"index": 1}, "absolute-dae": {"index": 1}}

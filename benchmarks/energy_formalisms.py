@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations.initial import consistent_initial_state
-from workbench.registry import get_formalism, list_plugins
+from workbench.plugin.registry import get_formalism, list_plugins
 
 RESULTS = Path(__file__).parent / "results"
 FORMALISMS = {

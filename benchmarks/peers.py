@@ -43,9 +43,9 @@ from benchmarks.peer_models import mujoco_model, pinocchio_model
 from workbench.equations.compiled import Compiler
 from workbench.equations.evaluate import FastFunction
 from workbench.model import Model
+from workbench.plugin.registry import get_problem
 from workbench.plugins.formalisms.recursive import ode_function
 from workbench.problems.scalable import BinaryTree
-from workbench.registry import get_problem
 
 RESULTS = Path(__file__).parent / "results"
 SIZES = (2, 7, 20, 50, 100, 200)

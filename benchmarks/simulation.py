@@ -35,7 +35,7 @@ from scipy.integrate import solve_ivp
 
 from benchmarks.peer_models import pinocchio_model
 from workbench.equations.initial import consistent_initial_state
-from workbench.registry import get_formalism, get_integrator, get_problem
+from workbench.plugin.registry import get_formalism, get_integrator, get_problem
 
 RESULTS = Path(__file__).parent / "results"
 T_END, RTOL, ATOL = 5.0, 1e-8, 1e-10

@@ -38,9 +38,9 @@ from __future__ import annotations
 
 import numpy as np
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.model import Frame, Model, Shape
-from workbench.problem import Invariant, Problem
+from workbench.plugin.problem import Invariant, Problem
 from workbench.problems._parts import angular_momentum, rod
 
 GRAVITY = 9.81  # m/s^2
@@ -100,7 +100,7 @@ def vertical_angular_momentum(
     return angular_momentum(model, poses, twists)[..., 2]
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class ArticulatedArm(Problem):
     name = "articulated-arm"
     summary = "Six-axis articulated arm robot (axes z y y x y x) moving freely (6 DOF)"

@@ -65,10 +65,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, JointSpringDamper, Model, Shape
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 from workbench.problems._parts import planar_rod, rod
 from workbench.problems.ch10_open_trees import rod_shape
 
@@ -136,7 +136,7 @@ def add_planar_bar(model: Model, name: str, length: float, color=(120, 160, 220)
     )
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class FourBar(Problem):
     name = "four-bar"
     summary = "Planar four-bar crank-rocker (1 DOF, 1 loop); option: near the change point"
@@ -205,7 +205,7 @@ def add_rod_between(model: Model, name: str, origin, start, end, mass: float) ->
     model.add_body(name, mass, com=com, inertia=inertia, shapes=[shape])
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class Rsrrr(Problem):
     name = "rsrrr"
     summary = "Spatial RSRRR single-loop mechanism swinging under gravity (1 DOF)"
@@ -285,7 +285,7 @@ def parallel_robot_points() -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     return legs
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class ParallelRobot(Problem):
     name = "parallel-robot"
     summary = "Planar 3-RRR parallel robot on base springs, free motion (3 DOF, 2 loops)"

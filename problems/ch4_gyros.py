@@ -37,14 +37,14 @@ import numpy as np
 from scipy.integrate import quad
 from scipy.special import ellipj, ellipkinc
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.model import Frame, Model, Shape
 from workbench.numerics.rotations import (
     euler_zxz_to_matrix,
     matrix_to_quaternion,
     quaternion_to_matrix,
 )
-from workbench.problem import Invariant, Problem, Reference
+from workbench.plugin.problem import Invariant, Problem, Reference
 from workbench.problems._parts import angular_momentum, axis_angle_quaternion, quaternion_product
 
 ASYMMETRIC_INERTIA = (0.02, 0.03, 0.04)  # kg m^2, principal (A, B, C)
@@ -86,7 +86,7 @@ def gyro_model(name: str, inertia: tuple[float, float, float]) -> Model:
     return model
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class TorqueFreeGyro(Problem):
     name = "torque-free-gyro"
     summary = "Asymmetric torque-free rigid body spun near its intermediate axis (3 DOF)"
@@ -221,7 +221,7 @@ def symmetric_gyro_quaternions(
     return quaternions * np.where(quaternions[..., :1] < 0, -1.0, 1.0)
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class TorqueFreeSymmetricGyro(Problem):
     name = "torque-free-symmetric-gyro"
     summary = "Symmetric torque-free gyro in regular precession, analytic reference (3 DOF)"

@@ -42,9 +42,9 @@ import math
 
 import numpy as np
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.model import Drive, Frame, Model, Shape
-from workbench.problem import Invariant, Problem
+from workbench.plugin.problem import Invariant, Problem
 from workbench.problems._parts import planar_rod
 
 GRAVITY = 9.81  # m/s^2
@@ -55,7 +55,7 @@ PENDULUM_LENGTHS = (1.0, 0.7)  # m
 PENDULUM_ANGLES = (1.2, -0.6)  # rad
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class DoublePointPendulum(Problem):
     name = "double-point-pendulum"
     summary = "Planar double pendulum of two point masses on massless rods (2 DOF)"
@@ -108,7 +108,7 @@ def slider_crank_state(
     }
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class PointMassSliderCrank(Problem):
     name = "point-mass-slider-crank"
     summary = "Planar slider-crank with point masses at pin and piston, light rod (1 DOF)"
@@ -174,7 +174,7 @@ def jacobi_integral(model: Model, t: float, poses: np.ndarray, twists: np.ndarra
     return mass * kinetic - mass * (r @ model.gravity)
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class RotatingRing(Problem):
     name = "rotating-ring"
     summary = "Bead sliding on a ring driven about the vertical (rheonomic, 1 DOF)"

@@ -24,9 +24,9 @@ without slip does no work: energy is conserved. No analytic reference.
 
 from __future__ import annotations
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.model import Frame, Model, RollingDisk, Shape
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 
 GRAVITY = 9.81  # m/s^2
 DISK_RADIUS = 0.2  # m
@@ -36,7 +36,7 @@ BAR_MASS = 1.0  # kg
 BAR_ANGLE = 1.0  # rad, initial, from the downward vertical
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class RollingPendulum(Problem):
     name = "rolling-pendulum"
     summary = "Disk rolling on a line with a pendulum hinged at its centre (2 DOF)"

@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.model import Frame, JointForce, Model, Shape
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 from workbench.problems._parts import rod
 
 GRAVITY = 9.81  # m/s^2
@@ -56,7 +56,7 @@ def shoulder_torque(t, q, v):
     return -SHOULDER_STIFFNESS * (q[0] - SHOULDER_TARGET) - SHOULDER_DAMPING * v[0]
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class TwoJointRobot(Problem):
     name = "two-joint-robot"
     summary = "Spatial robot: turret and arm on two revolute joints under joint torques (2 DOF)"

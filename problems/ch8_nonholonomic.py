@@ -47,10 +47,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, KnifeEdge, Model, RollingSphere, Shape
-from workbench.problem import Invariant, Problem, Reference
+from workbench.plugin.problem import Invariant, Problem, Reference
 
 GRAVITY = 9.81  # m/s^2
 
@@ -119,7 +119,7 @@ def ball_reference_poses(times: np.ndarray) -> np.ndarray:
     return poses
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class BallOnRotatingPlane(Problem):
     name = "ball-on-rotating-plane"
     summary = "Homogeneous ball rolling on a turntable: its centre circles at 2/7 the rate"
@@ -212,7 +212,7 @@ def cart_reference_poses(times: np.ndarray) -> np.ndarray:
     return poses
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class KnifeEdgeCart(Problem):
     name = "knife-edge-cart"
     summary = "Two-wheeled cart on a floor: knife-edge constraint at the axle (2 DOF)"

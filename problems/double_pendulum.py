@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import math
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.model import Frame, Model, Shape
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 
 LENGTHS = (1.0, 0.8)  # m
 MASSES = (1.0, 0.8)  # kg
@@ -33,7 +33,7 @@ GRAVITY = 9.81  # m/s^2
 INITIAL_ANGLES = (math.pi / 2, 0.0)  # rad
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class DoublePendulum(Problem):
     name = "double-pendulum"
     summary = "Planar double pendulum of two uniform rigid links (chaotic, 2 DOF)"

@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
-from workbench.problem import Invariant, Problem
+from workbench.plugin.problem import Invariant, Problem
 from workbench.problems._parts import angular_momentum, rotation_matrices
 
 MASS = 1.0  # kg
@@ -74,7 +74,7 @@ class HeavyTopOptions:
                 raise ConfigError(f"{name} must be finite, not {getattr(self, name)}")
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class HeavyTop(Problem):
     name = "heavy-top"
     summary = "Heavy symmetric top on a fixed point (spherical joint, 3 DOF), fast spin"

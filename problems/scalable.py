@@ -37,10 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
-from workbench.problem import Invariant, Problem
+from workbench.plugin.problem import Invariant, Problem
 from workbench.problems._parts import angular_momentum, planar_rod
 from workbench.problems.ch10_open_trees import add_link
 
@@ -72,7 +72,7 @@ class TreeOptions:
             raise ConfigError(f"depth must be >= 1, not {self.depth}")
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class PlanarChain(Problem):
     name = "planar-chain"
     summary = "Planar chain of n uniform bars (n-link pendulum), option n_links"
@@ -113,7 +113,7 @@ ROD_RADIUS = 0.02  # m
 AXES = ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))  # z, y, x
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class SpatialChain(Problem):
     name = "spatial-chain"
     summary = "Spatial chain of n skewed rods, axes cycling z y x, option n_links"
@@ -162,7 +162,7 @@ def tree_link_end(k: int, level: int) -> np.ndarray:
     return TREE_LENGTH * TREE_LENGTH_RATIO**level * np.array([0.25 * splay, 0.0, -1.0])
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class BinaryTree(Problem):
     name = "binary-tree"
     summary = "Spatial binary tree of 2^depth - 1 rods on revolute joints, option depth"

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.special
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 
 MASS = 1.0  # kg
 LENGTH = 1.0  # m
@@ -73,7 +73,7 @@ class SimplePendulumOptions:
             )
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class SimplePendulum(Problem):
     name = "simple-pendulum"
     summary = "Point mass on a massless rod (planar, 1 DOF), released at rest"

@@ -28,10 +28,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import workbench.registry
+import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 
 CRANK_LENGTH = 0.1  # m
 ROD_LENGTH = 0.4  # m
@@ -72,7 +72,7 @@ class SliderCrankOptions:
                 raise ConfigError(f"{name} must be finite, not {getattr(self, name)}")
 
 
-@workbench.registry.problem
+@workbench.plugin.registry.problem
 class SliderCrank(Problem):
     name = "slider-crank"
     summary = "Planar slider-crank: one closed loop of rigid bodies (1 DOF), free motion"

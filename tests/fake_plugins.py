@@ -17,11 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.integrate
 
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.model import Frame, Model
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.problem import Problem, Reference
+from workbench.plugin.registry import formalism, integrator, problem
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
-from workbench.problem import Problem, Reference
-from workbench.registry import formalism, integrator, problem
 
 
 @dataclass(frozen=True)

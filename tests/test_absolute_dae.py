@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 from workbench.errors import ModelError
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Drive, Frame, KnifeEdge, Model, RollingDisk
-from workbench.registry import get_formalism
+from workbench.plugin.registry import get_formalism
 
 # ---- models ---------------------------------------------------------------------------
 

@@ -16,8 +16,8 @@ from scipy.integrate import solve_ivp
 from workbench.equations.initial import consistent_initial_state
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
+from workbench.plugin.registry import REGISTRY, get_problem
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
-from workbench.registry import REGISTRY, get_problem
 
 # case: (options, dof from the rank of the constraint Jacobian, independent loops),
 # derived by hand (Gruebler / counting velocities minus independent constraint rows).

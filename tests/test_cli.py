@@ -12,9 +12,9 @@ from typer.testing import CliRunner
 
 from tests.test_registry import FAKE_MODULES, write_fake_distribution
 from workbench import cli
-from workbench import registry as registry_module
 from workbench.errors import ConfigError
-from workbench.registry import Registry
+from workbench.plugin import registry as registry_module
+from workbench.plugin.registry import Registry
 
 REPO = Path(__file__).resolve().parents[1]
 STARTER_PROBLEMS = ("simple-pendulum", "double-pendulum", "slider-crank", "heavy-top")

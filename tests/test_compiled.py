@@ -8,7 +8,7 @@ import pytest
 
 from workbench.equations import compiled
 from workbench.equations.initial import consistent_initial_state
-from workbench.registry import get_formalism, get_problem
+from workbench.plugin.registry import get_formalism, get_problem
 from workbench.runs import RunSpec, clear_cache, execute_run
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
-from workbench.registry import get_formalism, list_plugins
+from workbench.plugin.registry import get_formalism, list_plugins
 from workbench.testing import check_formalism
 
 OTHERS = [

@@ -13,8 +13,8 @@ from workbench.equations.evaluate import dense_function
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import IntegrationError
 from workbench.model import Frame, Model
-from workbench.problem import Problem
-from workbench.registry import get_formalism, get_problem
+from workbench.plugin.problem import Problem
+from workbench.plugin.registry import get_formalism, get_problem
 
 
 def build(problem_name: str, **options):
@@ -150,7 +150,7 @@ def test_unassemblable_loop_names_the_worst_constraint():
 def test_observables_along_states_equal_one_state_at_a_time(problem, formalism):
     """Observables.along (one mapped call a quantity) gives what the per-state functions
     give, at perturbed states: poses, twists, energy and every residual."""
-    from workbench.registry import get_formalism, get_problem
+    from workbench.plugin.registry import get_formalism, get_problem
 
     problem_ = get_problem(problem)()
     equations = get_formalism(formalism)().build(problem_.model(), {})
@@ -191,7 +191,7 @@ def test_ode_jacobian_through_a_numeric_solve_equals_casadis(problem, options, f
     theorem (ds/dy = -K^-1 d(Ks - b)/dy): equal to CasADi's derivative of the solve and to
     central differences of the right-hand side, at a perturbed state."""
     from workbench.equations import SYMBOLIC_SOLVE_LIMIT
-    from workbench.registry import get_formalism, get_problem
+    from workbench.plugin.registry import get_formalism, get_problem
 
     problem_ = get_problem(problem)(options)
     equations = get_formalism(formalism)().build(problem_.model(), {"index": 1})

@@ -23,8 +23,8 @@ import scipy.special
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.model import AppliedForce, Frame, JointSpringDamper, Model
-from workbench.problem import Problem
-from workbench.registry import get_formalism, get_integrator, list_plugins
+from workbench.plugin.problem import Problem
+from workbench.plugin.registry import get_formalism, get_integrator, list_plugins
 
 X0, OMEGA = 0.3, 2.0  # m, rad/s
 THETA0, LENGTH, GRAVITY = 0.5, 1.0, 9.81

@@ -55,8 +55,8 @@ def module_name(path: Path) -> str:
 LEGACY = {
     f"workbench.{m}"
     for m in ""
-    "scaffold runs metrics references store sweep report recording "
-    "browser cli problem formalism integrator registry options".split()
+    "runs metrics references store sweep report recording "
+    "browser cli".split()
 }
 
 
@@ -234,3 +234,27 @@ def test_no_generic_top_level_name_is_installed(name):
         assert importlib.util.find_spec(name) is None
     finally:
         sys.path[:] = saved
+
+
+@pytest.mark.parametrize(
+    ("old", "name"),
+    [
+        ("workbench.problem", "Problem"),
+        ("workbench.formalism", "Formalism"),
+        ("workbench.integrator", "Integrator"),
+        ("workbench.registry", "formalism"),
+        ("workbench.options", "parse_options"),
+    ],
+)
+def test_deprecated_module_names_still_work_and_say_so(old, name):
+    import importlib
+    import sys
+    import warnings
+
+    sys.modules.pop(old, None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        module = importlib.import_module(old)
+    assert any(issubclass(w.category, DeprecationWarning) for w in caught)
+    new = importlib.import_module(old.replace("workbench.", "workbench.plugin."))
+    assert getattr(module, name) is getattr(new, name)

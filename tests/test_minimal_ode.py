@@ -5,7 +5,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from workbench.equations.initial import consistent_initial_state
-from workbench.registry import get_formalism, get_problem
+from workbench.plugin.registry import get_formalism, get_problem
 
 
 def integrate(equations, problem, rtol):

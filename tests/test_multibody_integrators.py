@@ -22,12 +22,12 @@ from workbench.errors import PluginError
 from workbench.mechanics.forces import generalized_forces, potential_energy
 from workbench.mechanics.kinematics import BodyState
 from workbench.model import AppliedForce, Frame, Model
+from workbench.plugin.problem import Problem
+from workbench.plugin.registry import get_formalism, get_integrator
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
 from workbench.plugins.integrators.generalized_alpha import GeneralizedAlpha
 from workbench.plugins.integrators.projection import Projected, project_state
 from workbench.plugins.integrators.rattle import Rattle
-from workbench.problem import Problem
-from workbench.registry import get_formalism, get_integrator
 
 warnings.filterwarnings("ignore", category=FutureWarning)
 

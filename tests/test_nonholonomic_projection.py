@@ -13,7 +13,7 @@ from workbench.equations.initial import project_joint_state
 from workbench.errors import ConfigError
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import KnifeEdge, Model, RollingDisk, RollingSphere
-from workbench.registry import get_formalism
+from workbench.plugin.registry import get_formalism
 
 PROBLEM = SimpleNamespace(name="test", independent_coordinates=())
 
@@ -147,7 +147,7 @@ def test_independent_velocities_option() -> None:
 
 def test_closed_loop_projection_matches_minimal_ode() -> None:
     """Closed loops go through the same projection (slider-crank: one minimal velocity)."""
-    from workbench.registry import get_problem
+    from workbench.plugin.registry import get_problem
 
     problem = get_problem("slider-crank")()
     model = problem.model()

@@ -6,8 +6,8 @@ import numpy as np
 
 from workbench.model import Frame, Model
 from workbench.model.parameters import model_parameters, vector
+from workbench.plugin.registry import get_problem
 from workbench.problems import double_pendulum
-from workbench.registry import get_problem
 
 
 def rows_of(model: Model) -> dict[tuple[str, str], str]:

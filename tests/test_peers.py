@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchmarks.peer_models import mujoco_model, pinocchio_model
-from workbench.registry import get_formalism, get_problem
+from workbench.plugin.registry import get_formalism, get_problem
 
 CASES = [("spatial-chain", {"n_links": 5}), ("planar-chain", {"n_links": 4}), ("binary-tree", {})]
 

@@ -10,8 +10,8 @@ import pytest
 
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
+from workbench.plugin.registry import get_problem
 from workbench.problems import heavy_top, simple_pendulum
-from workbench.registry import get_problem
 
 STARTERS = {
     # name: (dof, loops)

@@ -19,9 +19,9 @@ from workbench.model import (
     Model,
     SpringDamper,
 )
+from workbench.plugin.registry import get_formalism
 from workbench.plugins.formalisms import recursive as rec
 from workbench.plugins.formalisms.minimal_ode import minimal_mechanical_system
-from workbench.registry import get_formalism
 
 JOINT_TYPES = ("revolute", "prismatic", "universal", "spherical", "cylindrical", "planar")
 
@@ -269,7 +269,7 @@ def test_driven_joint_matches_minimal_ode() -> None:
 
 
 def test_planar_chain_and_closed_loop_match_minimal_ode() -> None:
-    from workbench.registry import get_problem
+    from workbench.plugin.registry import get_problem
 
     for model in (chain(6, "planar"), get_problem("slider-crank")().model()):
         recursive = get_formalism("recursive")().build(model, {"index": 1})

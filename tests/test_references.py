@@ -18,6 +18,7 @@ from typer.testing import CliRunner
 from workbench import cli
 from workbench.equations.initial import consistent_initial_state
 from workbench.metrics import computed_reference, length_scale, pose_error
+from workbench.plugin.registry import get_formalism, get_problem, list_plugins
 from workbench.references import (
     AGREEMENT_THRESHOLD,
     Pipeline,
@@ -26,7 +27,6 @@ from workbench.references import (
     read_reference,
     solve_poses,
 )
-from workbench.registry import get_formalism, get_problem, list_plugins
 from workbench.runs import RunSpec, execute_run, normalized_spec
 
 REPO = Path(__file__).resolve().parents[1]

@@ -11,10 +11,16 @@ from typing import Literal
 
 import pytest
 
-from workbench import registry as registry_module
 from workbench.errors import ConfigError, PluginError
-from workbench.options import NoOptions, option_fields, options_dict, parse_options, type_name
-from workbench.registry import Registry, describe_kind
+from workbench.plugin import registry as registry_module
+from workbench.plugin.options import (
+    NoOptions,
+    option_fields,
+    options_dict,
+    parse_options,
+    type_name,
+)
+from workbench.plugin.registry import Registry, describe_kind
 
 FAKE_MODULES = ("fake_wb_plugins", "fake_wb_broken")
 
@@ -23,7 +29,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from workbench.model import Frame, Model
-from workbench.problem import Problem
+from workbench.plugin.problem import Problem
 
 
 class ToyFormalism:

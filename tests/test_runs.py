@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from workbench import metrics
-from workbench.registry import REGISTRY
+from workbench.plugin.registry import REGISTRY
 from workbench.runs import RunSpec, execute_run, normalized_spec
 
 
@@ -185,7 +185,7 @@ def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch)
     """The worker's equations cache is bounded (least recently used out): a reused entry
     is the same object, an evicted one is built again."""
     from workbench import runs
-    from workbench.registry import get_problem
+    from workbench.plugin.registry import get_problem
 
     runs.clear_cache()
     monkeypatch.setattr(runs, "EQUATIONS_CACHE_SIZE", 2)
@@ -208,7 +208,7 @@ def test_initial_state_is_computed_once_per_cached_equations() -> None:
     (closure residual of the four-bar ~ 0); other equations get their own."""
     from workbench import runs
     from workbench.equations.initial import consistent_initial_state
-    from workbench.registry import get_problem
+    from workbench.plugin.registry import get_problem
 
     runs.clear_cache()
     specs = [

@@ -17,8 +17,8 @@ from typer.testing import CliRunner
 
 from workbench.cli import app
 from workbench.errors import ConfigError
-from workbench.registry import REGISTRY
-from workbench.scaffold import scaffold
+from workbench.plugin.registry import REGISTRY
+from workbench.plugin.scaffold import scaffold
 from workbench.testing import check_formalism, check_integrator, check_problem
 
 REPO = Path(__file__).resolve().parents[1]

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from workbench import store
 from workbench.cli import app
 from workbench.errors import ConfigError
-from workbench.registry import REGISTRY
+from workbench.plugin.registry import REGISTRY
 from workbench.sweep import load_spec, parse_spec, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]

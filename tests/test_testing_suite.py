@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from workbench.equations import build_joint_space_equations
-from workbench.integrator import Integrator
 from workbench.mechanics.kinematics import TreeKinematics
+from workbench.plugin.integrator import Integrator
+from workbench.plugin.problem import Invariant, Reference
+from workbench.plugin.registry import REGISTRY, PluginInfo
 from workbench.plugins.formalisms.minimal_ode import MinimalOde, minimal_mechanical_system
-from workbench.problem import Invariant, Reference
-from workbench.registry import REGISTRY, PluginInfo
 from workbench.testing import (
     ConformanceError,
     check_formalism,
@@ -107,7 +107,7 @@ def test_structural_failures_name_what_to_fix():
     assert "lowercase" in failure(report, "metadata").message
     assert "summary" in failure(report, "metadata").message
     assert "warp-drive" in failure(report, "capabilities").message
-    assert "@workbench.registry.formalism" in failure(report, "registered").message
+    assert "@workbench.plugin.registry.formalism" in failure(report, "registered").message
     assert not any(r.problem for r in report.results)  # nothing was built
 
 

@@ -11,6 +11,7 @@ from scipy.integrate import solve_ivp
 from workbench.equations.initial import consistent_initial_state
 from workbench.metrics import rotation_angle
 from workbench.numerics.rotations import quaternion_to_matrix
+from workbench.plugin.registry import get_formalism, get_problem
 from workbench.problems.ch4_gyros import (
     ASYMMETRIC_INERTIA,
     ASYMMETRIC_OMEGA,
@@ -18,7 +19,6 @@ from workbench.problems.ch4_gyros import (
     torque_free_quaternions,
 )
 from workbench.references import PIPELINE_JOINT, solve_poses
-from workbench.registry import get_formalism, get_problem
 
 TIMES = np.linspace(0.0, 5.0, 51)
 

@@ -1,7 +1,7 @@
 """mbs-workbench: compare formalisms and integrators for multibody dynamics.
 
 The core knows no particular formalism, integrator or problem: those are plugins found
-through :mod:`workbench.registry`.
+through :mod:`workbench.plugin.registry`.
 """
 
 from workbench.errors import (

@@ -17,10 +17,11 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from workbench import __version__, registry
+from workbench import __version__
 from workbench.errors import WorkbenchError
-from workbench.options import option_fields, type_name
-from workbench.registry import KINDS, Kind, PluginInfo, describe_kind
+from workbench.plugin import registry
+from workbench.plugin.options import option_fields, type_name
+from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
 
 EXIT_BAD_INPUT = 2
 
@@ -466,7 +467,7 @@ def new(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing files.")] = False,
 ) -> None:
     """Write a ready-to-edit plugin: module, conformance test (and with --package, a package)."""
-    from workbench.scaffold import scaffold
+    from workbench.plugin.scaffold import scaffold
 
     written = scaffold(describe_kind(kind), name, package=package, force=force)
     for path in written.files:

@@ -5,7 +5,7 @@ problem's output times, so two formalisms are compared on the same footing.
 
 **Reference** (column ``reference_kind``):
 
-- ``analytic`` or ``stored``: the problem's own :meth:`~workbench.problem.Problem.reference`
+- ``analytic`` or ``stored``: the problem's own :meth:`~workbench.plugin.problem.Problem.reference`
   (stored: two independent pipelines that agree, :mod:`workbench.references`; used when
   it holds the output times asked for, else the computed reference below);
 - ``computed``: when the problem gives none, a tight-tolerance run (rtol 1e-11,
@@ -182,7 +182,7 @@ def computed_reference(
     reference_dir: Path | None = None,
 ) -> ReferencePoses:
     """The tight-tolerance reference of the module docstring, cached in memory and on disk."""
-    from workbench import registry  # lazy: the registry discovers plugins
+    from workbench.plugin import registry  # lazy: the registry discovers plugins
 
     model = problem.model()
     tree = not model.cut_joints and not model.nonholonomic

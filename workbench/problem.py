@@ -1,120 +1,19 @@
-"""The problem contract: what a catalog entry declares (SciMLBenchmarks-style: a document).
+"""Deprecated name of :mod:`workbench.plugin.problem`, kept for one release (docs/plugins.md).
 
-A problem plugin subclasses :class:`Problem` and registers with
-``@workbench.registry.problem``. It must:
-
-1. set ``name``, ``summary`` (one line) and ``source`` (the book section it follows);
-2. implement :meth:`Problem.model` returning a :class:`~workbench.model.Model`
-   (parameters in SI units, documented in the module docstring);
-3. set ``t_end`` (and ``t_start`` if not 0) and ``n_samples`` (output times);
-4. implement :meth:`initial_joint_coordinates` / :meth:`initial_joint_velocities`:
-   values for the spanning-tree joints that are not driven (joints left out start at
-   their neutral value / at rest);
-5. optionally declare ``independent_coordinates`` (joint name, index) kept fixed when the
-   initial state is projected onto the loop-closure and nonholonomic constraints;
-6. declare ``conservative`` (energy conserved) and :meth:`invariants` (other conserved
-   quantities);
-7. optionally give a :meth:`reference`: analytic body poses; without one, a stored
-   trajectory in ``references/`` beside the module (``workbench reference NAME``) is used.
+Plugins written against ``workbench.problem`` keep working; import from
+``workbench.plugin.problem`` instead.
 """
 
-from __future__ import annotations
+import warnings
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from workbench.plugin import problem as _moved
 
-import numpy as np
-
-from workbench.model import Model
-from workbench.options import NoOptions, parse_options
-
-
-@dataclass(frozen=True)
-class Invariant:
-    """A quantity conserved along exact solutions.
-
-    ``function(model, t, poses, twists)`` -> float, where poses is (n_bodies, 7)
-    [position, quaternion scalar-first] and twists is (n_bodies, 6) [velocity of the
-    body frame origin, angular velocity], both in inertial coordinates.
-
-    ``vectorized=True`` declares that ``function`` also broadcasts over a leading sample
-    axis: t (n,), poses (n, n_bodies, 7), twists (n, n_bodies, 6) -> (n,). Metrics then
-    evaluate it along a trajectory in one call instead of one call per output sample
-    (which cost the default sweep seconds of Python); the conformance suite checks that
-    both give the same values.
-    """
-
-    name: str
-    function: Callable[[Model, Any, np.ndarray, np.ndarray], Any]
-    vectorized: bool = False
-
-    def along(
-        self, model: Model, times: np.ndarray, poses: np.ndarray, twists: np.ndarray
-    ) -> np.ndarray:
-        """Values (n,) at n samples: times (n,), poses (n, n_bodies, 7), twists
-        (n, n_bodies, 6)."""
-        times = np.asarray(times, dtype=float).reshape(-1)
-        if self.vectorized:
-            values = np.asarray(self.function(model, times, poses, twists), dtype=float)
-            if values.shape != times.shape:
-                raise ValueError(
-                    f"invariant {self.name!r} is declared vectorized but returned shape "
-                    f"{values.shape} for {times.size} samples (expected {times.shape}); make "
-                    "it broadcast over the leading sample axis or set vectorized=False"
-                )
-            return values
-        samples = zip(times, poses, twists, strict=True)
-        return np.array([float(self.function(model, t, p, w)) for t, p, w in samples])
+warnings.warn(
+    "workbench.problem is deprecated: import from workbench.plugin.problem",
+    DeprecationWarning,
+    stacklevel=2,
+)
 
 
-@dataclass(frozen=True)
-class Reference:
-    """Reference body poses at given times: ``poses(times) -> (n_times, n_bodies, 7)``.
-
-    kind: "analytic" or "stored"; ``description`` says how it was obtained.
-    """
-
-    kind: str
-    poses: Callable[[np.ndarray], np.ndarray]
-    description: str = ""
-
-
-class Problem:
-    """Base class of catalog problems (see the module docstring for the contract)."""
-
-    name: ClassVar[str] = ""
-    summary: ClassVar[str] = ""
-    source: ClassVar[str] = ""
-    Options: ClassVar[type] = NoOptions
-    t_start: ClassVar[float] = 0.0
-    t_end: ClassVar[float] = 1.0
-    n_samples: ClassVar[int] = 101
-    conservative: ClassVar[bool] = True
-    independent_coordinates: ClassVar[tuple[tuple[str, int], ...] | None] = None
-
-    def __init__(self, options: Any = None) -> None:
-        self.options = parse_options(self.Options, options, f"problem {self.name!r}")
-
-    def model(self) -> Model:
-        raise NotImplementedError(f"problem {self.name!r} must implement model()")
-
-    def initial_joint_coordinates(self) -> dict[str, Any]:
-        return {}
-
-    def initial_joint_velocities(self) -> dict[str, Any]:
-        return {}
-
-    def invariants(self) -> list[Invariant]:
-        return []
-
-    def reference(self) -> Reference | None:
-        """Analytic poses (override this), else the stored reference written by
-        ``workbench reference NAME`` into ``references/`` beside the problem's module, when
-        it matches the problem's options and model (:mod:`workbench.references`), else None."""
-        from workbench.references import stored_reference
-
-        return stored_reference(self)
-
-    def sample_times(self) -> np.ndarray:
-        return np.linspace(self.t_start, self.t_end, self.n_samples)
+def __getattr__(name: str):
+    return getattr(_moved, name)

@@ -22,7 +22,7 @@ Files (:func:`write_reference`), beside the module that defines the problem, in
 ``references/``: ``<problem>.npz`` (``times`` (n,), ``poses`` (n, n_bodies, 7), ``bodies``)
 and ``<problem>.json`` (command, both pipelines with their cost, tolerances, sample
 times, agreement, the problem's fingerprint, library versions). :func:`stored_reference`
-serves them as the problem's :class:`~workbench.problem.Reference` when the problem's
+serves them as the problem's :class:`~workbench.plugin.problem.Reference` when the problem's
 options and fingerprint (:func:`problem_fingerprint`: model parameters and initial
 condition) still match, so an edited problem falls back to a computed reference instead
 of being compared against a stale one.
@@ -149,8 +149,8 @@ def solve_poses(
     problem: Any, pipeline: Pipeline, times: np.ndarray, rtol: float, atol: float
 ) -> tuple[np.ndarray, list[str], dict[str, Any]]:
     """Body poses (n_times, n_bodies, 7) of ``problem`` along ``pipeline``, body names, cost."""
-    from workbench import registry
     from workbench.equations.initial import consistent_initial_state
+    from workbench.plugin import registry
 
     model = problem.model()
     formalism_class = registry.get_formalism(pipeline.formalism)
@@ -218,9 +218,9 @@ def compute_reference(
     ``n_samples``, so the reference serves the runner's output times). Raises
     :class:`ReferenceDisagreement` if the pipelines differ by more than ``threshold`` L.
     """
-    from workbench import registry
     from workbench.metrics import environment, length_scale
-    from workbench.options import options_dict
+    from workbench.plugin import registry
+    from workbench.plugin.options import options_dict
 
     if not (0 < rtol < 1):
         raise ConfigError(f"--rtol must be in (0, 1), not {rtol:g}")
@@ -280,7 +280,7 @@ def compute_reference(
 
 def default_directory(name: str) -> Path:
     """``references/`` beside the module that defines problem ``name``."""
-    from workbench import registry
+    from workbench.plugin import registry
 
     return Path(inspect.getfile(registry.get_problem(name))).parent / DIRECTORY
 
@@ -317,10 +317,10 @@ _LOADED: dict[tuple[str, float], StoredReference | None] = {}
 
 
 def stored_reference(problem: Any) -> Any:
-    """The problem's stored :class:`~workbench.problem.Reference`, or None when there is no
+    """The problem's stored :class:`~workbench.plugin.problem.Reference`, or None when there is no
     file, or it was made for other options or an earlier version of the problem."""
-    from workbench.options import options_dict
-    from workbench.problem import Reference
+    from workbench.plugin.options import options_dict
+    from workbench.plugin.problem import Reference
 
     try:
         path = Path(inspect.getfile(type(problem))).parent / DIRECTORY / f"{problem.name}.npz"
@@ -369,7 +369,7 @@ def poses_at(stored: StoredReference, times: np.ndarray) -> np.ndarray:
 def reference_names(problem: str | None, every: bool) -> list[str]:
     """The problems ``workbench reference`` works on: one name, or with ``--all`` every
     registered problem without an analytic reference."""
-    from workbench import registry
+    from workbench.plugin import registry
 
     if (problem is None) == (not every):
         raise ConfigError("give either a PROBLEM name or --all (not both, not neither)")

@@ -45,9 +45,9 @@ import numpy as np
 import pandas as pd
 
 from workbench import metrics as metrics_module
-from workbench import registry
 from workbench.equations import compiled
 from workbench.errors import ConfigError
+from workbench.plugin import registry
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
 
@@ -112,7 +112,7 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
 
     Two specs that mean the same run then have the same id.
     """
-    from workbench.options import options_dict
+    from workbench.plugin.options import options_dict
 
     problem_options = options_dict(registry.get_problem(spec.problem)(spec.problem_options).options)
     formalism_options = options_dict(
@@ -369,7 +369,7 @@ def _pairing(
     spec: RunSpec, model: Any, formalism_class: type, formalism_options: Any, integrator: Any
 ) -> str | None:
     """Why this formalism and integrator cannot run this model, or None."""
-    from workbench.formalism import FEATURES
+    from workbench.plugin.formalism import FEATURES
 
     missing = formalism_class.unsupported(model)
     if missing:

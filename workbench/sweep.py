@@ -71,9 +71,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from workbench import registry, store
+from workbench import store
 from workbench.errors import ConfigError, PluginError, WorkbenchError
-from workbench.registry import Kind
+from workbench.plugin import registry
+from workbench.plugin.registry import Kind
 from workbench.runs import RunSpec, equations_key, execute_run, status_row
 
 DEFAULT_OUT = "reports/latest"
@@ -297,7 +298,7 @@ def _entries(
 
 
 def _option_names(plugin: Any) -> set[str]:
-    from workbench.options import option_fields
+    from workbench.plugin.options import option_fields
 
     return {name for name, _, _ in option_fields(plugin.Options)}
 
@@ -322,7 +323,7 @@ def _normalized_options(
     key: str,
     fail: Callable[[str, str], ConfigError],
 ) -> dict[str, Any]:
-    from workbench.options import options_dict
+    from workbench.plugin.options import options_dict
 
     plugin = registry.REGISTRY.get(kind, name)
     try:

@@ -54,7 +54,6 @@ from scipy.spatial.transform import Rotation
 from workbench.equations import Equations, MechanicalSystem, build_equations, joint_residuals
 from workbench.equations.compiled import Compiler
 from workbench.errors import ModelError
-from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import (
@@ -66,7 +65,8 @@ from workbench.mechanics.kinematics import (
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
 from workbench.numerics import rotations as rot
 from workbench.numerics.rotations import axis_angle_to_quaternion, quaternion_multiply
-from workbench.registry import formalism
+from workbench.plugin.formalism import ConstraintOptions, Formalism, constrained_forms
+from workbench.plugin.registry import formalism
 
 RANK_TOLERANCE = 1e-9
 """Singular values below this fraction of the largest one count as zero (redundancy)."""

@@ -37,11 +37,11 @@ from workbench.equations import (
     MechanicalSystem,
     build_equations,
 )
-from workbench.formalism import Formalism
 from workbench.mechanics.kinematics import BodyState, TreeKinematics
 from workbench.mechanics.lagrangian import joint_space_lagrangian, quaternion_joints
 from workbench.model import Model
-from workbench.registry import formalism
+from workbench.plugin.formalism import Formalism
+from workbench.plugin.registry import formalism
 
 
 @formalism

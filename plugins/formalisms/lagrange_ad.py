@@ -27,11 +27,11 @@ from typing import Any
 import casadi as ca
 
 from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
-from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.mechanics.lagrangian import joint_space_lagrangian, quaternion_joints
 from workbench.model import Model
-from workbench.registry import formalism
+from workbench.plugin.formalism import ConstraintOptions, Formalism, constrained_forms
+from workbench.plugin.registry import formalism
 
 
 @formalism

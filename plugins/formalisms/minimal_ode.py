@@ -35,11 +35,11 @@ from workbench.equations import (
 )
 from workbench.equations.compiled import Compiler
 from workbench.errors import ModelError
-from workbench.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.mechanics import forces as fm
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Model
-from workbench.registry import formalism
+from workbench.plugin.formalism import ConstraintOptions, Formalism, constrained_forms
+from workbench.plugin.registry import formalism
 
 
 @dataclass(frozen=True)

@@ -39,12 +39,12 @@ import scipy.linalg
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.equations.compiled import Compiler
 from workbench.errors import ConfigError, ModelError
-from workbench.formalism import CompileOptions, Formalism
 from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import BodyState, TreeKinematics
 from workbench.model import Model
-from workbench.registry import formalism
+from workbench.plugin.formalism import CompileOptions, Formalism
+from workbench.plugin.registry import formalism
 
 RANK_TOLERANCE = 1e-9
 

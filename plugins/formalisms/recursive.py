@@ -46,12 +46,12 @@ import casadi as ca
 import numpy as np
 
 from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
-from workbench.formalism import ConstraintOptions, Formalism
 from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Joint, Model
-from workbench.registry import formalism
+from workbench.plugin.formalism import ConstraintOptions, Formalism
+from workbench.plugin.registry import formalism
 
 ZERO6 = ca.SX.zeros(6, 1)
 

@@ -42,8 +42,8 @@ import casadi as ca
 import numpy as np
 
 from workbench.errors import ConfigError
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
-from workbench.registry import integrator
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.registry import integrator
 
 
 def _symbols_for(*functions: ca.Function) -> type:

@@ -36,8 +36,8 @@ import numpy as np
 
 from workbench.equations import Equations
 from workbench.errors import ConfigError, IntegrationError, PluginError
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
-from workbench.registry import get_integrator, integrator
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.registry import get_integrator, integrator
 
 Projection = Literal["none", "position", "position+velocity"]
 Metric = Literal["mass", "identity"]

@@ -45,8 +45,8 @@ import numpy as np
 from workbench.equations import Equations
 from workbench.equations.initial import accelerations
 from workbench.errors import ConfigError, IntegrationError
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
-from workbench.registry import integrator
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.registry import integrator
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,8 @@ from typing import ClassVar
 import numpy as np
 
 from workbench.errors import ConfigError
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
-from workbench.registry import integrator
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.registry import integrator
 
 DEFAULT_STEP = 1e-3  # s
 

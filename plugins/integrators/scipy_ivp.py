@@ -18,8 +18,8 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK45, OdeSolver, Radau, solve_ivp
 
 from workbench.errors import ConfigError
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
-from workbench.registry import integrator
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.registry import integrator
 
 
 @dataclass(frozen=True)

@@ -34,8 +34,8 @@ from sksundae.cvode import CVODE
 from sksundae.ida import IDA
 
 from workbench.errors import ConfigError
-from workbench.integrator import IntegrationTask, Integrator, Trajectory
-from workbench.registry import integrator
+from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.registry import integrator
 
 ALGEBRAIC_ATOL = 1e10  # error weight 1 / (rtol |y| + atol) ~ 0: out of the error test
 

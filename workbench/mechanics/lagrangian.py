@@ -21,7 +21,7 @@ from workbench.model import AppliedForce, JointForce, JointSpringDamper, Model, 
 
 QUATERNION_JOINTS = ("spherical", "free")
 QUATERNION_FEATURE = "spherical or free joints (quaternion coordinates, q' != v)"
-"""A feature name for :meth:`~workbench.formalism.Formalism.unsupported` overrides."""
+"""A feature name for :meth:`~workbench.plugin.formalism.Formalism.unsupported` overrides."""
 
 
 def quaternion_joints(model: Model) -> set[str]:

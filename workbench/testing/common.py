@@ -8,10 +8,10 @@ import re
 import traceback
 from typing import Any
 
-from workbench import registry
 from workbench.errors import WorkbenchError
-from workbench.options import NoOptions, parse_options
-from workbench.problem import Problem
+from workbench.plugin import registry
+from workbench.plugin.options import NoOptions, parse_options
+from workbench.plugin.problem import Problem
 from workbench.testing.report import ConformanceReport
 
 FAST_PROBLEMS = (
@@ -85,7 +85,7 @@ def check_structure(
             "registered",
             "",
             f"{one_line(error)}; decorate the class with "
-            f"@workbench.registry.{kind} or add an entry point in the group "
+            f"@workbench.plugin.registry.{kind} or add an entry point in the group "
             f"{registry.ENTRY_POINT_GROUPS[kind]!r}",
         )
     # subclass, name, summary, docstring

@@ -22,12 +22,12 @@ import numpy as np
 
 from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equations
 from workbench.equations.initial import consistent_initial_state
-from workbench.formalism import ConstraintOptions
-from workbench.integrator import Integrator
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.metrics import length_scale, pose_error
 from workbench.model import Model
-from workbench.registry import get_formalism
+from workbench.plugin.formalism import ConstraintOptions
+from workbench.plugin.integrator import Integrator
+from workbench.plugin.registry import get_formalism
 from workbench.testing.common import check_structure, one_line, problem_instances, resolve_plugin
 from workbench.testing.report import ConformanceReport
 

@@ -18,8 +18,8 @@ import numpy as np
 from workbench.equations.initial import consistent_initial_state
 from workbench.mechanics.forces import is_conservative_model
 from workbench.metrics import length_scale, pose_error
-from workbench.problem import Problem
-from workbench.registry import get_formalism
+from workbench.plugin.problem import Problem
+from workbench.plugin.registry import get_formalism
 from workbench.testing.common import check_structure, one_line, resolve_plugin
 from workbench.testing.report import ConformanceReport
 from workbench.testing.states import energy_scale, tight_run

@@ -27,7 +27,7 @@ from pathlib import Path
 from string import Template
 
 from workbench.errors import ConfigError
-from workbench.registry import ENTRY_POINT_GROUPS, KINDS, Kind, plugin_names
+from workbench.plugin.registry import ENTRY_POINT_GROUPS, KINDS, Kind, plugin_names
 
 NAME = re.compile(r"^[a-z][a-z0-9]*(?:[-_][a-z0-9]+)*$")
 BUILTIN_DIRECTORIES = {
@@ -57,7 +57,7 @@ def check_name(name: str) -> str:
 
 
 def _render(template: str, values: dict[str, str]) -> str:
-    text = resources.files("workbench").joinpath("templates", template).read_text("utf-8")
+    text = resources.files("workbench.plugin").joinpath("templates", template).read_text("utf-8")
     return Template(text).substitute(values)
 
 

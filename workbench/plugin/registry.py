@@ -1,0 +1,285 @@
+"""Three registries of plugins: problems, formalisms and integrators.
+
+Built-in plugins register with the decorators :func:`problem`, :func:`formalism` and
+:func:`integrator`; the workbench finds them by importing every module of the built-in
+packages (``workbench.problems``, ``workbench.plugins.formalisms``,
+``workbench.plugins.integrators``) and then the
+entry-point groups ``workbench.problems``, ``workbench.formalisms`` and
+``workbench.integrators`` of other installed packages. A module that fails to import is
+listed as *broken* with its error; the others keep working.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib
+import pkgutil
+import traceback
+import warnings
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, Literal
+
+from workbench.errors import PluginError
+from workbench.plugin.options import option_fields
+
+Kind = Literal["problem", "formalism", "integrator"]
+KINDS: tuple[Kind, ...] = ("problem", "formalism", "integrator")
+BUILTIN_PACKAGES: dict[Kind, str] = {
+    "problem": "workbench.problems",
+    "formalism": "workbench.plugins.formalisms",
+    "integrator": "workbench.plugins.integrators",
+}
+ENTRY_POINT_GROUPS: dict[Kind, str] = {
+    "problem": "workbench.problems",
+    "formalism": "workbench.formalisms",
+    "integrator": "workbench.integrators",
+}
+
+
+@dataclass
+class PluginInfo:
+    """One registry entry: the plugin class, or the error of a module that failed to import."""
+
+    kind: Kind
+    name: str
+    plugin: type | None
+    module: str
+    error: str | None = None
+
+    @property
+    def status(self) -> str:
+        return "broken" if self.error else "ok"
+
+    @property
+    def error_line(self) -> str:
+        """The last non-empty line of the import error (``''`` for a working plugin)."""
+        lines = [line.strip() for line in (self.error or "").splitlines() if line.strip()]
+        return lines[-1] if lines else ""
+
+    @property
+    def summary(self) -> str:
+        if self.plugin is None:
+            return f"failed to import: {self.error_line}"
+        return getattr(self.plugin, "summary", "") or ""
+
+
+def check_kind(kind: str) -> Kind:
+    """``kind`` itself if it is one of KINDS; PluginError otherwise."""
+    if kind not in KINDS:
+        raise PluginError(f"unknown plugin kind {kind!r}; use one of {', '.join(KINDS)}")
+    return kind  # type: ignore[return-value]
+
+
+@dataclass
+class Registry:
+    """Plugins by kind and name.
+
+    ``builtin_packages`` and ``entry_point_groups`` say where :meth:`discover` looks
+    (tests give a fresh registry their own, or none).
+    """
+
+    entries: dict[Kind, dict[str, PluginInfo]] = field(
+        default_factory=lambda: {kind: {} for kind in KINDS}
+    )
+    discovered: bool = False
+    builtin_packages: dict[Kind, str] = field(default_factory=lambda: dict(BUILTIN_PACKAGES))
+    entry_point_groups: dict[Kind, str] = field(default_factory=lambda: dict(ENTRY_POINT_GROUPS))
+
+    def add(self, kind: Kind, plugin: type) -> None:
+        check_kind(kind)
+        name = getattr(plugin, "name", None)
+        if not isinstance(plugin, type):
+            raise PluginError(f"{kind} plugin {plugin!r} must be a class")
+        if not isinstance(name, str) or not name:
+            raise PluginError(
+                f"{kind} plugin {plugin.__qualname__} has no name; set the class attribute name"
+            )
+        _check_options(kind, name, plugin)
+        existing = self.entries[kind].get(name)
+        if existing is not None and existing.plugin is not plugin:
+            if existing.plugin is None or existing.module == plugin.__module__:
+                # a broken placeholder of the same name, or the same module imported again
+                # (e.g. reload): the newest working class wins
+                pass
+            else:
+                warnings.warn(
+                    f"{kind} {name!r} from {plugin.__module__} ignored: the name is already "
+                    f"registered by {existing.module}",
+                    stacklevel=3,
+                )
+                return
+        self.entries[kind][name] = PluginInfo(kind, name, plugin, plugin.__module__)
+
+    def add_broken(self, kind: Kind, name: str, module: str, error: str) -> None:
+        """Record a plugin module that failed to import (a working entry is never replaced)."""
+        check_kind(kind)
+        if name not in self.entries[kind]:
+            self.entries[kind][name] = PluginInfo(kind, name, None, module, error)
+
+    def discover(self) -> None:
+        """Import built-in plugin modules and entry points once (idempotent)."""
+        if self.discovered:
+            return
+        self.discovered = True
+        for kind, package_name in self.builtin_packages.items():
+            try:
+                package = importlib.import_module(package_name)
+            except Exception:  # noqa: BLE001 - a broken package must not stop the others
+                self.add_broken(kind, package_name, package_name, traceback.format_exc())
+                continue
+            for module in pkgutil.iter_modules(
+                getattr(package, "__path__", []), package_name + "."
+            ):
+                self._import(kind, module.name.rsplit(".", 1)[-1], module.name)
+        for kind, group in self.entry_point_groups.items():
+            for entry_point in metadata.entry_points(group=group):
+                try:
+                    loaded = entry_point.load()
+                    # an entry point may name a class, or a module whose decorators register
+                    if isinstance(loaded, type) and getattr(loaded, "name", None):
+                        self.add(kind, loaded)
+                except Exception:  # noqa: BLE001
+                    self.add_broken(
+                        kind, entry_point.name, entry_point.value, traceback.format_exc()
+                    )
+
+    def _import(self, kind: Kind, name: str, module_name: str) -> None:
+        if name.startswith("_"):
+            return
+        try:
+            importlib.import_module(module_name)
+        except Exception:  # noqa: BLE001
+            self.add_broken(kind, name.replace("_", "-"), module_name, traceback.format_exc())
+
+    def list(self, kind: Kind) -> list[PluginInfo]:
+        check_kind(kind)
+        self.discover()
+        return sorted(self.entries[kind].values(), key=lambda info: info.name)
+
+    def get(self, kind: Kind, name: str) -> type:
+        """The plugin class registered as ``name``; PluginError with close matches otherwise."""
+        check_kind(kind)
+        self.discover()
+        info = self.entries[kind].get(name)
+        if info is None:
+            names = sorted(self.entries[kind])
+            close = close_matches(name, names)
+            if close:
+                hint = f"did you mean {', '.join(close)}?"
+            else:
+                hint = f"known: {', '.join(names)}" if names else f"no {kind} is registered"
+            raise PluginError(f"unknown {kind} {name!r}; {hint}")
+        if info.plugin is None:
+            raise PluginError(
+                f"{kind} {name!r} is broken: {info.error_line} (module {info.module})"
+            )
+        return info.plugin
+
+
+def close_matches(name: str, names: list[str]) -> list[str]:
+    """Up to three of ``names`` that look like ``name`` (case and _/- insensitive)."""
+
+    def normal(text: str) -> str:
+        return text.lower().replace("_", "-")
+
+    by_normal = {normal(n): n for n in names}
+    close = difflib.get_close_matches(normal(name), list(by_normal), n=3, cutoff=0.6)
+    return [by_normal[c] for c in close]
+
+
+def _check_options(kind: str, name: str, plugin: type) -> None:
+    """A plugin's ``Options`` (if any) must be a dataclass whose hints resolve."""
+    options_class = getattr(plugin, "Options", None)
+    if options_class is None:
+        return
+    if not (isinstance(options_class, type) and dataclasses.is_dataclass(options_class)):
+        raise PluginError(
+            f"{kind} {name!r}: Options must be a dataclass (e.g. @dataclass(frozen=True))"
+        )
+    try:
+        option_fields(options_class)
+    except Exception as error:  # noqa: BLE001 - any failure means the hints are unusable
+        raise PluginError(f"{kind} {name!r}: cannot read the Options type hints: {error}") from None
+
+
+REGISTRY = Registry()
+
+
+def _decorator(kind: Kind):
+    def register(plugin: type) -> type:
+        REGISTRY.add(kind, plugin)
+        return plugin
+
+    return register
+
+
+problem = _decorator("problem")
+formalism = _decorator("formalism")
+integrator = _decorator("integrator")
+
+
+def get_problem(name: str) -> type:
+    return REGISTRY.get("problem", name)
+
+
+def get_formalism(name: str) -> type:
+    return REGISTRY.get("formalism", name)
+
+
+def get_integrator(name: str) -> type:
+    return REGISTRY.get("integrator", name)
+
+
+def list_plugins(kind: Kind) -> list[PluginInfo]:
+    return REGISTRY.list(kind)
+
+
+def plugin_names(kind: Kind) -> list[str]:
+    return [info.name for info in REGISTRY.list(kind)]
+
+
+def describe_kind(kind: str) -> Kind:
+    """Accept singular or plural kind names ('formalisms' -> 'formalism')."""
+    singular = kind.strip().lower()
+    if singular.endswith("s"):
+        singular = singular[:-1]
+    if singular not in KINDS:
+        close = close_matches(kind, [k + "s" for k in KINDS])
+        hint = f"did you mean {', '.join(close)}? " if close else ""
+        raise PluginError(
+            f"unknown plugin kind {kind!r}; {hint}use problems, formalisms or integrators"
+        )
+    return singular  # type: ignore[return-value]
+
+
+def any_plugin(name: str) -> tuple[Kind, type]:
+    """Find ``name`` in any registry (problems first)."""
+    REGISTRY.discover()
+    for kind in KINDS:
+        if name in REGISTRY.entries[kind]:
+            return kind, REGISTRY.get(kind, name)
+    everything = sorted({n for kind in KINDS for n in REGISTRY.entries[kind]})
+    close = close_matches(name, everything)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    raise PluginError(f"no problem, formalism or integrator is called {name!r}{hint}")
+
+
+__all__: list[Any] = [
+    "REGISTRY",
+    "PluginInfo",
+    "Registry",
+    "any_plugin",
+    "check_kind",
+    "close_matches",
+    "describe_kind",
+    "formalism",
+    "get_formalism",
+    "get_integrator",
+    "get_problem",
+    "integrator",
+    "list_plugins",
+    "plugin_names",
+    "problem",
+]
