@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.store import load_results
-from workbench.sweep import parse_spec, run_sweep
+from workbench.runs.store import load_results
+from workbench.runs.sweep import parse_spec, run_sweep
 
 RESULTS = Path(__file__).parent / "results"
 

@@ -18,6 +18,7 @@ from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
 from workbench.plugin.registry import REGISTRY, get_problem
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
+from workbench.runs.references import given_reference
 
 # case: (options, dof from the rank of the constraint Jacobian, independent loops),
 # derived by hand (Gruebler / counting velocities minus independent constraint rows).
@@ -192,14 +193,14 @@ def quaternion_distance(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def has_analytic_reference(case: str) -> bool:
-    reference = make(case).reference()
+    reference = given_reference(make(case))
     return reference is not None and reference.kind == "analytic"
 
 
 @pytest.mark.parametrize("name", [n for n in EXPECTED if has_analytic_reference(n)])
 def test_analytic_reference_agrees_with_a_tight_run(name: str) -> None:
     problem, equations, times, q, v = simulate(name)
-    reference = problem.reference()
+    reference = given_reference(problem)
     assert reference.kind == "analytic" and reference.description
     expected = reference.poses(times)
     poses = equations.observables.poses
@@ -219,7 +220,7 @@ def test_analytic_reference_agrees_with_a_tight_run(name: str) -> None:
 
 def test_symmetric_gyro_reference_starts_at_the_initial_pose() -> None:
     problem = get_problem("torque-free-symmetric-gyro")()
-    pose = problem.reference().poses(np.array([0.0]))[0, 0]
+    pose = given_reference(problem).poses(np.array([0.0]))[0, 0]
     assert np.allclose(pose[3:], problem.initial_joint_coordinates()["pivot"])
     assert math.isclose(np.linalg.norm(pose[3:]), 1.0)
 
@@ -296,5 +297,5 @@ def test_describe_shows_dof_parameters_invariants_and_reference(name: str) -> No
         assert re.search(rf"│ {body.name}\s+│ (point )?mass\s+│ {body.mass:.4g} kg", out), body.name
     invariants = ["energy"] * problem.conservative + [i.name for i in problem.invariants()]
     assert re.search(rf"│ invariants\s+│ {', '.join(invariants) or 'none'}\s+│", out)
-    reference = problem.reference()
+    reference = given_reference(problem)
     assert re.search(rf"│ reference\s+│ {reference.kind if reference else 'none'}\s+│", out)

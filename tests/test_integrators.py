@@ -271,7 +271,7 @@ def test_dae_keeps_constraints_and_energy(name, slider_crank):
 def test_ida_index_one_leaves_multipliers_out_of_the_error_test():
     """At index 1 lambda follows v' (W v' = gamma), one order less accurate than v under
     BDF; in the error test it forced ~20x more steps on the heavy top (absolute-dae)."""
-    from workbench.runs import RunSpec, execute_run, normalized_spec
+    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 
     def run(**options):
         options = {"max_steps": 3000, **options}

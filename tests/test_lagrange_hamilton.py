@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 import scipy.integrate
 
-from workbench import store
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import PluginError
 from workbench.model import JointSpringDamper, Model
 from workbench.plugin.registry import get_formalism, get_problem
-from workbench.sweep import parse_spec, run_sweep
+from workbench.runs import store
+from workbench.runs.sweep import parse_spec, run_sweep
 from workbench.testing import check_formalism
 from workbench.testing.states import formalism_state, random_joint_states
 

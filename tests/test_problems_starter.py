@@ -12,6 +12,7 @@ from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
 from workbench.plugin.registry import get_problem
 from workbench.problems import heavy_top, simple_pendulum
+from workbench.runs.references import given_reference
 
 STARTERS = {
     # name: (dof, loops)
@@ -72,7 +73,7 @@ def test_simple_pendulum_geometry_and_options() -> None:
     (position,) = evaluate(kinematics, [bob.position], q0, v0)
     l = simple_pendulum.LENGTH
     assert np.allclose(position.ravel(), [l * math.sin(0.3), -l * math.cos(0.3), 0.0])
-    assert problem.reference() is None
+    assert given_reference(problem) is None
     assert problem.t_end == 10.0
     assert get_problem("simple-pendulum")().options.initial_angle == 0.5
 

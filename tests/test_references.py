@@ -17,17 +17,19 @@ from typer.testing import CliRunner
 
 from workbench import cli
 from workbench.equations.initial import consistent_initial_state
-from workbench.metrics import computed_reference, length_scale, pose_error
+from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.registry import get_formalism, get_problem, list_plugins
-from workbench.references import (
+from workbench.runs.execute import RunSpec, execute_run, normalized_spec
+from workbench.runs.references import (
     AGREEMENT_THRESHOLD,
     Pipeline,
     compute_reference,
+    computed_reference,
+    given_reference,
     problem_fingerprint,
     read_reference,
     solve_poses,
 )
-from workbench.runs import RunSpec, execute_run, normalized_spec
 
 REPO = Path(__file__).resolve().parents[1]
 DIRECTORY = REPO / "problems" / "references"
@@ -42,7 +44,7 @@ def problem_names() -> list[str]:
 def without_analytic_reference() -> list[str]:
     names = []
     for name in problem_names():
-        given = get_problem(name)().reference()
+        given = given_reference(get_problem(name)())
         if given is None or given.kind != "analytic":
             names.append(name)
     return names
@@ -81,7 +83,7 @@ def test_stored_reference_is_well_formed(path: Path) -> None:
     assert np.allclose(np.linalg.norm(stored.poses[..., 3:], axis=-1), 1.0, atol=1e-9)
     # made for the runner's output times, so the problem serves it
     assert np.allclose(stored.times, problem.sample_times())
-    given = problem.reference()
+    given = given_reference(problem)
     assert given.kind == "stored" and path.name in given.description
     assert np.array_equal(given.poses(problem.sample_times()), stored.poses)
 
@@ -182,7 +184,7 @@ def test_unknown_problem_from_the_shell() -> None:
 
 def test_disagreeing_pipelines_name_the_disagreement() -> None:
     """At a loose tolerance the two pipelines differ: the error says by how much, where."""
-    from workbench.references import ReferenceDisagreement
+    from workbench.runs.references import ReferenceDisagreement
 
     with pytest.raises(ReferenceDisagreement, match=r"disagree by .* m .* at t = .* on body"):
         compute_reference("double-pendulum", rtol=1e-4, samples=11)
@@ -216,16 +218,16 @@ def test_a_reference_without_orientation_measures_positions() -> None:
 
 
 def test_options_or_times_not_stored_fall_back_to_a_computed_reference(tmp_path: Path) -> None:
-    from workbench.metrics import problem_reference
+    from workbench.runs.references import problem_reference
 
     problem = get_problem("planar-chain")({"n_links": 2})
-    assert problem.reference() is None  # stored for the default options only
+    assert given_reference(problem) is None  # stored for the default options only
     problem = get_problem("double-point-pendulum")()
     times = np.linspace(problem.t_start, 0.5, 7)  # not the stored sample times
     reference = problem_reference(problem, problem.name, {}, times, tmp_path)
     assert reference.kind == "computed"
     assert reference.poses.shape[0] == times.size
-    assert np.allclose(reference.poses[:1], problem.reference().poses(times[:1]))
+    assert np.allclose(reference.poses[:1], given_reference(problem).poses(times[:1]))
 
 
 def test_an_edited_problem_gets_no_stale_reference(tmp_path: Path) -> None:
@@ -237,7 +239,7 @@ def test_an_edited_problem_gets_no_stale_reference(tmp_path: Path) -> None:
     angles = original.initial_joint_coordinates()
     edited.initial_joint_coordinates = lambda: {k: np.add(v, 0.1) for k, v in angles.items()}
     assert problem_fingerprint(edited) != problem_fingerprint(original)
-    assert edited.reference() is None
+    assert given_reference(edited) is None
     times = np.linspace(0.0, 0.5, 6)
     first = computed_reference(original, original.name, {}, times, tmp_path)
     second = computed_reference(edited, edited.name, {}, times, tmp_path)
@@ -294,7 +296,7 @@ def test_formalism_follows_the_reference_early(name: str, formalism: str, option
     formalism_class = get_formalism(formalism)
     if formalism_class.unsupported(model):
         pytest.skip(f"{formalism} does not support {sorted(formalism_class.unsupported(model))}")
-    reference = problem.reference()
+    reference = given_reference(problem)
     assert reference is not None, f"{name}: no analytic or stored reference"
     times = problem.sample_times()
     times = times[times <= problem.t_start + EARLY_FRACTION * (problem.t_end - problem.t_start)]

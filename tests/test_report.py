@@ -241,7 +241,7 @@ def test_two_thousand_runs_report_is_fast_and_small(tmp_path: Path) -> None:
 # -- the command line ---------------------------------------------------------------------
 def write_results_directory(directory: Path) -> pd.DataFrame:
     """A results directory as `workbench sweep` writes it: runs/*.json and series/*.parquet."""
-    from workbench.store import write_run
+    from workbench.runs.store import write_run
 
     results = synthetic_results(problems=("simple-pendulum",))
     for row in results.to_dict("records"):

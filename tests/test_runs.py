@@ -9,9 +9,10 @@ import sys
 import numpy as np
 import pytest
 
-from workbench import metrics
+from workbench.numerics import geometry
 from workbench.plugin.registry import REGISTRY
-from workbench.runs import RunSpec, execute_run, normalized_spec
+from workbench.runs import store
+from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 
 
 @pytest.fixture
@@ -103,7 +104,7 @@ def test_closed_loop_drift_and_energy_with_inline_rk4(fake_plugins, tmp_path) ->
     assert fine.row["energy_err_max"] < coarse.row["energy_err_max"]
     assert fine.row["drift_pos_max"] < 1e-5 and fine.row["energy_err_max"] < 1e-4
     series = fine.series
-    assert list(series.columns) == metrics.SERIES_COLUMNS
+    assert list(series.columns) == store.SERIES_COLUMNS
     assert len(series) == 26 and (series["run_id"] == fine.row["run_id"]).all()
     assert series["drift_pos"].iloc[0] < 1e-10 and series["energy_err"].iloc[0] == 0
 
@@ -175,17 +176,17 @@ def test_pose_error_and_length_scale() -> None:
     poses[1, 0, 1] = 0.003  # 3 mm off
     angle = 0.01
     poses[1, 0, 3:] = [math.cos(angle / 2), 0, 0, math.sin(angle / 2)]
-    error = metrics.pose_error(poses, reference, 2.0)
+    error = geometry.pose_error(poses, reference, 2.0)
     assert error[0] == 0 and error[1] == pytest.approx(0.003 + 2.0 * angle)
-    assert metrics.length_scale(None, reference) == 2.0
-    assert metrics.length_scale(None, np.zeros((1, 1, 7))) == metrics.MIN_LENGTH_SCALE
+    assert geometry.length_scale(None, reference) == 2.0
+    assert geometry.length_scale(None, np.zeros((1, 1, 7))) == geometry.MIN_LENGTH_SCALE
 
 
 def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch) -> None:
     """The worker's equations cache is bounded (least recently used out): a reused entry
     is the same object, an evicted one is built again."""
-    from workbench import runs
     from workbench.plugin.registry import get_problem
+    from workbench.runs import execute as runs
 
     runs.clear_cache()
     monkeypatch.setattr(runs, "EQUATIONS_CACHE_SIZE", 2)
@@ -206,9 +207,9 @@ def test_initial_state_is_computed_once_per_cached_equations() -> None:
     """The consistent initial state is kept with the cached equations: the same object
     for every integrator and tolerance, equal to a fresh computation, and consistent
     (closure residual of the four-bar ~ 0); other equations get their own."""
-    from workbench import runs
     from workbench.equations.initial import consistent_initial_state
     from workbench.plugin.registry import get_problem
+    from workbench.runs import execute as runs
 
     runs.clear_cache()
     specs = [

@@ -9,9 +9,9 @@ import pandas as pd
 import pytest
 
 import workbench
-from workbench import store
 from workbench.errors import ConfigError
-from workbench.metrics import SERIES_COLUMNS
+from workbench.runs import store
+from workbench.runs.store import SERIES_COLUMNS
 
 
 def row(run_id: str, **extra) -> dict:

@@ -16,11 +16,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from workbench import store
 from workbench.cli import app
 from workbench.errors import ConfigError
 from workbench.plugin.registry import REGISTRY
-from workbench.sweep import load_spec, parse_spec, run_sweep
+from workbench.runs import store
+from workbench.runs.sweep import load_spec, parse_spec, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -392,8 +392,8 @@ def test_workers_take_runs_of_the_equations_they_built() -> None:
     worker is on, so each model is built by about one worker; nothing lost or repeated."""
     from collections import deque
 
-    from workbench.runs import RunSpec, equations_key
-    from workbench.sweep import _take_next
+    from workbench.runs.execute import RunSpec, equations_key
+    from workbench.runs.sweep import _take_next
 
     runs = [
         RunSpec(problem, "minimal-ode", integrator, rtol, rtol * 1e-3)

@@ -19,7 +19,7 @@ __version__ = "0.1.0"
 def __getattr__(name: str):
     """``workbench.load_results(PATH)``, imported lazily (pandas is not needed otherwise)."""
     if name in ("load_results", "load_series"):
-        from workbench import store
+        from workbench.runs import store
 
         return getattr(store, name)
     raise AttributeError(f"module 'workbench' has no attribute {name!r}")

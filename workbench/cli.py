@@ -190,7 +190,9 @@ def _problem_table(problem_class: type) -> Table:
         invariant.name for invariant in problem.invariants()
     ]
     table.add_row("invariants", ", ".join(invariants) or "none")
-    reference = problem.reference()
+    from workbench.runs.references import given_reference
+
+    reference = given_reference(problem)
     table.add_row("reference", reference.kind if reference is not None else "none")
     table.add_row("time span", f"{problem.t_start:g} .. {problem.t_end:g} s")
     return table
@@ -227,7 +229,7 @@ def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
     """DOF, loops and constraint counts from workbench.mechanics.topology; a note if it is missing.
 
     The rank is taken at the problem's initial configuration: the neutral one of a closed
-    loop can be folded (a four-bar with all angles zero), where W loses rank."""
+    loop can be folded (a four-link loop with all angles zero), where W loses rank."""
     try:
         from workbench.mechanics.topology import analyze
     except ImportError:
@@ -331,9 +333,9 @@ def run(
     """Run one problem with one formalism and integrator and print its metrics."""
     from pathlib import Path
 
-    from workbench import store
     from workbench.errors import ConfigError
-    from workbench.runs import RunSpec, execute_run, normalized_spec
+    from workbench.runs import store
+    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 
     if not rtol > 0 or (atol is not None and not atol > 0):
         raise ConfigError(f"tolerances must be > 0 (rtol={rtol}, atol={atol})")
@@ -390,7 +392,7 @@ def sweep(
 ) -> None:
     """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted."""
     from workbench.errors import ConfigError
-    from workbench.sweep import load_spec, run_sweep
+    from workbench.runs.sweep import load_spec, run_sweep
 
     if jobs is not None and jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
@@ -436,7 +438,7 @@ def results(
     """Print the result rows of a sweep as a table."""
     import warnings
 
-    from workbench.store import load_results
+    from workbench.runs.store import load_results
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -567,7 +569,7 @@ def reference_command(
     ] = False,
 ) -> None:
     """Compute body poses with two independent pipelines; if they agree, store them."""
-    from workbench.references import run_command
+    from workbench.runs.references import run_command
 
     run_command(console(), problem, every, rtol, samples, out)
 

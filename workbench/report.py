@@ -1,7 +1,7 @@
 """Static HTML reports of a sweep (DESIGN.md, "Runs, results, reports").
 
 :func:`write_report` turns a results DataFrame (one row a run; the columns of
-:mod:`workbench.store`) and the runs' time series into a directory::
+:mod:`workbench.runs.store`) and the runs' time series into a directory::
 
     index.html              the page: tables shown, figures linked as PNG
     figures/*.png|svg|pdf   work-precision diagrams and drift / energy over time
@@ -147,17 +147,17 @@ def report_directory(
     *,
     progress: bool | None = None,
 ) -> Path:
-    """The report of a results directory written by :mod:`workbench.store` (or of a
+    """The report of a results directory written by :mod:`workbench.runs.store` (or of a
     results.parquet); return the path of its ``index.html``.
 
     out_dir: default ``<results directory>/report``. command: for the footer; default the
     equivalent ``workbench report`` command line. Time series are read from the directory's
     ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
-    results. Warnings of :func:`workbench.store.load_results` (unreadable rows) pass through.
+    results. Warnings of :func:`workbench.runs.store.load_results` (unreadable rows) pass through.
     """
     import shlex
 
-    from workbench.store import load_results, load_series
+    from workbench.runs.store import load_results, load_series
 
     source = Path(results_path)
     if not source.exists():
@@ -235,7 +235,7 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
     if missing:
         raise ConfigError(
             f"results lack the column(s) {', '.join(missing)}; "
-            "give a table written by workbench.store (see DESIGN.md, 'Runs, results, reports')"
+            "give a table written by workbench.runs.store (see DESIGN.md, 'Runs, results, reports')"
         )
     runs = results.copy().reset_index(drop=True)
     for column in NUMERIC_COLUMNS + ("rtol",):

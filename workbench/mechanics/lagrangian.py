@@ -1,13 +1,12 @@
 """The Lagrangian of a model in tree-joint coordinates, for energy-based formalisms.
 
-Public plugin API (used by ``lagrange-ad`` and ``hamilton``): :func:`joint_space_lagrangian`
-gives the kinetic energy T(t, q, v), the potential energy V(t, q) and the
-non-conservative generalized forces Q_nc(t, q, v) as CasADi SX expressions in the symbols
-of a :class:`~workbench.mechanics.kinematics.TreeKinematics`, from the same formalism-neutral
+Public plugin API (used by the energy-based formalisms): :func:`joint_space_lagrangian`
+gives the kinetic energy T(t, q, v), the potential energy V(t, q) and the non-conservative
+generalized forces Q_nc(t, q, v) as CasADi SX expressions in the symbols of a
+:class:`~workbench.mechanics.kinematics.TreeKinematics`, from the same formalism-neutral
 kinematics and force elements every formalism uses. Q_nc is the workbench's generalized
 force minus its conservative part -dV/dq, so it is valid only where q' = v, i.e. without
-spherical or free joints (:func:`quaternion_joints`).
-"""
+spherical or free joints (:func:`quaternion_joints`). """
 
 from __future__ import annotations
 

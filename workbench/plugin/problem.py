@@ -14,8 +14,9 @@ A problem plugin subclasses :class:`Problem` and registers with
    initial state is projected onto the loop-closure and nonholonomic constraints;
 6. declare ``conservative`` (energy conserved) and :meth:`invariants` (other conserved
    quantities);
-7. optionally give a :meth:`reference`: analytic body poses; without one, a stored
-   trajectory in ``references/`` beside the module (``workbench reference NAME``) is used.
+7. optionally give a :meth:`reference`: analytic body poses. Without one, a stored
+   trajectory in ``references/`` beside the module (``workbench reference NAME``) is used,
+   else a computed one: that choice is made by :mod:`workbench.runs.references`.
 """
 
 from __future__ import annotations
@@ -109,12 +110,11 @@ class Problem:
         return []
 
     def reference(self) -> Reference | None:
-        """Analytic poses (override this), else the stored reference written by
-        ``workbench reference NAME`` into ``references/`` beside the problem's module, when
-        it matches the problem's options and model (:mod:`workbench.references`), else None."""
-        from workbench.references import stored_reference
+        """Analytic poses, if the problem has them (override this); None otherwise.
 
-        return stored_reference(self)
+        A declaration only: the stored and computed references are found by
+        :func:`workbench.runs.references.given_reference` and ``problem_reference``."""
+        return None
 
     def sample_times(self) -> np.ndarray:
         return np.linspace(self.t_start, self.t_end, self.n_samples)

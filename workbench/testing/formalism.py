@@ -27,7 +27,7 @@ import numpy as np
 from workbench.equations import FORMS, Equations
 from workbench.mechanics.forces import is_conservative_model
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
-from workbench.metrics import length_scale, pose_error
+from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.formalism import FEATURES, Formalism
 from workbench.plugin.registry import get_formalism
 from workbench.testing.common import check_structure, one_line, problem_instances, resolve_plugin

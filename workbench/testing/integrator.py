@@ -23,11 +23,12 @@ import numpy as np
 from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equations
 from workbench.equations.initial import consistent_initial_state
 from workbench.mechanics.kinematics import TreeKinematics
-from workbench.metrics import length_scale, pose_error
 from workbench.model import Model
+from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.formalism import ConstraintOptions
 from workbench.plugin.integrator import Integrator
 from workbench.plugin.registry import get_formalism
+from workbench.runs.references import given_reference
 from workbench.testing.common import check_structure, one_line, problem_instances, resolve_plugin
 from workbench.testing.report import ConformanceReport
 
@@ -85,7 +86,7 @@ def formalism_for(accepts: dict[str, int], model: Model) -> tuple[str, dict[str,
 
 def _check_accuracy(report: ConformanceReport, plugin: type, options: Any, problem: Any) -> None:
     name = problem.name
-    reference = problem.reference()
+    reference = given_reference(problem)
     if reference is None:
         report.skipped("accuracy", name, "the problem has no analytic or stored reference")
         return

@@ -17,9 +17,10 @@ import numpy as np
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.mechanics.forces import is_conservative_model
-from workbench.metrics import length_scale, pose_error
+from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import get_formalism
+from workbench.runs.references import given_reference
 from workbench.testing.common import check_structure, one_line, resolve_plugin
 from workbench.testing.report import ConformanceReport
 from workbench.testing.states import energy_scale, tight_run
@@ -153,7 +154,7 @@ def _check_reference(
     report: ConformanceReport, problem: Problem, model: Any, times: np.ndarray, poses: np.ndarray
 ) -> None:
     name = problem.name
-    reference = problem.reference()
+    reference = given_reference(problem)
     if reference is None:
         report.skipped("reference", name, "none given: runs compute one (minimal-ode, tight)")
         return
@@ -167,7 +168,7 @@ def _check_reference(
     if first.shape != shape:
         report.failed("reference", name, f"poses(times) has shape {first.shape}, expected {shape}")
         return
-    # a NaN quaternion means "orientation not known" (metrics.pose_error then compares
+    # a NaN quaternion means "orientation not known" (geometry.pose_error then compares
     # positions only, e.g. the rolling ball's): allowed, but not a NaN position
     norms = np.linalg.norm(first[..., 3:], axis=-1)
     known = np.isfinite(norms)

@@ -1,6 +1,6 @@
 """Sweeps: problems x formalisms (option grids) x integrators (option grids) x tolerances.
 
-A sweep specification is a TOML file (the default one is ``workbench/default_sweep.toml``)::
+A sweep specification is a TOML file (the default: ``workbench/runs/default_sweep.toml``)::
 
     out = "reports/latest"         # output directory (``--out`` overrides)
     jobs = 2                       # local worker processes (``--jobs`` overrides)
@@ -10,9 +10,9 @@ A sweep specification is a TOML file (the default one is ``workbench/default_swe
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
     plugins = ["my_package.my_plugins"]  # extra plugin modules, imported in every worker
 
-    problems = ["simple-pendulum", { name = "heavy-top", options = { spin = [50.0, 100.0] } }]
-    formalisms = ["all", { name = "minimal-ode", options = { index = [1, 3] } }]
-    integrators = ["scipy-radau", { name = "rk4", options = { ... } }]
+    problems = ["my-problem", { name = "my-top", options = { spin = [50.0, 100.0] } }]
+    formalisms = ["all", { name = "my-formalism", options = { index = [1, 3] } }]
+    integrators = ["my-implicit", { name = "my-fixed-step", options = { step = 1e-3 } }]
 
 Each of ``problems``, ``formalisms``, ``integrators`` is a list of names, of tables
 ``{name, options}``, or ``"all"`` (every registered, working plugin of that kind with its
@@ -41,7 +41,7 @@ run's files itself; the parent enforces each run's time limit by killing the wor
 ``timeout``) and starting a fresh one, and a worker that dies mid-run (segfault, SIGKILL)
 gives a ``failed`` row "worker process died (exit code ...)". With a Dask scheduler
 address, runs are submitted through ``distributed.Client(address).get_executor()``; each
-task runs its run in a child process (``python -m workbench.sweep --run-one``) under the
+task runs its run in a child process (``python -m workbench.runs.sweep --run-one``) under the
 time limit and returns the row and series to the client, which writes them. At the end
 the rows are consolidated into ``<out>/results.parquet``.
 """
@@ -71,11 +71,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from workbench import store
 from workbench.errors import ConfigError, PluginError, WorkbenchError
 from workbench.plugin import registry
 from workbench.plugin.registry import Kind
-from workbench.runs import RunSpec, equations_key, execute_run, status_row
+from workbench.runs import store
+from workbench.runs.execute import RunSpec, equations_key, execute_run, status_row
 
 DEFAULT_OUT = "reports/latest"
 DEFAULT_TIME_LIMIT = 120.0  # s
@@ -113,13 +113,13 @@ class SweepSpec:
 
 
 def default_spec_text() -> str:
-    return resources.files("workbench").joinpath("default_sweep.toml").read_text("utf-8")
+    return resources.files("workbench.runs").joinpath("default_sweep.toml").read_text("utf-8")
 
 
 def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
     """Read and validate a sweep specification (None: the default one); nothing is written."""
     if path is None:
-        return parse_spec(default_spec_text(), "default sweep (workbench/default_sweep.toml)")
+        return parse_spec(default_spec_text(), "default sweep (workbench/runs/default_sweep.toml)")
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -587,10 +587,10 @@ def _take_next(queue: deque[Keyed], own: tuple[str, ...] | None, others: set) ->
 # imported in the parent before forking workers (so a worker starts in milliseconds
 # instead of importing CasADi, SciPy, SUNDIALS, pandas and the plugins: ~2 s a worker)
 WORKER_MODULES = (
-    "workbench.runs",
-    "workbench.metrics",
+    "workbench.runs.execute",
+    "workbench.runs.metrics",
     "workbench.equations.initial",
-    "workbench.store",
+    "workbench.runs.store",
 )
 # modules that start threads of their own: a parent that loaded one forks no workers
 FORK_UNSAFE_MODULES = ("rerun", "distributed", "torch")
@@ -758,7 +758,7 @@ def run_in_subprocess(
         )
         try:
             completed = subprocess.run(
-                [sys.executable, "-m", "workbench.sweep", "--run-one"],
+                [sys.executable, "-m", "workbench.runs.sweep", "--run-one"],
                 input=json.dumps(request),
                 text=True,
                 capture_output=True,
@@ -780,7 +780,7 @@ def run_in_subprocess(
 
 
 def _run_one_main() -> None:
-    """``python -m workbench.sweep --run-one``: one run from a JSON request on stdin."""
+    """``python -m workbench.runs.sweep --run-one``: one run from a JSON request on stdin."""
     import warnings
 
     warnings.filterwarnings("ignore")
@@ -838,4 +838,4 @@ if __name__ == "__main__":
     if sys.argv[1:] == ["--run-one"]:
         _run_one_main()
     else:
-        sys.exit("usage: python -m workbench.sweep --run-one < request.json")
+        sys.exit("usage: python -m workbench.runs.sweep --run-one < request.json")

@@ -19,7 +19,7 @@ a column (MuJoCo-style pipeline stages):
 3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
    a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
    the metrics are still taken over the part that was reached;
-4. **metrics** — :mod:`workbench.metrics` (``metrics_s``; obtaining the reference is
+4. **metrics** — :mod:`workbench.runs.metrics` (``metrics_s``; obtaining the reference is
    timed apart as ``reference_s``);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
    series)`` (e.g. a Rerun recording). Logging is passed in, never written into
@@ -44,10 +44,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench import metrics as metrics_module
 from workbench.equations import compiled
 from workbench.errors import ConfigError
 from workbench.plugin import registry
+from workbench.runs import metrics as metrics_module
+from workbench.runs.environment import environment
+from workbench.runs.references import problem_reference
+from workbench.runs.store import empty_series
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
 
@@ -101,7 +104,7 @@ class RunSpec:
 
 @dataclass
 class RunResult:
-    """A result row (see :data:`workbench.store.SCHEMA`) and the run's time series."""
+    """A result row (see :data:`workbench.runs.store.SCHEMA`) and the run's time series."""
 
     row: dict[str, Any]
     series: pd.DataFrame
@@ -248,7 +251,7 @@ def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[s
     """A row without metrics (skipped, timeout, a worker that died)."""
     row = base_row(spec) | {"status": status, "message": message}
     row.update(extra)
-    row.update(metrics_module.environment())
+    row.update(environment())
     return row
 
 
@@ -271,7 +274,7 @@ def execute_run(
     row.update(
         {"status": "ok", "message": "", "stage": "", "equations_cached": False, "reference_s": 0.0}
     )
-    series = metrics_module.empty_series(spec.run_id)
+    series = empty_series(spec.run_id)
     state: dict[str, Any] = {}
     try:
         stages.start("pairing")
@@ -319,7 +322,7 @@ def execute_run(
                 _record_trajectory(row, trajectory)
 
                 stages.start("metrics")
-                reference = metrics_module.problem_reference(
+                reference = problem_reference(
                     problem,
                     spec.problem,
                     spec.problem_options,
@@ -361,7 +364,7 @@ def execute_run(
     main_stages = ("pairing", "build", "compile", "initial state", "integrate", "metrics")
     row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
     row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
-    row.update(metrics_module.environment())
+    row.update(environment())
     return RunResult(row, series)
 
 

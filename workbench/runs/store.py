@@ -3,8 +3,8 @@
 Layout of an output directory ``<out>``::
 
     <out>/runs/<run_id>.json         one result row (JSON object), see SCHEMA
-    <out>/series/<run_id>.parquet    its time series (metrics.SERIES_COLUMNS)
-    <out>/references/*.parquet       computed reference poses (see workbench.metrics)
+    <out>/series/<run_id>.parquet    its time series (SERIES_COLUMNS)
+    <out>/references/*.parquet       computed reference poses (see workbench.runs.metrics)
     <out>/results.parquet            all rows, consolidated at the end of a sweep
     <out>/sweep.toml                 the sweep specification that was run (if any)
 
@@ -90,6 +90,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("cpu_count", "CPUs of that machine"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
+SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
 RUNS_DIR = "runs"
 SERIES_DIR = "series"
 RESULTS_FILE = "results.parquet"
@@ -98,7 +99,7 @@ RESULTS_FILE = "results.parquet"
 # ---- atomic writes -------------------------------------------------------------------
 
 
-def _atomic_write(path: Path, write: Any, durable: bool = True) -> None:
+def atomic_write(path: Path, write: Any, durable: bool = True) -> None:
     """Call ``write(temp_path)`` then rename the temporary file over ``path``.
 
     ``durable``: fsync the file before the rename, so that after a crash of the machine
@@ -122,11 +123,11 @@ def _atomic_write(path: Path, write: Any, durable: bool = True) -> None:
 
 def write_json_atomic(data: dict[str, Any], path: Path, durable: bool = True) -> None:
     text = json.dumps(_jsonable(data), indent=1, allow_nan=True)
-    _atomic_write(path, lambda name: Path(name).write_text(text, encoding="utf-8"), durable)
+    atomic_write(path, lambda name: Path(name).write_text(text, encoding="utf-8"), durable)
 
 
 def write_parquet_atomic(frame: pd.DataFrame, path: Path) -> None:
-    _atomic_write(path, lambda name: frame.to_parquet(name, index=False))
+    atomic_write(path, lambda name: frame.to_parquet(name, index=False))
 
 
 def _jsonable(value: Any) -> Any:
@@ -138,6 +139,13 @@ def _jsonable(value: Any) -> Any:
     if hasattr(value, "item") and callable(value.item):
         return value.item()
     return value
+
+
+def empty_series(run_id: str) -> pd.DataFrame:
+    """A time series with no rows (skipped and failed-before-integration runs)."""
+    return pd.DataFrame({c: pd.Series(dtype="float64") for c in SERIES_COLUMNS}).assign(
+        run_id=pd.Series(dtype="object")
+    )[SERIES_COLUMNS]
 
 
 # ---- the store -----------------------------------------------------------------------
@@ -285,8 +293,6 @@ def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.D
     frames = [pd.read_parquet(f) for f in sorted(directory.glob("*.parquet"))]
     frames = [f for f in frames if len(f)]
     if not frames:
-        from workbench.metrics import empty_series
-
         return empty_series("")
     return pd.concat(frames, ignore_index=True)
 
@@ -314,4 +320,4 @@ def write_text_atomic(text: str, path: Path) -> None:
         with open(name, "w", encoding="utf-8") as out:
             out.write(text)
 
-    _atomic_write(path, write)
+    atomic_write(path, write)

@@ -1,55 +1,75 @@
-"""Stored references: body poses from two independent pipelines that must agree.
+"""References: the poses a run is measured against (analytic, stored or computed).
 
-A problem without an analytic solution is given a *stored* reference: its body poses
-(position + unit quaternion scalar-first, the quantities :mod:`workbench.metrics` compares)
-at fixed sample times, computed twice at tight tolerance by pipelines that share neither
-the formalism nor the integrator (:func:`pipelines`):
+:func:`problem_reference` chooses, for one run: the problem's analytic poses
+(:meth:`~workbench.plugin.problem.Problem.reference`), else its stored reference (when it
+holds the output times asked for), else a computed one; failing all three, ``none`` with
+the reason (error columns NaN).
 
-- A: joint coordinates (``minimal-ode`` at index 1: the plain ODE of a tree, Baumgarte for
-  loops) or, with nonholonomic constraints, minimal velocities
-  (``nonholonomic-projection``), integrated by the explicit ``scipy-dop853``;
-- B: absolute body coordinates with Euler parameters and every joint as a constraint
-  (``absolute-dae`` at index 1: Baumgarte-stabilized, offered as an ODE), integrated by
-  the implicit Radau IIA of ``scipy-radau``. (SUNDIALS IDA on the index-2 DAE was tried:
-  its BDF at rtol 1e-11 left 2.5e-5 m on the articulated arm, far above the threshold.)
+*Stored*: body poses (position + unit quaternion scalar-first) at fixed sample times,
+computed twice at tight tolerance by two pipelines that share neither the formalism nor
+the integrator (:func:`pipelines`); their pose error (``|dr| + L |dtheta|``,
+:func:`workbench.numerics.geometry.pose_error`) relative to the model's length scale L
+must stay below a threshold (``1e-7`` by default), else :class:`ReferenceDisagreement`
+names the largest disagreement, when and for which body. The first pipeline's poses are
+kept. Files (:func:`write_reference`), in ``references/`` beside the module that defines
+the problem: ``<problem>.npz`` (``times`` (n,), ``poses`` (n, n_bodies, 7), ``bodies``) and
+``<problem>.json`` (command, both pipelines with their cost, tolerances, sample times,
+agreement, the problem's fingerprint, library versions). :func:`stored_reference` serves
+them while the problem's options and fingerprint (:func:`problem_fingerprint`: model
+parameters and initial condition) still match, so an edited problem is never compared
+against a stale file.
 
-The pose error between them (``|dr| + L |dtheta|``, :func:`workbench.metrics.pose_error`)
-relative to the model's length scale L must stay below a threshold (``1e-7`` by default),
-else :class:`ReferenceDisagreement` names the largest disagreement, when and for which
-body. Pipeline A's poses are kept: DOP853's error is the smaller at the same tolerance.
+*Computed*: one tight-tolerance run (REFERENCE_RTOL, REFERENCE_ATOL) of a pipeline,
+cached in memory and in ``<out>/references/`` (:func:`computed_reference`).
 
-Files (:func:`write_reference`), beside the module that defines the problem, in
-``references/``: ``<problem>.npz`` (``times`` (n,), ``poses`` (n, n_bodies, 7), ``bodies``)
-and ``<problem>.json`` (command, both pipelines with their cost, tolerances, sample
-times, agreement, the problem's fingerprint, library versions). :func:`stored_reference`
-serves them as the problem's :class:`~workbench.plugin.problem.Reference` when the problem's
-options and fingerprint (:func:`problem_fingerprint`: model parameters and initial
-condition) still match, so an edited problem falls back to a computed reference instead
-of being compared against a stale one.
+Which pipelines: the core names none. They are configuration, supplied by the installed
+plugins: the built-in package's ``reference_pipelines.toml`` (its comments say why each
+was chosen), or another package's entry point in the group ``workbench.reference_pipelines``
+(:func:`pipeline_configuration`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime
+import functools
 import hashlib
 import inspect
+import io
 import json
 import math
 import time
-from collections.abc import Callable
+import tomllib
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from importlib import metadata, resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
+from workbench.equations.initial import consistent_initial_state
 from workbench.errors import ConfigError, IntegrationError, WorkbenchError
+from workbench.numerics.geometry import length_scale, rotation_angle
+from workbench.plugin import registry
+from workbench.plugin.options import options_dict
+from workbench.plugin.problem import Reference
+from workbench.runs.environment import environment
+from workbench.runs.store import atomic_write, write_json_atomic, write_parquet_atomic
+
+BUILTIN_PLUGINS = "workbench.plugins"  # the package whose reference_pipelines.toml is read
 
 REFERENCE_RTOL = 1e-11
+REFERENCE_ATOL = 1e-12  # computed references; stored ones use rtol * ATOL_FACTOR
 ATOL_FACTOR = 0.1  # atol = rtol * ATOL_FACTOR
 AGREEMENT_THRESHOLD = 1e-7  # largest pose disagreement / L
 DIRECTORY = "references"
+POSE_COLUMNS = ["x", "y", "z", "p0", "p1", "p2", "p3"]
+PIPELINES_GROUP = "workbench.reference_pipelines"
+
+_REFERENCE_MEMORY: dict[str, tuple[str, np.ndarray, str]] = {}
 
 
 class ReferenceDisagreement(IntegrationError):
@@ -71,12 +91,6 @@ class Pipeline:
     def label(self) -> str:
         options = ",".join(f"{k}={v}" for k, v in sorted(self.formalism_options.items()))
         return f"{self.formalism}{f'({options})' if options else ''} + {self.integrator}"
-
-
-PIPELINE_JOINT = Pipeline("minimal-ode", {"index": 1}, "scipy-dop853")
-PIPELINE_PROJECTION = Pipeline("nonholonomic-projection", {}, "scipy-dop853")
-PIPELINE_ABSOLUTE = Pipeline("absolute-dae", {"index": 2}, "sundials-ida")
-PIPELINE_ABSOLUTE_ODE = Pipeline("absolute-dae", {"index": 1}, "scipy-radau")
 
 
 @dataclass
@@ -136,22 +150,54 @@ def problem_fingerprint(problem: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-# ---- computing -----------------------------------------------------------------------
+# ---- which pipelines (configuration supplied by the installed plugins) ---------------
+
+
+@functools.cache
+def pipeline_configuration() -> dict[str, Any]:
+    """The reference pipelines: the built-in package's ``reference_pipelines.toml``,
+    replaced table by table by an installed package's entry point in PIPELINES_GROUP."""
+    configuration: dict[str, Any] = {}
+    with contextlib.suppress(ModuleNotFoundError, FileNotFoundError):
+        text = resources.files(BUILTIN_PLUGINS).joinpath("reference_pipelines.toml").read_text()
+        configuration.update(tomllib.loads(text))
+    for entry_point in metadata.entry_points(group=PIPELINES_GROUP):
+        configuration.update(entry_point.load())
+    return configuration
+
+
+def _fits(when: str | None, model: Any) -> bool:
+    tree = not model.cut_joints and not model.nonholonomic
+    return {None: True, "tree": tree, "nonholonomic": bool(model.nonholonomic)}.get(when, False)
+
+
+def configured_pipeline(purpose: str, model: Any) -> Pipeline:
+    """The configured pipeline for ``purpose`` ("stored.first", "stored.second" or
+    "computed") and ``model``; ConfigError if none is configured."""
+    entries: Any = pipeline_configuration()
+    for part in purpose.split("."):
+        entries = entries.get(part, {}) if isinstance(entries, dict) else {}
+    for entry in entries or []:
+        if _fits(entry.get("when"), model):
+            return Pipeline(entry["formalism"], dict(entry.get("options", {})), entry["integrator"])
+    raise ConfigError(
+        f"no {purpose} reference pipeline is configured for model {model.name!r}: install the "
+        f"built-in plugins or a package with a {PIPELINES_GROUP!r} entry point"
+    )
 
 
 def pipelines(model: Any) -> tuple[Pipeline, Pipeline]:
-    """The two independent pipelines for ``model`` (see the module docstring)."""
-    first = PIPELINE_PROJECTION if model.nonholonomic else PIPELINE_JOINT
-    return first, PIPELINE_ABSOLUTE_ODE
+    """The two independent pipelines of a stored reference for ``model``."""
+    return configured_pipeline("stored.first", model), configured_pipeline("stored.second", model)
+
+
+# ---- computing -----------------------------------------------------------------------
 
 
 def solve_poses(
     problem: Any, pipeline: Pipeline, times: np.ndarray, rtol: float, atol: float
 ) -> tuple[np.ndarray, list[str], dict[str, Any]]:
     """Body poses (n_times, n_bodies, 7) of ``problem`` along ``pipeline``, body names, cost."""
-    from workbench.equations.initial import consistent_initial_state
-    from workbench.plugin import registry
-
     model = problem.model()
     formalism_class = registry.get_formalism(pipeline.formalism)
     formalism_class.check(model)
@@ -188,8 +234,6 @@ def agreement(
     poses_a: np.ndarray, poses_b: np.ndarray, times: np.ndarray, bodies: list[str], length: float
 ) -> dict[str, Any]:
     """The largest pose disagreement (m and relative to ``length``), when and for which body."""
-    from workbench.metrics import rotation_angle
-
     per_body = np.linalg.norm(poses_a[..., :3] - poses_b[..., :3], axis=-1) + length * (
         rotation_angle(poses_a[..., 3:], poses_b[..., 3:])
     )
@@ -218,9 +262,6 @@ def compute_reference(
     ``n_samples``, so the reference serves the runner's output times). Raises
     :class:`ReferenceDisagreement` if the pipelines differ by more than ``threshold`` L.
     """
-    from workbench.metrics import environment, length_scale
-    from workbench.plugin import registry
-    from workbench.plugin.options import options_dict
 
     if not (0 < rtol < 1):
         raise ConfigError(f"--rtol must be in (0, 1), not {rtol:g}")
@@ -280,24 +321,18 @@ def compute_reference(
 
 def default_directory(name: str) -> Path:
     """``references/`` beside the module that defines problem ``name``."""
-    from workbench.plugin import registry
-
     return Path(inspect.getfile(registry.get_problem(name))).parent / DIRECTORY
 
 
 def write_reference(reference: StoredReference, directory: Path | str | None = None) -> Path:
     """Write ``<problem>.npz`` and ``<problem>.json`` (atomically); return the .npz path."""
-    import io
-
-    from workbench.store import _atomic_write, write_json_atomic
-
     directory = Path(directory) if directory is not None else default_directory(reference.problem)
     path = directory / f"{reference.problem}.npz"
     buffer = io.BytesIO()
     np.savez_compressed(
         buffer, times=reference.times, poses=reference.poses, bodies=np.array(reference.bodies)
     )
-    _atomic_write(path, lambda temp: Path(temp).write_bytes(buffer.getvalue()))
+    atomic_write(path, lambda temp: Path(temp).write_bytes(buffer.getvalue()))
     write_json_atomic(reference.metadata, path.with_suffix(".json"))
     for written in (path, path.with_suffix(".json")):
         written.chmod(0o644)  # package data, readable by all (mkstemp made it 0600)
@@ -319,9 +354,6 @@ _LOADED: dict[tuple[str, float], StoredReference | None] = {}
 def stored_reference(problem: Any) -> Any:
     """The problem's stored :class:`~workbench.plugin.problem.Reference`, or None when there is no
     file, or it was made for other options or an earlier version of the problem."""
-    from workbench.plugin.options import options_dict
-    from workbench.plugin.problem import Reference
-
     try:
         path = Path(inspect.getfile(type(problem))).parent / DIRECTORY / f"{problem.name}.npz"
         key = (str(path), path.stat().st_mtime)
@@ -363,14 +395,157 @@ def poses_at(stored: StoredReference, times: np.ndarray) -> np.ndarray:
     return stored.poses[nearest]
 
 
+# ---- the reference of a run: analytic, stored or computed ---------------------------
+
+
+def given_reference(problem: Any) -> Any:
+    """The problem's own reference: its analytic poses, else its stored file; or None."""
+    return problem.reference() or stored_reference(problem)
+
+
+@dataclass
+class ReferencePoses:
+    """Reference body poses (n_times, n_bodies, 7) at the output times, or None."""
+
+    kind: str  # analytic | stored | computed | none
+    poses: np.ndarray | None
+    description: str = ""
+    seconds: float = 0.0
+
+
+def _problem_key(problem_name: str, problem_options: dict[str, Any], times: np.ndarray) -> dict:
+    return {
+        "problem": problem_name,
+        "options": problem_options,
+        "times": [float(times[0]), float(times[-1]), int(times.size)],
+    }
+
+
+def reference_hash(key: dict[str, Any]) -> str:
+    text = json.dumps(key, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@contextlib.contextmanager
+def _file_lock(path: Path) -> Iterator[None]:
+    """An exclusive advisory lock (released by the OS if the holder dies)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock, at worst the reference is computed twice
+        yield
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _poses_to_frame(times: np.ndarray, poses: np.ndarray, bodies: list[str]) -> pd.DataFrame:
+    n_times, n_bodies, _ = poses.shape
+    frame = pd.DataFrame(poses.reshape(n_times * n_bodies, 7), columns=POSE_COLUMNS)
+    frame.insert(0, "body", np.tile(np.array(bodies, dtype=object), n_times))
+    frame.insert(0, "t", np.repeat(times, n_bodies))
+    return frame
+
+
+def _frame_to_poses(frame: pd.DataFrame, n_times: int) -> np.ndarray:
+    values = frame[POSE_COLUMNS].to_numpy(dtype=float)
+    return values.reshape(n_times, -1, 7)
+
+
+def computed_reference(
+    problem: Any,
+    problem_name: str,
+    problem_options: dict[str, Any],
+    times: np.ndarray,
+    reference_dir: Path | None = None,
+) -> ReferencePoses:
+    """One tight-tolerance run (rtol REFERENCE_RTOL, atol REFERENCE_ATOL) of the configured
+    ``computed`` pipeline, cached in memory and on disk under
+    ``<reference_dir>/<problem>-<hash>.parquet`` (the hash covers the problem's options,
+    output times, pipeline, tolerances and fingerprint; written atomically, and a lock file
+    keeps concurrent workers from computing it twice)."""
+    model = problem.model()
+    pipeline = configured_pipeline("computed", model)
+    key = _problem_key(problem_name, problem_options, times)
+    key["pipeline"] = [pipeline.formalism, pipeline.formalism_options, pipeline.integrator]
+    key["tolerances"] = [REFERENCE_RTOL, REFERENCE_ATOL]
+    # the model and initial condition too: a cached reference of an edited problem (same
+    # name, options and times) was served as its reference before
+    key["fingerprint"] = problem_fingerprint(problem)
+    digest = reference_hash(key)
+    if digest in _REFERENCE_MEMORY:
+        kind, poses, description = _REFERENCE_MEMORY[digest]
+        return ReferencePoses(kind, poses, description)
+    path = None
+    if reference_dir is not None:
+        path = Path(reference_dir) / f"{problem_name}-{digest}.parquet"
+    started = time.perf_counter()
+    lock = _file_lock(path.with_suffix(".lock")) if path else contextlib.nullcontext()
+    with lock:
+        if path is not None and path.exists():
+            try:
+                frame = pd.read_parquet(path)
+                poses = _frame_to_poses(frame, times.size)
+                description = f"computed, read from {path.name}"
+                _REFERENCE_MEMORY[digest] = ("computed", poses, description)
+                return ReferencePoses("computed", poses, description, time.perf_counter() - started)
+            except Exception:  # noqa: BLE001 - an unreadable cache file is recomputed
+                pass
+        poses, bodies, _ = solve_poses(problem, pipeline, times, REFERENCE_RTOL, REFERENCE_ATOL)
+        description = (
+            f"computed: {pipeline.formalism} {pipeline.formalism_options} + "
+            f"{pipeline.integrator}, rtol {REFERENCE_RTOL:g}, atol {REFERENCE_ATOL:g}"
+        )
+        if path is not None:
+            try:
+                write_parquet_atomic(_poses_to_frame(times, poses, bodies), path)
+            except OSError:  # a read-only output dir only costs the recomputation
+                pass
+    _REFERENCE_MEMORY[digest] = ("computed", poses, description)
+    return ReferencePoses("computed", poses, description, time.perf_counter() - started)
+
+
+def problem_reference(
+    problem: Any,
+    problem_name: str,
+    problem_options: dict[str, Any],
+    times: np.ndarray,
+    reference_dir: Path | None = None,
+) -> ReferencePoses:
+    """The problem's own reference if it gives one, else the computed one; never raises.
+
+    A stored reference without samples at ``times`` (stored for other output times) gives
+    way to the computed one.
+    """
+    started = time.perf_counter()
+    try:
+        given = given_reference(problem)
+        if given is not None:
+            try:
+                poses = np.asarray(given.poses(times), dtype=float)
+                return ReferencePoses(
+                    given.kind, poses, given.description, time.perf_counter() - started
+                )
+            except ReferenceTimesMismatch:
+                pass
+        return computed_reference(problem, problem_name, problem_options, times, reference_dir)
+    except Exception as error:  # noqa: BLE001 - a missing reference leaves NaN, not a crash
+        line = str(error).strip().splitlines()[-1:] or [type(error).__name__]
+        return ReferencePoses(
+            "none", None, f"no reference: {line[0]}", time.perf_counter() - started
+        )
+
+
 # ---- the command ---------------------------------------------------------------------
 
 
 def reference_names(problem: str | None, every: bool) -> list[str]:
     """The problems ``workbench reference`` works on: one name, or with ``--all`` every
     registered problem without an analytic reference."""
-    from workbench.plugin import registry
-
     if (problem is None) == (not every):
         raise ConfigError("give either a PROBLEM name or --all (not both, not neither)")
     if problem is not None:
@@ -380,8 +555,7 @@ def reference_names(problem: str | None, every: bool) -> list[str]:
     for info in registry.list_plugins("problem"):
         if info.plugin is None:
             continue
-        given = info.plugin().reference()
-        if given is None or given.kind != "analytic":
+        if info.plugin().reference() is None:  # not analytic
             names.append(info.name)
     return names
 

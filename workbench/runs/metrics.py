@@ -1,0 +1,154 @@
+"""Metrics of one run: error against a reference, constraint drift, energy, invariants, cost.
+
+Everything is measured on formalism-neutral observables (``Equations.observables``) at the
+problem's output times, so two formalisms are compared on the same footing.
+
+**Reference** (column ``reference_kind``): ``analytic``, ``stored``, ``computed`` or
+``none``, chosen by :func:`workbench.runs.references.problem_reference`.
+
+**Pose error** at one output time: the largest over bodies of ``|dr| + L |dtheta|`` (m),
+with ``dr`` the error of the body frame's origin, ``dtheta`` the angle of the relative
+rotation between the computed and the reference orientation, and ``L`` the model's
+length scale: the largest distance of any body frame origin from the inertial origin
+over the reference, of any centre of mass or joint frame from its body frame origin, and
+at least 1e-3 m. ``err_max`` is its maximum over the output times, ``err_end`` its value at
+the end time, and ``scd = -log10(err_end / L)``: the number of significant correct digits
+of the relative end error, as in the test set for IVP solvers of Mazzia and Magherini
+(https://archimede.uniba.it/~testset/).
+
+**Drift**: at each output time the largest absolute component of the position-level
+(m or rad), velocity-level and nonholonomic constraint residuals of
+``observables.residuals`` (NaN when the model has no such constraint); ``*_max`` and
+``*_final``.
+
+**Energy**: for a conservative problem, ``|E(t) - E(t0)| / S`` with E = T + V and
+``S = max(T(t0) + |V(t0)|, max_t T(t))`` (the energy present in the motion, independent
+of the zero level of V). For a non-conservative problem the energy balance (work of the
+non-conservative forces) is not computed yet: ``energy_err_max`` is NaN and ``notes``
+says so.
+
+**Invariants**: for each of the problem's invariants ``I``, ``max_t |I(t) - I(t0)| / |I(t0)|``
+(absolute when ``|I(t0)| < 1e-12``); ``invariant_err_max`` is the largest over invariants.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from workbench.equations import Equations
+from workbench.numerics.geometry import length_scale, pose_error
+from workbench.runs.references import ReferencePoses
+from workbench.runs.store import SERIES_COLUMNS
+
+# ---- pose error ----------------------------------------------------------------------
+
+
+# ---- reference -----------------------------------------------------------------------
+
+
+# ---- the metrics ---------------------------------------------------------------------
+
+
+def _max(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(np.max(finite)) if finite.size else math.nan
+
+
+def _final(values: np.ndarray) -> float:
+    return float(values[-1]) if values.size else math.nan
+
+
+def trajectory_metrics(
+    run_id: str,
+    problem: Any,
+    equations: Equations,
+    times: np.ndarray,
+    y: np.ndarray,
+    complete: bool,
+    reference: ReferencePoses,
+) -> tuple[dict[str, Any], pd.DataFrame]:
+    """The metric columns of a row and the time series, from states ``y`` at ``times``.
+
+    ``y`` (n, >= nq + nv) in the layout [q, v, ...]; ``complete``: the run reached the end
+    time (else the end error and scd are NaN). ``reference.poses`` covers all the problem's
+    output times; the first ``len(times)`` are used.
+    """
+    nq, nv = equations.nq, equations.nv
+    n = len(times)
+    notes: list[str] = []
+    sampled = equations.observables.along(times, y[:n, :nq], y[:n, nq : nq + nv])
+    drift = np.full((n, 3), math.nan)
+    for k, residual in enumerate(sampled.residuals[:3]):
+        if residual.shape[1]:
+            drift[:, k] = np.abs(residual).max(axis=1)
+    energy = sampled.energy if n else np.full((0, 2), math.nan)
+    pose_array, twists = sampled.poses, sampled.twists
+
+    # error against the reference
+    ref_err = np.full(n, math.nan)
+    length = length_scale(equations.model, reference.poses)
+    if reference.poses is not None and n:
+        ref_err = pose_error(pose_array, reference.poses[:n], length)
+    elif reference.poses is None:
+        notes.append(reference.description or "no reference")
+    err_end = float(ref_err[-1]) if (complete and n) else math.nan
+    scd = -math.log10(err_end / length) if err_end > 0 else math.nan
+    if err_end == 0.0:
+        scd = math.inf
+
+    # energy
+    energy_err = np.full(n, math.nan)
+    if problem.conservative and n:
+        total = energy.sum(axis=1)
+        kinetic0, potential0 = energy[0]
+        scale = max(kinetic0 + abs(potential0), _max(energy[:, 0]), 1e-300)
+        energy_err = np.abs(total - total[0]) / scale
+    elif not problem.conservative:
+        notes.append("energy balance of a non-conservative problem not computed yet")
+
+    # invariants
+    invariant_errors = []
+    for invariant in problem.invariants():
+        values = invariant.along(equations.model, times, pose_array, twists)
+        if not values.size:
+            continue
+        scale = abs(values[0]) if abs(values[0]) >= 1e-12 else 1.0
+        invariant_errors.append(_max(np.abs(values - values[0]) / scale))
+
+    row = {
+        "reference_kind": reference.kind,
+        "reference": reference.description,
+        "length_scale": length,
+        "err_max": _max(ref_err),
+        "err_end": err_end,
+        "scd": scd,
+        "drift_pos_max": _max(drift[:, 0]),
+        "drift_pos_final": _final(drift[:, 0]),
+        "drift_vel_max": _max(drift[:, 1]),
+        "drift_vel_final": _final(drift[:, 1]),
+        "drift_nh_max": _max(drift[:, 2]),
+        "drift_nh_final": _final(drift[:, 2]),
+        "energy_err_max": _max(energy_err),
+        "energy_err_final": _final(energy_err),
+        "invariant_err_max": max(invariant_errors) if invariant_errors else math.nan,
+        "notes": "; ".join(notes),
+    }
+    series = pd.DataFrame(
+        {
+            "run_id": run_id,
+            "t": np.asarray(times, dtype=float),
+            "drift_pos": drift[:, 0],
+            "drift_vel": drift[:, 1],
+            "drift_nh": drift[:, 2],
+            "energy_err": energy_err,
+            "ref_err": ref_err,
+        },
+        columns=SERIES_COLUMNS,
+    )
+    return row, series
+
+
