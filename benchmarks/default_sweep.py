@@ -156,7 +156,7 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
 
 
 def _spec_text() -> str:
-    from workbench.runs.sweep import default_spec_text
+    from workbench.runs.sweep_spec import default_spec_text
 
     return default_spec_text()
 

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from workbench.outputs.recording import SweepRecorder
 from workbench.runs.store import load_results
 from workbench.runs.sweep import parse_spec, run_sweep
 
@@ -43,7 +44,7 @@ def spec_text(n_runs: int) -> str:
 
 def one_sweep(sweep, jobs: int) -> dict:
     with tempfile.TemporaryDirectory() as out:
-        summary = run_sweep(sweep, jobs=jobs, out=out, show_progress=False)
+        summary = run_sweep(sweep, jobs=jobs, out=out, show_progress=False, recorder=SweepRecorder)
         results = load_results(out)
     overhead = results["wall_s"] - results["integrate_s"] + results["log_s"].fillna(0.0)
     return {

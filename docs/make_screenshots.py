@@ -27,7 +27,7 @@ from urllib.parse import quote
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from workbench.browser import headless_chromium  # noqa: E402
+from workbench.outputs.browser import headless_chromium  # noqa: E402
 
 TOLERANCES = "[1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8]"
 DIAGRAM_SPEC = f"""

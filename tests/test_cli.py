@@ -146,9 +146,9 @@ def test_capabilities_text():
         capabilities = frozenset({"spatial", "loops"})
         accepts = {"mechanical": 3}
 
-    assert cli.capabilities_text(Both) == "loops, spatial; mechanical (index <= 3)"
-    assert cli.capabilities_text(object) == "-"
-    assert cli.capabilities_text(None) == "-"
+    assert cli.plugins.capabilities_text(Both) == "loops, spatial; mechanical (index <= 3)"
+    assert cli.plugins.capabilities_text(object) == "-"
+    assert cli.plugins.capabilities_text(None) == "-"
 
 
 # -- as a subprocess --------------------------------------------------------------------

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from workbench.cli import app
 from workbench.model import Frame, Model, Shape
-from workbench.recording import (
+from workbench.outputs.recording import (
     SERIES_QUANTITIES,
     RerunSink,
     entity_path,
@@ -309,7 +309,7 @@ def test_view_missing_recording_is_one_line_error(tmp_path: Path) -> None:
 def test_view_up_is_against_gravity() -> None:
     from types import SimpleNamespace
 
-    from workbench.recording import view_coordinates
+    from workbench.outputs.recording import view_coordinates
 
     def up(kind: str, gravity: tuple[float, float, float]) -> object:
         return view_coordinates(SimpleNamespace(kind=kind, gravity=np.array(gravity)))

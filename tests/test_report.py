@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from workbench.errors import ConfigError
-from workbench.report import (
+from workbench.outputs.report import (
     cheapest_pairs,
     latex_table,
     markdown_table,

@@ -16,8 +16,8 @@ from urllib.parse import unquote, urlsplit
 import pytest
 
 from tests.test_report import synthetic_results, synthetic_series
-from workbench.browser import INSTALL_HINT, find_chromium, headless_chromium, set_viewport
-from workbench.report import write_report
+from workbench.outputs.browser import INSTALL_HINT, find_chromium, headless_chromium, set_viewport
+from workbench.outputs.report import write_report
 
 WIDTH = 1280
 MAX_HEIGHT = 12000

@@ -393,7 +393,7 @@ def test_workers_take_runs_of_the_equations_they_built() -> None:
     from collections import deque
 
     from workbench.runs.execute import RunSpec, equations_key
-    from workbench.runs.sweep import _take_next
+    from workbench.runs.local_pool import _take_next
 
     runs = [
         RunSpec(problem, "minimal-ode", integrator, rtol, rtol * 1e-3)

@@ -407,3 +407,23 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
                 fill_mode=solid,
             )
     return archetypes
+
+
+class SweepRecorder(RerunSink):
+    """What a sweep's workers record with (``run_sweep(..., recorder=SweepRecorder)``): at
+    most 200 poses a run, a ``.rrd`` file a run beside its row, merged at the end into
+    ``<out>/recording.rrd``."""
+
+    suffix = "rrd"
+
+    def __init__(self) -> None:
+        super().__init__(max_frames=200)
+
+    @staticmethod
+    def prepare() -> None:
+        """Import rerun-sdk when a worker starts, not within a run's time limit."""
+        import rerun  # noqa: F401
+
+    @staticmethod
+    def merge(files: Iterable[str | Path], out: str | Path) -> Path:
+        return merge_recordings(files, Path(out) / RECORDING_FILE)

@@ -1,0 +1,108 @@
+"""The ``workbench`` command line (``workbench --help``; also ``python -m workbench``).
+
+Adding a command is adding one function decorated with ``@app.command()`` in the module
+of its group (``plugins``, ``runs``, ``outputs``; imported by ``workbench.cli``). A command
+raises :class:`~workbench.errors.WorkbenchError` on bad input; :class:`WorkbenchGroup`
+turns it into one line on stderr and exit code 2, so no command handles errors itself.
+Tables go through :func:`console` (rich); plain messages through ``typer.echo``.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Annotated, Any
+
+import click
+import typer
+from rich.console import Console
+
+from workbench import __version__
+from workbench.errors import WorkbenchError
+
+EXIT_BAD_INPUT = 2
+
+
+def one_line(error: BaseException) -> str:
+    """An error message on a single line (continuation lines joined with ' | ')."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return " | ".join(lines) or type(error).__name__
+
+
+def fail(error: WorkbenchError) -> typer.Exit:
+    """Print ``error`` as one line on stderr; the caller raises the returned Exit(2)."""
+    typer.echo(f"error: {one_line(error)}", err=True)
+    return typer.Exit(EXIT_BAD_INPUT)
+
+
+class WorkbenchGroup(typer.core.TyperGroup):
+    """The one place where a WorkbenchError becomes a one-line message and exit code 2."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except WorkbenchError as error:
+            raise fail(error) from None
+
+
+app = typer.Typer(
+    cls=WorkbenchGroup,
+    name="workbench",
+    help="Compare formalisms and integrators for multibody dynamics.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def console() -> Console:
+    """A rich console on the current stdout (so test runners can capture it).
+
+    Markup is off: plugin summaries and error messages may contain brackets.
+    """
+    return Console(file=sys.stdout, highlight=False, markup=False)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"mbs-workbench {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version."),
+    ] = False,
+) -> None:
+    """Compare formalisms and integrators for multibody dynamics."""
+
+
+# -- what a plugin declares ------------------------------------------------------------
+
+
+# -- commands -------------------------------------------------------------------------
+
+
+# -- runs, sweeps, results ---------------------------------------------------------------
+
+
+# -- plugin authors -------------------------------------------------------------------
+
+
+# -- reports --------------------------------------------------------------------------
+
+
+# -- stored references ----------------------------------------------------------------
+
+
+def main() -> None:
+    """Console-script entry point (``workbench``)."""
+    try:
+        app()
+    except WorkbenchError as error:  # raised outside a command (e.g. by a callback)
+        sys.exit(fail(error).exit_code)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,213 @@
+"""Commands about plugins: ``workbench list``, ``describe`` and ``new``."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from workbench.cli.app import app, console
+from workbench.plugin import registry
+from workbench.plugin.options import option_fields, type_name
+from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
+
+
+def capabilities_text(plugin: type | None) -> str:
+    """A plugin's declared capabilities on one line; '-' when it declares none.
+
+    Formalisms declare ``capabilities`` (model features handled), integrators ``accepts``
+    (form -> maximum differentiation index).
+    """
+    if plugin is None:
+        return "-"
+    parts = []
+    capabilities = getattr(plugin, "capabilities", None)
+    if capabilities:
+        parts.append(", ".join(sorted(map(str, capabilities))))
+    accepts = getattr(plugin, "accepts", None)
+    if isinstance(accepts, Mapping) and accepts:
+        parts.append(", ".join(f"{form} (index <= {index})" for form, index in accepts.items()))
+    elif accepts:
+        parts.append(", ".join(sorted(map(str, accepts))))
+    return "; ".join(parts) or "-"
+
+
+def _status(info: PluginInfo) -> str:
+    return f"broken: {info.error_line}" if info.plugin is None else "ok"
+
+
+def _plugin_table(kind: Kind, infos: list[PluginInfo]) -> Table:
+    table = Table(title=f"{kind}s", title_justify="left")
+    table.add_column("name", no_wrap=True)
+    table.add_column("summary")
+    table.add_column("capabilities")
+    table.add_column("status")
+    for info in infos:
+        summary = "" if info.plugin is None else info.summary
+        status = _status(info)
+        style = "red" if info.plugin is None else None
+        table.add_row(info.name, summary, capabilities_text(info.plugin), status, style=style)
+    return table
+
+
+@app.command("list")
+def list_command(
+    kind: Annotated[
+        str | None,
+        typer.Argument(help="problems, formalisms or integrators (default: all three)."),
+    ] = None,
+) -> None:
+    """List the registered plugins: name, summary, capabilities and status."""
+    kinds = [describe_kind(kind)] if kind is not None else list(KINDS)
+    out = console()
+    for each in kinds:
+        infos = registry.REGISTRY.list(each)
+        if infos:
+            out.print(_plugin_table(each, infos))
+        else:
+            out.print(f"no {each}s registered")
+
+
+@app.command()
+def describe(
+    name: Annotated[str, typer.Argument(help="A problem, formalism or integrator name.")],
+) -> None:
+    """Describe one plugin: summary, options, capabilities; for a problem also its model."""
+    kind, plugin = registry.any_plugin(name)
+    out = console()
+    out.print(f"{name} ({kind}, {plugin.__module__})", style="bold")
+    summary = getattr(plugin, "summary", "")
+    if summary:
+        out.print(summary)
+    if kind == "problem" and getattr(plugin, "source", ""):
+        out.print(f"source: {plugin.source}")
+    out.print(f"capabilities: {capabilities_text(plugin)}")
+    out.print(_options_table(plugin))
+    if kind == "problem":
+        out.print(_problem_table(plugin))
+        out.print(_parameters_table(plugin))
+
+
+def _options_table(plugin: type) -> Table | str:
+    options_class = getattr(plugin, "Options", None)
+    rows = option_fields(options_class) if options_class is not None else []
+    if not rows:
+        return "options: none"
+    table = Table(title="options", title_justify="left")
+    table.add_column("name", no_wrap=True)
+    table.add_column("type")
+    table.add_column("default")
+    for name, annotation, default in rows:
+        table.add_row(name, type_name(annotation), repr(default))
+    return table
+
+
+def _problem_table(problem_class: type) -> Table:
+    """The problem's model, built with default options, and its topology."""
+    problem = problem_class()
+    model = problem.model()
+    table = Table(title="model", title_justify="left", show_header=False)
+    table.add_column("property", no_wrap=True)
+    table.add_column("value")
+    table.add_row("kind", model.kind)
+    table.add_row("bodies", f"{len(model.bodies)}: {', '.join(model.bodies)}")
+    table.add_row("joints", f"{len(model.joints)}: {', '.join(model.joints)}")
+    for label, value in _topology_rows(problem, model):
+        table.add_row(label, value)
+    invariants = (["energy"] if problem.conservative else []) + [
+        invariant.name for invariant in problem.invariants()
+    ]
+    table.add_row("invariants", ", ".join(invariants) or "none")
+    from workbench.runs.references import given_reference
+
+    reference = given_reference(problem)
+    table.add_row("reference", reference.kind if reference is not None else "none")
+    table.add_row("time span", f"{problem.t_start:g} .. {problem.t_end:g} s")
+    return table
+
+
+def _parameters_table(problem_class: type) -> Table:
+    """The model's physical parameters (SI units) and the problem's initial condition."""
+    from workbench.model.parameters import model_parameters
+
+    problem = problem_class()
+    table = Table(title="parameters (SI units)", title_justify="left")
+    for column in ("element", "quantity", "value"):
+        table.add_column(column)
+    for row in model_parameters(problem.model()):
+        table.add_row(*row)
+    for label, values in (
+        ("initial joint coordinates", problem.initial_joint_coordinates()),
+        ("initial joint velocities", problem.initial_joint_velocities()),
+    ):
+        text = ", ".join(f"{joint} = {_values(value)}" for joint, value in values.items())
+        table.add_row("initial state", label, text or "neutral / at rest")
+    return table
+
+
+def _values(value: Any) -> str:
+    import numpy as np
+
+    array = np.atleast_1d(np.asarray(value, dtype=float))
+    text = ", ".join(f"{x:.4g}" for x in array)
+    return text if array.size == 1 else f"({text})"
+
+
+def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
+    """DOF, loops and constraint counts from workbench.mechanics.topology; a note if it is missing.
+
+    The rank is taken at the problem's initial configuration: the neutral one of a closed
+    loop can be folded (a four-link loop with all angles zero), where W loses rank."""
+    try:
+        from workbench.mechanics.topology import analyze
+    except ImportError:
+        return [
+            ("loops", str(len(model.cut_joints))),
+            ("nonholonomic constraints", str(len(model.nonholonomic))),
+            ("DOF", "unknown (workbench.mechanics.topology not available)"),
+        ]
+    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+
+    q0 = initial_joint_values(
+        model, TreeKinematics(model), problem.initial_joint_coordinates(), velocities=False
+    )
+    topology = analyze(model, q=q0)
+    dof = topology.dof
+    if dof is None:
+        dof_text = f"{topology.dof_gruebler} (Gruebler count; rank not computed)"
+    elif dof != topology.dof_gruebler:
+        dof_text = f"{dof} (Gruebler count {topology.dof_gruebler})"
+    else:
+        dof_text = str(dof)
+    return [
+        ("tree / cut joints", f"{_count(topology.tree_joints)} / {_count(topology.cut_joints)}"),
+        ("loops", str(topology.n_loops)),
+        ("DOF", dof_text),
+        ("redundant constraints", str(topology.redundant_constraints)),
+        ("nonholonomic rows", str(topology.n_nonholonomic)),
+    ]
+
+
+def _count(joints: Any) -> str:
+    return str(joints) if isinstance(joints, int) else str(len(joints))
+
+
+@app.command("new")
+def new(
+    kind: Annotated[str, typer.Argument(help="formalism, integrator or problem.")],
+    name: Annotated[str, typer.Argument(help="The plugin name, e.g. my-formalism.")],
+    package: Annotated[
+        str | None,
+        typer.Option("--package", help="Write a separate installable package into this directory."),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing files.")] = False,
+) -> None:
+    """Write a ready-to-edit plugin: module, conformance test (and with --package, a package)."""
+    from workbench.plugin.scaffold import scaffold
+
+    written = scaffold(describe_kind(kind), name, package=package, force=force)
+    for path in written.files:
+        typer.echo(f"wrote {path}")
+    typer.echo("next: " + "\n      ".join(written.next_steps))

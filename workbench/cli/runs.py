@@ -1,0 +1,237 @@
+"""Commands that run: ``workbench run``, ``sweep``, ``results`` and ``reference``."""
+
+from __future__ import annotations
+
+import sys
+from typing import Annotated, Any
+
+import typer
+from rich.table import Table
+
+from workbench.cli.app import app, console
+from workbench.plugin import registry
+from workbench.plugin.options import option_fields
+
+
+def _option_value(text: str) -> Any:
+    """A ``-o`` value as TOML (1, 1e-3, true, "x", [1, 2]); a bare word stays a string."""
+    import tomllib
+
+    try:
+        return tomllib.loads(f"value = {text}")["value"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
+    """``-o [problem.|formalism.|integrator.]NAME=VALUE`` -> options per plugin kind.
+
+    A name without a prefix goes to the first kind whose options declare it (formalism,
+    then integrator, then problem) - resolved in :func:`_assign_options`.
+    """
+    from workbench.errors import ConfigError
+
+    parsed: dict[str, dict[str, Any]] = {"problem": {}, "formalism": {}, "integrator": {}, "": {}}
+    for assignment in assignments:
+        name, equals, value = assignment.partition("=")
+        if not equals or not name.strip():
+            raise ConfigError(f"-o {assignment!r}: expected NAME=VALUE (e.g. -o index=1)")
+        kind, dot, option = name.strip().rpartition(".")
+        if dot and kind not in ("problem", "formalism", "integrator"):
+            raise ConfigError(
+                f"-o {assignment!r}: the prefix must be problem., formalism. or integrator."
+            )
+        parsed[kind][option] = _option_value(value.strip())
+    return parsed
+
+
+def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type]) -> None:
+    from workbench.errors import ConfigError
+
+    for option, value in parsed.pop("").items():
+        for kind in ("formalism", "integrator", "problem"):
+            names = [n for n, _, _ in option_fields(classes[kind].Options)]
+            if option in names:
+                parsed[kind][option] = value
+                break
+        else:
+            raise ConfigError(
+                f"-o {option}: no option of that name in the problem, formalism or integrator; "
+                "see `workbench describe NAME`"
+            )
+
+
+@app.command()
+def run(
+    problem: Annotated[str, typer.Argument(help="Problem name (`workbench list problems`).")],
+    formalism: Annotated[str, typer.Option("-f", "--formalism", help="Formalism name.")],
+    integrator: Annotated[str, typer.Option("-i", "--integrator", help="Integrator name.")],
+    rtol: Annotated[float, typer.Option("--rtol", help="Relative tolerance.")] = 1e-6,
+    atol: Annotated[
+        float | None, typer.Option("--atol", help="Absolute tolerance (default rtol * 1e-3).")
+    ] = None,
+    option: Annotated[
+        list[str] | None,
+        typer.Option("-o", "--option", help="[problem.|formalism.|integrator.]NAME=VALUE"),
+    ] = None,
+    out: Annotated[
+        str | None, typer.Option("--out", help="Also store the run in this results directory.")
+    ] = None,
+) -> None:
+    """Run one problem with one formalism and integrator and print its metrics."""
+    from pathlib import Path
+
+    from workbench.errors import ConfigError
+    from workbench.runs import store
+    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
+
+    if not rtol > 0 or (atol is not None and not atol > 0):
+        raise ConfigError(f"tolerances must be > 0 (rtol={rtol}, atol={atol})")
+    classes = {
+        "problem": registry.get_problem(problem),
+        "formalism": registry.get_formalism(formalism),
+        "integrator": registry.get_integrator(integrator),
+    }
+    options = _run_options(option or [])
+    _assign_options(options, classes)
+    spec = normalized_spec(
+        RunSpec(
+            problem,
+            formalism,
+            integrator,
+            rtol,
+            atol if atol else rtol * 1e-3,
+            options["problem"],
+            options["formalism"],
+            options["integrator"],
+        )
+    )
+    reference_dir = Path(out) / "references" if out else None
+    result = execute_run(spec, reference_dir=reference_dir)
+    if out:
+        store.write_run(Path(out), result.row, result.series)
+    table = Table(title=f"run {spec.run_id}", title_justify="left", show_header=False)
+    table.add_column("metric", no_wrap=True)
+    table.add_column("value")
+    for name, value in result.row.items():
+        table.add_row(name, _cell(value))
+    console().print(table)
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, float):
+        return "" if value != value else f"{value:.4g}"
+    return "" if value is None else str(value)
+
+
+@app.command()
+def sweep(
+    spec: Annotated[
+        str | None, typer.Argument(help="Sweep specification (TOML); default: the default sweep.")
+    ] = None,
+    jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", help="Dask scheduler address (tcp://host:port).")
+    ] = None,
+    out: Annotated[str | None, typer.Option("--out", "-o", help="Output directory.")] = None,
+    time_limit: Annotated[
+        float | None, typer.Option("--time-limit", help="Seconds per run before it is killed.")
+    ] = None,
+) -> None:
+    """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted."""
+    from workbench.errors import ConfigError
+    from workbench.runs.sweep import load_spec, run_sweep
+
+    if jobs is not None and jobs < 1:
+        raise ConfigError(f"--jobs must be >= 1, not {jobs}")
+    if time_limit is not None and not time_limit > 0:
+        raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
+    loaded = load_spec(spec)
+    from workbench.outputs.recording import SweepRecorder
+
+    summary = run_sweep(
+        loaded,
+        jobs=jobs,
+        out=out,
+        time_limit=time_limit,
+        scheduler=scheduler,
+        recorder=SweepRecorder,
+    )
+    counts = ", ".join(f"{summary.counts[s]} {s}" for s in ("ok", "failed", "skipped", "timeout"))
+    typer.echo(
+        f"{summary.total} runs in {summary.seconds:.1f} s ({counts}); "
+        f"{summary.already_done} already done"
+    )
+    typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
+    from workbench.outputs.report import report_directory
+
+    index = report_directory(summary.out, command=" ".join(["workbench", *sys.argv[1:]]))
+    typer.echo(f"report: {index}")
+    if summary.recording is not None:
+        typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
+
+
+RESULT_COLUMNS = [
+    "problem",
+    "formalism",
+    "formalism_options",
+    "integrator",
+    "rtol",
+    "status",
+    "wall_s",
+    "n_rhs",
+    "err_end",
+    "scd",
+    "drift_pos_max",
+    "energy_err_max",
+    "message",
+]
+
+
+@app.command()
+def results(
+    path: Annotated[str, typer.Argument(help="A results directory or a results.parquet file.")],
+) -> None:
+    """Print the result rows of a sweep as a table."""
+    import warnings
+
+    from workbench.runs.store import load_results
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        frame = load_results(path)
+    for warning in caught:
+        typer.echo(f"warning: {warning.message}", err=True)
+    table = Table(title=f"{len(frame)} runs in {path}", title_justify="left")
+    for column in RESULT_COLUMNS:
+        table.add_column(column.replace("_options", " opts"), overflow="fold")
+    for row in frame[RESULT_COLUMNS].itertuples(index=False):
+        cells = [_cell(v) for v in row]
+        cells[-1] = cells[-1][:80]
+        table.add_row(*cells)
+    out = console()
+    out.width = max(out.width, 180)  # a wide table: let a narrow terminal wrap it
+    out.print(table)
+
+
+@app.command("reference")
+def reference_command(
+    problem: Annotated[str | None, typer.Argument(help="Problem name (or --all).")] = None,
+    rtol: Annotated[
+        float, typer.Option("--rtol", help="Relative tolerance of both pipelines (atol rtol/10).")
+    ] = 1e-11,
+    samples: Annotated[
+        int | None, typer.Option("--samples", help="Sample times (default: the problem's).")
+    ] = None,
+    out: Annotated[
+        str | None,
+        typer.Option("--out", help="Directory (default: references/ beside the problem module)."),
+    ] = None,
+    every: Annotated[
+        bool, typer.Option("--all", help="Every problem without an analytic reference.")
+    ] = False,
+) -> None:
+    """Compute body poses with two independent pipelines; if they agree, store them."""
+    from workbench.runs.references import run_command
+
+    run_command(console(), problem, every, rtol, samples, out)

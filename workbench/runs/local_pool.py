@@ -1,0 +1,290 @@
+"""The local pool: worker processes of our own that can be killed on a time limit.
+
+concurrent.futures cannot kill a running task, so each worker is a process with a pipe:
+it builds and caches equations, runs, and writes the run's files itself; the parent
+enforces each run's time limit by killing the worker (row ``timeout``) and starting a
+fresh one, and a worker that dies mid-run (segfault, SIGKILL) gives a ``failed`` row
+"worker process died (exit code ...)". A worker records each run through the
+``recorder`` it is given (a class with ``begin_file(path)`` / ``end_file()``, made once a
+worker), so this layer knows no recording format.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import importlib
+import math
+import multiprocessing
+import multiprocessing.connection
+import os
+import signal
+import sys
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from workbench.errors import WorkbenchError
+from workbench.plugin import registry
+from workbench.runs import store
+from workbench.runs.execute import RunSpec, equations_key, execute_run
+from workbench.runs.sweep_spec import import_plugin_modules
+from workbench.runs.unfinished import died_message, record_unfinished, timeout_message
+
+
+def _worker_main(
+    conn: Any, plugins: list[str], out: str, sys_path: list[str], recorder: Any = None
+) -> None:
+    """A pool worker: ready, then run specs received on ``conn`` until None."""
+    for entry in reversed(sys_path):
+        if entry not in sys.path:
+            sys.path.insert(0, entry)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    _exit_with_parent()
+    import warnings
+
+    warnings.filterwarnings("ignore")
+    import_plugin_modules(plugins)
+    registry.REGISTRY.discover()
+    if recorder is not None and hasattr(recorder, "prepare"):
+        with contextlib.suppress(Exception):  # loaded here, not within a run's time limit
+            recorder.prepare()
+    conn.send(("ready", os.getpid()))
+    reference_dir = Path(out) / "references"
+    sink = None  # one recording sink for all of this worker's runs, a file a run
+    while True:
+        message = conn.recv()
+        if message is None:
+            return
+        spec = RunSpec.from_dict(message)
+        try:
+            sink = _begin_recording(recorder, sink, Path(out), spec.run_id)
+            try:
+                result = execute_run(spec, sink=sink, reference_dir=reference_dir)
+                store.write_run(Path(out), result.row, result.series)
+            finally:
+                _end_recording(sink)
+            conn.send(("done", spec.run_id, result.row["status"]))
+        except Exception as error:  # noqa: BLE001 - reported to the parent as a row
+            conn.send(("error", spec.run_id, f"{type(error).__name__}: {error}"))
+
+
+RECORDINGS_DIR = "recordings"
+
+
+def _begin_recording(recorder: Any, sink: Any, out: Path, run_id: str) -> Any:
+    """The worker's sink (``recorder()``, made at its first run), now writing the file of
+    one run beside its row (merged at the end); None without a recorder or where it cannot
+    be used: a recording is a view of the results, never a failure."""
+    if recorder is None:
+        return None
+    try:
+        if sink is None:
+            sink = recorder()
+        sink.begin_file(out / RECORDINGS_DIR / f"{run_id}.{recorder.suffix}")
+        return sink
+    except Exception:  # noqa: BLE001
+        return None
+
+
+def _end_recording(sink: Any) -> None:
+    """Close the run's file (none is left for a run skipped or failed before integrating)."""
+    if sink is not None:
+        with contextlib.suppress(Exception):
+            sink.end_file()
+
+
+def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
+    """Merge the per-run recordings of ``out`` into one file (``recorder.merge``)."""
+    files = sorted((out / RECORDINGS_DIR).glob(f"*.{recorder.suffix}"))
+    if not files:
+        return None
+    return recorder.merge(files, out)
+
+
+def _exit_with_parent() -> None:
+    """Exit when the process that started this one dies (no orphan keeps running a run)."""
+    import threading
+
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+@dataclass
+class _Worker:
+    process: Any
+    conn: Any
+    ready: bool = False
+    spec: RunSpec | None = None
+    deadline: float = math.inf
+    pair: tuple[str, ...] | None = None  # equations_key of its last run: built, cached
+
+
+Keyed = tuple[tuple[str, ...], RunSpec]  # (equations_key, run), the key computed once
+
+
+def _take_next(queue: deque[Keyed], own: tuple[str, ...] | None, others: set) -> Keyed:
+    """Pop the next run for a worker: a run of the equations it built last (in its cache),
+    else the first of equations no other worker is on, else the first. Each model is
+    then built (and its initial state found) by about one worker instead of every one."""
+    chosen = None
+    for i, (key, _spec) in enumerate(queue):
+        if key == own:
+            chosen = i
+            break
+        if chosen is None and key not in others:
+            chosen = i
+    chosen = 0 if chosen is None else chosen
+    taken = queue[chosen]
+    del queue[chosen]
+    return taken
+
+
+WORKER_MODULES = (
+    "workbench.runs.execute",
+    "workbench.runs.metrics",
+    "workbench.equations.initial",
+    "workbench.runs.store",
+)
+
+
+FORK_UNSAFE_MODULES = ("rerun", "distributed", "torch")
+
+
+def _context() -> Any:
+    """fork when it is safe, else forkserver (preloaded), else spawn.
+
+    A forked worker inherits the parent's imported modules and discovered plugins, so it
+    is ready at once (forkserver and spawn re-import them in a fresh interpreter: seconds
+    of fixed cost per sweep, which capped the 2-worker speed-up of short sweeps). Forking
+    is only safe while the parent runs no other thread (a lock held by one stays held in
+    the child): the sweep's progress bar then redraws without its thread, and a parent
+    that loaded a module with threads of its own (Rerun, Dask) uses the forkserver.
+    """
+    import threading
+
+    methods = multiprocessing.get_all_start_methods()
+    for name in WORKER_MODULES:
+        importlib.import_module(name)
+    registry.REGISTRY.discover()
+    loaded = [m for m in FORK_UNSAFE_MODULES if m in sys.modules]
+    if "fork" in methods and threading.active_count() == 1 and not loaded:
+        return multiprocessing.get_context("fork")
+    if "forkserver" in methods:
+        context = multiprocessing.get_context("forkserver")
+        plugin_modules = [
+            info.module
+            for kind in ("problem", "formalism", "integrator")
+            for info in registry.list_plugins(kind)
+            if info.plugin is not None and info.module
+        ]
+        context.set_forkserver_preload([*WORKER_MODULES, *dict.fromkeys(plugin_modules)])
+        return context
+    return multiprocessing.get_context("spawn")
+
+
+def run_local(
+    todo: list[RunSpec],
+    out: Path,
+    limit: float,
+    plugins: list[str],
+    jobs: int,
+    record: Callable[[str], None],
+    tick: Callable[[], None] = lambda: None,
+    recorder: Any = None,
+) -> None:
+    context = _context()
+    queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
+    workers: list[_Worker] = []
+    start_failures = 0
+
+    def start() -> _Worker:
+        parent_end, child_end = context.Pipe()
+        process = context.Process(
+            target=_worker_main,
+            args=(child_end, plugins, str(out), list(sys.path), recorder),
+            daemon=True,
+        )
+        # a forked worker's garbage collector would visit every object it inherited and
+        # so copy their pages (copy-on-write): frozen, they stay shared with the parent
+        gc.freeze()
+        try:
+            process.start()
+        finally:
+            gc.unfreeze()
+        child_end.close()
+        return _Worker(process, parent_end)
+
+    def retire(worker: _Worker) -> None:
+        if worker.process.is_alive():
+            worker.process.kill()
+        worker.process.join(timeout=10)
+        worker.conn.close()
+        workers.remove(worker)
+
+    try:
+        while queue or any(w.spec for w in workers):
+            busy = sum(1 for w in workers if w.spec)
+            while len(workers) < min(jobs, len(queue) + busy):
+                workers.append(start())
+            now = time.monotonic()
+            for worker in workers:
+                if worker.ready and worker.spec is None and queue:
+                    others = {w.pair for w in workers if w is not worker}
+                    worker.pair, worker.spec = _take_next(queue, worker.pair, others)
+                    worker.deadline = now + limit
+                    worker.conn.send(worker.spec.to_dict())
+            deadline = min((w.deadline for w in workers), default=math.inf)
+            timeout = max(0.0, min(deadline - now, 1.0))
+            waitables = [w.conn for w in workers] + [w.process.sentinel for w in workers]
+            multiprocessing.connection.wait(waitables, timeout)
+            tick()
+            for worker in list(workers):
+                try:
+                    while worker.conn.poll():
+                        message = worker.conn.recv()
+                        if message[0] == "ready":
+                            worker.ready, start_failures = True, 0
+                        elif message[0] == "done" and worker.spec is not None:
+                            record(message[2])
+                            worker.spec, worker.deadline = None, math.inf
+                        elif message[0] == "error" and worker.spec is not None:
+                            record(record_unfinished(out, worker.spec, "failed", message[2]))
+                            worker.spec, worker.deadline = None, math.inf
+                except (EOFError, OSError):
+                    pass  # the process died: handled below
+            now = time.monotonic()
+            for worker in list(workers):
+                if not worker.process.is_alive():
+                    worker.process.join()
+                    code = worker.process.exitcode
+                    if worker.spec is not None:
+                        record(record_unfinished(out, worker.spec, "failed", died_message(code)))
+                    elif not worker.ready:
+                        start_failures += 1
+                        if start_failures >= 3:
+                            raise WorkbenchError(
+                                f"worker processes fail to start ({died_message(code)}); "
+                                "check that the plugin modules import"
+                            )
+                    retire(worker)
+                elif worker.spec is not None and now > worker.deadline:
+                    spec = worker.spec
+                    retire(worker)
+                    record(record_unfinished(out, spec, "timeout", timeout_message(limit)))
+    finally:
+        for worker in list(workers):
+            with contextlib.suppress(Exception):
+                if worker.spec is None and worker.process.is_alive():
+                    worker.conn.send(None)
+            worker.process.join(timeout=1)
+            retire(worker)

@@ -1,0 +1,329 @@
+"""A sweep specification: problems x formalisms x integrators (option grids) x tolerances.
+
+A sweep specification is a TOML file (the default: ``workbench/runs/default_sweep.toml``)::
+
+    out = "reports/latest"         # output directory (``--out`` overrides)
+    jobs = 2                       # local worker processes (``--jobs`` overrides)
+    time_limit = 120.0             # seconds per run; a run over it is killed (``--time-limit``)
+    tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
+    atol_factor = 1e-3             # atol = rtol * atol_factor
+    missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
+    plugins = ["my_package.my_plugins"]  # extra plugin modules, imported in every worker
+
+    problems = ["my-problem", { name = "my-top", options = { spin = [50.0, 100.0] } }]
+    formalisms = ["all", { name = "my-formalism", options = { index = [1, 3] } }]
+    integrators = ["my-implicit", { name = "my-fixed-step", options = { step = 1e-3 } }]
+
+Each of ``problems``, ``formalisms``, ``integrators`` is a list of names, of tables
+``{name, options}``, or ``"all"`` (every registered, working plugin of that kind with its
+default options, except the ones named explicitly in the same list). A table
+``{ name = "all", options = {...} }`` is "all" with options given to every plugin that has
+them (the others keep their defaults), e.g. ``{ name = "all", options = { index = 1 } }``
+for every formalism with a DAE index; an option that no registered plugin has is an error.
+New plugins so join a sweep without editing it. In an options table a
+list is a grid: the runs take the cartesian product of all listed values (to pass a list
+as one value, wrap it in another list). The runs are every problem x formalism x
+integrator x tolerance; pairs that cannot work are recorded as ``skipped`` with the reason.
+
+``plugins`` is a feature for plugin authors: modules (importable from the current
+directory or the Python path) whose registration decorators add plugins for this sweep
+only, without packaging them with entry points.
+
+Everything is validated before anything is written (:func:`load_spec`): unknown keys,
+wrong types, unknown plugins (with close matches), unknown or ill-typed options, tolerances
+that are not positive, empty grids and TOML syntax errors (with the line) raise one
+:class:`~workbench.errors.ConfigError` naming the key.
+"""
+
+from __future__ import annotations
+
+import importlib
+import itertools
+import json
+import math
+import os
+import re
+import tomllib
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from workbench.errors import ConfigError, PluginError
+from workbench.plugin import registry
+from workbench.plugin.registry import Kind
+from workbench.runs.execute import RunSpec
+
+DEFAULT_OUT = "reports/latest"
+
+
+DEFAULT_TIME_LIMIT = 120.0  # s
+
+
+DEFAULT_ATOL_FACTOR = 1e-3
+
+
+DEFAULT_JOBS = 2
+
+
+TOP_LEVEL_KEYS = {
+    "out": "output directory (string)",
+    "jobs": "number of local worker processes (integer >= 1)",
+    "time_limit": "seconds per run (number > 0)",
+    "tolerances": "list of rtol values (numbers > 0)",
+    "atol_factor": "atol = rtol * atol_factor (number > 0)",
+    "missing_plugins": '"error" or "skip"',
+    "plugins": "list of plugin module names to import",
+    "problems": 'list of problem names or {name, options} tables, or "all"',
+    "formalisms": 'list of formalism names or {name, options} tables, or "all"',
+    "integrators": 'list of integrator names or {name, options} tables, or "all"',
+}
+
+
+REQUIRED_KEYS = ("problems", "formalisms", "integrators", "tolerances")
+
+
+@dataclass
+class SweepSpec:
+    """A validated sweep: the runs (normalized, unique) and how to execute them."""
+
+    runs: list[RunSpec]
+    out: Path
+    jobs: int = DEFAULT_JOBS
+    time_limit: float = DEFAULT_TIME_LIMIT
+    plugins: list[str] = field(default_factory=list)
+    source: str = ""
+    text: str = ""
+
+
+def default_spec_text() -> str:
+    return resources.files("workbench.runs").joinpath("default_sweep.toml").read_text("utf-8")
+
+
+def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
+    """Read and validate a sweep specification (None: the default one); nothing is written."""
+    if path is None:
+        return parse_spec(default_spec_text(), "default sweep (workbench/runs/default_sweep.toml)")
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise ConfigError(f"cannot read the sweep specification {path}: {error}") from None
+    return parse_spec(text, str(path))
+
+
+def import_plugin_modules(modules: Iterable[str], source: str = "plugins") -> None:
+    for index, name in enumerate(modules):
+        try:
+            importlib.import_module(name)
+        except Exception as error:  # noqa: BLE001 - any import failure is a config error
+            raise ConfigError(
+                f"{source}[{index}]: cannot import plugin module {name!r}: "
+                f"{type(error).__name__}: {error}"
+            ) from None
+
+
+def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
+    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ConfigError(f"{source}: invalid TOML: {error}") from None
+
+    def fail(key: str, message: str) -> ConfigError:
+        line = _key_line(text, key)
+        where = f"line {line}: " if line else ""
+        return ConfigError(f"{source}: {where}{key}: {message}")
+
+    unknown = sorted(set(data) - set(TOP_LEVEL_KEYS))
+    if unknown:
+        close = registry.close_matches(unknown[0], list(TOP_LEVEL_KEYS))
+        hint = (
+            f"did you mean {', '.join(close)}?"
+            if close
+            else (f"valid keys: {', '.join(TOP_LEVEL_KEYS)}")
+        )
+        raise fail(unknown[0], f"unknown key; {hint}")
+    for key in REQUIRED_KEYS:
+        if key not in data:
+            raise fail(key, f"missing ({TOP_LEVEL_KEYS[key]})")
+
+    out = data.get("out", DEFAULT_OUT)
+    if not isinstance(out, str) or not out.strip():
+        raise fail("out", f"must be a non-empty string, not {out!r}")
+    jobs = data.get("jobs", DEFAULT_JOBS)
+    if not _is_int(jobs) or jobs < 1:
+        raise fail("jobs", f"must be an integer >= 1, not {jobs!r}")
+    time_limit = _positive(data.get("time_limit", DEFAULT_TIME_LIMIT), "time_limit", fail)
+    atol_factor = _positive(data.get("atol_factor", DEFAULT_ATOL_FACTOR), "atol_factor", fail)
+    missing = data.get("missing_plugins", "error")
+    if missing not in ("error", "skip"):
+        raise fail("missing_plugins", f'must be "error" or "skip", not {missing!r}')
+    tolerances = data["tolerances"]
+    if not isinstance(tolerances, list) or not tolerances:
+        raise fail("tolerances", f"must be a non-empty list of numbers > 0, not {tolerances!r}")
+    rtols = [_positive(t, f"tolerances[{i}]", fail) for i, t in enumerate(tolerances)]
+    if any(r >= 1 for r in rtols):
+        raise fail("tolerances", f"relative tolerances must be < 1, got {rtols}")
+    plugins = data.get("plugins", [])
+    if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
+        raise fail("plugins", f"must be a list of module names, not {plugins!r}")
+    import_plugin_modules(plugins, f"{source}: plugins")
+
+    problems = _entries(data["problems"], "problem", "problems", missing, fail)
+    formalisms = _entries(data["formalisms"], "formalism", "formalisms", missing, fail)
+    integrators = _entries(data["integrators"], "integrator", "integrators", missing, fail)
+
+    runs: list[RunSpec] = []
+    seen: set[str] = set()
+    for (p_name, p_opts, _), (f_name, f_opts, _), (i_name, i_opts, _), rtol in itertools.product(
+        problems, formalisms, integrators, rtols
+    ):
+        spec = RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
+        if spec.run_id not in seen:
+            seen.add(spec.run_id)
+            runs.append(spec)
+    if not runs:
+        raise ConfigError(f"{source}: the sweep has no runs")
+    return SweepSpec(runs, Path(out), int(jobs), time_limit, list(plugins), source, text)
+
+
+def _key_line(text: str, key: str) -> int | None:
+    """The line (1-based) where the top-level ``key`` of a dotted/indexed key is set."""
+    top = re.split(r"[.\[]", key, maxsplit=1)[0]
+    pattern = re.compile(rf"^\s*(?:{re.escape(top)}|\[\[?\s*{re.escape(top)}\s*\]\]?)\s*(?:=|$)")
+    for number, line in enumerate(text.splitlines(), start=1):
+        if pattern.match(line):
+            return number
+    return None
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _positive(value: Any, key: str, fail: Callable[[str, str], ConfigError]) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise fail(key, f"must be a number > 0, not {value!r}")
+    if not math.isfinite(value) or value <= 0:
+        raise fail(key, f"must be a finite number > 0, not {value!r}")
+    return float(value)
+
+
+def _entries(
+    value: Any, kind: Kind, key: str, missing: str, fail: Callable[[str, str], ConfigError]
+) -> list[tuple[str, dict[str, Any], str]]:
+    """(name, normalized options, key) of every plugin x option combination of a list."""
+    if value == "all":
+        value = ["all"]
+    if not isinstance(value, list) or not value:
+        raise fail(
+            key,
+            f'must be a non-empty list of names or {{name, options}} tables, or "all"'
+            f", not {value!r}",
+        )
+    named: list[tuple[str, Any, str]] = []
+    wants_all, all_options, all_key = False, {}, f"{key}[all]"
+    for index, item in enumerate(value):
+        item_key = f"{key}[{index}]"
+        if item == "all":
+            wants_all = True
+        elif isinstance(item, dict) and item.get("name") == "all":
+            wants_all, all_key = True, item_key
+            all_options = item.get("options", {})
+            extra = sorted(set(item) - {"name", "options"})
+            if extra:
+                raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
+            if not isinstance(all_options, dict):
+                raise fail(f"{item_key}.options", f"must be a table, not {all_options!r}")
+        elif isinstance(item, str):
+            named.append((item, {}, item_key))
+        elif isinstance(item, dict):
+            extra = sorted(set(item) - {"name", "options"})
+            if extra:
+                raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
+            name = item.get("name")
+            if not isinstance(name, str) or not name:
+                raise fail(f"{item_key}.name", f"must be a plugin name (string), not {name!r}")
+            options = item.get("options", {})
+            if not isinstance(options, dict):
+                raise fail(f"{item_key}.options", f"must be a table, not {options!r}")
+            named.append((name, options, item_key))
+        else:
+            raise fail(item_key, f"must be a name or a {{name, options}} table, not {item!r}")
+    explicit = {name for name, _, _ in named}
+    if wants_all:
+        declared: set[str] = set()
+        for info in registry.list_plugins(kind):
+            if info.plugin is not None:
+                fields = _option_names(info.plugin)
+                declared |= fields
+                if info.name not in explicit:
+                    mine = {k: v for k, v in all_options.items() if k in fields}
+                    named.append((info.name, mine, all_key))
+        unknown = sorted(set(all_options) - declared)
+        if unknown:
+            raise fail(f"{all_key}.options.{unknown[0]}", f"no registered {kind} has this option")
+    entries = []
+    for name, options, item_key in named:
+        try:
+            registry.REGISTRY.get(kind, name)
+        except PluginError as error:
+            if missing == "skip" and name not in registry.REGISTRY.entries[kind]:
+                continue
+            raise fail(item_key, str(error)) from None
+        for combination in _grid(options, f"{item_key}.options", fail):
+            entries.append(
+                (name, _normalized_options(kind, name, combination, item_key, fail), item_key)
+            )
+    if not entries:
+        raise fail(key, f"no registered {kind} left to run (empty grid)")
+    return entries
+
+
+def _option_names(plugin: Any) -> set[str]:
+    from workbench.plugin.options import option_fields
+
+    return {name for name, _, _ in option_fields(plugin.Options)}
+
+
+def _grid(
+    options: dict[str, Any], key: str, fail: Callable[[str, str], ConfigError]
+) -> list[dict[str, Any]]:
+    names, axes = [], []
+    for name, value in options.items():
+        values = value if isinstance(value, list) else [value]
+        if not values:
+            raise fail(f"{key}.{name}", "empty list of values (empty grid)")
+        names.append(name)
+        axes.append(values)
+    return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*axes)]
+
+
+def _normalized_options(
+    kind: Kind,
+    name: str,
+    options: dict[str, Any],
+    key: str,
+    fail: Callable[[str, str], ConfigError],
+) -> dict[str, Any]:
+    from workbench.plugin.options import options_dict
+
+    plugin = registry.REGISTRY.get(kind, name)
+    try:
+        if kind == "problem":
+            parsed = plugin(options).options
+        else:
+            parsed = plugin.parse_options(options)
+    except ConfigError as error:
+        raise fail(f"{key}.options", str(error)) from None
+    except Exception as error:  # noqa: BLE001 - a plugin's own checks may raise anything
+        raise fail(f"{key}.options", f"{type(error).__name__}: {error}") from None
+    return json.loads(json.dumps(options_dict(parsed), default=_jsonable_value))
+
+
+def _jsonable_value(value: Any) -> Any:
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return str(value)
