@@ -78,24 +78,6 @@ def _root(
     """Compare formalisms and integrators for multibody dynamics."""
 
 
-# -- what a plugin declares ------------------------------------------------------------
-
-
-# -- commands -------------------------------------------------------------------------
-
-
-# -- runs, sweeps, results ---------------------------------------------------------------
-
-
-# -- plugin authors -------------------------------------------------------------------
-
-
-# -- reports --------------------------------------------------------------------------
-
-
-# -- stored references ----------------------------------------------------------------
-
-
 def main() -> None:
     """Console-script entry point (``workbench``)."""
     try:
@@ -103,6 +85,3 @@ def main() -> None:
     except WorkbenchError as error:  # raised outside a command (e.g. by a callback)
         sys.exit(fail(error).exit_code)
 
-
-if __name__ == "__main__":
-    main()

@@ -92,11 +92,10 @@ def split_long_bodies(code: str, statements_per_part: int) -> str:
 
     Generated with ``avoid_stack``, an SX function is one statement a line over the work
     array ``w`` (``w[7]=(w[3]*w[5]);``): a body of such statements can run as several
-    functions in a row sharing ``w``, with nothing copied. The C compiler's register
-    allocation grows faster than linearly with a function's size: a 50-link spatial chain
-    (33,000 statements) took 8.6 s at -O1 in one body and 2.6 s in parts of 100, and
-    evaluated no slower (7.2 us against 8.0 us). A body with anything else in it
-    (loops, calls) is left whole.
+    functions in a row sharing ``w``, with nothing copied. Why: the C compiler's register
+    allocation grows faster than linearly with a function's size, so compile time becomes
+    about linear in the graph's size, and evaluation is no slower (docs/performance.md).
+    A body with anything else in it (loops, calls) is left whole.
     """
     lines = code.split("\n")
     out: list[str] = []

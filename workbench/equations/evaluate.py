@@ -1,11 +1,11 @@
 """Low-overhead numerical evaluation of CasADi Functions in hot loops.
 
-``Function.__call__`` costs 10-40 us of Python overhead per call, more than the dynamics
-of a small mechanism. :class:`FastFunction` binds preallocated NumPy arrays to a
-``Function.buffer()`` once and evaluates into them. Outputs are dense (the builder must
-``densify`` them: buffers hold only structural nonzeros). With an active
-:class:`~workbench.equations.compiled.Compiler` the Function is compiled to C at its first call
-and the same arrays are bound to the compiled function's buffer.
+``Function.__call__`` costs tens of microseconds of Python overhead per call, more than
+the dynamics of a small mechanism (docs/performance.md). :class:`FastFunction` binds
+preallocated NumPy arrays to a ``Function.buffer()`` once and evaluates into them. Outputs
+are dense (the builder must ``densify`` them: buffers hold only structural nonzeros). With
+an active :class:`~workbench.equations.compiled.Compiler` the Function is compiled to C at
+its first call and the same arrays are bound to the compiled function's buffer.
 """
 
 from __future__ import annotations
@@ -67,9 +67,9 @@ class FastFunction:
 
     def _specialized_into(self) -> Callable[..., tuple[np.ndarray, ...]]:
         """:meth:`into` as a closure over the buffers, unrolled for 2 and 3 arguments:
-        the Python-side cost per call is then about 0.3 us, less than ``pin.aba``'s
-        (benchmarks/overhead.py). A one-element input (the time) is set as ``a[0] = x``
-        (30 ns, against 110 ns for ``a[...] = x``); a 1-element array given there raises
+        the Python-side cost per call is then a fraction of a microsecond, less than
+        ``pin.aba``'s (benchmarks/overhead.py). A one-element input (the time) is set as
+        ``a[0] = x``, cheaper than ``a[...] = x``; a 1-element array given there raises
         ValueError like anything but floats and 1-D arrays, and takes :meth:`into`."""
         inputs, evaluate, result, general = self._inputs, self._evaluate, self._result, self._into
         keys = [0 if array.size == 1 else ... for array in inputs] + [...] * 3
@@ -122,7 +122,7 @@ class FastFunction:
         return self._into(*args)
 
     def _into(self, *args: object) -> tuple[np.ndarray, ...]:
-        # np.ravel/np.ndim on every argument would cost 5-8 us: only on the slow path
+        # np.ravel/np.ndim on every argument cost microseconds: only on the slow path
         if len(args) != len(self._inputs):
             raise TypeError(f"{self.name}: expected {len(self._inputs)} arguments")
         try:

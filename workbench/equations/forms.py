@@ -59,8 +59,8 @@ SYMBOLIC_SOLVE_LIMIT = 8
 CasADi's sparse LDL^T, which compiles to C; with constraints: LAPACK LU of [M W^T; W 0]);
 smaller ones symbolically (M: LDL^T, a third of the instructions of the QR used for the
 indefinite [M W^T; W 0]). A symbolic factorization grows as n^3 instructions, so building
-takes seconds at 6 spatial bodies. The crossover was not re-measured for LDL^T.
-Measured with benchmarks/build_and_eval.py; see the README's Performance section."""
+a large one takes seconds; the limit comes from benchmarks/build_and_eval.py
+(docs/performance.md)."""
 
 
 def _augmented_acceleration(
@@ -72,9 +72,9 @@ def _augmented_acceleration(
     (returned as a triple) when the system is too large for a symbolic solve. Then the
     builder gives dv'/d[q; v] by the implicit function theorem: with K s = b,
     ds/dy = -K^-1 d(K s - b)/dy at fixed s, one Jacobian of the nv + nc residuals and a
-    second solve with the same K. CasADi's own derivative of the solve differentiates
-    every entry of K: for the binary tree in absolute coordinates (77 unknowns, 91
-    states) that took 270 MB and 1.2 s to build. None: ``casadi.jacobian`` will do.
+    second solve with the same K, where CasADi's own derivative of the solve would
+    differentiate every entry of K (hundreds of MB for a large absolute-coordinate model;
+    docs/performance.md). None: ``casadi.jacobian`` will do.
     """
     t, q, v = system.t, system.q, system.v
     nv, nc = v.numel(), system.n_constraints

@@ -23,10 +23,9 @@ The recording is kept in memory until :meth:`RerunSink.save`; a sink used in wor
 processes must be saved by each worker (one file each, same recording id: the viewer
 merges files of one recording id), since a recording stream cannot be pickled. A sweep's
 worker keeps one sink for all its runs and writes a file a run with
-:meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: a recording stream a run leaks
-in rerun-sdk 0.41 (about 1.7 MB a run: 3.5 GB over the default sweep's 1,080 runs), one
-stream given a new in-memory binary stream a run (written to the run's file at its end)
-does not.
+:meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: one recording stream given a
+new in-memory binary stream a run (written to the run's file at its end), because a new
+recording stream a run leaks memory in rerun-sdk (docs/performance.md has the figures).
 """
 
 from __future__ import annotations
@@ -262,8 +261,8 @@ class RerunSink:
         """Send what is logged from now on to the file ``path``, forgetting the runs
         logged before: one file a run through one recording stream (see the module
         docstring). The run is kept in memory (a Rerun binary stream) until
-        :meth:`end_file` writes it: a file sink a run cost 2-4 ms of thread start-up and
-        flushing, the binary stream about 0.7 ms."""
+        :meth:`end_file` writes it, which costs less than a file sink a run (its thread
+        start-up and flush; docs/performance.md)."""
         self._stream = self.recording.binary_stream()
         self._file = Path(path)
         self.runs.clear()

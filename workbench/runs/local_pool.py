@@ -149,6 +149,8 @@ def _take_next(queue: deque[Keyed], own: tuple[str, ...] | None, others: set) ->
     return taken
 
 
+# imported in the parent before forking workers, so a worker starts in milliseconds
+# instead of importing CasADi, SciPy, SUNDIALS, pandas and the plugins
 WORKER_MODULES = (
     "workbench.runs.execute",
     "workbench.runs.metrics",
@@ -157,6 +159,7 @@ WORKER_MODULES = (
 )
 
 
+# modules that start threads of their own: a parent that loaded one forks no workers
 FORK_UNSAFE_MODULES = ("rerun", "distributed", "torch")
 
 

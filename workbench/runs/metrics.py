@@ -44,12 +44,6 @@ from workbench.numerics.geometry import length_scale, pose_error
 from workbench.runs.references import ReferencePoses
 from workbench.runs.store import SERIES_COLUMNS
 
-# ---- pose error ----------------------------------------------------------------------
-
-
-# ---- reference -----------------------------------------------------------------------
-
-
 # ---- the metrics ---------------------------------------------------------------------
 
 

@@ -31,9 +31,6 @@ from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
 
-# ---- loading and validation ---------------------------------------------------------
-
-
 # ---- execution ----------------------------------------------------------------------
 
 
@@ -143,14 +140,3 @@ def _progress(total: int, show: bool, threaded: bool = True):
 
     with progress:
         yield advance
-
-
-# -- local worker processes --
-
-
-# imported in the parent before forking workers (so a worker starts in milliseconds
-# instead of importing CasADi, SciPy, SUNDIALS, pandas and the plugins: ~2 s a worker)
-# modules that start threads of their own: a parent that loaded one forks no workers
-
-
-# -- Dask --
