@@ -148,6 +148,17 @@ def test_failures_are_rows(fake_plugins, formalism, integrator, stage, text) -> 
     assert "\n" not in row["message"]
 
 
+@pytest.mark.parametrize("integrator", ["test-raise", "test-nan"])
+def test_a_run_that_never_stepped_measured_nothing(fake_plugins, integrator) -> None:
+    """A method that failed at t0 has no error, drift or energy: NaN, never 0 (which reads
+    as a perfect run in a table); the note says why."""
+    row = execute_run(spec(formalism="minimal-ode", integrator=integrator)).row
+    assert row["status"] == "failed"
+    for column in ("err_max", "scd", "drift_pos_max", "drift_vel_max", "energy_err_max"):
+        assert math.isnan(row[column]), column
+    assert "nothing was integrated" in row["notes"]
+
+
 def test_unknown_plugin_is_a_failed_row(fake_plugins) -> None:
     row = execute_run(spec(integrator="no-such-integrator")).row
     assert row["status"] == "failed" and "unknown integrator" in row["message"]
@@ -180,6 +191,12 @@ def test_pose_error_and_length_scale() -> None:
     assert error[0] == 0 and error[1] == pytest.approx(0.003 + 2.0 * angle)
     assert geometry.length_scale(None, reference) == 2.0
     assert geometry.length_scale(None, np.zeros((1, 1, 7))) == geometry.MIN_LENGTH_SCALE
+    # an entry left unknown (NaN) drops out, not the whole reference (car axis: L was 1
+    # instead of 1.118, every scd 0.048 too high)
+    partly_known = np.zeros((2, 2, 7))
+    partly_known[0, 0, :3] = [1.0, 0.5, 0.0]
+    partly_known[1, 1, :3] = np.nan
+    assert geometry.length_scale(None, partly_known) == pytest.approx(np.hypot(1.0, 0.5))
 
 
 def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch) -> None:

@@ -50,7 +50,10 @@ def length_scale(model: Any, reference: np.ndarray | None) -> float:
     ``model`` needs only ``bodies`` and ``joints``."""
     lengths = [MIN_LENGTH_SCALE]
     if reference is not None and reference.size:
-        lengths.append(float(np.max(np.linalg.norm(reference[..., :3], axis=-1))))
+        # positions left unknown (NaN) in a reference drop out, not the whole reference
+        distances = np.linalg.norm(reference[..., :3], axis=-1)
+        if np.isfinite(distances).any():
+            lengths.append(float(np.nanmax(distances)))
     for body in getattr(model, "bodies", {}).values():
         lengths.append(float(np.linalg.norm(body.com)))
     for joint in getattr(model, "joints", {}).values():

@@ -47,6 +47,14 @@ from workbench.runs.store import SERIES_COLUMNS
 # ---- the metrics ---------------------------------------------------------------------
 
 
+UNMEASURED_WITHOUT_STEPS = [
+    "err_max", "err_end", "scd",
+    "drift_pos_max", "drift_pos_final", "drift_vel_max", "drift_vel_final",
+    "drift_nh_max", "drift_nh_final",
+    "energy_err_max", "energy_err_final", "invariant_err_max",
+]  # fmt: skip
+
+
 def _max(values: np.ndarray) -> float:
     finite = values[np.isfinite(values)]
     return float(np.max(finite)) if finite.size else math.nan
@@ -129,8 +137,15 @@ def trajectory_metrics(
         "energy_err_max": _max(energy_err),
         "energy_err_final": _final(energy_err),
         "invariant_err_max": max(invariant_errors) if invariant_errors else math.nan,
-        "notes": "; ".join(notes),
     }
+    if not complete and n <= 1:
+        # only the initial state: its error and drift are those of the initial condition,
+        # not of a method that never took a step; a 0 here read as a perfect run
+        row.update({column: math.nan for column in UNMEASURED_WITHOUT_STEPS})
+        notes.append("nothing was integrated: no error, drift or energy was measured")
+    elif not complete:
+        notes.append(f"maxima over the part reached, t <= {float(times[-1]):g} s")
+    row["notes"] = "; ".join(notes)
     series = pd.DataFrame(
         {
             "run_id": run_id,
