@@ -3,13 +3,13 @@
 M. Arnold, O. Bruls, "Convergence of the generalized-alpha scheme for constrained
 mechanical systems", Multibody Syst. Dyn. 18 (2007) 185-202. For
 
-    M(q) v' = Q(t, q, v) - W(q)^T lambda,   g(t, q) = 0,   q' = H(q) v
+    M(q) v' = Q(t, q, v) - W(q)^T lambda,   g(t, q) = 0,   q' = H(t, q) v + f(t, q)
 
 one step from (q_n, v_n, v'_n, a_n) to t_{n+1} = t_n + h solves for the true
 acceleration v'_{n+1} and the multipliers lambda_{n+1}:
 
     (1 - alpha_m) a_{n+1} + alpha_m a_n = (1 - alpha_f) v'_{n+1} + alpha_f v'_n
-    q_{n+1} = q_n + h H_mid (v_n + h (1/2 - beta) a_n + h beta a_{n+1})
+    q_{n+1} = q_n + h H_mid (v_n + h (1/2 - beta) a_n + h beta a_{n+1}) + h f_mid
     v_{n+1} = v_n + h (1 - gamma) a_n + h gamma a_{n+1}
     M(q_{n+1}) v'_{n+1} - Q(t_{n+1}, q_{n+1}, v_{n+1}) + W^T lambda_{n+1} = 0
     g(t_{n+1}, q_{n+1}) / (beta h^2) = 0           (holonomic rows, index 3)
@@ -32,9 +32,10 @@ the matrix stays O(1) as h -> 0 instead of having condition number O(h^-2). For 
 nonholonomic rows the term dc/dq of the velocity constraint is left out of the matrix
 (their rows are W c): Newton then converges linearly, not quadratically, on them.
 
-Coordinates with q' = H(q) v, H != identity (Euler parameters, nq != nv): the position
-update uses H at the explicit midpoint q_mid = q_n + h/2 H(q_n) v_n, which keeps the
-update second-order accurate and explicit in the unknowns. Unit-norm conditions of Euler
+Coordinates with q' = H v + f, H != identity (Euler parameters, nq != nv) or f != 0
+(rheonomic coordinates: minimal velocities on a moving plane): the position update uses
+H and f at the explicit midpoint q_mid = q_n + h/2 (H(t_n, q_n) v_n + f(t_n, q_n)), which
+keeps the update second-order accurate and explicit in the unknowns. Unit-norm conditions of Euler
 parameters are satisfied only if the formalism states them among g. A Lie-group variant
 (Bruls-Cardona) is out of scope.
 
@@ -97,13 +98,16 @@ def default_step(times: np.ndarray, step: float | None) -> float:
 
 
 def is_identity_kinematics(mech: Any, t: float, q: np.ndarray, nv: int) -> bool:
-    """True if q' = v (H = identity) at q and at a perturbed q."""
+    """True if q' = v (H = identity, f = 0) at q and at a perturbed q and time."""
     if q.size != nv:
         return False
     rng = np.random.default_rng(1)
-    for point in (q, q + rng.uniform(-0.5, 0.5, q.size)):
-        (h_matrix,) = mech.kinematics(t, point)
+    for time, point in ((t, q), (t + 0.5, q + rng.uniform(-0.5, 0.5, q.size))):
+        (h_matrix,) = mech.kinematics(time, point)
+        (offset,) = mech.kinematics_offset(time, point)
         if not np.allclose(np.reshape(h_matrix, (q.size, nv)), np.eye(nv), rtol=0, atol=1e-14):
+            return False
+        if np.any(np.abs(np.ravel(offset)) > 1e-14):
             return False
     return True
 
@@ -200,13 +204,19 @@ class GeneralizedAlpha(Integrator):
         self.identity = identity
         self.newton_tol, self.max_newton = options.newton_tol, options.max_newton
 
-    def _mid_kinematics(self, t: float, h: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def _mid_kinematics(
+        self, t: float, h: float, q: np.ndarray, v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H and f of q' = H v + f at the explicit midpoint (t + h/2, q_mid)."""
         if self.identity:
-            return np.eye(self.nv)
-        (h_n,) = self.mech.kinematics(t, q)
-        h_n = np.reshape(h_n, (self.nq, self.nv))
-        (h_mid,) = self.mech.kinematics(t + h / 2, q + 0.5 * h * h_n @ v)
-        return np.reshape(h_mid, (self.nq, self.nv))
+            return np.eye(self.nv), np.zeros(self.nq)
+        mech = self.mech
+        (h_n,) = mech.kinematics(t, q)
+        (f_n,) = mech.kinematics_offset(t, q)
+        q_mid = q + 0.5 * h * (np.reshape(h_n, (self.nq, self.nv)) @ v + np.ravel(f_n))
+        (h_mid,) = mech.kinematics(t + h / 2, q_mid)
+        (f_mid,) = mech.kinematics_offset(t + h / 2, q_mid)
+        return np.reshape(h_mid, (self.nq, self.nv)), np.ravel(f_mid).copy()
 
     def _step(self, state: _State, t: float, h: float, stats: Any) -> _State:
         """One generalized-alpha step from t to t + h; _NewtonFailure if Newton fails."""
@@ -214,13 +224,14 @@ class GeneralizedAlpha(Integrator):
         alpha_m, alpha_f, beta, gamma = self.alpha_m, self.alpha_f, self.beta, self.gamma
         c = (1 - alpha_f) / (1 - alpha_m)
         t_new = t + h
-        h_mid = self._mid_kinematics(t, h, state.q, state.v)
+        h_mid, f_mid = self._mid_kinematics(t, h, state.q, state.v)
         vdot, lam = state.vdot.copy(), state.lam.copy()
         q_scale = 1.0 + np.max(np.abs(state.q), initial=0.0)
         last = math.inf
         for iteration in range(1, self.max_newton + 1):
             a = (alpha_f * state.vdot + (1 - alpha_f) * vdot - alpha_m * state.a) / (1 - alpha_m)
-            q = state.q + h * h_mid @ (state.v + h * (0.5 - beta) * state.a + h * beta * a)
+            step = h_mid @ (state.v + h * (0.5 - beta) * state.a + h * beta * a) + f_mid
+            q = state.q + h * step
             v = state.v + h * (1 - gamma) * state.a + h * gamma * a
             r, r_q, r_v, mass, w_t = self.mech.dynamics(t_new, q, v, vdot, lam)
             r_q, r_v = np.reshape(r_q, (nv, self.nq)), np.reshape(r_v, (nv, nv))
@@ -265,7 +276,9 @@ class GeneralizedAlpha(Integrator):
                 a = (alpha_f * state.vdot + (1 - alpha_f) * vdot - alpha_m * state.a) / (
                     1 - alpha_m
                 )
-                q = state.q + h * h_mid @ (state.v + h * (0.5 - beta) * state.a + h * beta * a)
+                q = state.q + h * (
+                    h_mid @ (state.v + h * (0.5 - beta) * state.a + h * beta * a) + f_mid
+                )
                 v = state.v + h * (1 - gamma) * state.a + h * gamma * a
                 return _State(q, v, vdot, a, lam)
             if iteration > 3 and increment > 2 * last:
@@ -280,8 +293,8 @@ class GeneralizedAlpha(Integrator):
         self, old: _State, new: _State, t: float, h: float, rtol: float, atol: float
     ) -> float:
         """RMS of (q_{n+1} - Taylor predictor) weighted by atol + rtol |q|."""
-        h_mid = self._mid_kinematics(t, h, old.q, old.v)
-        predictor = old.q + h * h_mid @ (old.v + 0.5 * h * old.vdot)
+        h_mid, f_mid = self._mid_kinematics(t, h, old.q, old.v)
+        predictor = old.q + h * (h_mid @ (old.v + 0.5 * h * old.vdot) + f_mid)
         weight = atol + rtol * np.maximum(np.abs(old.q), np.abs(new.q))
         return float(np.sqrt(np.mean(((new.q - predictor) / weight) ** 2)))
 

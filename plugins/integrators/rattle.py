@@ -90,6 +90,10 @@ class Rattle(Integrator):
             (h_matrix,) = mech.kinematics(0.0, q)
             if not _close(np.reshape(h_matrix, (nq, nv)), np.eye(nv)):
                 return "needs q' = v, but the kinematics matrix H(q) is not the identity"
+            for t in (0.0, 1.0):
+                (offset,) = mech.kinematics_offset(t, q)
+                if not _close(np.ravel(offset), np.zeros(nq)):
+                    return "needs q' = v, but q' has a part f(t, q) that does not move with v"
         (m1,) = mech.mass(0.0, q1)
         (m2,) = mech.mass(0.0, q2)
         if not _close(np.atleast_2d(m1), np.atleast_2d(m2)):

@@ -95,9 +95,12 @@ class DaeForm:
 
 @dataclass
 class MechanicalForm:
-    """Numeric pieces of M v' = Q - W^T lambda, g = 0, W v + w = 0, q' = H v.
+    """Numeric pieces of M v' = Q - W^T lambda, g = 0, W v + w = 0, q' = H v + f.
 
-    mass(t, q) -> M; forces(t, q, v) -> Q; qdot(t, q, v) -> H v; kinematics(t, q) -> H;
+    mass(t, q) -> M; forces(t, q, v) -> Q; qdot(t, q, v) -> H v + f; kinematics(t, q) -> H;
+    kinematics_offset(t, q) -> f, the part of q' that does not move with v (zero unless
+    the coordinates are rheonomic, e.g. minimal velocities on a moving plane: an
+    integrator that advances q by H v alone drops it);
     position_constraints(t, q) -> g; position_jacobian(t, q) -> dg/dq (m, nq);
     velocity_matrix(t, q) -> W; velocity_constraints(t, q, v) -> W v + w;
     acceleration_rhs(t, q, v) -> gamma with W v' = gamma;
@@ -108,6 +111,7 @@ class MechanicalForm:
     forces: FastFunction
     qdot: FastFunction
     kinematics: FastFunction
+    kinematics_offset: FastFunction
     position_constraints: FastFunction
     position_jacobian: FastFunction
     velocity_matrix: FastFunction

@@ -175,6 +175,7 @@ def build_equations(
         forces=hot("forces", [t, q, v], [system.forces]),
         qdot=hot("qdot", [t, q, v], [system.qdot]),
         kinematics=hot("kinematics", [t, q], [h_matrix]),
+        kinematics_offset=hot("kinematics_offset", [t, q], [ca.substitute(system.qdot, v, zero_v)]),
         position_constraints=hot("g", [t, q], [g]),
         position_jacobian=hot("g_q", [t, q], [ca.jacobian(g, q)]),
         velocity_matrix=hot("W", [t, q], [w_matrix]),
