@@ -7,6 +7,8 @@ frame is C^-1 from the rotated joint frame: X_child = X_parent P R(axis, q) C^-1
 * Pinocchio: one joint frame per body, equal to our rotated P; its placement in the
   parent's joint frame is C_parent^-1 P, and the body (mass, centre of mass, inertia about
   it) is appended at C^-1. Axes along +x, +y, +z use the specialised RX, RY, RZ joints.
+  Joints are added depth first: Pinocchio's CRBA assumes every subtree's velocities are
+  contiguous (a breadth-first tree gives a wrong ``crba`` although ``aba`` is right).
 * MuJoCo: nested bodies whose frames are ours; at q = 0 a child sits at P C^-1 in its
   parent and its hinge is at C's origin about R_C axis (child body coordinates).
 
@@ -40,6 +42,20 @@ def _transform(frame: Frame) -> np.ndarray:
     return matrix
 
 
+def depth_first(kinematics: TreeKinematics) -> list[Any]:
+    """The tree joints parents first, each subtree before the next sibling."""
+    children: dict[str, list] = {}
+    for joint in kinematics.order:
+        children.setdefault(joint.parent, []).append(joint)
+    ordered: list[Any] = []
+    stack = list(reversed(children.get(GROUND, [])))
+    while stack:
+        joint = stack.pop()
+        ordered.append(joint)
+        stack.extend(reversed(children.get(joint.child, [])))
+    return ordered
+
+
 def pinocchio_model(model: Model) -> tuple[Any, np.ndarray]:
     """(pin.Model, order): order[i] is our velocity index of Pinocchio's v[i]."""
     kinematics = TreeKinematics(model.validate())
@@ -51,7 +67,7 @@ def pinocchio_model(model: Model) -> tuple[Any, np.ndarray]:
     ids = {GROUND: 0}
     body_in_joint = {GROUND: np.eye(4)}  # body frame in its joint frame: C^-1
     order = np.zeros(kinematics.nv, dtype=int)
-    for joint in kinematics.order:
+    for joint in depth_first(kinematics):
         axis = np.asarray(joint.axis, dtype=float) / np.linalg.norm(joint.axis)
         unit = {(1.0, 0.0, 0.0): "RX", (0.0, 1.0, 0.0): "RY", (0.0, 0.0, 1.0): "RZ"}
         kind = unit.get(tuple(axis))

@@ -1,6 +1,6 @@
 """The peers of benchmarks/peers.py model the same mechanism: our recursive formalism's
 accelerations equal Pinocchio's ``aba`` and MuJoCo's ``mj_forward`` at random states.
-(Pinocchio and MuJoCo are in the ``bench`` extra; without them these tests are skipped.)"""
+(Pinocchio and MuJoCo are in the ``test`` and ``bench`` extras, so CI runs these tests.)"""
 
 from __future__ import annotations
 
@@ -52,6 +52,28 @@ def test_recursive_equals_mujoco_forward(problem, options):
         mujoco.mj_forward(mj_model, data)
         scale = np.abs(data.qacc).max()
         np.testing.assert_allclose(accelerations[order], data.qacc, rtol=0, atol=1e-9 * scale)
+
+
+def test_pinocchio_mass_matrix_equals_ours_on_a_tree():
+    """pin.crba (upper triangle) equals our M on the binary tree, whose breadth-first and
+    depth-first joint orders differ: Pinocchio's CRBA needs contiguous subtrees."""
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the bench extra")
+    from benchmarks.peer_models import depth_first
+    from workbench.mechanics.kinematics import TreeKinematics
+
+    model = get_problem("binary-tree")().model()
+    kinematics = TreeKinematics(model)
+    assert [j.name for j in depth_first(kinematics)] != [j.name for j in kinematics.order]
+    mass = get_formalism("minimal-ode")().build(model).forms["mechanical"].mass
+    pin_model, order = pinocchio_model(model)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q = rng.uniform(-2, 2, kinematics.nq)
+        (ours,) = mass(0.0, q)
+        upper = pin.crba(pin_model, pin_model.createData(), q[order])
+        theirs = np.triu(upper) + np.triu(upper, 1).T
+        expected = np.asarray(ours)[np.ix_(order, order)]
+        np.testing.assert_allclose(theirs, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
 
 
 def test_peer_models_refuse_what_they_cannot_represent():

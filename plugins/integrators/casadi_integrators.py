@@ -223,7 +223,12 @@ class CasadiIdas(CasadiBase):
         return dae, (differential, algebraic)
 
     def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
-        return {**_sundials_options(task), "calc_ic": False}
+        # IDAS starts from the consistent (y, y') the workbench computed: without
+        # init_xdot it assumed x' = 0, an inconsistent start whose error test failed at
+        # t = 0 from rtol 1e-8 on (and cost digits above)
+        differential = np.flatnonzero(~task.form.algebraic)
+        init_xdot = [float(x) for x in task.yp0[differential]]
+        return {**_sundials_options(task), "calc_ic": False, "init_xdot": init_xdot}
 
     def initial(self, task: IntegrationTask, layout: Any) -> dict[str, np.ndarray]:
         differential, algebraic = layout
