@@ -33,7 +33,7 @@ def our_accelerations(problem: str, options: dict, states: int = 4):
 
 @pytest.mark.parametrize(("problem", "options"), CASES)
 def test_recursive_equals_pinocchio_aba(problem, options):
-    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the bench extra")
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
     for model, q, v, accelerations in our_accelerations(problem, options):
         pin_model, order = pinocchio_model(model)
         expected = pin.aba(pin_model, pin_model.createData(), q[order], v[order], np.zeros(q.size))
@@ -44,7 +44,7 @@ def test_recursive_equals_pinocchio_aba(problem, options):
 
 @pytest.mark.parametrize(("problem", "options"), CASES)
 def test_recursive_equals_mujoco_forward(problem, options):
-    mujoco = pytest.importorskip("mujoco", reason="MuJoCo is in the bench extra")
+    mujoco = pytest.importorskip("mujoco", reason="MuJoCo is in the test extra")
     for model, q, v, accelerations in our_accelerations(problem, options):
         mj_model, order = mujoco_model(model)
         data = mujoco.MjData(mj_model)
@@ -57,7 +57,7 @@ def test_recursive_equals_mujoco_forward(problem, options):
 def test_pinocchio_mass_matrix_equals_ours_on_a_tree():
     """pin.crba (upper triangle) equals our M on the binary tree, whose breadth-first and
     depth-first joint orders differ: Pinocchio's CRBA needs contiguous subtrees."""
-    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the bench extra")
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
     from benchmarks.peer_models import depth_first
     from workbench.mechanics.kinematics import TreeKinematics
 
