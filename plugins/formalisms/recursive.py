@@ -50,98 +50,20 @@ from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Joint, Model
+from workbench.numerics.spatial import (
+    articulated_update,
+    congruence,
+    force_cross,
+    motion_cross,
+    plucker,
+    spatial_inertia,
+    transform_force_back,
+    transform_motion,
+)
 from workbench.plugin.formalism import ConstraintOptions, Formalism
 from workbench.plugin.registry import formalism
 
 ZERO6 = ca.SX.zeros(6, 1)
-
-# ---- spatial algebra (6-vectors [angular; linear], CasADi SX) ---------------------------
-
-
-def motion_cross(v: Any, m: Any) -> Any:
-    """v x m for motion vectors v, m (6,)."""
-    w, v0 = v[:3], v[3:]
-    return ca.vertcat(ca.cross(w, m[:3]), ca.cross(w, m[3:]) + ca.cross(v0, m[:3]))
-
-
-def force_cross(v: Any, f: Any) -> Any:
-    """v x* f for a motion vector v and a force vector f (6,)."""
-    w, v0 = v[:3], v[3:]
-    return ca.vertcat(ca.cross(w, f[:3]) + ca.cross(v0, f[3:]), ca.cross(w, f[3:]))
-
-
-def transform_motion(E: Any, r: Any, m: Any) -> Any:
-    """X m: a motion vector from parent to child coordinates (E: child <- parent rotation,
-    r: child origin in parent coordinates)."""
-    return ca.vertcat(ca.mtimes(E, m[:3]), ca.mtimes(E, m[3:] - ca.cross(r, m[:3])))
-
-
-def transform_force_back(E: Any, r: Any, f: Any) -> Any:
-    """X^T f: a force vector from child to parent coordinates."""
-    force = ca.mtimes(E.T, f[3:])
-    return ca.vertcat(ca.mtimes(E.T, f[:3]) + ca.cross(r, force), force)
-
-
-def plucker(E: Any, r: Any) -> Any:
-    """The 6x6 motion transform X = [E 0; -E r~ E]."""
-    lower = -ca.mtimes(E, ca.skew(r))
-    return ca.vertcat(ca.horzcat(E, ca.SX.zeros(3, 3)), ca.horzcat(lower, E))
-
-
-def symmetric(entry: Any, n: int) -> Any:
-    """The symmetric n x n SX matrix with entries ``entry(i, j)`` computed for i <= j only
-    (the lower triangle shares the same expressions: no extra instructions)."""
-    out = ca.SX.zeros(n, n)
-    for i in range(n):
-        for j in range(i, n):
-            out[i, j] = entry(i, j)
-            if j != i:
-                out[j, i] = out[i, j]
-    return out
-
-
-def articulated_update(I_A: Any, U: Any, D_inv_U: Any) -> Any:
-    """I^a = I^A - U D^-1 U^T (6 x 6, symmetric: 21 entries formed, not 36)."""
-    return symmetric(lambda i, j: I_A[i, j] - ca.dot(U[i, :].T, D_inv_U[:, j]), 6)
-
-
-def congruence(E: Any, r: Any, inertia: Any) -> Any:
-    """X^T I X for a symmetric 6x6 (articulated) inertia I, X = plucker(E, r): I moved
-    from child to parent coordinates.
-
-    With I = [A B; B^T C] and the rotated blocks A' = E^T A E, B' = E^T B E,
-    C' = E^T C E, X = diag(E, E) [1 0; -r~ 1] gives
-    X^T I X = [A' + K + K^T - r~ C' r~, P; P^T, C'] with P = B' + r~ C', K = r~ B'^T.
-    Only the unique entries of the symmetric blocks are formed: about 60 % of the
-    instructions of the dense product (a revolute link of spatial-chain: 255 against 410).
-    """
-    A, B, C = inertia[:3, :3], inertia[:3, 3:], inertia[3:, 3:]
-
-    def rotated(M: Any) -> Any:  # E^T M E for a symmetric M
-        T = ca.mtimes(M, E)
-        return symmetric(lambda i, j: ca.dot(E[:, i], T[:, j]), 3)
-
-    A1, C1 = rotated(A), rotated(C)
-    B1 = ca.mtimes([E.T, B, E])
-    r_tilde = ca.skew(r)
-    Q = ca.mtimes(r_tilde, C1)
-    P = B1 + Q
-    K = ca.mtimes(r_tilde, B1.T)
-    QR = ca.mtimes(Q, r_tilde)
-    top = symmetric(lambda i, j: A1[i, j] + K[i, j] + K[j, i] - QR[i, j], 3)
-    return ca.vertcat(ca.horzcat(top, P), ca.horzcat(P.T, C1))
-
-
-def spatial_inertia(mass: float, com: np.ndarray, inertia: np.ndarray) -> np.ndarray:
-    """Spatial inertia about the body frame's origin: [I_c + m c~ c~^T, m c~; m c~^T, m 1]."""
-    c = np.asarray(com, dtype=float)
-    c_tilde = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-    return np.block(
-        [
-            [np.asarray(inertia, float) + mass * c_tilde @ c_tilde.T, mass * c_tilde],
-            [mass * c_tilde.T, mass * np.eye(3)],
-        ]
-    )
 
 
 def _sx(value: Any) -> Any:
