@@ -291,24 +291,3 @@ def test_options_and_capabilities() -> None:
 
     with pytest.raises(ConfigError):
         plugin.parse_options({"algorithm": "featherstone"})
-
-
-@pytest.mark.parametrize("seed", range(4))
-def test_congruence_equals_the_dense_transform(seed: int) -> None:
-    """congruence(E, r, I) = X^T I X with X = [E 0; -E r~ E]: random rotation, offset and
-    symmetric I (the ABA's and CRBA's articulated-inertia step), also with a symbolic r
-    (prismatic joints move the child's origin)."""
-    rng = np.random.default_rng(seed)
-    E = Rotation.random(random_state=rng).as_matrix()
-    r = rng.uniform(-1, 1, 3)
-    half = rng.uniform(-1, 1, (6, 6))
-    inertia = half @ half.T
-    r_sym = ca.SX.sym("r", 3)
-    dense = ca.mtimes(
-        [rec.plucker(ca.DM(E), r_sym).T, ca.DM(inertia), rec.plucker(ca.DM(E), r_sym)]
-    )
-    blocks = rec.congruence(ca.SX(ca.DM(E)), r_sym, ca.SX(ca.DM(inertia)))
-    evaluate = ca.Function("both", [r_sym], [dense, blocks])
-    expected, got = (np.asarray(x) for x in evaluate(r))
-    assert np.allclose(got, got.T, rtol=0, atol=0)  # symmetric by construction
-    assert np.abs(got - expected).max() <= 1e-13 * np.abs(expected).max()

@@ -1,28 +1,41 @@
 """Formalism ``recursive``: articulated-body forward dynamics in O(n) (book 10.6, 11.4.2).
 
 The generalized coordinates are the free joint coordinates of the spanning tree, as in
-``minimal-ode`` (same q, v, same joint-space map). The accelerations come from three
-recursions over the tree (Featherstone's articulated-body algorithm, the book's recursive
-formalism 10.6.1-10.6.2), with no mass matrix formed:
+``minimal-ode`` (same q, v, same joint-space map). The accelerations come from recursions
+over the tree (the book's recursive formalism, 10.6.1 for a chain, 10.6.2 for a tree, in
+Featherstone's spatial notation), with no mass matrix formed.
 
-1. outward: joint transform X_i (parent body -> body i), motion subspace S_i, body
-   velocity V_i = X_i V_lambda(i) + S_i v_i and velocity-product acceleration
-   c_i = c_J,i + V_i x S_i v_i;
-2. inward: articulated inertia I^A_i and bias force p^A_i,
-   U_i = I^A_i S_i, D_i = S_i^T U_i, u_i = tau_i - S_i^T p^A_i,
-   I^A_lambda += X_i^T (I^A_i - U_i D_i^-1 U_i^T) X_i,
-   p^A_lambda += X_i^T (p^A_i + I^a_i c_i + U_i D_i^-1 u_i);
-3. outward: a'_i = X_i a_lambda + c_i, v_i' = D_i^-1 (u_i - U_i^T a'_i), a_i = a'_i + S_i v_i'.
+Notation. Body i has the parent body lambda(i) (the ground has velocity 0 and the
+acceleration a_0 = [0; -g], so gravity needs no force of its own). X_i is the Pluecker
+transform from lambda(i)'s coordinates to i's; S_i (6, n_i) the motion subspace of joint
+i, v_i (n_i) its velocities, v_J,i = S_i v_i the joint twist and c_J,i its
+velocity-product term; I_i the spatial inertia of body i, f^x_i the applied forces on it,
+tau_i the joint forces. Spatial vectors are motion [angular; linear] and force
+[moment; force], in each body's coordinates about its origin
+(:mod:`workbench.numerics.spatial`).
 
-Spatial vectors are Featherstone's: motion [angular; linear], force [moment; force],
-in the coordinates of each body's reference frame, about its origin. S_i maps the joint
-velocities to the twist of body i relative to its parent body, in body-i coordinates;
-it is derived from :func:`workbench.mechanics.joints.relative_twist` (the one joint dispatch), so
-every joint type of the model is handled. Applied forces: body wrenches of
-:func:`workbench.mechanics.forces.body_wrenches` (gravity, springs, applied forces) are external
-spatial forces f^x_i; joint springs and forces are the joint forces tau_i. A driven
-(rheonomic) joint has its acceleration prescribed: S_i v_drive' is added to c_i and the
-joint has no unknown.
+Articulated-body algorithm (forward dynamics, v' for given tau):
+
+1. outward  V_i = X_i V_lambda(i) + v_J,i,  c_i = c_J,i + V_i x v_J,i,
+            I^A_i = I_i,  p^A_i = V_i x* I_i V_i - f^x_i;
+2. inward   U_i = I^A_i S_i,  D_i = S_i^T U_i,  u_i = tau_i - S_i^T p^A_i,
+            I^a_i = I^A_i - U_i D_i^-1 U_i^T,  p^a_i = p^A_i + I^a_i c_i + U_i D_i^-1 u_i,
+            I^A_lambda(i) += X_i^T I^a_i X_i,  p^A_lambda(i) += X_i^T p^a_i;
+3. outward  a'_i = X_i a_lambda(i) + c_i,  v'_i = D_i^-1 (u_i - U_i^T a'_i),
+            a_i = a'_i + S_i v'_i.
+
+Recursive Newton-Euler (inverse dynamics, tau for given v'): outward
+a_i = X_i a_lambda(i) + S_i v'_i + c_i and f_i = I_i a_i + V_i x* I_i V_i - f^x_i; inward
+tau_i = S_i^T f_i and f_lambda(i) += X_i^T f_i. Composite rigid bodies (the mass matrix):
+inward I^C_lambda(i) += X_i^T I^C_i X_i from I^C_i = I_i; then M_ii = S_i^T I^C_i S_i and,
+walking from i to the root with F = I^C_i S_i, F <- X_j^T F, M_ij = F^T S_j.
+
+The joint model (:func:`joint_model`, Featherstone's jcalc) gives X_i, S_i, v_J,i and
+c_J,i of every joint type from the one joint dispatch of :mod:`workbench.mechanics.joints`.
+Applied forces: body wrenches of :func:`workbench.mechanics.forces.body_wrenches`
+(springs, applied forces) are f^x_i; joint springs and forces are tau_i. A driven
+(rheonomic) joint has its acceleration prescribed: S_i v_drive' is part of c_J,i, and the
+joint has no unknown (n_i = 0).
 
 The mechanical form also needs M and Q - h: M by composite rigid bodies (CRBA), h - Q by
 recursive Newton-Euler (RNEA) at v' = 0. Option ``algorithm="rnea-crba"`` uses these
@@ -40,7 +53,7 @@ shared and the ABA graph has O(n) instructions.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -50,115 +63,53 @@ from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Joint, Model
+from workbench.numerics.spatial import (
+    articulated_update,
+    congruence,
+    force_cross,
+    motion_cross,
+    spatial_inertia,
+    transform_force_back,
+    transform_motion,
+)
 from workbench.plugin.formalism import ConstraintOptions, Formalism
 from workbench.plugin.registry import formalism
 
 ZERO6 = ca.SX.zeros(6, 1)
-
-# ---- spatial algebra (6-vectors [angular; linear], CasADi SX) ---------------------------
-
-
-def motion_cross(v: Any, m: Any) -> Any:
-    """v x m for motion vectors v, m (6,)."""
-    w, v0 = v[:3], v[3:]
-    return ca.vertcat(ca.cross(w, m[:3]), ca.cross(w, m[3:]) + ca.cross(v0, m[:3]))
-
-
-def force_cross(v: Any, f: Any) -> Any:
-    """v x* f for a motion vector v and a force vector f (6,)."""
-    w, v0 = v[:3], v[3:]
-    return ca.vertcat(ca.cross(w, f[:3]) + ca.cross(v0, f[3:]), ca.cross(w, f[3:]))
-
-
-def transform_motion(E: Any, r: Any, m: Any) -> Any:
-    """X m: a motion vector from parent to child coordinates (E: child <- parent rotation,
-    r: child origin in parent coordinates)."""
-    return ca.vertcat(ca.mtimes(E, m[:3]), ca.mtimes(E, m[3:] - ca.cross(r, m[:3])))
-
-
-def transform_force_back(E: Any, r: Any, f: Any) -> Any:
-    """X^T f: a force vector from child to parent coordinates."""
-    force = ca.mtimes(E.T, f[3:])
-    return ca.vertcat(ca.mtimes(E.T, f[:3]) + ca.cross(r, force), force)
-
-
-def plucker(E: Any, r: Any) -> Any:
-    """The 6x6 motion transform X = [E 0; -E r~ E]."""
-    lower = -ca.mtimes(E, ca.skew(r))
-    return ca.vertcat(ca.horzcat(E, ca.SX.zeros(3, 3)), ca.horzcat(lower, E))
-
-
-def symmetric(entry: Any, n: int) -> Any:
-    """The symmetric n x n SX matrix with entries ``entry(i, j)`` computed for i <= j only
-    (the lower triangle shares the same expressions: no extra instructions)."""
-    out = ca.SX.zeros(n, n)
-    for i in range(n):
-        for j in range(i, n):
-            out[i, j] = entry(i, j)
-            if j != i:
-                out[j, i] = out[i, j]
-    return out
-
-
-def articulated_update(I_A: Any, U: Any, D_inv_U: Any) -> Any:
-    """I^a = I^A - U D^-1 U^T (6 x 6, symmetric: 21 entries formed, not 36)."""
-    return symmetric(lambda i, j: I_A[i, j] - ca.dot(U[i, :].T, D_inv_U[:, j]), 6)
-
-
-def congruence(E: Any, r: Any, inertia: Any) -> Any:
-    """X^T I X for a symmetric 6x6 (articulated) inertia I, X = plucker(E, r): I moved
-    from child to parent coordinates.
-
-    With I = [A B; B^T C] and the rotated blocks A' = E^T A E, B' = E^T B E,
-    C' = E^T C E, X = diag(E, E) [1 0; -r~ 1] gives
-    X^T I X = [A' + K + K^T - r~ C' r~, P; P^T, C'] with P = B' + r~ C', K = r~ B'^T.
-    Only the unique entries of the symmetric blocks are formed: about 60 % of the
-    instructions of the dense product (a revolute link of spatial-chain: 255 against 410).
-    """
-    A, B, C = inertia[:3, :3], inertia[:3, 3:], inertia[3:, 3:]
-
-    def rotated(M: Any) -> Any:  # E^T M E for a symmetric M
-        T = ca.mtimes(M, E)
-        return symmetric(lambda i, j: ca.dot(E[:, i], T[:, j]), 3)
-
-    A1, C1 = rotated(A), rotated(C)
-    B1 = ca.mtimes([E.T, B, E])
-    r_tilde = ca.skew(r)
-    Q = ca.mtimes(r_tilde, C1)
-    P = B1 + Q
-    K = ca.mtimes(r_tilde, B1.T)
-    QR = ca.mtimes(Q, r_tilde)
-    top = symmetric(lambda i, j: A1[i, j] + K[i, j] + K[j, i] - QR[i, j], 3)
-    return ca.vertcat(ca.horzcat(top, P), ca.horzcat(P.T, C1))
-
-
-def spatial_inertia(mass: float, com: np.ndarray, inertia: np.ndarray) -> np.ndarray:
-    """Spatial inertia about the body frame's origin: [I_c + m c~ c~^T, m c~; m c~^T, m 1]."""
-    c = np.asarray(com, dtype=float)
-    c_tilde = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-    return np.block(
-        [
-            [np.asarray(inertia, float) + mass * c_tilde @ c_tilde.T, mass * c_tilde],
-            [mass * c_tilde.T, mass * np.eye(3)],
-        ]
-    )
 
 
 def _sx(value: Any) -> Any:
     return value if isinstance(value, ca.SX) else ca.SX(ca.DM(np.asarray(value, dtype=float)))
 
 
-# ---- joint model (Featherstone's jcalc through the joints.py dispatch) ----------------
+# ---- joint model (Featherstone's jcalc through the one dispatch of joints.py) ----------
 
 
-def joint_model(joint: Joint, q: Any, v: Any) -> tuple[Any, Any, Any, Any]:
-    """(E, r, S, c_J) of a tree joint at joint coordinates q (nq) and velocities v (nv).
+class JointMotion(NamedTuple):
+    """What a tree joint contributes to the recursions, in child body coordinates.
 
-    E (3, 3): rotation from the parent body's to the child body's coordinates; r (3): the
-    child body frame's origin in parent body coordinates; S (6, nv): motion subspace, the
-    child's twist relative to the parent body is S v, in child body coordinates about the
-    child's origin; c_J (6): S' v, the rate of those components along q' = H(q) v at
-    fixed v.
+    E (3, 3), r (3): X_i, as rotation from the parent body's to the child body's
+    coordinates and the child body's origin in parent body coordinates. S (6, n): motion
+    subspace, n the joint's unknown velocities (0 for fixed and driven joints). v_J (6):
+    the child's twist relative to the parent body, S v (the drive's for a driven joint).
+    c_J (6): S' v, the rate of v_J at fixed v (plus S v_drive' for a driven joint).
+    """
+
+    E: Any
+    r: Any
+    S: Any
+    v_J: Any
+    c_J: Any
+
+
+def joint_model(joint: Joint, q: Any, v: Any, t: Any) -> JointMotion:
+    """X_i, S_i, v_J,i, c_J,i of a tree joint at its coordinates q (nq), velocities v (nv)
+    and time t, for every joint type.
+
+    The relative pose and twist of the joint come from :func:`jk.relative_transform` and
+    :func:`jk.relative_twist` (the one joint dispatch), moved into the body frames by the
+    constant joint frames; S is the Jacobian of the twist in v and c_J its derivative
+    along q' = H(q) v.
     """
     nq, nv = jk.dimensions(joint)
     R_P = ca.DM(joint.parent_frame.rotation)
@@ -169,7 +120,7 @@ def joint_model(joint: Joint, q: Any, v: Any) -> tuple[Any, Any, Any, Any]:
         R = ca.mtimes([R_P, R_Cf.T])
         E = _sx(R.T)
         r = _sx(p_P - ca.mtimes(R, c_pos))
-        return E, r, ca.SX(6, 0), ZERO6
+        return JointMotion(E, r, ca.SX(6, 0), ZERO6, ZERO6)
     qs, u = ca.SX.sym("qs", nq), ca.SX.sym("u", nv)
     r_rel, R_rel = jk.relative_transform(joint, qs)
     v_rel, w_rel = jk.relative_twist(joint, qs, u)
@@ -182,25 +133,32 @@ def joint_model(joint: Joint, q: Any, v: Any) -> tuple[Any, Any, Any, Any]:
     S = ca.jacobian(xi, u)
     c_J = ca.mtimes(ca.jacobian(xi, qs), _sx(jk.coordinate_rates(joint, qs, u)))
     E, r, S, c_J = ca.substitute([E, r, S, c_J], [qs, u], [_sx(q), _sx(v)])
-    return E, r, S, c_J
+    v_J = ca.mtimes(S, _sx(v))
+    if joint.drive is not None:
+        # prescribed motion: its acceleration is known, so it moves into c_J
+        _, _, a_drive = jk.drive_values(joint, t)
+        return JointMotion(E, r, ca.SX(6, 0), v_J, c_J + ca.mtimes(S, _sx(a_drive)))
+    return JointMotion(E, r, S, v_J, c_J)
+
+
+# ---- the tree in spatial notation -------------------------------------------------------
 
 
 @dataclass
 class Link:
-    """One tree joint and its child body, with everything the recursions need."""
+    """Tree joint i and its child body, with everything the recursions need."""
 
     joint: Joint
     body: str
-    parent: int  # index of the parent link, -1 for the ground
-    E: Any
-    r: Any
-    S: Any  # (6, nv) for a free joint, (6, 0) for driven and fixed joints
-    v_J: Any  # (6,) joint twist S v (the drive's v for a driven joint)
-    c: Any  # (6,) c_J + V x v_J (+ S v_drive' for a driven joint): filled by the outward pass
-    c_J: Any
-    inertia: Any  # (6, 6) spatial inertia about the body origin, body coordinates
-    f_ext: Any  # (6,) applied force on the body, body coordinates
-    tau: Any  # (nv,) joint forces
+    parent: int  # lambda(i): index of the parent link, -1 for the ground
+    E: Any  # X_i: rotation (3, 3) ...
+    r: Any  # ... and offset (3), see JointMotion
+    S: Any  # (6, n_i); n_i = 0 for driven and fixed joints
+    v_J: Any  # (6,)
+    c_J: Any  # (6,)
+    inertia: Any  # I_i (6, 6): spatial inertia about the body origin, body coordinates
+    f_ext: Any  # f^x_i (6,): applied force on the body, body coordinates
+    tau: Any  # (n_i,) the model's joint forces
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
 
     @property
@@ -209,13 +167,13 @@ class Link:
 
 
 class SpatialTree:
-    """The tree of ``model`` in spatial notation at symbolic (t, q, v) (Pinocchio's Data).
+    """The tree of ``model`` in spatial notation at symbolic (t, q, v).
 
-    ``links`` in parents-first order; ``velocities`` V_i (6,) and ``bias`` c_i (6,) of
-    every link from the outward velocity pass; ``base_acceleration`` [0; -g] (6,): gravity
-    as an upward acceleration of the ground, so ``f_ext`` holds only the other applied
-    wrenches (:func:`~workbench.mechanics.forces.body_wrenches` without gravity, from the
-    world poses of ``kinematics.bodies``).
+    ``links`` in parents-first order, each with its joint model (X_i, S_i, v_J,i, c_J,i),
+    body inertia I_i, applied force f^x_i and joint forces; ``base_acceleration``
+    a_0 = [0; -g] (6,): gravity as an upward acceleration of the ground, so ``f_ext``
+    holds only the other applied wrenches (:func:`~workbench.mechanics.forces.body_wrenches`
+    without gravity, from the world poses of ``kinematics.bodies``).
     """
 
     def __init__(self, model: Model, kinematics: TreeKinematics) -> None:
@@ -231,46 +189,31 @@ class SpatialTree:
         self.links: list[Link] = []
         for joint in k.order:
             q_j, v_j = joint_coordinates[joint.name]
-            E, r, S, c_J = joint_model(joint, q_j, v_j)
-            nv = S.size2()
-            v_J = ca.mtimes(S, _sx(v_j)) if nv else ZERO6
-            v_slice = None
-            if joint.drive is not None and nv:
-                _, _, a_drive = jk.drive_values(joint, k.t)
-                c_J = c_J + ca.mtimes(S, _sx(a_drive))
-                S = ca.SX(6, 0)
-            elif nv:
-                v_slice = k.joint_slices[joint.name][1]
+            X = joint_model(joint, q_j, v_j, k.t)
+            v_slice = k.joint_slices[joint.name][1] if X.S.size2() else None
             body = model.bodies[joint.child]
             rotation = k.bodies[joint.child].rotation
             force, torque = wrenches[joint.child]
             f_ext = ca.vertcat(ca.mtimes(rotation.T, torque), ca.mtimes(rotation.T, force))
             tau = joint_forces.get(joint.name, 0) if v_slice is not None else 0
-            tau = _sx(tau) if not isinstance(tau, int) else ca.SX.zeros(S.size2())
+            tau = _sx(tau) if not isinstance(tau, int) else ca.SX.zeros(X.S.size2())
             self.links.append(
                 Link(
-                    joint,
-                    joint.child,
-                    -1 if joint.parent == GROUND else index[joint.parent],
-                    E,
-                    r,
-                    S,
-                    v_J,
-                    None,
-                    c_J,
-                    _sx(spatial_inertia(body.mass, body.com, body.inertia)),
-                    f_ext,
-                    tau,
-                    v_slice,
+                    joint=joint,
+                    body=joint.child,
+                    parent=-1 if joint.parent == GROUND else index[joint.parent],
+                    E=X.E,
+                    r=X.r,
+                    S=X.S,
+                    v_J=X.v_J,
+                    c_J=X.c_J,
+                    inertia=_sx(spatial_inertia(body.mass, body.com, body.inertia)),
+                    f_ext=f_ext,
+                    tau=tau,
+                    v_slice=v_slice,
                 )
             )
             index[joint.child] = len(self.links) - 1
-        self.velocities: list[Any] = []
-        for link in self.links:
-            parent_v = ZERO6 if link.parent < 0 else self.velocities[link.parent]
-            velocity = transform_motion(link.E, link.r, parent_v) + link.v_J
-            link.c = link.c_J + motion_cross(velocity, link.v_J)
-            self.velocities.append(velocity)
 
     def joint_forces(self) -> Any:
         """tau (nv): the joint forces of the model's joint springs and joint forces."""
@@ -281,101 +224,131 @@ class SpatialTree:
         return tau
 
 
+# ---- articulated-body algorithm (forward dynamics) -------------------------------------
+
+
 def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
-    """v' (nv) by the articulated-body algorithm for joint forces ``tau`` (nv), O(n)."""
-    links, V = tree.links, tree.velocities
-    I_A = [link.inertia for link in links]
-    p_A = [
-        force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
-        for i, link in enumerate(links)
-    ]
-    U, D_inv_U, D_inv_u = [None] * len(links), [None] * len(links), [None] * len(links)
-    for i in reversed(range(len(links))):
-        link = links[i]
+    """v' (nv) by the articulated-body algorithm for joint forces ``tau`` (nv), O(n).
+
+    The three passes of the module docstring; ``tau`` replaces the model's joint forces
+    (pass ``tree.joint_forces()`` for those).
+    """
+    links = tree.links
+    n = len(links)
+    V, c, I_A, p_A = [None] * n, [None] * n, [None] * n, [None] * n
+
+    # 1. outward: velocities, velocity-product accelerations, rigid-body inertias and biases
+    for i, link in enumerate(links):
+        V_parent = ZERO6 if link.parent < 0 else V[link.parent]
+        V[i] = transform_motion(link.E, link.r, V_parent) + link.v_J
+        c[i] = link.c_J + motion_cross(V[i], link.v_J)
+        I_A[i] = link.inertia
+        p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
+
+    # 2. inward: articulated inertias and bias forces, each handed to the parent
+    U, D_inv_U, D_inv_u = [None] * n, [None] * n, [None] * n
+    for i in reversed(range(n)):
+        link, S = links[i], links[i].S
         if link.nv:
-            U[i] = ca.mtimes(I_A[i], link.S)
-            D = ca.mtimes(link.S.T, U[i])
-            u = tau[link.v_slice] - ca.mtimes(link.S.T, p_A[i])
-            if link.nv == 1:
+            U[i] = ca.mtimes(I_A[i], S)
+            D = ca.mtimes(S.T, U[i])
+            u = tau[link.v_slice] - ca.mtimes(S.T, p_A[i])
+            if link.nv == 1:  # a division, no linear-solve node
                 D_inv_U[i], D_inv_u[i] = U[i].T / D, u / D
             else:
-                solution = ca.solve(D, ca.horzcat(U[i].T, u))
-                D_inv_U[i], D_inv_u[i] = solution[:, :6], solution[:, 6]
+                D_inv = ca.solve(D, ca.horzcat(U[i].T, u))
+                D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
             I_a = articulated_update(I_A[i], U[i], D_inv_U[i])
-            p_a = p_A[i] + ca.mtimes(I_a, link.c) + ca.mtimes(U[i], D_inv_u[i])
-        else:
-            I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], link.c)
+            p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
+        else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
+            I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
             I_A[link.parent] = I_A[link.parent] + congruence(link.E, link.r, I_a)
             p_A[link.parent] = p_A[link.parent] + transform_force_back(link.E, link.r, p_a)
-    accelerations = ca.SX.zeros(tree.nv)
-    a: list[Any] = []
+
+    # 3. outward: accelerations
+    vdot = ca.SX.zeros(tree.nv)
+    a = [None] * n
     for i, link in enumerate(links):
-        parent_a = tree.base_acceleration if link.parent < 0 else a[link.parent]
-        a_i = transform_motion(link.E, link.r, parent_a) + link.c
+        a_parent = tree.base_acceleration if link.parent < 0 else a[link.parent]
+        a_prime = transform_motion(link.E, link.r, a_parent) + c[i]
         if link.nv:
-            vdot = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_i)
-            accelerations[link.v_slice] = vdot
-            a_i = a_i + ca.mtimes(link.S, vdot)
-        a.append(a_i)
-    return accelerations
+            vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
+            vdot[link.v_slice] = vdot_i
+            a[i] = a_prime + ca.mtimes(link.S, vdot_i)
+        else:
+            a[i] = a_prime
+    return vdot
+
+
+# ---- recursive Newton-Euler (inverse dynamics) -----------------------------------------
 
 
 def recursive_newton_euler(tree: SpatialTree, vdot: Any) -> Any:
-    """tau = M v' + h - Q (nv): joint forces that, added to the model's, give ``vdot``, O(n).
+    """tau = M v' + h - Q (nv): joint forces that, added to the model's, give ``vdot``
+    (nv), O(n).
 
     With vdot = 0 it is h - Q: gyroscopic and centrifugal terms minus applied forces.
     """
-    links, V = tree.links, tree.velocities
-    forces: list[Any] = []
-    a: list[Any] = []
+    links = tree.links
+    n = len(links)
+    V, a, f = [None] * n, [None] * n, [None] * n
+
+    # outward: velocities, accelerations and the force each body needs for them
     for i, link in enumerate(links):
-        parent_a = tree.base_acceleration if link.parent < 0 else a[link.parent]
-        a_i = transform_motion(link.E, link.r, parent_a) + link.c
+        if link.parent < 0:
+            V_parent, a_parent = ZERO6, tree.base_acceleration
+        else:
+            V_parent, a_parent = V[link.parent], a[link.parent]
+        V[i] = transform_motion(link.E, link.r, V_parent) + link.v_J
+        c_i = link.c_J + motion_cross(V[i], link.v_J)
+        a[i] = transform_motion(link.E, link.r, a_parent) + c_i
         if link.nv:
-            a_i = a_i + ca.mtimes(link.S, vdot[link.v_slice])
-        a.append(a_i)
-        momentum = ca.mtimes(link.inertia, V[i])
-        forces.append(ca.mtimes(link.inertia, a_i) + force_cross(V[i], momentum) - link.f_ext)
+            a[i] = a[i] + ca.mtimes(link.S, vdot[link.v_slice])
+        I = link.inertia
+        f[i] = ca.mtimes(I, a[i]) + force_cross(V[i], ca.mtimes(I, V[i])) - link.f_ext
+
+    # inward: joint forces, and each body's force handed to its parent
     tau = ca.SX.zeros(tree.nv)
-    for i in reversed(range(len(links))):
+    for i in reversed(range(n)):
         link = links[i]
         if link.nv:
-            tau[link.v_slice] = ca.mtimes(link.S.T, forces[i]) - link.tau
+            tau[link.v_slice] = ca.mtimes(link.S.T, f[i]) - link.tau
         if link.parent >= 0:
-            forces[link.parent] = forces[link.parent] + transform_force_back(
-                link.E, link.r, forces[i]
-            )
+            f[link.parent] = f[link.parent] + transform_force_back(link.E, link.r, f[i])
     return tau
+
+
+# ---- composite rigid bodies (mass matrix) ----------------------------------------------
 
 
 def composite_rigid_body_mass(tree: SpatialTree) -> Any:
     """M (nv, nv) by the composite-rigid-body algorithm, O(n d) for tree depth d."""
     links = tree.links
+
+    # inward: composite inertias of the subtrees
     I_C = [link.inertia for link in links]
     for i in reversed(range(len(links))):
         link = links[i]
         if link.parent >= 0:
             I_C[link.parent] = I_C[link.parent] + congruence(link.E, link.r, I_C[i])
-    mass = ca.SX.zeros(tree.nv, tree.nv)
+
+    # each joint i against itself and every joint j on its path to the root
+    M = ca.SX.zeros(tree.nv, tree.nv)
     for i, link in enumerate(links):
         if not link.nv:
             continue
         F = ca.mtimes(I_C[i], link.S)
-        mass[link.v_slice, link.v_slice] = ca.mtimes(link.S.T, F)
+        M[link.v_slice, link.v_slice] = ca.mtimes(link.S.T, F)
         j = i
         while links[j].parent >= 0:
-            F = (
-                transform_force_back(links[j].E, links[j].r, F)
-                if F.size2() == 1
-                else ca.mtimes(plucker(links[j].E, links[j].r).T, F)
-            )
+            F = transform_force_back(links[j].E, links[j].r, F)
             j = links[j].parent
             if links[j].nv:
-                block = ca.mtimes(F.T, links[j].S)
-                mass[link.v_slice, links[j].v_slice] = block
-                mass[links[j].v_slice, link.v_slice] = block.T
-    return mass
+                M_ij = ca.mtimes(F.T, links[j].S)
+                M[link.v_slice, links[j].v_slice] = M_ij
+                M[links[j].v_slice, link.v_slice] = M_ij.T
+    return M
 
 
 # ---- the formalism --------------------------------------------------------------------
