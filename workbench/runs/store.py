@@ -8,10 +8,11 @@ Layout of an output directory ``<out>``::
     <out>/results.parquet            all rows, consolidated at the end of a sweep
     <out>/sweep.toml                 the sweep specification that was run (if any)
 
-Every file is written atomically: to a temporary file in the same directory, flushed,
-then renamed over the target with :func:`os.replace`. The series is written before the
-row, so a row file implies its series; a sweep killed at any moment leaves only whole
-files, and a resumed sweep skips the run ids whose row exists.
+Every file is written atomically (:func:`workbench.files.atomic_write`): to a temporary
+file in the same directory, then renamed over the target with :func:`os.replace`. The
+series is written before the row, so a row file implies its series; a sweep killed at
+any moment leaves only whole files, and a resumed sweep skips the run ids whose row
+exists.
 
 :func:`load_results` returns a DataFrame whose first columns are always those of
 :data:`SCHEMA`, in that order (missing values NaN or empty), followed by any others.
@@ -19,11 +20,9 @@ files, and a resumed sweep skips the run ids whose row exists.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
-import tempfile
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import Any
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.files import atomic_write
 
 # The stable schema of a result row: (column, meaning). Units: seconds, metres, radians.
 SCHEMA: list[tuple[str, str]] = [
@@ -96,29 +96,7 @@ SERIES_DIR = "series"
 RESULTS_FILE = "results.parquet"
 
 
-# ---- atomic writes -------------------------------------------------------------------
-
-
-def atomic_write(path: Path, write: Any, durable: bool = True) -> None:
-    """Call ``write(temp_path)`` then rename the temporary file over ``path``.
-
-    ``durable``: fsync the file before the rename, so that after a crash of the machine
-    (not only of the process: a rename alone covers that) the file is whole if present.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(handle)
-    try:
-        write(temp_name)
-        if durable:
-            with open(temp_name, "rb+") as written:
-                os.fsync(written.fileno())
-        os.replace(temp_name, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temp_name)
-        raise
+# ---- atomic writes (workbench.files.atomic_write) ----------------------------------------
 
 
 def write_json_atomic(data: dict[str, Any], path: Path, durable: bool = True) -> None:
