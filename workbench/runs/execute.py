@@ -35,7 +35,6 @@ import hashlib
 import json
 import math
 import time
-import traceback
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -45,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import compiled
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, one_line
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
@@ -255,12 +254,6 @@ def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[s
     return row
 
 
-def _one_line(error: BaseException) -> str:
-    last = traceback.format_exception_only(type(error), error)[-1].strip()
-    lines = [line.strip() for line in last.splitlines() if line.strip()]
-    return " | ".join(lines) or type(error).__name__
-
-
 def execute_run(
     spec: RunSpec, sink: Any = None, reference_dir: Path | str | None = None
 ) -> RunResult:
@@ -350,7 +343,7 @@ def execute_run(
     except Exception as error:  # noqa: BLE001 - a failing plugin is a result, not a crash
         stages.stop()
         row.update(
-            status="failed", stage=stages.current, message=f"{stages.current}: {_one_line(error)}"
+            status="failed", stage=stages.current, message=f"{stages.current}: {one_line(error)}"
         )
     compile_warnings = getattr(state.get("equations"), "compile_warnings", [])
     if compile_warnings:
