@@ -7,6 +7,8 @@ Layout of an output directory ``<out>``::
     <out>/references/*.parquet       computed reference poses (see workbench.runs.metrics)
     <out>/results.parquet            all rows, consolidated at the end of a sweep
     <out>/sweep.toml                 the sweep specification that was run (if any)
+    <out>/environment.json           the full environment of the last sweep started here
+                                     (workbench.runs.environment.sweep_environment)
 
 Every file is written atomically (:func:`workbench.files.atomic_write`): to a temporary
 file in the same directory, then renamed over the target with :func:`os.replace`. The
@@ -94,6 +96,7 @@ SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_e
 RUNS_DIR = "runs"
 SERIES_DIR = "series"
 RESULTS_FILE = "results.parquet"
+ENVIRONMENT_FILE = "environment.json"
 
 
 # ---- atomic writes (workbench.files.atomic_write) ----------------------------------------
@@ -276,6 +279,7 @@ def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.D
 
 
 __all__ = [
+    "ENVIRONMENT_FILE",
     "SCHEMA",
     "SCHEMA_COLUMNS",
     "completed_run_ids",
