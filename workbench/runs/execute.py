@@ -49,7 +49,7 @@ from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
 from workbench.runs.references import problem_reference
-from workbench.runs.store import empty_series
+from workbench.runs.store import SCHEMA_VERSION, empty_series
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
 
@@ -232,8 +232,10 @@ class _Stages:
 
 
 def base_row(spec: RunSpec) -> dict[str, Any]:
-    """The key columns of a row (options as canonical JSON text)."""
+    """The key columns of a row (options as canonical JSON text) and its schema version:
+    every row, finished or not, starts here."""
     return {
+        "schema_version": SCHEMA_VERSION,
         "run_id": spec.run_id,
         "problem": spec.problem,
         "problem_options": canonical_json(spec.problem_options),
