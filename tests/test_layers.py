@@ -21,7 +21,7 @@ CORE = REPO / "workbench"
 
 # lowest first; a module may import from its own layer and those before it
 LAYERS = [
-    "foundation",  # workbench.errors
+    "foundation",  # workbench.errors, workbench.files
     "numerics",
     "model",
     "mechanics",
@@ -33,7 +33,7 @@ LAYERS = [
     "cli",
     "facade",  # workbench/__init__.py, __main__.py and the deprecated re-export modules
 ]
-FOUNDATION = {"workbench.errors"}
+FOUNDATION = {"workbench.errors", "workbench.files"}
 FACADE = {
     "workbench",
     "workbench.__main__",

@@ -244,6 +244,22 @@ def test_broken_builtin_module_is_listed(tmp_path, monkeypatch):
     assert "ModuleNotFoundError" in infos[0].error_line
 
 
+def test_a_broken_module_s_error_line_is_the_whole_error_on_one_line(tmp_path, monkeypatch):
+    package = tmp_path / "fake_wb_multiline"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "bad.py").write_text("raise ImportError('needs libfoo\\ninstall it with pip')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    registry = Registry(builtin_packages={"formalism": "fake_wb_multiline"}, entry_point_groups={})
+    try:
+        (info,) = registry.list("formalism")
+    finally:
+        for name in [m for m in sys.modules if m.startswith("fake_wb_multiline")]:
+            sys.modules.pop(name)
+    assert info.error_line == "ImportError: needs libfoo | install it with pip"
+    assert info.error.startswith("Traceback") and "bad.py" in info.error  # the whole story
+
+
 def test_missing_builtin_package_is_listed_as_broken():
     registry = Registry(builtin_packages={"problem": "no_such_package_wb"}, entry_point_groups={})
     (info,) = registry.list("problem")

@@ -110,3 +110,76 @@ def test_missing_results_is_a_config_error(tmp_path) -> None:
     (tmp_path / "bad.parquet").write_text("not parquet")
     with pytest.raises(ConfigError, match="cannot read"):
         store.load_results(tmp_path / "bad.parquet")
+
+
+# -- schema versions -------------------------------------------------------------------
+def write_row_file(out, data: dict) -> None:
+    """A row file as some version of the workbench wrote it (no migration on the way)."""
+    path = store.row_path(out, data["run_id"])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data))
+
+
+def test_rows_are_written_with_the_current_schema_version(tmp_path) -> None:
+    from workbench.runs.execute import RunSpec, status_row
+
+    spec = RunSpec("p", "f", "i", 1e-6, 1e-9)
+    store.write_run(tmp_path, status_row(spec, "timeout", "too slow"), None)
+    written = json.loads(store.row_path(tmp_path, spec.run_id).read_text())
+    assert written["schema_version"] == store.SCHEMA_VERSION == 2
+    frame = store.load_results(tmp_path)
+    assert frame.loc[0, "schema_version"] == 2 and frame.attrs["migrated"] == []
+
+
+def test_an_old_schema_directory_loads_migrated(tmp_path) -> None:
+    old = row("a" * 16, custom="kept")  # version 1: no schema_version
+    write_row_file(tmp_path, old)
+    frame = store.load_results(tmp_path)
+    assert frame.attrs["migrated"] == [str(store.row_path(tmp_path, "a" * 16))]
+    loaded = frame.iloc[0].to_dict()
+    assert loaded["schema_version"] == 2
+    assert {k: loaded[k] for k in old} == old  # nothing else changed
+    # a results.parquet consolidated before schema versions existed
+    parquet = tmp_path / "old.parquet"
+    pd.DataFrame([old, row("b" * 16)]).to_parquet(parquet)
+    again = store.load_results(parquet)
+    assert list(again["schema_version"]) == [2, 2]
+    assert again.attrs["migrated"] == [str(parquet)]
+
+
+def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
+    write_row_file(tmp_path, row("c" * 16, schema_version=store.SCHEMA_VERSION + 1))
+    newer = str(store.row_path(tmp_path, "c" * 16))
+    with pytest.raises(ConfigError, match="upgrade the workbench") as error:
+        store.load_results(tmp_path)
+    assert newer in str(error.value) and "schema version 3" in str(error.value)
+    # a resumed sweep refuses too (it would add rows of an older schema)
+    with pytest.raises(ConfigError, match="upgrade the workbench"):
+        store.completed_run_ids(tmp_path)
+    parquet = tmp_path / "new.parquet"
+    pd.DataFrame([row("d" * 16, schema_version=3)]).to_parquet(parquet)
+    with pytest.raises(ConfigError, match=f"{parquet}.*upgrade the workbench"):
+        store.load_results(parquet)
+
+
+def test_mixed_directories(tmp_path) -> None:
+    # old and current rows load together, all in the current schema
+    write_row_file(tmp_path, row("a" * 16))
+    write_row_file(tmp_path, row("b" * 16, schema_version=2))
+    frame = store.load_results(tmp_path)
+    assert list(frame["schema_version"]) == [2, 2]
+    assert frame.attrs["migrated"] == [str(store.row_path(tmp_path, "a" * 16))]
+    assert store.completed_run_ids(tmp_path) == {"a" * 16, "b" * 16}
+    # one newer row refuses the whole directory (no silently partial results), naming it
+    for run_id in ("c" * 16, "d" * 16):
+        write_row_file(tmp_path, row(run_id, schema_version=7))
+    with pytest.raises(ConfigError, match="and 1 other row file") as error:
+        store.load_results(tmp_path)
+    assert str(store.row_path(tmp_path, "c" * 16)) in str(error.value)
+
+
+@pytest.mark.parametrize("value", ["2", 0, 1.5, True, [2]])
+def test_a_schema_version_that_is_not_one_is_refused(tmp_path, value) -> None:
+    write_row_file(tmp_path, row("a" * 16, schema_version=value))
+    with pytest.raises(ConfigError, match="is not a schema version"):
+        store.load_results(tmp_path)

@@ -112,6 +112,9 @@ def test_misbehaving_plugins_give_rows_and_the_sweep_completes(fake_plugins, tmp
     assert set(broken["status"]) == {"failed"}
     assert all(m.startswith("build:") for m in broken["message"])
     assert (tmp_path / "results.parquet").is_file() and not list(tmp_path.rglob("*.tmp"))
+    environment = json.loads((tmp_path / store.ENVIRONMENT_FILE).read_text())
+    assert environment["distributions"]["mbs-workbench"] == frame["version_workbench"].iloc[0]
+    assert set(frame["schema_version"]) == {store.SCHEMA_VERSION}
     # every ok row has its series
     for run_id in frame.loc[frame["status"] == "ok", "run_id"]:
         assert store.series_path(tmp_path, run_id).is_file()

@@ -19,3 +19,26 @@ class ConfigError(WorkbenchError):
 
 class IntegrationError(WorkbenchError):
     """Initialisation or integration of the equations of motion failed."""
+
+
+def one_line(error: BaseException, with_type: bool = True) -> str:
+    """``error`` as one line of text: its message's non-empty lines joined with ' | '.
+
+    ``with_type``: start with the exception's type as a traceback names it
+    (``ValueError: ...``, ``workbench.errors.ModelError: ...``), which is what a
+    plugin's error needs to be recognized; the command line leaves it out, its
+    WorkbenchErrors being messages written for the user. A message-less error is its
+    type's name either way. Notes added to the error (``add_note``) are not shown.
+    """
+    try:
+        text = str(error)
+    except Exception:  # noqa: BLE001 - a broken __str__ must not hide the error
+        text = "<exception str() failed>"
+    message = " | ".join(line.strip() for line in text.splitlines() if line.strip())
+    if not with_type:
+        return message or type(error).__name__
+    kind = type(error)
+    name = kind.__qualname__
+    if kind.__module__ not in ("builtins", "__main__"):
+        name = f"{kind.__module__}.{name}"
+    return f"{name}: {message}" if message else name

@@ -6,6 +6,6 @@ console); ``plugins`` (list, describe, new), ``runs`` (run, sweep, results, refe
 """
 
 from workbench.cli import outputs, plugins, runs  # noqa: F401 - register the commands
-from workbench.cli.app import app, main, one_line
+from workbench.cli.app import app, main
 
-__all__ = ["app", "main", "one_line"]
+__all__ = ["app", "main"]

@@ -17,20 +17,15 @@ import typer
 from rich.console import Console
 
 from workbench import __version__
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, one_line
 
 EXIT_BAD_INPUT = 2
 
 
-def one_line(error: BaseException) -> str:
-    """An error message on a single line (continuation lines joined with ' | ')."""
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-    return " | ".join(lines) or type(error).__name__
-
-
 def fail(error: WorkbenchError) -> typer.Exit:
-    """Print ``error`` as one line on stderr; the caller raises the returned Exit(2)."""
-    typer.echo(f"error: {one_line(error)}", err=True)
+    """Print ``error`` as one line on stderr (its message, without the type: written for
+    the user); the caller raises the returned Exit(2)."""
+    typer.echo(f"error: {one_line(error, with_type=False)}", err=True)
     return typer.Exit(EXIT_BAD_INPUT)
 
 

@@ -36,6 +36,8 @@ from typing import Any
 
 import casadi as ca
 
+from workbench.files import atomic_write
+
 MODES = ("none", "jit")
 DEFAULT_FLAGS = "-O1"
 
@@ -136,18 +138,21 @@ def library_path(code: str, flags: str, compiler: str, name: str) -> Path:
 
 
 def build_library(code: str, flags: str, compiler: str, path: Path) -> None:
-    """Compile ``code`` into the shared library ``path`` (temporary file + atomic rename)."""
+    """Compile ``code`` into the shared library ``path`` (temporary file + atomic rename;
+    not synced to disk: the cache can always compile again)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".build-") as work:
         source = Path(work) / "code.c"
         source.write_text(code)
-        output = Path(work) / path.name
         command = [compiler, *shlex.split(flags), "-fPIC", "-shared", str(source), "-o"]
-        done = subprocess.run([*command, str(output), "-lm"], capture_output=True, text=True)
-        if done.returncode != 0:
-            first = (done.stderr.strip().splitlines() or ["no output"])[0]
-            raise RuntimeError(f"{Path(compiler).name} {flags} failed: {first}")
-        os.replace(output, path)
+
+        def compile_to(output: str) -> None:
+            done = subprocess.run([*command, output, "-lm"], capture_output=True, text=True)
+            if done.returncode != 0:
+                first = (done.stderr.strip().splitlines() or ["no output"])[0]
+                raise RuntimeError(f"{Path(compiler).name} {flags} failed: {first}")
+
+        atomic_write(path, compile_to, durable=False)
     STATS.compiled += 1
 
 

@@ -31,7 +31,6 @@ recording stream a run leaks memory in rerun-sdk (docs/performance.md has the fi
 from __future__ import annotations
 
 import json
-import os
 import re
 import uuid
 from collections.abc import Iterable, Sequence
@@ -40,6 +39,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from workbench.files import atomic_write
 
 SERIES_QUANTITIES: tuple[str, ...] = ("drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err")
 TIMELINE = "sim_time"
@@ -244,17 +245,18 @@ class RerunSink:
         ``recording.rrd``. Returns the file's path. Call once, after the last run.
 
         The file is written beside the target and renamed over it, so a reader never
-        sees half a recording.
+        sees half a recording (not synced to disk: a view, made again from the runs).
         """
         target = Path(path)
         if target.is_dir() or target.suffix != ".rrd":
             target = target / RECORDING_FILE
-        target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
-        self.recording.save(partial, default_blueprint=self.blueprint())
-        self.recording.flush()
-        self.recording.disconnect()
-        os.replace(partial, target)
+
+        def write(temporary: str) -> None:
+            self.recording.save(temporary, default_blueprint=self.blueprint())
+            self.recording.flush()
+            self.recording.disconnect()
+
+        atomic_write(target, write, durable=False)
         return target
 
     def begin_file(self, path: str | Path) -> None:
@@ -279,10 +281,7 @@ class RerunSink:
         data = stream.read()
         if not self.runs:
             return None
-        target.parent.mkdir(parents=True, exist_ok=True)
-        temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-        temporary.write_bytes(data)
-        os.replace(temporary, target)
+        atomic_write(target, lambda temporary: Path(temporary).write_bytes(data), durable=False)
         return target
 
     # -- several files into one -----------------------------------------------------------

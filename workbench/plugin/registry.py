@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, Literal
 
-from workbench.errors import PluginError
+from workbench.errors import PluginError, one_line
 from workbench.plugin.options import option_fields
 
 Kind = Literal["problem", "formalism", "integrator"]
@@ -40,23 +40,19 @@ ENTRY_POINT_GROUPS: dict[Kind, str] = {
 
 @dataclass
 class PluginInfo:
-    """One registry entry: the plugin class, or the error of a module that failed to import."""
+    """One registry entry: the plugin class, or the error of a module that failed to import
+    (``error``: its traceback; ``error_line``: the error on one line, ``''`` if none)."""
 
     kind: Kind
     name: str
     plugin: type | None
     module: str
     error: str | None = None
+    error_line: str = ""
 
     @property
     def status(self) -> str:
         return "broken" if self.error else "ok"
-
-    @property
-    def error_line(self) -> str:
-        """The last non-empty line of the import error (``''`` for a working plugin)."""
-        lines = [line.strip() for line in (self.error or "").splitlines() if line.strip()]
-        return lines[-1] if lines else ""
 
     @property
     def summary(self) -> str:
@@ -112,11 +108,13 @@ class Registry:
                 return
         self.entries[kind][name] = PluginInfo(kind, name, plugin, plugin.__module__)
 
-    def add_broken(self, kind: Kind, name: str, module: str, error: str) -> None:
-        """Record a plugin module that failed to import (a working entry is never replaced)."""
+    def add_broken(self, kind: Kind, name: str, module: str, error: BaseException) -> None:
+        """Record a plugin module that failed to import with ``error`` (a working entry is
+        never replaced)."""
         check_kind(kind)
         if name not in self.entries[kind]:
-            self.entries[kind][name] = PluginInfo(kind, name, None, module, error)
+            text = "".join(traceback.format_exception(error))
+            self.entries[kind][name] = PluginInfo(kind, name, None, module, text, one_line(error))
 
     def discover(self) -> None:
         """Import built-in plugin modules and entry points once (idempotent)."""
@@ -126,8 +124,8 @@ class Registry:
         for kind, package_name in self.builtin_packages.items():
             try:
                 package = importlib.import_module(package_name)
-            except Exception:  # noqa: BLE001 - a broken package must not stop the others
-                self.add_broken(kind, package_name, package_name, traceback.format_exc())
+            except Exception as error:  # noqa: BLE001 - a broken package must not stop the others
+                self.add_broken(kind, package_name, package_name, error)
                 continue
             for module in pkgutil.iter_modules(
                 getattr(package, "__path__", []), package_name + "."
@@ -140,18 +138,16 @@ class Registry:
                     # an entry point may name a class, or a module whose decorators register
                     if isinstance(loaded, type) and getattr(loaded, "name", None):
                         self.add(kind, loaded)
-                except Exception:  # noqa: BLE001
-                    self.add_broken(
-                        kind, entry_point.name, entry_point.value, traceback.format_exc()
-                    )
+                except Exception as error:  # noqa: BLE001
+                    self.add_broken(kind, entry_point.name, entry_point.value, error)
 
     def _import(self, kind: Kind, name: str, module_name: str) -> None:
         if name.startswith("_"):
             return
         try:
             importlib.import_module(module_name)
-        except Exception:  # noqa: BLE001
-            self.add_broken(kind, name.replace("_", "-"), module_name, traceback.format_exc())
+        except Exception as error:  # noqa: BLE001
+            self.add_broken(kind, name.replace("_", "-"), module_name, error)
 
     def list(self, kind: Kind) -> list[PluginInfo]:
         check_kind(kind)

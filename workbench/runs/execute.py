@@ -35,7 +35,6 @@ import hashlib
 import json
 import math
 import time
-import traceback
 from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -45,12 +44,12 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import compiled
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, one_line
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
 from workbench.runs.references import problem_reference
-from workbench.runs.store import empty_series
+from workbench.runs.store import SCHEMA_VERSION, empty_series
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
 
@@ -233,8 +232,10 @@ class _Stages:
 
 
 def base_row(spec: RunSpec) -> dict[str, Any]:
-    """The key columns of a row (options as canonical JSON text)."""
+    """The key columns of a row (options as canonical JSON text) and its schema version:
+    every row, finished or not, starts here."""
     return {
+        "schema_version": SCHEMA_VERSION,
         "run_id": spec.run_id,
         "problem": spec.problem,
         "problem_options": canonical_json(spec.problem_options),
@@ -253,12 +254,6 @@ def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[s
     row.update(extra)
     row.update(environment())
     return row
-
-
-def _one_line(error: BaseException) -> str:
-    last = traceback.format_exception_only(type(error), error)[-1].strip()
-    lines = [line.strip() for line in last.splitlines() if line.strip()]
-    return " | ".join(lines) or type(error).__name__
 
 
 def execute_run(
@@ -350,7 +345,7 @@ def execute_run(
     except Exception as error:  # noqa: BLE001 - a failing plugin is a result, not a crash
         stages.stop()
         row.update(
-            status="failed", stage=stages.current, message=f"{stages.current}: {_one_line(error)}"
+            status="failed", stage=stages.current, message=f"{stages.current}: {one_line(error)}"
         )
     compile_warnings = getattr(state.get("equations"), "compile_warnings", [])
     if compile_warnings:

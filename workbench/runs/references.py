@@ -52,12 +52,13 @@ import pandas as pd
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import ConfigError, IntegrationError, WorkbenchError
+from workbench.files import atomic_write
 from workbench.numerics.geometry import length_scale, rotation_angle
 from workbench.plugin import registry
 from workbench.plugin.options import options_dict
 from workbench.plugin.problem import Reference
 from workbench.runs.environment import environment
-from workbench.runs.store import atomic_write, write_json_atomic, write_parquet_atomic
+from workbench.runs.store import write_json_atomic, write_parquet_atomic
 
 BUILTIN_PLUGINS = "workbench.plugins"  # the package whose reference_pipelines.toml is read
 

@@ -7,31 +7,39 @@ Layout of an output directory ``<out>``::
     <out>/references/*.parquet       computed reference poses (see workbench.runs.metrics)
     <out>/results.parquet            all rows, consolidated at the end of a sweep
     <out>/sweep.toml                 the sweep specification that was run (if any)
+    <out>/environment.json           the full environment of the last sweep started here
+                                     (workbench.runs.environment.sweep_environment)
 
-Every file is written atomically: to a temporary file in the same directory, flushed,
-then renamed over the target with :func:`os.replace`. The series is written before the
-row, so a row file implies its series; a sweep killed at any moment leaves only whole
-files, and a resumed sweep skips the run ids whose row exists.
+Every file is written atomically (:func:`workbench.files.atomic_write`): to a temporary
+file in the same directory, then renamed over the target with :func:`os.replace`. The
+series is written before the row, so a row file implies its series; a sweep killed at
+any moment leaves only whole files, and a resumed sweep skips the run ids whose row
+exists.
 
 :func:`load_results` returns a DataFrame whose first columns are always those of
 :data:`SCHEMA`, in that order (missing values NaN or empty), followed by any others.
+
+A row carries the version of its schema (``schema_version``; a row without one is
+version 1, written before versions existed). Rows of an older schema are migrated when
+read (:data:`MIGRATIONS`), so old output directories stay readable; a row of a newer
+schema than this code knows is refused (:class:`ConfigError`: upgrade the workbench).
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
+import numbers
 import os
-import tempfile
 import warnings
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.files import atomic_write
 
 # The stable schema of a result row: (column, meaning). Units: seconds, metres, radians.
 SCHEMA: list[tuple[str, str]] = [
@@ -88,37 +96,71 @@ SCHEMA: list[tuple[str, str]] = [
     ("version_workbench", "mbs-workbench version"),
     ("machine", "platform of the machine that ran it"),
     ("cpu_count", "CPUs of that machine"),
+    ("schema_version", "version of this schema (SCHEMA_VERSION) the row was written in"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
 RUNS_DIR = "runs"
 SERIES_DIR = "series"
 RESULTS_FILE = "results.parquet"
+ENVIRONMENT_FILE = "environment.json"
 
 
-# ---- atomic writes -------------------------------------------------------------------
+# ---- schema versions ---------------------------------------------------------------------
+
+# History of the row schema:
+#   1  rows without a schema_version column (up to the layered core)
+#   2  adds schema_version; no other column changes
+SCHEMA_VERSION = 2
 
 
-def atomic_write(path: Path, write: Any, durable: bool = True) -> None:
-    """Call ``write(temp_path)`` then rename the temporary file over ``path``.
+def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
+    return row | {"schema_version": 2}
 
-    ``durable``: fsync the file before the rename, so that after a crash of the machine
-    (not only of the process: a rename alone covers that) the file is whole if present.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(handle)
-    try:
-        write(temp_name)
-        if durable:
-            with open(temp_name, "rb+") as written:
-                os.fsync(written.fileno())
-        os.replace(temp_name, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temp_name)
-        raise
+
+# version -> the function that turns a row of that version into one of the next
+MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _migrate_1_to_2}
+
+
+def row_schema_version(row: dict[str, Any], source: str | os.PathLike[str]) -> int:
+    """The schema version of ``row`` (1 when it has none); ConfigError naming ``source``
+    if the value is not a positive whole number."""
+    value = row.get("schema_version")
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return 1
+    whole = isinstance(value, numbers.Real) and not isinstance(value, bool)  # NumPy's too
+    if whole and math.isfinite(value) and value == int(value) and value >= 1:
+        return int(value)
+    raise ConfigError(
+        f"{source}: schema_version {value!r} is not a schema version (a whole number >= 1); "
+        "the file is not a result row of mbs-workbench, or was edited by hand"
+    )
+
+
+def _refuse_newer(newer: list[tuple[str, int]]) -> None:
+    """ConfigError naming the first of the (file, version) rows of a newer schema."""
+    if newer:
+        (source, version), others = newer[0], len(newer) - 1
+        also = f" (and {others} other row file(s) of a newer schema)" if others else ""
+        raise ConfigError(
+            f"{source}{also}: result row of schema version {version}, newer than this "
+            f"workbench reads (up to {SCHEMA_VERSION}); upgrade the workbench "
+            "(pip install --upgrade mbs-workbench) to read it"
+        )
+
+
+def migrate_row(row: dict[str, Any], source: str | os.PathLike[str]) -> dict[str, Any]:
+    """``row`` in the current schema (:data:`SCHEMA_VERSION`), migrated step by step
+    from its own; ConfigError naming ``source`` if it is of a newer schema."""
+    version = row_schema_version(row, source)
+    _refuse_newer([(str(source), version)] if version > SCHEMA_VERSION else [])
+    while version < SCHEMA_VERSION:
+        row = MIGRATIONS[version](row)
+        version += 1
+    return row | {"schema_version": version}  # an int (a Parquet column may hold 2.0)
+
+
+# ---- atomic writes (workbench.files.atomic_write) ----------------------------------------
 
 
 def write_json_atomic(data: dict[str, Any], path: Path, durable: bool = True) -> None:
@@ -193,11 +235,19 @@ def remove_stale_temporaries(out: Path) -> list[Path]:
 
 
 def completed_run_ids(out: Path) -> set[str]:
-    """Run ids with a readable row file (what a resumed sweep skips)."""
+    """Run ids with a readable row file (what a resumed sweep skips).
+
+    ConfigError if a row is of a newer schema: an older workbench must not add rows
+    to a directory that a newer one wrote (it could not read the whole afterwards).
+    """
     directory = Path(out) / RUNS_DIR
     if not directory.is_dir():
         return set()
-    return {p.stem for p in directory.glob("*.json") if read_row(p) is not None}
+    rows = {path: read_row(path) for path in sorted(directory.glob("*.json"))}
+    rows = {path: row for path, row in rows.items() if row is not None}
+    versions = [(str(path), row_schema_version(row, path)) for path, row in rows.items()]
+    _refuse_newer([(path, version) for path, version in versions if version > SCHEMA_VERSION])
+    return {path.stem for path in rows}
 
 
 def frame_from_rows(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
@@ -247,7 +297,10 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
 
     The columns start with :data:`SCHEMA_COLUMNS` in that order. A row file that cannot
     be read (truncated or corrupt) is left out with a warning naming it; the names of such
-    files are in ``frame.attrs["unreadable"]``.
+    files are in ``frame.attrs["unreadable"]``. Rows of an older schema are migrated to
+    the current one (their files, or the results file, are listed in
+    ``frame.attrs["migrated"]``); if any row is of a newer schema than this code knows,
+    nothing is loaded: ConfigError naming its file (upgrade the workbench).
     """
     path = Path(path)
     if path.is_file():
@@ -255,7 +308,11 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
             frame = pd.read_parquet(path)
         except Exception as error:  # noqa: BLE001 - pyarrow raises several kinds
             raise ConfigError(f"cannot read results file {path}: {error}") from None
-        return frame_from_rows(frame.to_dict("records")) if len(frame) else frame_from_rows([])
+        records = frame.to_dict("records")
+        old = any(row_schema_version(row, path) < SCHEMA_VERSION for row in records)
+        frame = frame_from_rows([migrate_row(row, path) for row in records])
+        frame.attrs["migrated"] = [str(path)] if old else []
+        return frame
     directory = path / RUNS_DIR
     if not directory.is_dir():
         if (path / RESULTS_FILE).is_file():
@@ -264,13 +321,20 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
             f"no results in {path}: expected a directory with runs/*.json "
             "(the output of `workbench sweep`) or a results.parquet file"
         )
-    rows, unreadable = [], []
+    rows, unreadable, migrated, newer = [], [], [], []
     for row_file in sorted(directory.glob("*.json")):
         row = read_row(row_file)
         if row is None:
             unreadable.append(str(row_file))
+            continue
+        version = row_schema_version(row, row_file)
+        if version > SCHEMA_VERSION:
+            newer.append((str(row_file), version))
         else:
-            rows.append(row)
+            if version < SCHEMA_VERSION:
+                migrated.append(str(row_file))
+            rows.append(migrate_row(row, row_file))
+    _refuse_newer(newer)
     if unreadable:
         warnings.warn(
             f"{len(unreadable)} unreadable result file(s) left out (re-run the sweep to "
@@ -279,6 +343,7 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
         )
     frame = frame_from_rows(rows)
     frame.attrs["unreadable"] = unreadable
+    frame.attrs["migrated"] = migrated
     return frame
 
 
@@ -298,13 +363,17 @@ def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.D
 
 
 __all__ = [
+    "ENVIRONMENT_FILE",
+    "MIGRATIONS",
     "SCHEMA",
     "SCHEMA_COLUMNS",
+    "SCHEMA_VERSION",
     "completed_run_ids",
     "consolidate",
     "frame_from_rows",
     "load_results",
     "load_series",
+    "migrate_row",
     "read_row",
     "row_path",
     "series_path",

@@ -8,8 +8,9 @@ run's files itself; the parent enforces each run's time limit by killing the wor
 gives a ``failed`` row "worker process died (exit code ...)". With a Dask scheduler
 address, runs are submitted through ``distributed.Client(address).get_executor()``; each
 task runs its run in a child process (``python -m workbench.runs.dask_pool --run-one``) under the
-time limit and returns the row and series to the client, which writes them. At the end
-the rows are consolidated into ``<out>/results.parquet``.
+time limit and returns the row and series to the client, which writes them. At the start
+the full environment is written to ``<out>/environment.json``; at the end the rows are
+consolidated into ``<out>/results.parquet``.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from typing import Any
 from workbench.errors import ConfigError
 from workbench.runs import store
 from workbench.runs.dask_pool import run_dask
+from workbench.runs.environment import sweep_environment
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
@@ -77,6 +79,8 @@ def run_sweep(
     todo = [spec for spec in sweep.runs if spec.run_id not in done]
     (out_dir / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
     (out_dir / "references").mkdir(exist_ok=True)
+    # the machine that starts the sweep (with Dask, the client; rows name their workers)
+    store.write_json_atomic(sweep_environment(), out_dir / store.ENVIRONMENT_FILE)
     if sweep.text:
         store.write_text_atomic(sweep.text, out_dir / "sweep.toml")
     counts: Counter = Counter()

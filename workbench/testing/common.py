@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import inspect
 import re
-import traceback
 from typing import Any
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, one_line
 from workbench.plugin import registry
 from workbench.plugin.options import NoOptions, parse_options
 from workbench.plugin.problem import Problem
@@ -26,11 +25,6 @@ FAST_PROBLEMS = (
 """The default problem subset: one small problem for each model feature (seconds)."""
 
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9-]*$")
-
-
-def one_line(error: BaseException) -> str:
-    last = traceback.format_exception_only(type(error), error)[-1].strip()
-    return " | ".join(line.strip() for line in last.splitlines() if line.strip())
 
 
 def resolve_plugin(kind: registry.Kind, plugin: str | type) -> type:

@@ -25,12 +25,13 @@ from typing import Any
 import numpy as np
 
 from workbench.equations import FORMS, Equations
+from workbench.errors import one_line
 from workbench.mechanics.forces import is_conservative_model
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.formalism import FEATURES, Formalism
 from workbench.plugin.registry import get_formalism
-from workbench.testing.common import check_structure, one_line, problem_instances, resolve_plugin
+from workbench.testing.common import check_structure, problem_instances, resolve_plugin
 from workbench.testing.report import ConformanceReport
 from workbench.testing.states import (
     body_accelerations,

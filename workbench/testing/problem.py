@@ -16,12 +16,13 @@ from typing import Any
 import numpy as np
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.errors import one_line
 from workbench.mechanics.forces import is_conservative_model
 from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import get_formalism
 from workbench.runs.references import given_reference
-from workbench.testing.common import check_structure, one_line, resolve_plugin
+from workbench.testing.common import check_structure, resolve_plugin
 from workbench.testing.report import ConformanceReport
 from workbench.testing.states import energy_scale, tight_run
 

@@ -1,0 +1,46 @@
+"""Writing a file atomically: one implementation for every layer (foundation: no imports
+from the workbench).
+
+A reader never sees half a file: the content goes to a temporary file beside the target,
+which is then renamed over it (:func:`os.replace` is atomic within a file system).
+Temporary files are named ``.<name>.<pid>-<random>.tmp``, so a writer killed mid-write
+leaves a hidden ``.tmp`` file that the results store removes on resume.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+
+def atomic_write(
+    path: str | os.PathLike[str], write: Callable[[str], Any], durable: bool = True
+) -> None:
+    """Call ``write(temp_name)`` to create a temporary file, then rename it over ``path``.
+
+    ``write`` creates the file itself (so it gets the usual permissions, and a compiler
+    or a library can write it like any output file). ``durable``: fsync the file before
+    the rename, so that after a crash of the machine (not only of the process: a rename
+    alone covers that) the file is whole if present. On any error the temporary file is
+    removed and the error raised; ``path`` is then untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temp_name = str(path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp"))
+    try:
+        write(temp_name)
+        if durable:
+            with open(temp_name, "rb+") as written:
+                os.fsync(written.fileno())
+        os.replace(temp_name, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(temp_name)
+        raise
+
+
+__all__ = ["atomic_write"]
