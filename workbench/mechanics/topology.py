@@ -6,7 +6,9 @@ and one independent loop per cut joint, the Gruebler-Kutzbach count of degrees o
 freedom, and the true count from the rank of the velocity constraint matrix W(t, q)
 (book 9.3.2): f = nv - rank W. Rows of W that depend linearly on earlier rows are
 reported as redundant (an overconstrained mechanism, such as a spatial four-link loop with
-parallel axes, has Gruebler count -2 but one degree of freedom).
+parallel axes, has Gruebler count -2 but one degree of freedom), by
+:func:`workbench.numerics.linalg.independent_rows`, the test every formalism uses, so
+``describe`` and a formalism name the same rows.
 
 Counting (planar models: 3 instead of 6):
 
