@@ -9,7 +9,8 @@ body gets its own coordinates, independent of the joints:
   velocity in the *body* frame, and q_b' = (r', H(p) omega_b), H from
   :func:`workbench.numerics.rotations.quaternion_rate_matrix` (p, "body").
 
-The Newton-Euler equations of each body, written as in minimal-ode through the Jacobians
+The Newton-Euler equations of each body (:mod:`workbench.mechanics.newton_euler`, shared
+with minimal-ode and nonholonomic-projection), through the Jacobians
 J_T = d v_com / d v and J_R = d omega / d v of its own twist (so the centre of mass need
 not be at the body frame origin), give a block-diagonal
 
@@ -35,7 +36,8 @@ that wants to may project |p| = 1 between steps.
 Redundant constraints (a planar four-bar built with spatial revolute joints, all axes
 parallel) are found at build time: W is evaluated at the assembled neutral configuration
 (and at a perturbed one; the larger rank wins), rows depending on earlier rows are removed
-(option ``redundant="remove"``, recorded in ``notes``) or reported (``"error"``).
+(:func:`workbench.numerics.linalg.independent_rows`, the test ``workbench describe`` uses;
+option ``redundant="remove"``, recorded in ``notes``) or reported (``"error"``).
 
 Point masses keep full body coordinates; their rotational directions have zero inertia
 (M is singular there) but model validation forbids attachments that leave their spin free,
@@ -62,14 +64,14 @@ from workbench.mechanics.kinematics import (
     contact_rows,
     initial_joint_values,
 )
+from workbench.mechanics.newton_euler import newton_euler_forces
+from workbench.mechanics.topology import assemble
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
 from workbench.numerics import rotations as rot
+from workbench.numerics.linalg import independent_rows
 from workbench.numerics.rotations import axis_angle_to_quaternion, quaternion_multiply
 from workbench.plugin.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.plugin.registry import formalism
-
-RANK_TOLERANCE = 1e-9
-"""Singular values below this fraction of the largest one count as zero (redundancy)."""
 
 
 @dataclass(frozen=True)
@@ -127,29 +129,6 @@ class AbsoluteCoordinates:
                 rates.append(ca.vertcat(velocity, p_rate))
             self.bodies[name] = BodyState(position, rotation, velocity, angular_velocity)
         self.qdot = ca.vertcat(*rates) if rates else ca.SX(0, 1)
-
-
-def newton_euler(model: Model, coords: AbsoluteCoordinates) -> tuple[Any, Any]:
-    """(M, h): mass matrix and gyroscopic/centrifugal bias of all bodies (book 7.6.1).
-
-    Through each body's twist Jacobians, so any body frame (centre of mass anywhere) and
-    any velocity choice work; the result is block diagonal.
-    """
-    t, q, v, qdot = coords.t, coords.q, coords.v, coords.qdot
-    nv = v.numel()
-    mass, bias = ca.SX.zeros(nv, nv), ca.SX.zeros(nv)
-    for name, body in model.bodies.items():
-        state = coords.bodies[name]
-        v_com = state.point_velocity(body.com)
-        omega = state.angular_velocity
-        j_t, j_r = ca.jacobian(v_com, v), ca.jacobian(omega, v)
-        a_com = ca.mtimes(ca.jacobian(v_com, q), qdot) + ca.jacobian(v_com, t)
-        alpha = ca.mtimes(ca.jacobian(omega, q), qdot) + ca.jacobian(omega, t)
-        inertia = ca.mtimes([state.rotation, ca.DM(body.inertia), state.rotation.T])
-        mass += body.mass * ca.mtimes(j_t.T, j_t) + ca.mtimes([j_r.T, inertia, j_r])
-        gyroscopic = ca.mtimes(inertia, alpha) + ca.cross(omega, ca.mtimes(inertia, omega))
-        bias += body.mass * ca.mtimes(j_t.T, a_com) + ca.mtimes(j_r.T, gyroscopic)
-    return mass, bias
 
 
 def constraint_row_names(model: Model) -> list[str]:
@@ -256,61 +235,6 @@ def joint_space_map(model: Model, tree: TreeKinematics) -> list[Any]:
 # ---- redundancy -------------------------------------------------------------------------
 
 
-def independent_rows(matrix: np.ndarray, tolerance: float = RANK_TOLERANCE) -> list[int]:
-    """Indices of rows independent of the rows kept before them (greedy, in row order)."""
-    if matrix.size == 0:
-        return []
-    scale = float(np.linalg.norm(matrix, 2))
-    if scale == 0.0:
-        return []
-    basis = np.zeros((0, matrix.shape[1]))
-    kept = []
-    for i, row in enumerate(matrix):
-        residual = row.copy()
-        for _ in range(2):  # Gram-Schmidt twice: orthogonal to working precision
-            residual -= basis.T @ (basis @ residual)
-        norm = np.linalg.norm(residual)
-        if norm > tolerance * scale:
-            kept.append(i)
-            basis = np.vstack([basis, residual / norm])
-    return kept
-
-
-def assemble(tree: TreeKinematics, q0: np.ndarray, iterations: int = 50) -> np.ndarray | None:
-    """Tree coordinates near q0 on the closure constraints (Gauss-Newton, t = 0), or None."""
-    quaternion_slices = []
-    for joint in tree.free_joints:
-        q_slice, _ = tree.joint_slices[joint.name]
-        if joint.type == "spherical":
-            quaternion_slices.append(q_slice)
-        elif joint.type == "free":
-            quaternion_slices.append(slice(q_slice.start + 3, q_slice.stop))
-    q = q0.copy()
-    for s in quaternion_slices:
-        q[s] /= np.linalg.norm(q[s])
-    g, w_matrix = tree.closure_constraints, tree.velocity_constraint_matrix
-    n_h = tree.n_holonomic
-    if n_h == 0:
-        return q
-    h_matrix = ca.jacobian(tree.qdot, tree.v)
-    evaluate = ca.Function(
-        "assemble",
-        [tree.t, tree.q],
-        [ca.densify(g), ca.densify(w_matrix[:n_h, :]), ca.densify(h_matrix)],
-    )
-    for _ in range(iterations):
-        g_value, w_value, h_value = (np.asarray(x, dtype=float) for x in evaluate(0.0, q))
-        g_value = g_value.reshape(-1)
-        if np.max(np.abs(g_value)) <= 1e-12:
-            return q
-        step, *_ = np.linalg.lstsq(w_value.reshape(n_h, -1), -g_value, rcond=None)
-        q = q + h_value.reshape(tree.nq, tree.nv) @ step
-        for s in quaternion_slices:
-            q[s] /= np.linalg.norm(q[s])
-    g_value = np.asarray(evaluate(0.0, q)[0], dtype=float).reshape(-1)
-    return q if np.max(np.abs(g_value)) <= 1e-9 else None
-
-
 def select_rows(
     model: Model, tree: TreeKinematics, to_absolute: ca.Function, w_matrix: ca.Function
 ) -> list[int]:
@@ -322,9 +246,10 @@ def select_rows(
     perturbed = neutral + 0.1 * np.random.default_rng(0).standard_normal(neutral.size)
     best: list[int] | None = None
     for start in (neutral, perturbed):
-        q_joint = assemble(tree, start)
-        if q_joint is None:
+        assembly = assemble(tree, start)
+        if not assembly.converged:
             continue
+        q_joint = assembly.x
         q_abs = np.asarray(to_absolute(0.0, q_joint, np.zeros(tree.nv))[0]).reshape(-1)
         rows = independent_rows(np.asarray(w_matrix(0.0, q_abs)))
         if best is None or len(rows) > len(best):
@@ -360,9 +285,8 @@ class AbsoluteDae(Formalism):
         t, q, v, qdot = coords.t, coords.q, coords.v, coords.qdot
         planar = coords.planar
 
-        mass, bias = newton_euler(model, coords)
-        applied = fm.generalized_forces(
-            model, t, v, coords.bodies, joint_coordinates_from_poses(model, coords)
+        mass, forces = newton_euler_forces(
+            model, coords.bodies, joint_coordinates_from_poses(model, coords), t, q, v, qdot
         )
 
         g = ca.SX(joint_residuals(model, t, coords.bodies))
@@ -412,7 +336,7 @@ class AbsoluteDae(Formalism):
             v=v,
             qdot=qdot,
             mass=mass,
-            forces=applied - bias,
+            forces=forces,
             q_names=coords.q_names,
             v_names=coords.v_names,
             position_constraints=g,

@@ -25,19 +25,20 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
-import scipy.linalg
 
 from workbench.equations import (
     Equations,
     MechanicalSystem,
     build_equations,
     build_joint_space_equations,
+    joint_space_system,
 )
 from workbench.equations.compiled import Compiler
 from workbench.errors import ModelError
-from workbench.mechanics import forces as fm
 from workbench.mechanics.kinematics import TreeKinematics
+from workbench.mechanics.newton_euler import newton_euler_forces
 from workbench.model import Model
+from workbench.numerics.linalg import independent_columns
 from workbench.plugin.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.plugin.registry import formalism
 
@@ -48,37 +49,11 @@ class MinimalOptions(ConstraintOptions):
 
 
 def minimal_mechanical_system(model: Model, kinematics: TreeKinematics) -> MechanicalSystem:
-    """M, Q - h and the constraints in the tree's joint coordinates."""
+    """M, Q - h (Newton-Euler, projected) and the constraints in the tree's joint coordinates."""
     k = kinematics
-    mass = ca.SX.zeros(k.nv, k.nv)
-    bias = ca.SX.zeros(k.nv)
-    for name, body in model.bodies.items():
-        state = k.body(name)
-        v_com = state.point_velocity(body.com)
-        omega = state.angular_velocity
-        j_t, j_r = ca.jacobian(v_com, k.v), ca.jacobian(omega, k.v)
-        # accelerations at v' = 0: d/dt along q' = H v and explicit time (drives)
-        a_com = ca.mtimes(ca.jacobian(v_com, k.q), k.qdot) + ca.jacobian(v_com, k.t)
-        alpha = ca.mtimes(ca.jacobian(omega, k.q), k.qdot) + ca.jacobian(omega, k.t)
-        inertia = ca.mtimes([state.rotation, ca.DM(body.inertia), state.rotation.T])
-        mass += body.mass * ca.mtimes(j_t.T, j_t) + ca.mtimes([j_r.T, inertia, j_r])
-        gyroscopic = ca.mtimes(inertia, alpha) + ca.cross(omega, ca.mtimes(inertia, omega))
-        bias += body.mass * ca.mtimes(j_t.T, a_com) + ca.mtimes(j_r.T, gyroscopic)
     joint_coordinates = {j.name: k.joint_coordinates(j) for j in model.tree_joints}
-    applied = fm.generalized_forces(model, k.t, k.v, k.bodies, joint_coordinates)
-    return MechanicalSystem(
-        t=k.t,
-        q=k.q,
-        v=k.v,
-        qdot=k.qdot,
-        mass=mass,
-        forces=applied - bias,
-        q_names=k.q_names,
-        v_names=k.v_names,
-        position_constraints=k.closure_constraints,
-        velocity_constraints=k.velocity_constraints,
-        constraint_names=k.velocity_constraint_names,
-    )
+    mass, forces = newton_euler_forces(model, k.bodies, joint_coordinates, k.t, k.q, k.v, k.qdot)
+    return joint_space_system(k, mass, forces)
 
 
 @formalism
@@ -123,14 +98,13 @@ def independent_partition(model: Model, kinematics: TreeKinematics) -> np.ndarra
     w_matrix = w_function(0.0, topology.configuration, np.zeros(kinematics.nv))
     w_matrix = np.atleast_2d(np.asarray(w_matrix))
     scalar = [i for i in range(kinematics.nv) if _is_scalar_velocity(kinematics, i)]
-    _, r, pivots = scipy.linalg.qr(w_matrix[:, scalar], pivoting=True)
-    rank = int(np.sum(np.abs(np.diag(r)) > 1e-9 * np.abs(r[0, 0])))
-    if rank < w_matrix.shape[0]:
+    columns = independent_columns(w_matrix[:, scalar])
+    if columns.size < w_matrix.shape[0]:
         raise ModelError(
             f"minimal-ode loops='state-space': model {model.name!r} has redundant closure "
             "constraints or too few one-coordinate joints to solve for; use loops='dae'"
         )
-    return np.sort(np.asarray(scalar)[pivots[:rank]])
+    return np.sort(np.asarray(scalar)[columns])
 
 
 def _is_scalar_velocity(kinematics: TreeKinematics, index: int) -> bool:

@@ -9,9 +9,11 @@ with minimal velocities s (nv - rank W):
     v = F(t, q) s + f(t, q),    W F = 0,    W f + w = 0,
 
 by partitioning: the independent velocities v_i = s are a fixed selection, computed once
-by pivoted QR of W at a reference configuration (of the assembled neutral configuration
-and seeded random ones, the one where W has the highest rank; option ``independent`` names
-them instead), and the dependent ones follow from W_d v_d = -(W_i s + w):
+at a reference configuration (of the assembled neutral configuration and seeded random
+ones, the one where W has the highest rank): the independent rows of W as everywhere in
+the workbench (:func:`workbench.numerics.linalg.independent_rows`), then the dependent
+velocities by pivoted QR of those rows (option ``independent`` names the independent
+velocities instead); the dependent ones follow from W_d v_d = -(W_i s + w):
 
     F = P^T [I; -W_d^-1 W_i],    f = P^T [0; -W_d^-1 w]    (symbolic W_d^-1).
 
@@ -34,19 +36,17 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-import scipy.linalg
 
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.equations.compiled import Compiler
 from workbench.errors import ConfigError, ModelError
-from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import BodyState, TreeKinematics
+from workbench.mechanics.newton_euler import newton_euler_forces
 from workbench.model import Model
+from workbench.numerics.linalg import independent_columns, independent_rows
 from workbench.plugin.formalism import CompileOptions, Formalism
 from workbench.plugin.registry import formalism
-
-RANK_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -90,16 +90,6 @@ def reference_configuration(kinematics: TreeKinematics, seed: int = 0) -> np.nda
     return q
 
 
-def _rank(matrix: np.ndarray) -> tuple[int, np.ndarray]:
-    """Numerical rank and column pivots of ``matrix`` by pivoted QR."""
-    if matrix.size == 0:
-        return 0, np.arange(matrix.shape[1])
-    _, r, pivots = scipy.linalg.qr(matrix, pivoting=True, mode="economic")
-    diagonal = np.abs(np.diag(r))
-    scale = max(float(diagonal.max(initial=0.0)), 1e-300)
-    return int(np.sum(diagonal > RANK_TOLERANCE * scale)), pivots
-
-
 def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] = ()) -> Partition:
     """Choose independent rows of W and independent velocities (see the module doc)."""
     k = kinematics
@@ -117,7 +107,7 @@ def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] 
         w_candidate = np.asarray(w_function(0.0, q_candidate), dtype=float).reshape(-1, k.nv)
         if not np.all(np.isfinite(w_candidate)):
             continue
-        candidate_rank = _rank(w_candidate.T)[0]
+        candidate_rank = len(independent_rows(w_candidate))
         if best is None or candidate_rank > best[0]:
             best = (candidate_rank, q_candidate, w_candidate)
     if best is None:
@@ -126,8 +116,8 @@ def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] 
             "reference configuration tried"
         )
     _, q_ref, w_matrix = best
-    rank, row_pivots = _rank(w_matrix.T)
-    rows = np.sort(row_pivots[:rank])
+    rows = np.array(independent_rows(w_matrix), dtype=int)
+    rank = rows.size
     w_rows = w_matrix[rows]
     if independent:
         unknown = [name for name in independent if name not in k.v_names]
@@ -138,15 +128,14 @@ def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] 
             )
         chosen = np.array([k.v_names.index(name) for name in independent], dtype=int)
         dependent = np.array([c for c in range(k.nv) if c not in set(chosen)], dtype=int)
-        if dependent.size != rank or _rank(w_rows[:, dependent])[0] < rank:
+        if dependent.size != rank or independent_columns(w_rows[:, dependent]).size < rank:
             raise ConfigError(
                 f"nonholonomic-projection: the independent velocities {list(independent)} "
                 f"leave a singular dependent block; give {k.nv - rank} velocities whose "
                 "complement the constraints determine"
             )
     else:
-        _, pivots = _rank(w_rows)
-        dependent = np.sort(pivots[:rank])
+        dependent = np.sort(independent_columns(w_rows))
         chosen = np.array([c for c in range(k.nv) if c not in set(dependent)], dtype=int)
     return Partition(rows, np.sort(chosen), dependent, q_ref)
 
@@ -199,31 +188,14 @@ def projected_system(
     joint_coordinates = {
         j.name: (k.joint_coordinates(j)[0], joint_velocities[i]) for i, j in enumerate(joints)
     }
-    mass = ca.SX.zeros(s.numel(), s.numel())
-    bias = ca.SX.zeros(s.numel())
-    for name, body in model.bodies.items():
-        state = bodies[name]
-        v_com = state.point_velocity(body.com)
-        omega = state.angular_velocity
-        j_t, j_r = ca.jacobian(v_com, s), ca.jacobian(omega, s)
-        # twist rates at s' = 0: along q' = H (F s + f) and explicit time
-        a_com = ca.mtimes(ca.jacobian(v_com, k.q), qdot) + ca.jacobian(v_com, k.t)
-        alpha = ca.mtimes(ca.jacobian(omega, k.q), qdot) + ca.jacobian(omega, k.t)
-        mass += body.mass * ca.mtimes(j_t.T, j_t)
-        bias += body.mass * ca.mtimes(j_t.T, a_com)
-        if not body.point_mass:
-            inertia = ca.mtimes([state.rotation, ca.DM(body.inertia), state.rotation.T])
-            mass += ca.mtimes([j_r.T, inertia, j_r])
-            gyroscopic = ca.mtimes(inertia, alpha) + ca.cross(omega, ca.mtimes(inertia, omega))
-            bias += ca.mtimes(j_r.T, gyroscopic)
-    applied = fm.generalized_forces(model, k.t, s, bodies, joint_coordinates)
+    mass, forces = newton_euler_forces(model, bodies, joint_coordinates, k.t, k.q, s, qdot)
     system = MechanicalSystem(
         t=k.t,
         q=k.q,
         v=s,
         qdot=qdot,
         mass=mass,
-        forces=applied - bias,
+        forces=forces,
         q_names=k.q_names,
         v_names=names,
     )

@@ -58,7 +58,12 @@ from typing import Any, Literal, NamedTuple
 import casadi as ca
 import numpy as np
 
-from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
+from workbench.equations import (
+    Equations,
+    MechanicalSystem,
+    build_joint_space_equations,
+    joint_space_system,
+)
 from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import TreeKinematics
@@ -370,20 +375,7 @@ def recursive_mechanical_system(
     acceleration = None
     if algorithm == "aba":
         acceleration = articulated_body_accelerations(tree, tree.joint_forces())
-    return MechanicalSystem(
-        t=k.t,
-        q=k.q,
-        v=k.v,
-        qdot=k.qdot,
-        mass=mass,
-        forces=forces,
-        q_names=k.q_names,
-        v_names=k.v_names,
-        position_constraints=k.closure_constraints,
-        velocity_constraints=k.velocity_constraints,
-        constraint_names=k.velocity_constraint_names,
-        acceleration=acceleration,
-    )
+    return joint_space_system(k, mass, forces, acceleration)
 
 
 def ode_function(model: Model, algorithm: str = "aba") -> ca.Function:

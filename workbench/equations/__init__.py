@@ -20,6 +20,7 @@ from workbench.equations.forms import (
     build_equations,
     build_joint_space_equations,
     constraint_acceleration_rhs,
+    joint_space_system,
 )
 from workbench.equations.observables import (
     Observables,
@@ -43,4 +44,5 @@ __all__ = [
     "build_observables",
     "constraint_acceleration_rhs",
     "joint_residuals",
+    "joint_space_system",
 ]

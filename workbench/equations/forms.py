@@ -276,6 +276,34 @@ def build_equations(
     )
 
 
+def joint_space_system(
+    kinematics: Any, mass: Any, forces: Any, acceleration: Any = None
+) -> MechanicalSystem:
+    """M v' = forces - W^T lambda in the tree's free joint coordinates.
+
+    ``kinematics`` a TreeKinematics: its t, q, v, q' = H v and names, and as constraints
+    its closure rows g(t, q) (cut joints, contact heights) and velocity rows W v + w
+    (their derivatives, then nonholonomic rows). ``mass`` (nv, nv) and ``forces`` (nv, Q
+    minus the velocity-product terms) are the formalism's; ``acceleration`` an explicit v'
+    (nv) of the unconstrained tree when the formalism has one.
+    """
+    k = kinematics
+    return MechanicalSystem(
+        t=k.t,
+        q=k.q,
+        v=k.v,
+        qdot=k.qdot,
+        mass=mass,
+        forces=forces,
+        q_names=k.q_names,
+        v_names=k.v_names,
+        position_constraints=k.closure_constraints,
+        velocity_constraints=k.velocity_constraints,
+        constraint_names=k.velocity_constraint_names,
+        acceleration=acceleration,
+    )
+
+
 def build_joint_space_equations(
     formalism: str,
     model: Model,

@@ -13,11 +13,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from workbench.equations import Equations
 from workbench.errors import IntegrationError
-from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+from workbench.mechanics.kinematics import (
+    TreeKinematics,
+    initial_joint_values,
+    normalize_quaternions,
+)
+from workbench.numerics.linalg import gauss_newton, independent_columns
 
 
 @dataclass
@@ -71,48 +75,50 @@ def _dependent_columns(jacobian: np.ndarray, fixed: list[int]) -> np.ndarray:
     candidates = np.array([c for c in range(n) if c not in fixed], dtype=int)
     if jacobian.shape[0] == 0 or candidates.size == 0:
         return np.zeros(0, dtype=int)
-    _, r, pivots = scipy.linalg.qr(jacobian[:, candidates], pivoting=True, mode="economic")
-    diagonal = np.abs(np.diag(r))
-    rank = int(np.sum(diagonal > 1e-10 * max(diagonal.max(initial=0.0), 1e-300)))
-    return candidates[pivots[:rank]]
-
-
-def _normalize_quaternions(kinematics: TreeKinematics, q: np.ndarray) -> None:
-    for joint in kinematics.free_joints:
-        q_slice, _ = kinematics.joint_slices[joint.name]
-        if joint.type in ("spherical", "free"):
-            p = q[q_slice][-4:]
-            q[q_slice.stop - 4 : q_slice.stop] = p / np.linalg.norm(p)
+    return candidates[independent_columns(jacobian[:, candidates], tolerance=1e-10)]
 
 
 def project_joint_state(
     kinematics: TreeKinematics, problem: Any, t0: float, q: np.ndarray, v: np.ndarray,
     tolerance: float = 1e-12, max_iterations: int = 50,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Newton projection onto g(t, q) = 0 and W v + w = 0 with independent ones fixed."""
+    """Project (q (nq), v (nv)) onto g(t0, q) = 0 and W v + w = 0, independent ones fixed.
+
+    Positions by :func:`~workbench.numerics.linalg.gauss_newton` in the dependent
+    coordinates (chosen by pivoted QR at each iterate, avoiding the problem's
+    ``independent_coordinates``) to max |g| <= ``tolerance``; velocities by one
+    least-squares solve in the dependent velocities.
+    """
     g_function = kinematics.function("closure", [kinematics.closure_constraints,
                                                  kinematics.closure_jacobian], with_v=False)
     w_function = kinematics.function("velocity", [kinematics.velocity_constraint_matrix,
                                                   kinematics.velocity_constraint_bias])
-    q = q.copy()
     fixed = _independent_columns(kinematics, problem, velocities=False)
     if kinematics.closure_constraints.numel():
-        for _ in range(max_iterations):
+        columns = np.zeros(0, dtype=int)  # the dependent coordinates, chosen at each iterate
+
+        def evaluate(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            nonlocal columns
             g, g_q = (np.asarray(x) for x in g_function(t0, q))
-            g = g.ravel()
-            if np.max(np.abs(g)) < tolerance:
-                break
             columns = _dependent_columns(g_q, fixed)
-            step, *_ = np.linalg.lstsq(g_q[:, columns], -g, rcond=None)
+            return g.ravel(), g_q[:, columns]
+
+        def update(q: np.ndarray, step: np.ndarray) -> np.ndarray:
+            q = q.copy()
             q[columns] += step
-            _normalize_quaternions(kinematics, q)
-        else:
+            normalize_quaternions(kinematics, q)
+            return q
+
+        solution = gauss_newton(evaluate, q, update, tolerance, max_iterations, accept=tolerance)
+        if not solution.converged:
+            g = solution.residual
             worst = int(np.argmax(np.abs(g)))
             raise IntegrationError(
                 f"initial state: the loop-closure constraints could not be satisfied; the largest "
                 f"residual is {kinematics.closure_names[worst]} = {g[worst]:.3g}; give initial "
                 "joint coordinates closer to an assembled configuration"
             )
+        q = solution.x
     v = v.copy()
     if kinematics.velocity_constraints.numel():
         w_matrix, w_bias = (np.asarray(x) for x in w_function(t0, q, v))
@@ -141,7 +147,7 @@ def consistent_initial_state(equations: Equations, problem: Any,
     t0 = float(problem.t_start)
     q_joint = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
     v_joint = initial_joint_values(model, kinematics, problem.initial_joint_velocities(), True)
-    _normalize_quaternions(kinematics, q_joint)
+    normalize_quaternions(kinematics, q_joint)
     q_joint, v_joint = project_joint_state(kinematics, problem, t0, q_joint, v_joint)
     q, v = equations.joint_space_map(t0, q_joint, v_joint)
     q, v = np.ravel(q), np.ravel(v)

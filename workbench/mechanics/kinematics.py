@@ -242,3 +242,19 @@ def initial_joint_values(model: Model, kinematics: TreeKinematics, values: dict[
             )
         out[target] = value
     return out
+
+
+def quaternion_slices(kinematics: TreeKinematics) -> list[slice]:
+    """Slices of q holding the Euler parameters of spherical and free joints (4 each)."""
+    slices = []
+    for joint in kinematics.free_joints:
+        q_slice, _ = kinematics.joint_slices[joint.name]
+        if joint.type in ("spherical", "free"):
+            slices.append(slice(q_slice.stop - 4, q_slice.stop))
+    return slices
+
+
+def normalize_quaternions(kinematics: TreeKinematics, q: np.ndarray) -> None:
+    """Scale the Euler parameters in tree coordinates q (nq) to unit length, in place."""
+    for part in quaternion_slices(kinematics):
+        q[part] /= np.linalg.norm(q[part])

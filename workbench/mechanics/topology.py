@@ -6,7 +6,9 @@ and one independent loop per cut joint, the Gruebler-Kutzbach count of degrees o
 freedom, and the true count from the rank of the velocity constraint matrix W(t, q)
 (book 9.3.2): f = nv - rank W. Rows of W that depend linearly on earlier rows are
 reported as redundant (an overconstrained mechanism, such as a spatial four-link loop with
-parallel axes, has Gruebler count -2 but one degree of freedom).
+parallel axes, has Gruebler count -2 but one degree of freedom), by
+:func:`workbench.numerics.linalg.independent_rows`, the test every formalism uses, so
+``describe`` and a formalism name the same rows.
 
 Counting (planar models: 3 instead of 6):
 
@@ -26,15 +28,23 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
-import scipy.linalg
 
 from workbench.errors import ModelError
 from workbench.mechanics import joints as jk
+from workbench.mechanics.kinematics import (
+    TreeKinematics,
+    initial_joint_values,
+    normalize_quaternions,
+    tree_order,
+)
 from workbench.model import GROUND, Joint, KnifeEdge, Model, RollingDisk, RollingSphere
 from workbench.model.validation import validate_model
-
-RANK_TOLERANCE = 1e-9
-"""Singular values below this fraction of the largest one count as zero."""
+from workbench.numerics.linalg import (
+    RANK_TOLERANCE,
+    GaussNewtonResult,
+    gauss_newton,
+    independent_rows,
+)
 
 
 @dataclass
@@ -108,7 +118,7 @@ def analyze(
     joints. rank=False skips the symbolic kinematics (dof stays None).
     """
     validate_model(model)
-    tree = _tree_order(model)
+    tree = tree_order(model)
     parent_of = {j.child: j.parent for j in tree}
     parent_joint = {j.child: j.name for j in tree}
     depth: dict[str, int] = {}
@@ -135,21 +145,6 @@ def analyze(
     if rank:
         _rank(model, topology, q, t, tolerance)
     return topology
-
-
-def _tree_order(model: Model) -> list[Joint]:
-    """Tree joints parents-first (breadth first from the ground, in the order added)."""
-    children: dict[str, list[Joint]] = {}
-    for joint in model.tree_joints:
-        children.setdefault(joint.parent, []).append(joint)
-    ordered: list[Joint] = []
-    frontier = [GROUND]
-    while frontier:
-        body = frontier.pop(0)
-        for joint in children.get(body, []):
-            ordered.append(joint)
-            frontier.append(joint.child)
-    return ordered
 
 
 def _loop(cut: Joint, parent_of: dict[str, str], parent_joint: dict[str, str]) -> list[str]:
@@ -198,8 +193,6 @@ def _element_of(row_name: str) -> str:
 def _rank(
     model: Model, topology: Topology, q: np.ndarray | None, t: float, tolerance: float
 ) -> None:
-    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
-
     kinematics = TreeKinematics(model)
     if q is None:
         q0 = initial_joint_values(model, kinematics, {}, velocities=False)
@@ -210,30 +203,24 @@ def _rank(
                 f"model {model.name!r}: analyze() got {q0.size} coordinates, the tree has "
                 f"{kinematics.nq} ({', '.join(kinematics.q_names)})"
             )
-    W = kinematics.velocity_constraint_matrix
-    g = kinematics.closure_constraints
-    H = ca.jacobian(kinematics.qdot, kinematics.v)  # q' = H(q) v
-    n_h = kinematics.n_holonomic
-    evaluate = ca.Function(
-        "topology_rank", [kinematics.t, kinematics.q], [ca.densify(W), ca.densify(g), ca.densify(H)]
-    )
+    w_function = kinematics.function("W", [kinematics.velocity_constraint_matrix], with_v=False)
     rng = np.random.default_rng(0)
     for _ in range(8):
-        q_at, assembled = _assemble(kinematics, evaluate, q0, t, n_h)
-        W_at = np.asarray(evaluate(t, q_at)[0], dtype=float).reshape(-1, kinematics.nv)
+        assembly = assemble(kinematics, q0, t)
+        q_at = assembly.x if assembly.converged else q0
+        W_at = np.asarray(w_function(t, q_at), dtype=float).reshape(-1, kinematics.nv)
         if np.all(np.isfinite(W_at)):
             break
         # W undefined here (a rolling disk lying flat has no contact point): move a little
         q0 = q0 + rng.uniform(-0.1, 0.1, q0.size)
-        for s in _quaternion_slices(kinematics):
-            q0[s] /= np.linalg.norm(q0[s])
+        normalize_quaternions(kinematics, q0)
     else:
         raise ModelError(
             f"model {model.name!r}: the constraint Jacobian is not finite near the given "
             "configuration; pass a configuration where every contact is defined"
         )
     names = list(kinematics.velocity_constraint_names)
-    independent = _independent_rows(W_at, tolerance)
+    independent = independent_rows(W_at, tolerance)
     redundant = [names[i] for i in range(len(names)) if i not in independent]
     topology.rank = len(independent)
     topology.dof = kinematics.nv - topology.rank
@@ -241,59 +228,39 @@ def _rank(
     topology.redundant_constraints = redundant
     topology.redundant_elements = list(dict.fromkeys(_element_of(n) for n in redundant))
     topology.configuration = q_at
-    topology.assembled = assembled
+    topology.assembled = assembly.converged
 
 
-def _independent_rows(W: np.ndarray, tolerance: float) -> list[int]:
-    """Indices of rows of W independent of the rows before them (greedy, in row order)."""
-    if W.size == 0:
-        return []
-    scale = float(np.linalg.norm(W, 2))
-    if scale == 0.0:
-        return []
-    kept: list[int] = []
-    for i in range(W.shape[0]):
-        trial = W[[*kept, i]]
-        singular = scipy.linalg.svdvals(trial)
-        if singular.min() > tolerance * scale:
-            kept.append(i)
-    return kept
+def assemble(kinematics: TreeKinematics, q0: np.ndarray, t: float = 0.0) -> GaussNewtonResult:
+    """Move tree coordinates q0 (nq) onto the closure constraints g(t, q) = 0.
 
-
-def _assemble(
-    kinematics, evaluate, q0: np.ndarray, t: float, n_h: int, iterations: int = 50
-) -> tuple[np.ndarray, bool]:
-    """Move q0 onto g(t, q) = 0 by minimum-norm Gauss-Newton steps in the velocities.
-
-    Steps go through q' = H(q) v, and quaternions are renormalized, so unit quaternions
-    stay unit. Returns (q, converged); when it does not converge q0 is returned.
+    Minimum-norm Gauss-Newton steps in the velocities (:func:`gauss_newton` on the
+    holonomic rows of W), mapped through q' = H(q) v with unit quaternions renormalized,
+    so the result is a valid configuration. A model without closure constraints is
+    assembled as it is (quaternions normalized). ``converged`` False when the residual
+    stays above 1e-9 or is not finite (a rolling disk lying flat has no contact point).
     """
-    quaternion_slices = _quaternion_slices(kinematics)
-    q = q0.copy()
-    for _ in range(iterations + 1):
-        W, g, H = (np.asarray(x, dtype=float) for x in evaluate(t, q))
-        g = g.reshape(-1)
-        if g.size == 0 or np.max(np.abs(g)) <= 1e-12:
-            return q, True
-        W_h = W.reshape(-1, kinematics.nv)[:n_h]
-        if not (np.all(np.isfinite(W_h)) and np.all(np.isfinite(g))):
-            return q0, False  # e.g. a rolling disk lying flat: its contact point is undefined
-        step, *_ = np.linalg.lstsq(W_h, -g, rcond=None)
-        q = q + H.reshape(kinematics.nq, kinematics.nv) @ step
-        for s in quaternion_slices:
-            q[s] /= np.linalg.norm(q[s])
-    g = np.asarray(evaluate(t, q)[1], dtype=float).reshape(-1)
-    if np.all(np.isfinite(g)) and np.max(np.abs(g)) <= 1e-9:
-        return q, True
-    return q0, False
+    n_h = kinematics.n_holonomic
+    residual = kinematics.function(
+        "closure",
+        [kinematics.closure_constraints, kinematics.velocity_constraint_matrix[:n_h, :]],
+        with_v=False,
+    )
+    # q' = H(q) v
+    rate_matrix = kinematics.function(
+        "H", [ca.jacobian(kinematics.qdot, kinematics.v)], with_v=False
+    )
 
+    def evaluate(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        g, w_h = (np.asarray(x, dtype=float) for x in residual(t, q))
+        return g.reshape(-1), w_h.reshape(n_h, kinematics.nv)
 
-def _quaternion_slices(kinematics) -> list[slice]:
-    slices = []
-    for joint in kinematics.free_joints:
-        q_slice, _ = kinematics.joint_slices[joint.name]
-        if joint.type == "spherical":
-            slices.append(q_slice)
-        elif joint.type == "free":
-            slices.append(slice(q_slice.start + 3, q_slice.start + 7))
-    return slices
+    def update(q: np.ndarray, step: np.ndarray) -> np.ndarray:
+        h = np.asarray(rate_matrix(t, q), dtype=float).reshape(kinematics.nq, kinematics.nv)
+        q = q + h @ step
+        normalize_quaternions(kinematics, q)
+        return q
+
+    q = np.array(q0, dtype=float)
+    normalize_quaternions(kinematics, q)
+    return gauss_newton(evaluate, q, update)
