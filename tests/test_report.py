@@ -210,6 +210,35 @@ def test_table_writers() -> None:
     assert "c\\|d" in markdown
 
 
+def test_latex_table_is_booktabs_with_escaped_cells_and_headers() -> None:
+    table = pd.DataFrame({"wall_s": [0.0123456, float("nan")], "pair": ["a & b", "50% ~x"]})
+    lines = latex_table(table).splitlines()
+    assert lines == [
+        "\\begin{tabular}{rl}",
+        "\\toprule",
+        "wall\\_s & pair \\\\",
+        "\\midrule",
+        "0.01235 & a \\& b \\\\",
+        " & 50\\% \\textasciitilde x \\\\",
+        "\\bottomrule",
+        "\\end{tabular}",
+    ]
+    matrix = pd.DataFrame({"x / y": ["1 ok"]}, index=pd.Index(["p_1"], name="problem"))
+    assert "problem & x / y \\\\" in latex_table(matrix, index=True)
+    assert "p\\_1 & 1 ok \\\\" in latex_table(matrix, index=True)
+
+
+def test_page_escapes_what_the_runs_say(tmp_path: Path) -> None:
+    results = synthetic_results(problems=("<b>top</b>",), formalisms=("f",), integrators=("i",))
+    results.loc[0, ["status", "message"]] = ["failed", "<script>alert(1)</script> & more"]
+    index = write_report(results, None, tmp_path, "run <x> & 'y'")
+    page = index.read_text(encoding="utf-8")
+    assert_well_formed(page)
+    assert "<b>top</b>" not in page and "&lt;b&gt;top&lt;/b&gt;" in page
+    assert "<script>" not in page and "&lt;script&gt;alert(1)&lt;/script&gt; &amp; more" in page
+    assert "run &lt;x&gt; &amp; &#39;y&#39;" in page
+
+
 def test_middle_tolerance() -> None:
     assert middle_tolerance([1e-3, 1e-5, 1e-7, 1e-5]) == 1e-5
     assert middle_tolerance([float("nan")]) is None

@@ -573,26 +573,19 @@ def run_command(
     """``workbench reference``: compute, check and write; a rich progress bar on stderr and a
     table of the agreement on ``out`` (a rich Console). Raises ReferenceDisagreement at the
     end if any problem's pipelines disagreed (the others are written)."""
-    from rich.console import Console
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Table
+
+    from workbench.runs.progress import progress_bar
 
     names = reference_names(problem, every)
     table = Table(title="stored references", title_justify="left")
     for column in ("problem", "A (stored)", "B", "agreement / L", "at", "seconds", "file"):
         table.add_column(column, overflow="fold")
     written, failures = [], []
-    columns = [SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn()]
-    with Progress(*columns, console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task("references", total=2 * len(names))
-
-        def step(text: str) -> None:
-            bar.update(task, description=text)
-            bar.advance(task)
-
+    with progress_bar("references", 2 * len(names)) as bar:  # two pipelines a problem
         for name in names:
             try:
-                stored = compute_reference(name, rtol, samples, threshold, progress=step)
+                stored = compute_reference(name, rtol, samples, threshold, progress=bar.step)
             except ReferenceDisagreement as error:
                 failures.append(str(error))
                 table.add_row(name, "", "", "disagree", "", "", str(error))

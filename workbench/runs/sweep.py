@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import sys
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -29,6 +28,7 @@ from workbench.runs import store
 from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
 from workbench.runs.local_pool import merge_run_recordings, run_local
+from workbench.runs.progress import progress_bar
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
@@ -113,34 +113,18 @@ def run_sweep(
 
 @contextlib.contextmanager
 def _progress(total: int, show: bool, threaded: bool = True):
-    """advance(counts) for the bar; ``threaded=False`` redraws it on each call instead of
-    from rich's refresh thread (the local pool calls advance(None) at every wake-up)."""
-    if not show:
-        yield lambda counts: None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    """advance(counts) for the shared bar (:mod:`workbench.runs.progress`); ``threaded=False``
+    redraws it on each call instead of from rich's refresh thread (the local pool calls
+    advance(None) at every wake-up)."""
+    with progress_bar("sweep", total, show=show, transient=False, threaded=threaded) as bar:
 
-    progress = Progress(
-        TextColumn("sweep"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TextColumn("{task.fields[counts]}"),
-        console=Console(file=sys.stderr, highlight=False, markup=False),
-        transient=False,
-        auto_refresh=threaded,
-    )
-    task = progress.add_task("sweep", total=total, counts="")
-
-    def advance(counts: Counter | None) -> None:
-        if counts is not None:
+        def advance(counts: Counter | None) -> None:
+            if counts is None:
+                bar.tick()
+                return
             text = "  ".join(
                 f"{s} {counts[s]}" for s in ("ok", "failed", "skipped", "timeout") if counts[s]
             )
-            progress.update(task, completed=sum(counts.values()), counts=text)
-        if not threaded:
-            progress.refresh()
+            bar.update(sum(counts.values()), text)
 
-    with progress:
         yield advance

@@ -1,0 +1,85 @@
+"""Static HTML reports of a sweep (DESIGN.md, "Runs, results, reports").
+
+:func:`write_report` turns a results DataFrame (one row a run; the columns of
+:mod:`workbench.runs.store`) and the runs' time series into a directory::
+
+    index.html              the page: tables shown, figures linked as PNG
+    figures/*.png|svg|pdf   work-precision diagrams and drift / energy over time
+    tables/*.csv|md|tex     the summary, the status matrix and all result rows
+
+Per problem it draws a work-precision diagram and, for every pair at the middle
+tolerance, the constraint drift and the energy error over time. The summary names, for each
+problem and target accuracy (scd >= 2, 4, 6), the cheapest pair (least wall time) that
+reached it; the status matrix counts ok / failed / timeout / skipped runs and lists the
+reasons in footnotes. A footer records library versions, the machine, the date and the
+command that made the report.
+
+One idea a module:
+
+    analysis   what the tables say: labels, cheapest pairs, status matrix, drift at the
+               middle tolerance
+    tables     CSV, Markdown and LaTeX (booktabs, through pandas' Styler) files
+    figures    work-precision and drift / energy figures (matplotlib, Agg)
+    pool       the worker processes that draw the figures
+    page       the HTML page, rendered from templates/report.html.j2 (Jinja2): edit the
+               template to change the page
+    writer     write_report and report_directory: all of the above into a directory
+"""
+
+from workbench.outputs.report.analysis import (
+    DRIFT_TABLE_COLUMNS,
+    NUMERIC_COLUMNS,
+    REQUIRED_COLUMNS,
+    STATUSES,
+    TARGET_SCD,
+    cheapest_pairs,
+    drift_runs,
+    drift_table,
+    middle_tolerance,
+    pair_labels,
+    prepare_results,
+    run_environment,
+    status_matrix,
+)
+from workbench.outputs.report.figures import (
+    DRIFT_QUANTITIES,
+    FIGURE_FORMATS,
+    FigureFiles,
+    PairStyles,
+    drift_figure,
+    work_precision_figure,
+)
+from workbench.outputs.report.page import LIBRARIES, library_versions, machine_description
+from workbench.outputs.report.tables import latex_table, markdown_table, write_table
+from workbench.outputs.report.writer import SeriesLoader, report_directory, write_report
+
+__all__ = [
+    "DRIFT_QUANTITIES",
+    "DRIFT_TABLE_COLUMNS",
+    "FIGURE_FORMATS",
+    "LIBRARIES",
+    "NUMERIC_COLUMNS",
+    "REQUIRED_COLUMNS",
+    "STATUSES",
+    "TARGET_SCD",
+    "FigureFiles",
+    "PairStyles",
+    "SeriesLoader",
+    "cheapest_pairs",
+    "drift_figure",
+    "drift_runs",
+    "drift_table",
+    "latex_table",
+    "library_versions",
+    "machine_description",
+    "markdown_table",
+    "middle_tolerance",
+    "pair_labels",
+    "prepare_results",
+    "report_directory",
+    "run_environment",
+    "status_matrix",
+    "work_precision_figure",
+    "write_report",
+    "write_table",
+]

@@ -1,0 +1,249 @@
+"""What a report says about the runs: labels of pairs, the cheapest pair reaching each
+accuracy, the status matrix and the drift at the middle tolerance.
+
+Every function takes the output of :func:`prepare_results` (one row a run) and returns
+pandas tables; nothing here draws or writes files.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from workbench.errors import ConfigError
+
+STATUSES: tuple[str, ...] = ("ok", "failed", "timeout", "skipped")
+TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0)
+REQUIRED_COLUMNS: tuple[str, ...] = ("problem", "formalism", "integrator", "rtol", "status")
+NUMERIC_COLUMNS: tuple[str, ...] = (
+    "atol",
+    "wall_s",
+    "cpu_s",
+    "n_rhs",
+    "n_jac",
+    "n_steps",
+    "n_rejected",
+    "err_max",
+    "err_end",
+    "scd",
+    "drift_pos_max",
+    "drift_vel_max",
+    "drift_nh_max",
+    "energy_err_max",
+    "invariant_err_max",
+)
+DRIFT_TABLE_COLUMNS: tuple[str, ...] = (
+    "drift_pos_max",
+    "drift_vel_max",
+    "drift_nh_max",
+    "energy_err_max",
+    "invariant_err_max",
+    "err_max",
+    "scd",
+)
+LABEL_COLUMNS: tuple[str, ...] = ("pair", "formalism_label", "integrator_label")
+
+
+def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
+    """A copy of ``results``: numeric columns as floats, labels of formalism, integrator, pair.
+
+    Raises ConfigError when a required column is missing.
+    """
+    if not isinstance(results, pd.DataFrame):
+        raise ConfigError(f"results must be a pandas DataFrame, got {type(results).__name__}")
+    missing = [column for column in REQUIRED_COLUMNS if column not in results.columns]
+    if missing:
+        raise ConfigError(
+            f"results lack the column(s) {', '.join(missing)}; "
+            "give a table written by workbench.runs.store (see DESIGN.md, 'Runs, results, reports')"
+        )
+    runs = results.copy().reset_index(drop=True)
+    for column in NUMERIC_COLUMNS + ("rtol",):
+        runs[column] = (
+            pd.to_numeric(runs[column], errors="coerce") if column in runs else float("nan")
+        )
+    for column in ("run_id", "message", "formalism_options", "integrator_options"):
+        if column not in runs:
+            runs[column] = ""
+        runs[column] = runs[column].fillna("").astype(str)
+    if not runs["run_id"].str.len().any():
+        runs["run_id"] = [f"run-{index}" for index in range(len(runs))]
+    for column in ("problem", "formalism", "integrator", "status"):
+        runs[column] = runs[column].astype(str)
+    runs["formalism_label"], runs["integrator_label"] = pair_labels(runs)
+    runs["pair"] = runs["formalism_label"] + " / " + runs["integrator_label"]
+    return runs
+
+
+def pair_labels(runs: pd.DataFrame) -> tuple[pd.Series, pd.Series]:
+    """Formalism and integrator labels per row, with the options that vary appended.
+
+    An option appears in the label only when the same plugin was run with different
+    values of it, so curves stay distinguishable and labels stay short.
+    """
+    formalism = _with_varying_options(runs["formalism"], runs["formalism_options"])
+    integrator = _with_varying_options(runs["integrator"], runs["integrator_options"])
+    return formalism, integrator
+
+
+def _with_varying_options(names: pd.Series, options: pd.Series) -> pd.Series:
+    labels = names.copy()
+    for name in names.unique():
+        rows = names == name
+        distinct = options[rows].unique()
+        if len(distinct) < 2:
+            continue
+        parsed = {text: _parse_options(text) for text in distinct}
+        keys = sorted({key for value in parsed.values() for key in value})
+        varying = [
+            key for key in keys if len({repr(value.get(key)) for value in parsed.values()}) > 1
+        ]
+        suffix = {
+            text: ",".join(f"{key}={value[key]}" for key in varying if key in value)
+            for text, value in parsed.items()
+        }
+        labels[rows] = [f"{name}[{suffix[text]}]" for text in options[rows]]
+    return labels
+
+
+def _parse_options(text: str) -> dict[str, Any]:
+    if not text:
+        return {}
+    try:
+        value = json.loads(text)
+    except ValueError:
+        return {"options": text}
+    return value if isinstance(value, dict) else {"options": value}
+
+
+def ok_runs(runs: pd.DataFrame) -> pd.DataFrame:
+    """The rows of status ``ok``."""
+    return runs[runs["status"] == "ok"]
+
+
+def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) -> pd.DataFrame:
+    """For each problem and target scd: the ok run of least wall time with scd >= target.
+
+    One row per (problem, target); problems where no run reached a target say so.
+    ``runs`` is the output of :func:`prepare_results`.
+    """
+    rows = []
+    for problem, group in runs.groupby("problem", sort=False):
+        ok = ok_runs(group)
+        ok = ok[np.isfinite(ok["scd"]) & np.isfinite(ok["wall_s"])]
+        for target in targets:
+            reached = ok[ok["scd"] >= target]
+            if reached.empty:
+                rows.append({"problem": problem, "target scd": target, "pair": "none reached"})
+                continue
+            best = reached.loc[reached["wall_s"].idxmin()]
+            rows.append(
+                {
+                    "problem": problem,
+                    "target scd": target,
+                    "pair": best["pair"],
+                    "rtol": best["rtol"],
+                    "scd": best["scd"],
+                    "wall_s": best["wall_s"],
+                    "n_rhs": best["n_rhs"],
+                }
+            )
+    columns = ["problem", "target scd", "pair", "rtol", "scd", "wall_s", "n_rhs"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """Problem x pair table of status counts, and the footnotes giving the reasons.
+
+    A cell reads e.g. ``4 ok, 1 failed [2]``: footnote 2 is the message of that failure.
+    Footnotes group runs with the same status and message.
+    """
+    footnote_ids: dict[tuple[str, str], int] = {}
+    footnote_runs: dict[tuple[str, str], list[str]] = {}
+    for row in runs[runs["status"] != "ok"].itertuples():
+        key = (row.status, _one_line(row.message) or "no reason recorded")
+        footnote_ids.setdefault(key, len(footnote_ids) + 1)
+        footnote_runs.setdefault(key, []).append(f"{row.problem}: {row.pair}")
+    problems = list(dict.fromkeys(runs["problem"]))
+    pairs = sorted(runs["pair"].unique())
+    cells = pd.DataFrame("", index=pd.Index(problems, name="problem"), columns=pairs)
+    for (problem, pair), group in runs.groupby(["problem", "pair"], sort=False):
+        parts = []
+        for status in statuses(group["status"]):
+            of_status = group[group["status"] == status]
+            text = f"{len(of_status)} {status}"
+            if status != "ok":
+                keys = {
+                    (status, _one_line(message) or "no reason recorded")
+                    for message in of_status["message"]
+                }
+                text += " [" + ",".join(str(i) for i in sorted(footnote_ids[k] for k in keys)) + "]"
+            parts.append(text)
+        cells.loc[problem, pair] = ", ".join(parts)
+    cells = cells.replace("", "-")
+    footnotes = []
+    for key, number in footnote_ids.items():
+        where = list(dict.fromkeys(footnote_runs[key]))
+        shown = "; ".join(where[:5]) + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else "")
+        runs_count = len(footnote_runs[key])
+        footnotes.append(f"[{number}] {key[0]}: {key[1]} ({runs_count} run(s): {shown})")
+    return cells, footnotes
+
+
+def statuses(values: Iterable[str]) -> list[str]:
+    """The distinct statuses in ``values``: the known ones in :data:`STATUSES` order first."""
+    present = set(values)
+    return [s for s in STATUSES if s in present] + sorted(present - set(STATUSES))
+
+
+def status_counts(runs: pd.DataFrame) -> str:
+    """``"4 ok, 1 failed"``: how many runs ended in each status."""
+    counts = runs["status"].value_counts()
+    return ", ".join(f"{counts[s]} {s}" for s in statuses(runs["status"]))
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    line = " ".join(str(text).split())
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
+def middle_tolerance(rtols: Iterable[float]) -> float | None:
+    """The middle of the distinct finite tolerances (the larger middle one if even)."""
+    values = sorted({float(r) for r in rtols if np.isfinite(r)})
+    return values[len(values) // 2] if values else None
+
+
+def drift_runs(runs: pd.DataFrame) -> tuple[float | None, pd.DataFrame]:
+    """The middle tolerance of a problem's ok runs and one ok run per pair at it."""
+    ok = ok_runs(runs)
+    rtol = middle_tolerance(ok["rtol"])
+    if rtol is None:
+        return None, ok.iloc[:0]
+    chosen = ok[np.isclose(ok["rtol"], rtol, rtol=1e-9, atol=0)]
+    return rtol, chosen.drop_duplicates("pair").sort_values("pair")
+
+
+def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
+    """One row per pair at the middle tolerance: the maxima over time of the drifts and
+    errors (columns left out when no run measured them)."""
+    _rtol, chosen = drift_runs(runs)
+    columns = [c for c in DRIFT_TABLE_COLUMNS if chosen[c].notna().any()]
+    return chosen[["pair", *columns]].reset_index(drop=True)
+
+
+def run_environment(runs: pd.DataFrame) -> list[str]:
+    """What the runs recorded about where they ran: 'name: value[, value...]' per column
+    (``version_*``, ``machine``, ``cpu_count`` of the result rows; distinct values)."""
+    columns = [c for c in runs.columns if c.startswith("version_")]
+    columns += [c for c in ("machine", "cpu_count") if c in runs.columns]
+    lines = []
+    for column in columns:
+        values = [str(v) for v in runs[column].dropna().unique() if str(v) not in ("", "nan")]
+        if values:
+            name = column.removeprefix("version_")
+            lines.append(f"{name}: {', '.join(sorted(values)[:5])}")
+    return lines

@@ -1,0 +1,136 @@
+"""The report's HTML page, rendered from ``templates/report.html.j2`` (Jinja2).
+
+The layout, wording and style of the page live in the template, so a person changes the
+page without touching Python; this module hands it plain data (:class:`PageTable`,
+:class:`ProblemSection`, text) and Jinja escapes every value (autoescape on).
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import platform
+import sys
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+import pandas as pd
+from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
+
+from workbench.outputs.report.analysis import run_environment
+from workbench.outputs.report.figures import FigureFiles, slug
+from workbench.outputs.report.tables import shows_index, table_cells
+
+TEMPLATE = "report.html.j2"
+LIBRARIES: tuple[str, ...] = (
+    "mbs-workbench",
+    "numpy",
+    "scipy",
+    "casadi",
+    "pandas",
+    "pyarrow",
+    "matplotlib",
+    "rerun-sdk",
+)
+
+
+@dataclass
+class PageTable:
+    """A table as the page shows it: text cells, and the stem of its CSV / Markdown /
+    LaTeX files in ``tables/``."""
+
+    name: str
+    header: list[str]
+    rows: list[list[str]]
+
+    @classmethod
+    def of(cls, table: pd.DataFrame, name: str) -> PageTable:
+        header, rows = table_cells(table, index=shows_index(table))
+        return cls(name, header, rows)
+
+
+@dataclass
+class ProblemSection:
+    """What the page shows of one problem (made in a figure worker, so plain data).
+
+    rtol: the middle tolerance of the problem's ok runs (None: no ok run); drift: its
+    figure (None: no time series) and table (None when rtol is None).
+    """
+
+    problem: str
+    anchor: str
+    runs: int
+    status_counts: str
+    work_precision: FigureFiles | None
+    rtol: float | None
+    drift: FigureFiles | None
+    drift_table: PageTable | None
+
+
+def environment() -> Environment:
+    """The Jinja environment of the report's templates: HTML escaped, undefined names an
+    error (so a misspelt name in an edited template fails loudly)."""
+    return Environment(
+        loader=PackageLoader("workbench.outputs.report", "templates"),
+        autoescape=select_autoescape(enabled_extensions=("html", "htm", "xml", "html.j2")),
+        undefined=StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+
+
+def render_page(
+    title: str,
+    runs: pd.DataFrame,
+    summary: pd.DataFrame,
+    status: pd.DataFrame,
+    footnotes: list[str],
+    sections: list[ProblemSection],
+    command: str,
+) -> str:
+    """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
+
+    footnotes: as :func:`workbench.outputs.report.analysis.status_matrix` gives them,
+    ``"[n] text"``; the page numbers them itself.
+    """
+    problems = list(dict.fromkeys(runs["problem"]))
+    return (
+        environment()
+        .get_template(TEMPLATE)
+        .render(
+            title=title,
+            n_runs=len(runs),
+            n_pairs=runs["pair"].nunique(),
+            problems=[(problem, slug(problem)) for problem in problems],
+            summary=PageTable.of(summary, "summary"),
+            status=PageTable.of(status, "status"),
+            footnotes=[note.split("] ", 1)[1] for note in footnotes],
+            sections=sections,
+            command=command,
+            run_environment="; ".join(run_environment(runs)),
+            versions=", ".join(f"{name} {version}" for name, version in library_versions().items()),
+            machine=machine_description(),
+            date=datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        )
+    )
+
+
+def library_versions() -> dict[str, str]:
+    """Installed versions of the libraries a report depends on ('not installed' if absent)."""
+    versions = {"python": platform.python_version()}
+    for name in LIBRARIES:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = "not installed"
+    return versions
+
+
+def machine_description() -> str:
+    """Host, OS, processor and CPU count, on one line."""
+    processor = platform.processor() or platform.machine()
+    return (
+        f"{platform.node()} ({platform.platform()}, {processor}, {os.cpu_count()} CPUs, "
+        f"{sys.implementation.name})"
+    )

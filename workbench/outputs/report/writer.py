@@ -1,0 +1,173 @@
+"""Writing a report: tables, figures (in worker processes) and the page, into a directory.
+
+:func:`write_report` takes a results DataFrame and the runs' time series;
+:func:`report_directory` the directory a sweep wrote.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import pandas as pd
+
+from workbench.errors import ConfigError, WorkbenchError
+from workbench.outputs.report.analysis import (
+    LABEL_COLUMNS,
+    cheapest_pairs,
+    drift_runs,
+    drift_table,
+    prepare_results,
+    status_counts,
+    status_matrix,
+)
+from workbench.outputs.report.figures import drift_figure, slug, work_precision_figure
+from workbench.outputs.report.page import PageTable, ProblemSection, render_page
+from workbench.outputs.report.pool import figure_executor, figure_jobs
+from workbench.outputs.report.tables import write_table
+from workbench.runs.progress import progress_bar
+
+SeriesLoader = Callable[[str], pd.DataFrame | None]
+
+
+def write_report(
+    results: pd.DataFrame,
+    series_loader: SeriesLoader | None,
+    out_dir: str | Path,
+    command: str,
+    *,
+    title: str = "mbs-workbench report",
+    progress: bool | None = None,
+    jobs: int | None = None,
+) -> Path:
+    """Write the report of ``results`` into ``out_dir``; return the path of ``index.html``.
+
+    results: one row a run, at least the columns of
+        :data:`~workbench.outputs.report.analysis.REQUIRED_COLUMNS` (missing numeric
+        columns count as not measured).
+    series_loader: ``run_id -> DataFrame`` (columns t, drift_pos, drift_vel, drift_nh,
+        energy_err, ...) or None when a run has no series; ``None`` draws no drift plots.
+    command: the exact command line that produced the report (printed in the footer).
+    progress: show a rich progress bar on stderr; default: when there are several problems.
+    jobs: processes drawing figures; default: one per CPU when there are 4 problems or more.
+    """
+    runs = prepare_results(results)
+    out = Path(out_dir)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    (out / "tables").mkdir(parents=True, exist_ok=True)
+
+    problems = list(dict.fromkeys(runs["problem"]))
+    summary = cheapest_pairs(runs)
+    matrix, footnotes = status_matrix(runs)
+    write_table(summary, out / "tables", "summary")
+    write_table(matrix, out / "tables", "status")
+    runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
+
+    jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
+    show = len(problems) > 1 if progress is None else progress
+    with (
+        progress_bar("report", len(problems), show=show) as bar,
+        figure_executor(jobs) as executor,
+    ):
+        pending = []
+        for problem in problems:
+            of_problem = runs[runs["problem"] == problem]
+            series = _load_series(of_problem, series_loader)
+            pending.append(executor.submit(problem_section, of_problem, series, out))
+        sections = []
+        for problem, future in zip(problems, pending, strict=True):
+            sections.append(future.result())
+            bar.step(problem)
+
+    page = render_page(title, runs, summary, matrix, footnotes, sections, command)
+    index = out / "index.html"
+    index.write_text(page, encoding="utf-8")
+    return index
+
+
+def report_directory(
+    results_path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str] | None = None,
+    command: str | None = None,
+    *,
+    progress: bool | None = None,
+) -> Path:
+    """The report of a results directory written by :mod:`workbench.runs.store` (or of a
+    results.parquet); return the path of its ``index.html``.
+
+    out_dir: default ``<results directory>/report``. command: for the footer; default the
+    equivalent ``workbench report`` command line. Time series are read from the directory's
+    ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
+    results. Warnings of :func:`workbench.runs.store.load_results` (unreadable rows) pass through.
+    """
+    import shlex
+
+    from workbench.runs.store import load_results, load_series
+
+    source = Path(results_path)
+    if not source.exists():
+        raise ConfigError(f"no results at {source}: give the output directory of `workbench sweep`")
+    frame = load_results(source)
+    if len(frame) == 0:
+        raise ConfigError(f"no result rows in {source}: run `workbench sweep --out {source}` first")
+    directory = source if source.is_dir() else source.parent
+    target = Path(out_dir) if out_dir is not None else directory / "report"
+
+    def series_loader(run_id: str) -> pd.DataFrame | None:
+        try:
+            return load_series(directory, run_id)
+        except (ConfigError, OSError, ValueError):  # no or unreadable series: no curve
+            return None
+
+    if command is None:
+        command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
+    return write_report(frame, series_loader, target, command, progress=progress)
+
+
+def _load_series(
+    runs: pd.DataFrame, series_loader: SeriesLoader | None
+) -> dict[str, pd.DataFrame | None] | None:
+    """The time series of the runs a problem's drift figure draws (read in this process)."""
+    if series_loader is None:
+        return None
+    _rtol, chosen = drift_runs(runs)
+    series: dict[str, pd.DataFrame | None] = {}
+    for run_id in chosen["run_id"]:
+        try:
+            series[run_id] = series_loader(run_id)
+        except (WorkbenchError, OSError, ValueError, KeyError) as error:
+            # A missing or unreadable series costs one curve, never the report.
+            warnings.warn(f"no time series for run {run_id}: {error}", stacklevel=2)
+            series[run_id] = None
+    return series
+
+
+def problem_section(
+    runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path
+) -> ProblemSection:
+    """One problem's part of the report (a figure worker's task): draws its figures into
+    ``out``/figures, writes its drift table into ``out``/tables."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    problem = str(runs["problem"].iloc[0])
+    work_precision = work_precision_figure(runs, out, problem)
+    drift, rtol = drift_figure(runs, series, out, problem)
+    table = None
+    if rtol is not None:
+        name = f"drift-{slug(problem)}"
+        frame = drift_table(runs)
+        write_table(frame, out / "tables", name)
+        table = PageTable.of(frame, name)
+    return ProblemSection(
+        problem=problem,
+        anchor=slug(problem),
+        runs=len(runs),
+        status_counts=status_counts(runs),
+        work_precision=work_precision,
+        rtol=rtol,
+        drift=drift,
+        drift_table=table,
+    )
