@@ -7,7 +7,6 @@ page without touching Python; this module hands it plain data (:class:`PageTable
 
 from __future__ import annotations
 
-import importlib.metadata
 import os
 import platform
 import sys
@@ -20,6 +19,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescap
 from workbench.outputs.report.analysis import run_environment
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.tables import shows_index, table_cells
+from workbench.runs.environment import cpu_model, distribution_versions
 
 TEMPLATE = "report.html.j2"
 LIBRARIES: tuple[str, ...] = (
@@ -118,19 +118,12 @@ def render_page(
 
 def library_versions() -> dict[str, str]:
     """Installed versions of the libraries a report depends on ('not installed' if absent)."""
-    versions = {"python": platform.python_version()}
-    for name in LIBRARIES:
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            versions[name] = "not installed"
-    return versions
+    return {"python": platform.python_version(), **distribution_versions(LIBRARIES)}
 
 
 def machine_description() -> str:
-    """Host, OS, processor and CPU count, on one line."""
-    processor = platform.processor() or platform.machine()
+    """Host, OS, CPU model and count, on one line."""
     return (
-        f"{platform.node()} ({platform.platform()}, {processor}, {os.cpu_count()} CPUs, "
+        f"{platform.node()} ({platform.platform()}, {cpu_model()}, {os.cpu_count()} CPUs, "
         f"{sys.implementation.name})"
     )
