@@ -264,6 +264,9 @@ def ode_formalisms() -> list[tuple[str, dict]]:
 
 FORMALISMS = ode_formalisms()
 LARGE = {"articulated-arm", "parallel-robot", "binary-tree", "spatial-chain", "planar-chain"}
+# problems that pass a singular configuration early: compared before it (A02: all bars
+# horizontal at t = 0.45 s; what happens through it is the trust tests' subject)
+BEFORE_SINGULAR = {"iftomm-a02": 0.3}
 EARLY_FRACTION = 0.1  # of the time span
 EARLY_TOLERANCE = 1e-6  # pose error / L at rtol 1e-9
 
@@ -299,7 +302,8 @@ def test_formalism_follows_the_reference_early(name: str, formalism: str, option
     reference = given_reference(problem)
     assert reference is not None, f"{name}: no analytic or stored reference"
     times = problem.sample_times()
-    times = times[times <= problem.t_start + EARLY_FRACTION * (problem.t_end - problem.t_start)]
+    span = EARLY_FRACTION * (problem.t_end - problem.t_start)
+    times = times[times <= problem.t_start + min(span, BEFORE_SINGULAR.get(name, span))]
     equations = formalism_class().build(model, options)
     state = consistent_initial_state(equations, problem)
     ode = equations.forms["ode"]

@@ -73,6 +73,7 @@ class Observables:
         n_bodies = len(self.body_names)
         return SampledObservables(
             poses=_poses(positions, rotations, n_bodies),
+            rotations=rotations.reshape(n, 3, n_bodies, 3).transpose(0, 2, 1, 3),
             twists=twists.reshape(n, 6, -1).transpose(0, 2, 1),  # as reshape(6, -1).T
             energy=energy.reshape(n, -1)[:, :2],
             residuals=[r.reshape(n, -1) for r in residuals],
@@ -97,16 +98,22 @@ class SampledObservables:
     """Observables at n states: ``poses`` (n, n_bodies, 7) [position, Euler parameters];
     ``twists`` (n, n_bodies, 6) [velocity of the frame origin, angular velocity];
     ``energy`` (n, 2) [T, V]; ``residuals``: position, velocity and nonholonomic
-    residuals, each (n, rows)."""
+    residuals, each (n, rows); ``rotations`` (n, n_bodies, 3, 3): the body rotation
+    matrices as the formalism gives them (the poses' quaternions are of the nearest
+    rotation: an R that is not orthonormal shows only here)."""
 
     poses: np.ndarray
     twists: np.ndarray
     energy: np.ndarray
     residuals: list[np.ndarray]
+    rotations: np.ndarray
 
     @classmethod
     def empty(cls, n_bodies: int) -> SampledObservables:
-        return cls(np.zeros((0, n_bodies, 7)), np.zeros((0, n_bodies, 6)), np.zeros((0, 2)), [])
+        return cls(
+            np.zeros((0, n_bodies, 7)), np.zeros((0, n_bodies, 6)), np.zeros((0, 2)), [],
+            np.zeros((0, n_bodies, 3, 3)),
+        )  # fmt: skip
 
 
 def _poses(positions: np.ndarray, rotations: np.ndarray, n_bodies: int) -> np.ndarray:

@@ -21,6 +21,7 @@ A problem plugin subclasses :class:`Problem` and registers with
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -73,12 +74,16 @@ class Invariant:
 class Reference:
     """Reference body poses at given times: ``poses(times) -> (n_times, n_bodies, 7)``.
 
-    kind: "analytic" or "stored"; ``description`` says how it was obtained.
+    kind: "analytic" or "stored"; ``description`` says how it was obtained; ``accuracy``:
+    the relative pose error (of the length scale) the reference itself can be trusted to,
+    so that no run is credited with more correct digits than it supports (analytic
+    references default to ANALYTIC_ACCURACY: round-off of their evaluation).
     """
 
     kind: str
     poses: Callable[[np.ndarray], np.ndarray]
     description: str = ""
+    accuracy: float = math.nan
 
 
 class Problem:

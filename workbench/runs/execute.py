@@ -333,6 +333,7 @@ def execute_run(
                     np.atleast_2d(trajectory.y),
                     trajectory.success,
                     reference,
+                    spec.rtol,
                 )
                 row.update(metric_row)
                 stages.stop()

@@ -41,6 +41,7 @@ import pandas as pd
 
 from workbench.equations import Equations
 from workbench.numerics.geometry import length_scale, pose_error
+from workbench.runs.audit import audit_warnings, health_audit
 from workbench.runs.references import ReferencePoses
 from workbench.runs.store import SERIES_COLUMNS
 
@@ -72,12 +73,14 @@ def trajectory_metrics(
     y: np.ndarray,
     complete: bool,
     reference: ReferencePoses,
+    rtol: float = math.nan,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
     """The metric columns of a row and the time series, from states ``y`` at ``times``.
 
     ``y`` (n, >= nq + nv) in the layout [q, v, ...]; ``complete``: the run reached the end
     time (else the end error and scd are NaN). ``reference.poses`` covers all the problem's
-    output times; the first ``len(times)`` are used.
+    output times; the first ``len(times)`` are used. ``rtol``: the run's tolerance, against
+    which the health audit (:mod:`workbench.runs.audit`) judges drift and energy.
     """
     nq, nv = equations.nq, equations.nv
     n = len(times)
@@ -146,6 +149,13 @@ def trajectory_metrics(
     elif not complete:
         notes.append(f"maxima over the part reached, t <= {float(times[-1]):g} s")
     row["notes"] = "; ".join(notes)
+
+    audit = health_audit(equations, times, y[:n], sampled.rotations, rtol)
+    audit["reference_accuracy"] = reference.accuracy
+    found = audit_warnings(audit, row, rtol, problem.conservative)
+    if row["err_end"] / length < reference.accuracy:  # more digits than the reference has
+        row["scd"] = -math.log10(reference.accuracy)
+    row.update(audit, warnings="; ".join(found))
     series = pd.DataFrame(
         {
             "run_id": run_id,

@@ -374,7 +374,8 @@ def stored_reference(problem: Any) -> Any:
         f"stored {path.name}: {labels}, rtol {metadata.get('rtol', math.nan):g}, "
         f"agreement {agreed.get('relative', math.nan):.2g} L"
     )
-    return Reference("stored", lambda times: poses_at(stored, times), description)
+    accuracy = float(agreed.get("relative", math.nan))  # the two pipelines' agreement
+    return Reference("stored", lambda times: poses_at(stored, times), description, accuracy)
 
 
 def poses_at(stored: StoredReference, times: np.ndarray) -> np.ndarray:
@@ -412,6 +413,14 @@ class ReferencePoses:
     poses: np.ndarray | None
     description: str = ""
     seconds: float = 0.0
+    accuracy: float = math.nan  # relative to the length scale; see ACCURACY
+
+
+# The relative accuracy a reference states when it does not say: an analytic one is exact
+# up to the round-off of its evaluation; a computed one is a single pipeline at
+# REFERENCE_RTOL, not cross-checked: credited with 100 times that tolerance.
+ANALYTIC_ACCURACY = 1e-13
+COMPUTED_ACCURACY = 1e-9
 
 
 def _problem_key(problem_name: str, problem_options: dict[str, Any], times: np.ndarray) -> dict:
@@ -480,7 +489,7 @@ def computed_reference(
     digest = reference_hash(key)
     if digest in _REFERENCE_MEMORY:
         kind, poses, description = _REFERENCE_MEMORY[digest]
-        return ReferencePoses(kind, poses, description)
+        return ReferencePoses(kind, poses, description, accuracy=COMPUTED_ACCURACY)
     path = None
     if reference_dir is not None:
         path = Path(reference_dir) / f"{problem_name}-{digest}.parquet"
@@ -493,7 +502,8 @@ def computed_reference(
                 poses = _frame_to_poses(frame, times.size)
                 description = f"computed, read from {path.name}"
                 _REFERENCE_MEMORY[digest] = ("computed", poses, description)
-                return ReferencePoses("computed", poses, description, time.perf_counter() - started)
+                seconds = time.perf_counter() - started
+                return ReferencePoses("computed", poses, description, seconds, COMPUTED_ACCURACY)
             except Exception:  # noqa: BLE001 - an unreadable cache file is recomputed
                 pass
         poses, bodies, _ = solve_poses(problem, pipeline, times, REFERENCE_RTOL, REFERENCE_ATOL)
@@ -507,7 +517,8 @@ def computed_reference(
             except OSError:  # a read-only output dir only costs the recomputation
                 pass
     _REFERENCE_MEMORY[digest] = ("computed", poses, description)
-    return ReferencePoses("computed", poses, description, time.perf_counter() - started)
+    seconds = time.perf_counter() - started
+    return ReferencePoses("computed", poses, description, seconds, COMPUTED_ACCURACY)
 
 
 def problem_reference(
@@ -528,9 +539,11 @@ def problem_reference(
         if given is not None:
             try:
                 poses = np.asarray(given.poses(times), dtype=float)
-                return ReferencePoses(
-                    given.kind, poses, given.description, time.perf_counter() - started
-                )
+                accuracy = given.accuracy
+                if math.isnan(accuracy) and given.kind == "analytic":
+                    accuracy = ANALYTIC_ACCURACY
+                seconds = time.perf_counter() - started
+                return ReferencePoses(given.kind, poses, given.description, seconds, accuracy)
             except ReferenceTimesMismatch:
                 pass
         return computed_reference(problem, problem_name, problem_options, times, reference_dir)

@@ -97,6 +97,14 @@ SCHEMA: list[tuple[str, str]] = [
     ("machine", "platform of the machine that ran it"),
     ("cpu_count", "CPUs of that machine"),
     ("schema_version", "version of this schema (SCHEMA_VERSION) the row was written in"),
+    ("warnings", "what the health audit found wrong ('; '-separated, one line; empty: nothing)"),
+    ("jacobian_sv_ratio_min", "smallest sigma_min/sigma_max of the constraint Jacobian W"),
+    ("jacobian_sv_ratio_at", "time of that smallest ratio (s)"),
+    ("dof_start", "nv - rank W at the start"),
+    ("dof_max", "the most nv - rank W along the output times"),
+    ("rotation_defect_max", "largest |R^T R - I| of the body rotations (0: orthonormal)"),
+    ("formalism_notes", "the formalism's notes (rows removed, partitions chosen)"),
+    ("reference_accuracy", "relative accuracy the reference states for itself"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -111,15 +119,26 @@ ENVIRONMENT_FILE = "environment.json"
 # History of the row schema:
 #   1  rows without a schema_version column (up to the layered core)
 #   2  adds schema_version; no other column changes
-SCHEMA_VERSION = 2
+#   3  adds the health audit (warnings, jacobian_sv_ratio_*, dof_*, rotation_defect_max,
+#      formalism_notes, reference_accuracy); older rows were never audited: their
+#      warnings say so instead of reading as "nothing wrong"
+SCHEMA_VERSION = 3
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 2}
 
 
+def _migrate_2_to_3(row: dict[str, Any]) -> dict[str, Any]:
+    not_audited = "not audited (written before schema 3): re-run to audit"
+    return row | {"schema_version": 3, "warnings": not_audited}
+
+
 # version -> the function that turns a row of that version into one of the next
-MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {1: _migrate_1_to_2}
+MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
+    1: _migrate_1_to_2,
+    2: _migrate_2_to_3,
+}
 
 
 def row_schema_version(row: dict[str, Any], source: str | os.PathLike[str]) -> int:

@@ -1,0 +1,84 @@
+"""The health audit: a row that is wrong, or might be, says so (issue: trust).
+
+Each test would pass unnoticed without the audit: the rows below say ``ok``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from workbench.equations.initial import consistent_initial_state
+from workbench.plugin.registry import get_formalism, get_problem
+from workbench.runs.execute import RunSpec, execute_run
+from workbench.runs.metrics import trajectory_metrics
+from workbench.runs.references import ReferencePoses
+
+
+def run(problem, formalism, integrator, rtol, formalism_options=None, problem_options=None):
+    spec = RunSpec(problem, formalism, integrator, rtol, rtol * 1e-3,
+                   problem_options or {}, formalism_options or {})  # fmt: skip
+    return execute_run(spec).row
+
+
+def test_a_run_through_a_singular_configuration_is_warned():
+    """IFToMM A02 (N = 2): the recursive formalism with DOP853 crosses the horizontal
+    position, leaves the parallelogram branch and ends several length scales away from
+    phi'' = -((9N+3)/(8N+2)) g cos(phi), with status ok, tiny drift and small energy error.
+    The audit finds the passage (between output samples) and says so."""
+    row = run("iftomm-a02", "recursive", "scipy-dop853", 1e-8, {"index": 1})
+    assert row["status"] == "ok"
+    assert row["err_max"] / row["length_scale"] > 1.0  # the wrong answer the row reports
+    assert row["jacobian_sv_ratio_min"] < 1e-4
+    assert "singular passage" in row["warnings"]
+    assert row["dof_start"] == 1
+
+
+def test_a_clean_run_has_no_warning():
+    row = run("slider-crank", "minimal-ode", "scipy-dop853", 1e-8, {"index": 1})
+    assert row["status"] == "ok" and row["warnings"] == ""
+    assert 0.05 < row["jacobian_sv_ratio_min"] <= 1.0  # W stays far from singular
+    assert row["dof_start"] == row["dof_max"] == 1
+    assert row["rotation_defect_max"] < 1e-12
+
+
+def test_euler_parameters_off_the_unit_sphere_are_seen():
+    """The observables orthonormalize rotations for the poses, so a run whose Euler
+    parameters drift off the unit sphere showed no pose error. Scaling the heavy top's
+    quaternion by 1 + delta shows as |R^T R - I| of about 8 delta in the rotation the
+    formalism builds from it, and the row is warned."""
+    problem = get_problem("heavy-top")()
+    equations = get_formalism("minimal-ode")().build(problem.model(), {})
+    state = consistent_initial_state(equations, problem)
+    times = problem.sample_times()[:3]
+    y = np.tile(np.concatenate([state.q, state.v]), (3, 1))
+    delta = 1e-3
+    y[1:, :4] *= 1 + delta  # the spherical joint's Euler parameters
+    reference = ReferencePoses("analytic", None, "none here")
+    row, _ = trajectory_metrics("x", problem, equations, times, y, True, reference, 1e-8)
+    assert 7 * delta < row["rotation_defect_max"] < 9 * delta
+    assert "rotations off the unit sphere" in row["warnings"]
+
+
+def test_more_digits_than_the_reference_has_are_not_credited():
+    """The simple pendulum's stored reference agrees with its second pipeline to ~3e-11 of
+    L: a run at rtol 1e-12 is more accurate than that. Its scd is capped at what the
+    reference supports, and the row says so."""
+    row = run("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-12)
+    accuracy = row["reference_accuracy"]
+    assert row["reference_kind"] == "stored" and 1e-12 < accuracy < 1e-9
+    assert row["err_end"] / row["length_scale"] < accuracy
+    assert row["scd"] == pytest.approx(-math.log10(accuracy))
+    assert "below the reference's own accuracy" in row["warnings"]
+
+
+def test_warnings_are_one_line_and_listed_in_the_schema():
+    from workbench.runs import store
+
+    row = run("iftomm-a02", "minimal-ode", "sundials-cvode-bdf", 1e-4, {"index": 1})
+    assert "\n" not in row["warnings"]
+    for column in ("warnings", "jacobian_sv_ratio_min", "dof_start", "dof_max",
+                   "rotation_defect_max", "reference_accuracy"):  # fmt: skip
+        assert column in store.SCHEMA_COLUMNS and column in row

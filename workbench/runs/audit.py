@@ -1,0 +1,204 @@
+"""What a run can tell about its own trustworthiness: the health audit of a result row.
+
+A run whose metrics look fine can still be wrong: it may have crossed a singular
+configuration and gone on along another assembly branch, its Euler parameters may have
+left the unit sphere (the observables orthonormalize rotations, which hides that), the
+formalism may have removed constraint rows, or the reference may be less accurate than
+the run. :func:`health_audit` measures these at the run's output times and turns each
+into a warning, so that ``ok`` without warnings means the workbench saw nothing wrong.
+
+Columns (:data:`AUDIT_COLUMNS`):
+
+- ``jacobian_sv_ratio_min``: the smallest sigma_min / sigma_max of the formalism's
+  constraint Jacobian W(t, q) (rows of the mechanical form), over the output times and,
+  around each sampled local minimum, over a cubic Hermite interpolant of q between output
+  times (a singular configuration is crossed between samples); ``jacobian_sv_ratio_at``
+  its time. NaN without constraints.
+- ``dof_start``, ``dof_max``: nv - rank W at the start and the most along the output
+  times (rank by :func:`workbench.numerics.linalg.independent_rows`, the algorithm every
+  formalism and ``describe`` use).
+- ``rotation_defect_max``: the largest |R^T R - I| (entry) of the body rotation matrices
+  the formalism produces: 0 for rotations, about 8 delta for Euler parameters off the unit
+  sphere by delta.
+- ``formalism_notes``: the formalism's own notes (``Equations.notes``).
+- ``reference_accuracy``: the relative accuracy the reference states for itself.
+
+Warnings (column ``warnings``, "; "-separated, one line): a singular passage (ratio below
+SINGULAR_RATIO), a change of DOF along the run, a rotation defect beyond ROTATION_FACTOR
+times rtol, constraint rows removed by the formalism (a note that begins "removed"), an
+energy error beyond ENERGY_FACTOR times rtol for a conservative problem, and an end error
+below the reference's accuracy (the scd is then capped at what the reference supports).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from workbench.numerics.linalg import independent_rows
+
+SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
+ROTATION_FACTOR = 100.0  # rotation defect beyond this times rtol: a warning
+ENERGY_FACTOR = 1e3  # relative energy error beyond this times rtol: a warning
+REFINE_EVALUATIONS = 40  # Hermite-interpolated evaluations of W around each sampled minimum
+REFINE_MOST = 5  # sampled local minima refined, the deepest first
+REFINE_BELOW = 0.5  # ... and only those below this fraction of the median ratio
+
+AUDIT_COLUMNS = [
+    "warnings",
+    "jacobian_sv_ratio_min",
+    "jacobian_sv_ratio_at",
+    "dof_start",
+    "dof_max",
+    "rotation_defect_max",
+    "formalism_notes",
+    "reference_accuracy",
+]
+
+
+def health_audit(
+    equations: Any,
+    times: np.ndarray,
+    y: np.ndarray,
+    rotations: np.ndarray,
+    rtol: float,
+) -> dict[str, Any]:
+    """The audit columns of a run (no warnings yet: see :func:`audit_warnings`).
+
+    times (n,), y (n, >= nq + nv) in the layout [q, v, ...], rotations (n, n_bodies, 3, 3)
+    as the observables give them (not orthonormalized).
+    """
+    nq, nv = equations.nq, equations.nv
+    q, v = y[:, :nq], y[:, nq : nq + nv]
+    row: dict[str, Any] = {
+        "jacobian_sv_ratio_min": math.nan,
+        "jacobian_sv_ratio_at": math.nan,
+        "dof_start": math.nan,
+        "dof_max": math.nan,
+        "rotation_defect_max": _rotation_defect(rotations),
+        "formalism_notes": "; ".join(" ".join(str(n).split()) for n in equations.notes),
+    }
+    mechanical = equations.forms.get("mechanical")
+    if mechanical is None or len(times) == 0:
+        return row
+    nc = int(mechanical.n_constraints)
+    if nc == 0:
+        row["dof_start"] = row["dof_max"] = nv
+        return row
+
+    def jacobian(t: float, q_t: np.ndarray) -> np.ndarray:
+        (w,) = mechanical.velocity_matrix(t, q_t)
+        return np.reshape(np.asarray(w, dtype=float), (nc, nv))
+
+    matrices = np.stack([jacobian(t, q_k) for t, q_k in zip(times, q, strict=True)])
+    dof_start = nv - len(independent_rows(matrices[0]))
+    rank = nv - dof_start  # rows redundant at the start are not a passage
+    if rank <= 0:
+        row["dof_start"] = row["dof_max"] = dof_start
+        return row
+    values = np.linalg.svd(matrices, compute_uv=False)  # (n, min(nc, nv)), one call
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios = np.where(values[:, 0] > 0, values[:, rank - 1] / values[:, 0], 0.0)
+    best, best_at = float(np.min(ratios)), float(times[int(np.argmin(ratios))])
+    deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
+    for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
+        ratio, at = _refine(mechanical, jacobian, times, q, v, k, rank)
+        if ratio < best:
+            best, best_at = ratio, at
+    # the rank can only have dropped where W came close to singular
+    near = np.flatnonzero(ratios < SINGULAR_RATIO)
+    dof_max = max([dof_start] + [nv - len(independent_rows(matrices[k])) for k in near])
+    row.update(
+        jacobian_sv_ratio_min=best,
+        jacobian_sv_ratio_at=best_at,
+        dof_start=dof_start,
+        dof_max=dof_max,
+    )
+    return row
+
+
+def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
+                   conservative: bool) -> list[str]:  # fmt: skip
+    """The warnings of a row from its audit columns and metrics (see the module)."""
+    found = []
+    ratio, at = audit.get("jacobian_sv_ratio_min", math.nan), audit.get("jacobian_sv_ratio_at")
+    if ratio < SINGULAR_RATIO:
+        found.append(
+            f"singular passage: the constraint Jacobian lost rank near t = {at:.4g} s "
+            f"(sigma_min/sigma_max {ratio:.1e}); the run may have changed assembly branch"
+        )
+    start, most = audit.get("dof_start", math.nan), audit.get("dof_max", math.nan)
+    if most > start:
+        found.append(f"degrees of freedom changed along the run: {start} at the start, "
+                     f"up to {most}")  # fmt: skip
+    defect = audit.get("rotation_defect_max", math.nan)
+    if defect > ROTATION_FACTOR * rtol:
+        found.append(
+            f"rotations off the unit sphere: |R^T R - I| reached {defect:.2g} "
+            f"(> {ROTATION_FACTOR:g} rtol); Euler parameters drifted from unit norm"
+        )
+    for note in audit.get("formalism_notes", "").split("; "):
+        if note.lower().startswith("removed"):
+            found.append(f"the formalism {note}")
+    energy = metrics.get("energy_err_max", math.nan)
+    if conservative and energy > ENERGY_FACTOR * rtol:
+        found.append(f"energy not conserved: relative error {energy:.2g} "
+                     f"(> {ENERGY_FACTOR:g} rtol)")  # fmt: skip
+    accuracy = audit.get("reference_accuracy", math.nan)
+    relative_end = metrics.get("err_end", math.nan) / metrics.get("length_scale", math.nan)
+    if relative_end < accuracy:
+        found.append(
+            f"end error {relative_end:.1e} is below the reference's own accuracy "
+            f"{accuracy:.1e}: scd capped at {-math.log10(accuracy):.2f}"
+        )
+    return found
+
+
+def _singular_value_ratio(matrix: np.ndarray, rank: int) -> float:
+    """sigma_rank / sigma_1: the smallest singular value of the part of W that had full
+    rank at the start (rows redundant from the start stay out of it)."""
+    if rank <= 0:
+        return math.nan
+    values = np.linalg.svd(matrix, compute_uv=False)
+    return float(values[rank - 1] / values[0]) if values[0] > 0 else 0.0
+
+
+def _local_minima(values: np.ndarray) -> list[int]:
+    """Indices of the interior local minima of ``values`` (sampled)."""
+    k = np.arange(1, values.size - 1)
+    return [int(i) for i in k[(values[k] <= values[k - 1]) & (values[k] <= values[k + 1])]]
+
+
+def _refine(mechanical: Any, jacobian: Any, times: np.ndarray, q: np.ndarray,
+            v: np.ndarray, k: int, rank: int) -> tuple[float, float]:  # fmt: skip
+    """The smallest singular-value ratio of W around sample k, on the cubic Hermite
+    interpolant of q (through q and q' = H v + f at the neighbouring samples)."""
+    rates = [np.ravel(mechanical.qdot(times[j], q[j], v[j])[0]).copy() for j in (k - 1, k, k + 1)]
+
+    def q_at(t: float) -> np.ndarray:
+        j = k - 1 if t <= times[k] else k
+        t0, t1 = times[j], times[j + 1]
+        h, s = t1 - t0, (t - t0) / (t1 - t0)
+        r0, r1 = rates[j - (k - 1)], rates[j - (k - 1) + 1]
+        return (
+            (2 * s**3 - 3 * s**2 + 1) * q[j] + (s**3 - 2 * s**2 + s) * h * r0
+            + (-2 * s**3 + 3 * s**2) * q[j + 1] + (s**3 - s**2) * h * r1
+        )  # fmt: skip
+
+    result = minimize_scalar(
+        lambda t: _singular_value_ratio(jacobian(t, q_at(t)), rank),
+        bounds=(times[k - 1], times[k + 1]),
+        method="bounded",
+        options={"maxiter": REFINE_EVALUATIONS, "xatol": 1e-9 * max(1.0, abs(times[k]))},
+    )
+    return float(result.fun), float(result.x)
+
+
+def _rotation_defect(rotations: np.ndarray) -> float:
+    if rotations.size == 0:
+        return math.nan
+    product = np.einsum("...ji,...jk->...ik", rotations, rotations)
+    return float(np.max(np.abs(product - np.eye(3))))
