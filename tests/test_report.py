@@ -332,3 +332,24 @@ def test_problem_without_successful_runs_and_broken_series(tmp_path: Path) -> No
     assert "No successful run" in page
     summary = pd.read_csv(tmp_path / "tables" / "summary.csv")
     assert set(summary.loc[summary["problem"] == "q", "pair"]) == {"none reached"}
+
+
+def test_a_run_with_warnings_is_marked_and_never_recommended() -> None:
+    """The cheapest run of a pair reaching scd 2 is the warned one (a singular passage):
+    the summary must pick the next trustworthy run, and the status matrix must count it
+    as 'ok with warnings' with a footnote naming the warning."""
+    from workbench.outputs.report import cheapest_pairs, prepare_results, status_matrix
+
+    results = synthetic_results(problems=("simple-pendulum",), rtols=(1e-3, 1e-5))
+    results["warnings"] = ""
+    fast = results[results["status"] == "ok"]["wall_s"].idxmin()
+    passage = "singular passage: the constraint Jacobian lost rank near t = 1 s (1e-9)"
+    results.loc[fast, "warnings"] = passage
+    assert results.loc[fast, "scd"] >= 2.0  # it would have won
+    runs = prepare_results(results)
+    best = cheapest_pairs(runs, targets=(2.0,)).iloc[0]
+    assert best["wall_s"] > results.loc[fast, "wall_s"]  # the warned, cheaper run lost
+    cells, footnotes = status_matrix(runs)
+    assert any("ok with warnings" in cell for cell in cells.to_numpy().ravel())
+    assert any(note.startswith("[") and "ok with warnings: singular passage" in note
+               for note in footnotes)  # fmt: skip

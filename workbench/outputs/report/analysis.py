@@ -16,7 +16,7 @@ import pandas as pd
 
 from workbench.errors import ConfigError
 
-STATUSES: tuple[str, ...] = ("ok", "failed", "timeout", "skipped")
+STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
 TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0)
 REQUIRED_COLUMNS: tuple[str, ...] = ("problem", "formalism", "integrator", "rtol", "status")
 NUMERIC_COLUMNS: tuple[str, ...] = (
@@ -125,15 +125,28 @@ def ok_runs(runs: pd.DataFrame) -> pd.DataFrame:
     return runs[runs["status"] == "ok"]
 
 
+def warned(runs: pd.DataFrame) -> pd.Series:
+    """True for the rows whose health audit found something (column ``warnings``)."""
+    if "warnings" not in runs:
+        return pd.Series(False, index=runs.index)
+    return runs["warnings"].fillna("").astype(str).str.len() > 0
+
+
+def warning_kinds(text: str) -> list[str]:
+    """The kinds of warning in a row's ``warnings`` (the words before each ':')."""
+    return [w.split(":", 1)[0].strip() for w in str(text or "").split("; ") if w.strip()]
+
+
 def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) -> pd.DataFrame:
     """For each problem and target scd: the ok run of least wall time with scd >= target.
 
     One row per (problem, target); problems where no run reached a target say so.
+    A run with warnings (:func:`warned`) is never chosen: it may be wrong.
     ``runs`` is the output of :func:`prepare_results`.
     """
     rows = []
     for problem, group in runs.groupby("problem", sort=False):
-        ok = ok_runs(group)
+        ok = ok_runs(group[~warned(group)])
         ok = ok[np.isfinite(ok["scd"]) & np.isfinite(ok["wall_s"])]
         for target in targets:
             reached = ok[ok["scd"] >= target]
@@ -164,8 +177,9 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     """
     footnote_ids: dict[tuple[str, str], int] = {}
     footnote_runs: dict[tuple[str, str], list[str]] = {}
+    runs = runs.assign(status=runs["status"].where(~warned(runs), OK_WARNED))
     for row in runs[runs["status"] != "ok"].itertuples():
-        key = (row.status, _one_line(row.message) or "no reason recorded")
+        key = _footnote_key(row.status, row)
         footnote_ids.setdefault(key, len(footnote_ids) + 1)
         footnote_runs.setdefault(key, []).append(f"{row.problem}: {row.pair}")
     problems = list(dict.fromkeys(runs["problem"]))
@@ -177,10 +191,7 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
             of_status = group[group["status"] == status]
             text = f"{len(of_status)} {status}"
             if status != "ok":
-                keys = {
-                    (status, _one_line(message) or "no reason recorded")
-                    for message in of_status["message"]
-                }
+                keys = {_footnote_key(status, row) for row in of_status.itertuples()}
                 text += " [" + ",".join(str(i) for i in sorted(footnote_ids[k] for k in keys)) + "]"
             parts.append(text)
         cells.loc[problem, pair] = ", ".join(parts)
@@ -192,6 +203,17 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         runs_count = len(footnote_runs[key])
         footnotes.append(f"[{number}] {key[0]}: {key[1]} ({runs_count} run(s): {shown})")
     return cells, footnotes
+
+
+OK_WARNED = "ok with warnings"  # an ok row whose health audit found something
+
+
+def _footnote_key(status: str, row: Any) -> tuple[str, str]:
+    """Runs share a footnote when their status and reason agree (for warned runs: the
+    kinds of warning, whose numbers differ from run to run)."""
+    if status == OK_WARNED:
+        return status, ", ".join(dict.fromkeys(warning_kinds(row.warnings)))
+    return status, _one_line(row.message) or "no reason recorded"
 
 
 def statuses(values: Iterable[str]) -> list[str]:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench.outputs.report.analysis import drift_runs, ok_runs
+from workbench.outputs.report.analysis import drift_runs, ok_runs, warned
 
 DRIFT_QUANTITIES: tuple[tuple[str, str], ...] = (
     ("drift_pos", "position constraint drift"),
@@ -160,12 +160,18 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
             points = curve[np.isfinite(curve[cost]) & (curve[cost] > 0)]
             if not points.empty:
                 ax.plot(points[cost], points["scd"], markersize=4, linewidth=1, **styles(pair))
+                flagged = points[warned(points)]
+                ax.scatter(flagged[cost], flagged["scd"], s=70, facecolors="none",
+                           edgecolors="red", linewidths=1.2, zorder=3)  # fmt: skip
     for ax, xlabel in zip(axes, ("wall time [s]", "right-hand-side evaluations"), strict=True):
         _log_axis(ax, "x")
         ax.set_xlabel(xlabel)
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("scd (correct digits at the end)")
-    figure.suptitle(f"{problem}: work-precision (one point per tolerance)", x=0.38)
+    title = f"{problem}: work-precision (one point per tolerance)"
+    if warned(ok).any():
+        title += "\nred ring: the run carries warnings (it may be wrong; see the status table)"
+    figure.suptitle(title, x=0.38)
     styles.legend(figure)
     return _save(
         figure,
