@@ -85,17 +85,25 @@ def health_audit(
     if mechanical is None or len(times) == 0:
         return row
     nc = int(mechanical.n_constraints)
-    if nc == 0:
+    if nc:
+        width = nv
+
+        def jacobian(t: float, q_t: np.ndarray) -> np.ndarray:
+            (w,) = mechanical.velocity_matrix(t, q_t)
+            return np.reshape(np.asarray(w, dtype=float), (nc, nv))
+
+    elif equations.model.cut_joints:
+        # closed loops eliminated by the formalism (minimal velocities): the loops can still
+        # pass a singular configuration, seen in the Jacobian of every joint's residual on
+        # the body poses (observables), with respect to the formalism's q
+        width, jacobian = nq, _residual_jacobian(equations)
+    else:
         row["dof_start"] = row["dof_max"] = nv
         return row
 
-    def jacobian(t: float, q_t: np.ndarray) -> np.ndarray:
-        (w,) = mechanical.velocity_matrix(t, q_t)
-        return np.reshape(np.asarray(w, dtype=float), (nc, nv))
-
     matrices = np.stack([jacobian(t, q_k) for t, q_k in zip(times, q, strict=True)])
-    dof_start = nv - len(independent_rows(matrices[0]))
-    rank = nv - dof_start  # rows redundant at the start are not a passage
+    dof_start = width - len(independent_rows(matrices[0]))
+    rank = width - dof_start  # rows redundant at the start are not a passage
     if rank <= 0:
         row["dof_start"] = row["dof_max"] = dof_start
         return row
@@ -110,7 +118,9 @@ def health_audit(
             best, best_at = ratio, at
     # the rank can only have dropped where W came close to singular
     near = np.flatnonzero(ratios < SINGULAR_RATIO)
-    dof_max = max([dof_start] + [nv - len(independent_rows(matrices[k])) for k in near])
+    dof_max = max([dof_start] + [width - len(independent_rows(matrices[k])) for k in near])
+    if not nc:  # the formalism's velocities are independent by construction
+        dof_start = dof_max = nv
     row.update(
         jacobian_sv_ratio_min=best,
         jacobian_sv_ratio_at=best_at,
@@ -195,6 +205,21 @@ def _refine(mechanical: Any, jacobian: Any, times: np.ndarray, q: np.ndarray,
         options={"maxiter": REFINE_EVALUATIONS, "xatol": 1e-9 * max(1.0, abs(times[k]))},
     )
     return float(result.fun), float(result.x)
+
+
+def _residual_jacobian(equations: Any) -> Any:
+    """(t, q) -> d(position residuals of every joint)/dq, made once per equations."""
+    observables = equations.observables
+    made = getattr(observables, "_audit_jacobian", None)
+    if made is None:
+        function = observables.residuals.function
+        names_in, names_out = function.name_in(), function.name_out()
+        made = function.factory(
+            "residual_jacobian", list(names_in), [f"jac:{names_out[0]}:{names_in[1]}"]
+        )
+        observables._audit_jacobian = made
+    zero_v = np.zeros(equations.nv)
+    return lambda t, q_t: np.asarray(made(t, q_t, zero_v), dtype=float)
 
 
 def _rotation_defect(rotations: np.ndarray) -> float:
