@@ -87,3 +87,15 @@ def test_warnings_are_one_line_and_listed_in_the_schema():
     for column in ("warnings", "jacobian_sv_ratio_min", "dof_start", "dof_max",
                    "rotation_defect_max", "reference_accuracy"):  # fmt: skip
         assert column in store.SCHEMA_COLUMNS and column in row
+
+
+def test_each_warning_is_one_item_of_the_list():
+    """'; ' separates warnings: no warning may contain it (the report counts their kinds)."""
+    from workbench.runs.audit import audit_warnings
+
+    audit = {"jacobian_sv_ratio_min": 1e-9, "jacobian_sv_ratio_at": 1.0, "dof_start": 1,
+             "dof_max": 3, "rotation_defect_max": 1.0,
+             "formalism_notes": "removed redundant constraint rows: a; b"}  # fmt: skip
+    metrics = {"energy_err_max": 1.0, "err_end": 1e-14, "length_scale": 1.0}
+    found = audit_warnings(audit | {"reference_accuracy": 1e-10}, metrics, 1e-8, True)
+    assert len(found) == 6 and all("; " not in w for w in found)

@@ -138,7 +138,7 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     if ratio < SINGULAR_RATIO:
         found.append(
             f"singular passage: the constraint Jacobian lost rank near t = {at:.4g} s "
-            f"(sigma_min/sigma_max {ratio:.1e}); the run may have changed assembly branch"
+            f"(sigma_min/sigma_max {ratio:.1e}), the run may have changed assembly branch"
         )
     start, most = audit.get("dof_start", math.nan), audit.get("dof_max", math.nan)
     if most > start:
@@ -148,7 +148,7 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     if defect > ROTATION_FACTOR * rtol:
         found.append(
             f"rotations off the unit sphere: |R^T R - I| reached {defect:.2g} "
-            f"(> {ROTATION_FACTOR:g} rtol); Euler parameters drifted from unit norm"
+            f"(> {ROTATION_FACTOR:g} rtol), Euler parameters drifted from unit norm"
         )
     for note in audit.get("formalism_notes", "").split("; "):
         if note.lower().startswith("removed"):
@@ -164,7 +164,7 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
             f"end error {relative_end:.1e} is below the reference's own accuracy "
             f"{accuracy:.1e}: scd capped at {-math.log10(accuracy):.2f}"
         )
-    return found
+    return [" ".join(w.replace(";", ",").split()) for w in found]  # "; " separates them
 
 
 def _singular_value_ratio(matrix: np.ndarray, rank: int) -> float:
