@@ -9,9 +9,10 @@ with minimal velocities s (nv - rank W):
     v = F(t, q) s + f(t, q),    W F = 0,    W f + w = 0,
 
 by partitioning: the independent velocities v_i = s are a fixed selection, computed once
-at a reference configuration (of the assembled neutral configuration and seeded random
-ones, the one where W has the highest rank): the independent rows of W as everywhere in
-the workbench (:func:`workbench.numerics.linalg.independent_rows`), then the dependent
+where ``workbench describe`` and every formalism decide the rank (the model's initial
+configuration, assembled, confirmed at random assembled ones:
+:func:`workbench.mechanics.topology.rank_configurations`): the independent rows of W as
+everywhere in the workbench (:func:`workbench.numerics.linalg.independent_rows`), then the dependent
 velocities by pivoted QR of those rows (option ``independent`` names the independent
 velocities instead); the dependent ones follow from W_d v_d = -(W_i s + w):
 
@@ -40,11 +41,11 @@ import numpy as np
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.equations.compiled import Compiler
 from workbench.errors import ConfigError, ModelError
-from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import BodyState, TreeKinematics
 from workbench.mechanics.newton_euler import newton_euler_forces
+from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import Model
-from workbench.numerics.linalg import independent_columns, independent_rows
+from workbench.numerics.linalg import independent_columns
 from workbench.plugin.formalism import CompileOptions, Formalism
 from workbench.plugin.registry import formalism
 
@@ -75,48 +76,23 @@ class Partition:
     q_reference: np.ndarray
 
 
-def reference_configuration(kinematics: TreeKinematics, seed: int = 0) -> np.ndarray:
-    """Neutral joint coordinates (seed 0) or a random configuration (unit quaternions)."""
-    q = np.zeros(kinematics.nq)
-    rng = np.random.default_rng(seed)
-    for joint in kinematics.free_joints:
-        q_slice, _ = kinematics.joint_slices[joint.name]
-        value = jk.neutral_coordinates(joint)
-        if seed:
-            value = value + rng.uniform(-0.5, 0.5, value.size)
-            if joint.type in ("spherical", "free"):
-                value[-4:] /= np.linalg.norm(value[-4:])
-        q[q_slice] = value
-    return q
-
-
 def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] = ()) -> Partition:
     """Choose independent rows of W and independent velocities (see the module doc)."""
     k = kinematics
-    from workbench.mechanics.topology import analyze
-
     w_function = ca.Function("W", [k.t, k.q], [ca.densify(k.velocity_constraint_matrix)])
-    # Candidates: the neutral configuration (unassembled, e.g. a folded four-bar, it can lose
-    # rank), seeded random ones, the assembled one; the first of highest rank wins.
-    candidates = [reference_configuration(k, s) for s in range(6)]
-    candidates.append(analyze(k.model).configuration)
-    best = None
-    for q_candidate in candidates:
-        if q_candidate is None:
-            continue
-        w_candidate = np.asarray(w_function(0.0, q_candidate), dtype=float).reshape(-1, k.nv)
-        if not np.all(np.isfinite(w_candidate)):
-            continue
-        candidate_rank = len(independent_rows(w_candidate))
-        if best is None or candidate_rank > best[0]:
-            best = (candidate_rank, q_candidate, w_candidate)
-    if best is None:
+
+    def w_at(q: np.ndarray) -> np.ndarray:
+        return np.asarray(w_function(0.0, q), dtype=float).reshape(-1, k.nv)
+
+    # where describe and every formalism decide the rank: the model's initial configuration
+    rows_list, decided = independent_rows_at(w_at, rank_configurations(k.model, k))
+    if decided is None:
         raise ModelError(
             f"model {k.model.name!r}: the velocity constraint matrix is not finite at any "
             "reference configuration tried"
         )
-    _, q_ref, w_matrix = best
-    rows = np.array(independent_rows(w_matrix), dtype=int)
+    q_ref, w_matrix = decided.q, w_at(decided.q)
+    rows = np.array(rows_list, dtype=int)
     rank = rows.size
     w_rows = w_matrix[rows]
     if independent:
