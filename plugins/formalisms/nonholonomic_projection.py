@@ -26,8 +26,15 @@ computed body by body with each body's twist written in s (so the bias F' s + f'
 time derivative of the twists at s' = 0). It is an ODE in y = (q, s): no multipliers and
 no velocity constraints (they hold by construction, to round-off). Holonomic closure
 constraints and contact heights are *not* enforced at position level: their drift is
-measured by the observables. A partition that becomes singular along the motion (W_d
-losing rank) makes the right-hand side infinite; choose ``independent`` accordingly.
+measured by the observables.
+
+Limitation: the partition is fixed for the whole run. Where W_d loses rank along the
+motion the right-hand side is singular and the run loses digits (a knife edge whose
+heading turns through 90 degrees: its one dependent velocity has W_d = cos(heading)).
+The equations offer (W_d, W) as ``Equations.partition_matrices``; the run's audit
+reports the least sigma_min(W_d) / sigma_max(W) reached and warns when it falls below
+:data:`workbench.runs.audit.SINGULAR_RATIO` ("singular velocity partition"). Choose
+``independent`` for the motion, or a formalism with multipliers, there.
 """
 
 from __future__ import annotations
@@ -204,7 +211,14 @@ class NonholonomicProjection(Formalism):
             "minimal velocities: " + (", ".join(system.v_names) or "none"),
             "holonomic constraints are not enforced at position level; see their drift",
         ]
-        return build_equations(
+        if partition.dependent.size:
+            dependent = ", ".join(kinematics.v_names[int(i)] for i in partition.dependent)
+            notes.append(
+                f"fixed velocity partition: dependent velocities {dependent}, solved from "
+                "their block W_d of W for the whole run; where W_d turns singular along the "
+                "motion (a knife edge turned 90 degrees) digits are lost and the run warns"
+            )
+        equations = build_equations(
             self.name,
             model,
             system,
@@ -215,3 +229,14 @@ class NonholonomicProjection(Formalism):
             notes=notes,
             compiler=Compiler.from_options(options),
         )
+        if partition.dependent.size:
+            equations.partition_matrices = partition_matrices(kinematics, partition)
+        return equations
+
+
+def partition_matrices(kinematics: TreeKinematics, partition: Partition) -> ca.Function:
+    """(t, q) -> (W_d (m, m), W (m, nv)): the dependent block and the rows kept."""
+    k = kinematics
+    w_rows = ca.densify(k.velocity_constraint_matrix[[int(i) for i in partition.rows], :])
+    w_d = w_rows[:, [int(i) for i in partition.dependent]]
+    return ca.Function("partition", [k.t, k.q], [w_d, w_rows])
