@@ -245,7 +245,7 @@ def rank_configurations(
         q0 = np.asarray(q, dtype=float).reshape(-1)
         if q0.shape != (kinematics.nq,):
             raise ModelError(
-                f"model {model.name!r}: got {q0.size} tree coordinates, the tree has "
+                f"model {model.name!r}: got {q0.size} coordinates, the tree has "
                 f"{kinematics.nq} ({', '.join(kinematics.q_names)})"
             )
     assembly = assemble(kinematics, q0, t)
