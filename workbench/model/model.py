@@ -21,7 +21,7 @@ rank of the constraint Jacobian, hence the degrees of freedom and which constrai
 are redundant, are decided there (assembled, and confirmed at a few random assembled
 configurations near it; :func:`workbench.mechanics.topology.rank_configurations`), by
 ``workbench describe`` and every formalism alike. Joints left out take their neutral
-coordinates. A neutral configuration can be singular (a four-bar with every angle zero
+coordinates. A neutral configuration can be singular (a four-link loop with every angle zero
 has all bars along one line), so a problem's model carries the problem's initial joint
 coordinates here (:class:`workbench.plugin.problem.Problem` fills it in).
 """
