@@ -34,8 +34,10 @@ spherical joint at the origin does not see it). Nothing renormalizes p: an integ
 that wants to may project |p| = 1 between steps.
 
 Redundant constraints (a planar four-bar built with spatial revolute joints, all axes
-parallel) are found at build time: W is evaluated at the assembled neutral configuration
-(and at a perturbed one; the larger rank wins), rows depending on earlier rows are removed
+parallel) are found at build time: W is evaluated where ``workbench describe`` evaluates
+it, at the model's initial configuration (the problem's), assembled, and at a few random
+assembled ones (:func:`workbench.mechanics.topology.rank_configurations`; the highest rank
+wins, so a singular initial configuration is outvoted); rows depending on earlier rows are removed
 (:func:`workbench.numerics.linalg.independent_rows`, the test ``workbench describe`` uses;
 option ``redundant="remove"``, recorded in ``notes``) or reported (``"error"``).
 
@@ -58,17 +60,11 @@ from workbench.equations.compiled import Compiler
 from workbench.errors import ModelError
 from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
-from workbench.mechanics.kinematics import (
-    BodyState,
-    TreeKinematics,
-    contact_rows,
-    initial_joint_values,
-)
+from workbench.mechanics.kinematics import BodyState, TreeKinematics, contact_rows
 from workbench.mechanics.newton_euler import newton_euler_forces
-from workbench.mechanics.topology import assemble
+from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import GROUND, Joint, Model, RollingDisk, RollingSphere
 from workbench.numerics import rotations as rot
-from workbench.numerics.linalg import independent_rows
 from workbench.numerics.rotations import axis_angle_to_quaternion, quaternion_multiply
 from workbench.plugin.formalism import ConstraintOptions, Formalism, constrained_forms
 from workbench.plugin.registry import formalism
@@ -238,26 +234,16 @@ def joint_space_map(model: Model, tree: TreeKinematics) -> list[Any]:
 def select_rows(
     model: Model, tree: TreeKinematics, to_absolute: ca.Function, w_matrix: ca.Function
 ) -> list[int]:
-    """Independent rows of W at the assembled neutral (or a perturbed) configuration.
+    """Independent rows of W where ``workbench describe`` decides the rank: the model's
+    initial configuration, assembled, confirmed at random assembled ones (the first of
+    highest rank wins; :func:`workbench.mechanics.topology.rank_configurations`)."""
 
-    The rank can only drop at singular configurations, so of the two the larger wins.
-    """
-    neutral = initial_joint_values(model, tree, {}, velocities=False)
-    perturbed = neutral + 0.1 * np.random.default_rng(0).standard_normal(neutral.size)
-    best: list[int] | None = None
-    for start in (neutral, perturbed):
-        assembly = assemble(tree, start)
-        if not assembly.converged:
-            continue
-        q_joint = assembly.x
+    def w_at(q_joint: np.ndarray) -> np.ndarray:
         q_abs = np.asarray(to_absolute(0.0, q_joint, np.zeros(tree.nv))[0]).reshape(-1)
-        rows = independent_rows(np.asarray(w_matrix(0.0, q_abs)))
-        if best is None or len(rows) > len(best):
-            best = rows
-    if best is None:  # nothing assembles: use the neutral configuration as it is
-        q_abs = np.asarray(to_absolute(0.0, neutral, np.zeros(tree.nv))[0]).reshape(-1)
-        best = independent_rows(np.asarray(w_matrix(0.0, q_abs)))
-    return best
+        return np.asarray(w_matrix(0.0, q_abs))
+
+    rows, _ = independent_rows_at(w_at, rank_configurations(model, tree))
+    return rows
 
 
 # ---- the formalism ----------------------------------------------------------------------

@@ -11,7 +11,9 @@ with the bias accelerations at v' = 0 — the non-recursive O(n^3) formalism. Cl
 constraints of the cut joints with multipliers, at the index given by option ``index``.
 Option ``loops="state-space"`` (book 11.5, coordinate partitioning after Wehage and Haug,
 1982): the velocities are the independent ones v_i (chosen by pivoted QR of the
-constraint Jacobian at the assembled neutral configuration); the dependent coordinates
+constraint Jacobian where ``workbench describe`` decides the rank: the model's initial
+configuration, the problem's, assembled; :func:`workbench.mechanics.topology.analyze`);
+the dependent coordinates
 stay in the state as the starting guess of a Newton solve of g(t, q_i, q_d) = 0 made at
 every evaluation, so the equations are an ODE (F^T M F) v_i' = F^T (Q - M c) on the
 constraint manifold, with v = F v_i + f. A singular partition makes the Newton solve fail,
@@ -85,7 +87,8 @@ class MinimalOde(Formalism):
 
 
 def independent_partition(model: Model, kinematics: TreeKinematics) -> np.ndarray:
-    """Indices of the dependent velocities, by pivoted QR of W at the assembled neutral pose."""
+    """Indices of the dependent velocities, by pivoted QR of W where ``describe`` takes the
+    rank (the model's initial configuration, assembled)."""
     from workbench.mechanics.topology import analyze
 
     topology = analyze(model)

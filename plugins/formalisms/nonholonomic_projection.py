@@ -9,9 +9,10 @@ with minimal velocities s (nv - rank W):
     v = F(t, q) s + f(t, q),    W F = 0,    W f + w = 0,
 
 by partitioning: the independent velocities v_i = s are a fixed selection, computed once
-at a reference configuration (of the assembled neutral configuration and seeded random
-ones, the one where W has the highest rank): the independent rows of W as everywhere in
-the workbench (:func:`workbench.numerics.linalg.independent_rows`), then the dependent
+where ``workbench describe`` and every formalism decide the rank (the model's initial
+configuration, assembled, confirmed at random assembled ones:
+:func:`workbench.mechanics.topology.rank_configurations`): the independent rows of W as
+everywhere in the workbench (:func:`workbench.numerics.linalg.independent_rows`), then the dependent
 velocities by pivoted QR of those rows (option ``independent`` names the independent
 velocities instead); the dependent ones follow from W_d v_d = -(W_i s + w):
 
@@ -25,8 +26,15 @@ computed body by body with each body's twist written in s (so the bias F' s + f'
 time derivative of the twists at s' = 0). It is an ODE in y = (q, s): no multipliers and
 no velocity constraints (they hold by construction, to round-off). Holonomic closure
 constraints and contact heights are *not* enforced at position level: their drift is
-measured by the observables. A partition that becomes singular along the motion (W_d
-losing rank) makes the right-hand side infinite; choose ``independent`` accordingly.
+measured by the observables.
+
+Limitation: the partition is fixed for the whole run. Where W_d loses rank along the
+motion the right-hand side is singular and the run loses digits (a knife edge whose
+heading turns through 90 degrees: its one dependent velocity has W_d = cos(heading)).
+The equations offer (W_d, W) as ``Equations.partition_matrices``; the run's audit
+reports the least sigma_min(W_d) / sigma_max(W) reached and warns when it falls below
+:data:`workbench.runs.audit.SINGULAR_RATIO` ("singular velocity partition"). Choose
+``independent`` for the motion, or a formalism with multipliers, there.
 """
 
 from __future__ import annotations
@@ -40,11 +48,11 @@ import numpy as np
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.equations.compiled import Compiler
 from workbench.errors import ConfigError, ModelError
-from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import BodyState, TreeKinematics
 from workbench.mechanics.newton_euler import newton_euler_forces
+from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import Model
-from workbench.numerics.linalg import independent_columns, independent_rows
+from workbench.numerics.linalg import independent_columns
 from workbench.plugin.formalism import CompileOptions, Formalism
 from workbench.plugin.registry import formalism
 
@@ -75,48 +83,23 @@ class Partition:
     q_reference: np.ndarray
 
 
-def reference_configuration(kinematics: TreeKinematics, seed: int = 0) -> np.ndarray:
-    """Neutral joint coordinates (seed 0) or a random configuration (unit quaternions)."""
-    q = np.zeros(kinematics.nq)
-    rng = np.random.default_rng(seed)
-    for joint in kinematics.free_joints:
-        q_slice, _ = kinematics.joint_slices[joint.name]
-        value = jk.neutral_coordinates(joint)
-        if seed:
-            value = value + rng.uniform(-0.5, 0.5, value.size)
-            if joint.type in ("spherical", "free"):
-                value[-4:] /= np.linalg.norm(value[-4:])
-        q[q_slice] = value
-    return q
-
-
 def velocity_partition(kinematics: TreeKinematics, independent: tuple[str, ...] = ()) -> Partition:
     """Choose independent rows of W and independent velocities (see the module doc)."""
     k = kinematics
-    from workbench.mechanics.topology import analyze
-
     w_function = ca.Function("W", [k.t, k.q], [ca.densify(k.velocity_constraint_matrix)])
-    # Candidates: the neutral configuration (unassembled, e.g. a folded four-bar, it can lose
-    # rank), seeded random ones, the assembled one; the first of highest rank wins.
-    candidates = [reference_configuration(k, s) for s in range(6)]
-    candidates.append(analyze(k.model).configuration)
-    best = None
-    for q_candidate in candidates:
-        if q_candidate is None:
-            continue
-        w_candidate = np.asarray(w_function(0.0, q_candidate), dtype=float).reshape(-1, k.nv)
-        if not np.all(np.isfinite(w_candidate)):
-            continue
-        candidate_rank = len(independent_rows(w_candidate))
-        if best is None or candidate_rank > best[0]:
-            best = (candidate_rank, q_candidate, w_candidate)
-    if best is None:
+
+    def w_at(q: np.ndarray) -> np.ndarray:
+        return np.asarray(w_function(0.0, q), dtype=float).reshape(-1, k.nv)
+
+    # where describe and every formalism decide the rank: the model's initial configuration
+    rows_list, decided = independent_rows_at(w_at, rank_configurations(k.model, k))
+    if decided is None:
         raise ModelError(
             f"model {k.model.name!r}: the velocity constraint matrix is not finite at any "
             "reference configuration tried"
         )
-    _, q_ref, w_matrix = best
-    rows = np.array(independent_rows(w_matrix), dtype=int)
+    q_ref, w_matrix = decided.q, w_at(decided.q)
+    rows = np.array(rows_list, dtype=int)
     rank = rows.size
     w_rows = w_matrix[rows]
     if independent:
@@ -228,7 +211,14 @@ class NonholonomicProjection(Formalism):
             "minimal velocities: " + (", ".join(system.v_names) or "none"),
             "holonomic constraints are not enforced at position level; see their drift",
         ]
-        return build_equations(
+        if partition.dependent.size:
+            dependent = ", ".join(kinematics.v_names[int(i)] for i in partition.dependent)
+            notes.append(
+                f"fixed velocity partition: dependent velocities {dependent}, solved from "
+                "their block W_d of W for the whole run; where W_d turns singular along the "
+                "motion (a knife edge turned 90 degrees) digits are lost and the run warns"
+            )
+        equations = build_equations(
             self.name,
             model,
             system,
@@ -239,3 +229,14 @@ class NonholonomicProjection(Formalism):
             notes=notes,
             compiler=Compiler.from_options(options),
         )
+        if partition.dependent.size:
+            equations.partition_matrices = partition_matrices(kinematics, partition)
+        return equations
+
+
+def partition_matrices(kinematics: TreeKinematics, partition: Partition) -> ca.Function:
+    """(t, q) -> (W_d (m, m), W (m, nv)): the dependent block and the rows kept."""
+    k = kinematics
+    w_rows = ca.densify(k.velocity_constraint_matrix[[int(i) for i in partition.rows], :])
+    w_d = w_rows[:, [int(i) for i in partition.dependent]]
+    return ca.Function("partition", [k.t, k.q], [w_d, w_rows])

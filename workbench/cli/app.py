@@ -49,6 +49,16 @@ app = typer.Typer(
 )
 
 
+def option_value(text: str) -> Any:
+    """A ``-o`` value as TOML (1, 1e-3, true, "x", [1, 2]); a bare word stays a string."""
+    import tomllib
+
+    try:
+        return tomllib.loads(f"value = {text}")["value"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
 def console() -> Console:
     """A rich console on the current stdout (so test runners can capture it).
 

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from workbench.cli.app import app, console
+from workbench.cli.app import app, console, option_value
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
 from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
@@ -73,9 +73,14 @@ def list_command(
 @app.command()
 def describe(
     name: Annotated[str, typer.Argument(help="A problem, formalism or integrator name.")],
+    option: Annotated[
+        list[str] | None,
+        typer.Option("-o", "--option", help="A problem's option NAME=VALUE (e.g. -o n=40)."),
+    ] = None,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
     kind, plugin = registry.any_plugin(name)
+    options = _problem_options(name, kind, option or [])
     out = console()
     out.print(f"{name} ({kind}, {plugin.__module__})", style="bold")
     summary = getattr(plugin, "summary", "")
@@ -86,8 +91,24 @@ def describe(
     out.print(f"capabilities: {capabilities_text(plugin)}")
     out.print(_options_table(plugin))
     if kind == "problem":
-        out.print(_problem_table(plugin))
-        out.print(_parameters_table(plugin))
+        problem = plugin(options)
+        out.print(_problem_table(problem))
+        out.print(_parameters_table(problem))
+
+
+def _problem_options(name: str, kind: str, assignments: list[str]) -> dict[str, Any]:
+    """``-o NAME=VALUE`` of ``describe``: options of the problem described."""
+    from workbench.errors import ConfigError
+
+    if assignments and kind != "problem":
+        raise ConfigError(f"describe {name}: -o sets a problem's options; {name} is a {kind}")
+    options = {}
+    for assignment in assignments:
+        option, equals, value = assignment.partition("=")
+        if not equals or not option.strip():
+            raise ConfigError(f"-o {assignment!r}: expected NAME=VALUE (e.g. -o n=40)")
+        options[option.strip().removeprefix("problem.")] = option_value(value.strip())
+    return options
 
 
 def _options_table(plugin: type) -> Table | str:
@@ -104,9 +125,8 @@ def _options_table(plugin: type) -> Table | str:
     return table
 
 
-def _problem_table(problem_class: type) -> Table:
-    """The problem's model, built with default options, and its topology."""
-    problem = problem_class()
+def _problem_table(problem: Any) -> Table:
+    """The problem's model, built with the options given, and its topology."""
     model = problem.model()
     table = Table(title="model", title_justify="left", show_header=False)
     table.add_column("property", no_wrap=True)
@@ -128,11 +148,10 @@ def _problem_table(problem_class: type) -> Table:
     return table
 
 
-def _parameters_table(problem_class: type) -> Table:
+def _parameters_table(problem: Any) -> Table:
     """The model's physical parameters (SI units) and the problem's initial condition."""
     from workbench.model.parameters import model_parameters
 
-    problem = problem_class()
     table = Table(title="parameters (SI units)", title_justify="left")
     for column in ("element", "quantity", "value"):
         table.add_column(column)
@@ -158,8 +177,9 @@ def _values(value: Any) -> str:
 def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
     """DOF, loops and constraint counts from workbench.mechanics.topology; a note if it is missing.
 
-    The rank is taken at the problem's initial configuration: the neutral one of a closed
-    loop can be folded (a four-link loop with all angles zero), where W loses rank."""
+    The rank is taken at the problem's initial configuration (the model carries it), where
+    every formalism takes it: the neutral one of a closed loop can be folded (a four-link
+    loop with all angles zero), where W loses rank."""
     try:
         from workbench.mechanics.topology import analyze
     except ImportError:
@@ -168,12 +188,7 @@ def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
             ("nonholonomic constraints", str(len(model.nonholonomic))),
             ("DOF", "unknown (workbench.mechanics.topology not available)"),
         ]
-    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
-
-    q0 = initial_joint_values(
-        model, TreeKinematics(model), problem.initial_joint_coordinates(), velocities=False
-    )
-    topology = analyze(model, q=q0)
+    topology = analyze(model)  # at model.initial_configuration, the problem's
     dof = topology.dof
     if dof is None:
         dof_text = f"{topology.dof_gruebler} (Gruebler count; rank not computed)"

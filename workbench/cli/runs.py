@@ -8,19 +8,9 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from workbench.cli.app import app, console
+from workbench.cli.app import app, console, option_value
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields
-
-
-def _option_value(text: str) -> Any:
-    """A ``-o`` value as TOML (1, 1e-3, true, "x", [1, 2]); a bare word stays a string."""
-    import tomllib
-
-    try:
-        return tomllib.loads(f"value = {text}")["value"]
-    except tomllib.TOMLDecodeError:
-        return text
 
 
 def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
@@ -41,7 +31,7 @@ def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
             raise ConfigError(
                 f"-o {assignment!r}: the prefix must be problem., formalism. or integrator."
             )
-        parsed[kind][option] = _option_value(value.strip())
+        parsed[kind][option] = option_value(value.strip())
     return parsed
 
 

@@ -138,6 +138,10 @@ class Equations:
     notes: list[str] = field(default_factory=list)
     stiffness_hint: str = ""
     compile_warnings: list[str] = field(default_factory=list)  # see workbench.equations.compiled
+    # (t, q) -> (W_d, W): a formalism that solves a fixed block W_d (m, m) of its velocity
+    # constraints W (m, nv) for dependent velocities (a velocity partition) offers it, so
+    # the run's audit reports where sigma_min(W_d) / sigma_max(W) falls (digits are lost)
+    partition_matrices: Any = None
 
     @property
     def nq(self) -> int:

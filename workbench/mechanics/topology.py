@@ -8,7 +8,9 @@ freedom, and the true count from the rank of the velocity constraint matrix W(t,
 reported as redundant (an overconstrained mechanism, such as a spatial four-link loop with
 parallel axes, has Gruebler count -2 but one degree of freedom), by
 :func:`workbench.numerics.linalg.independent_rows`, the test every formalism uses, so
-``describe`` and a formalism name the same rows.
+``describe`` and a formalism name the same rows, at the configurations every formalism
+uses (:func:`rank_configurations`: the model's initial configuration, assembled, then a
+few random assembled ones; the highest rank wins).
 
 Counting (planar models: 3 instead of 6):
 
@@ -24,6 +26,7 @@ Counting (planar models: 3 instead of 6):
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -112,10 +115,13 @@ def analyze(
     """Validate ``model`` and return its :class:`Topology`.
 
     q: free tree-joint coordinates (``TreeKinematics(model).q_names`` order, nq) at which
-    the constraint Jacobian is evaluated; default: the neutral coordinates. Either is
-    first moved onto the closure constraints g(t, q) = 0 by Gauss-Newton steps when that
-    converges, so the rank is that of the assembled mechanism. t: time (s) for driven
-    joints. rank=False skips the symbolic kinematics (dof stays None).
+    the constraint Jacobian is evaluated; default: the model's ``initial_configuration``
+    (the problem's initial joint coordinates; neutral where not given). Either is first
+    moved onto the closure constraints g(t, q) = 0 by Gauss-Newton steps when that
+    converges, so the rank is that of the assembled mechanism, and confirmed at a few
+    random assembled configurations (:func:`rank_configurations`, the configurations
+    every formalism uses). t: time (s) for driven joints. rank=False skips the symbolic
+    kinematics (dof stays None).
     """
     validate_model(model)
     tree = tree_order(model)
@@ -190,45 +196,114 @@ def _element_of(row_name: str) -> str:
     return re.sub(r"(\[\d+\]|\.height)$", "", row_name)
 
 
-def _rank(
-    model: Model, topology: Topology, q: np.ndarray | None, t: float, tolerance: float
-) -> None:
-    kinematics = TreeKinematics(model)
+RANK_SAMPLES = 3
+"""Random assembled configurations that confirm the rank found at the initial one."""
+
+RANK_PERTURBATION = 0.1
+"""Standard deviation of the random steps (rad or m) from the initial configuration to
+those confirming configurations, before they are assembled."""
+
+
+@dataclass
+class RankConfiguration:
+    """A tree configuration q (nq) where a rank is evaluated, ``assembled`` whether the
+    closure constraints hold there (to 1e-9)."""
+
+    q: np.ndarray
+    assembled: bool
+
+
+def reference_configuration(model: Model, kinematics: TreeKinematics) -> np.ndarray:
+    """The model's ``initial_configuration`` as tree coordinates (nq), neutral where a
+    joint is not given, unit quaternions."""
+    q = initial_joint_values(model, kinematics, model.initial_configuration, velocities=False)
+    normalize_quaternions(kinematics, q)
+    return q
+
+
+def rank_configurations(
+    model: Model,
+    kinematics: TreeKinematics | None = None,
+    q: np.ndarray | None = None,
+    t: float = 0.0,
+    samples: int = RANK_SAMPLES,
+) -> list[RankConfiguration]:
+    """Where the rank of a constraint Jacobian is decided, first the one that decides.
+
+    First q (tree coordinates, nq), by default the model's initial configuration
+    (:func:`reference_configuration`), assembled onto the closure constraints when that
+    converges (else as it is); then up to ``samples`` random admissible configurations:
+    seeded random steps from it, assembled (those that do not assemble are left out).
+    The rank can only drop at a singular configuration, so the highest rank among them
+    is the mechanism's (:func:`independent_rows_at`): an initial configuration that
+    happens to be singular is outvoted, a regular one decides.
+    """
+    kinematics = kinematics or TreeKinematics(model)
     if q is None:
-        q0 = initial_joint_values(model, kinematics, {}, velocities=False)
+        q0 = reference_configuration(model, kinematics)
     else:
         q0 = np.asarray(q, dtype=float).reshape(-1)
         if q0.shape != (kinematics.nq,):
             raise ModelError(
-                f"model {model.name!r}: analyze() got {q0.size} coordinates, the tree has "
+                f"model {model.name!r}: got {q0.size} coordinates, the tree has "
                 f"{kinematics.nq} ({', '.join(kinematics.q_names)})"
             )
-    w_function = kinematics.function("W", [kinematics.velocity_constraint_matrix], with_v=False)
+    assembly = assemble(kinematics, q0, t)
+    first = assembly.x if assembly.converged else q0
+    configurations = [RankConfiguration(first, assembly.converged)]
     rng = np.random.default_rng(0)
-    for _ in range(8):
-        assembly = assemble(kinematics, q0, t)
-        q_at = assembly.x if assembly.converged else q0
-        W_at = np.asarray(w_function(t, q_at), dtype=float).reshape(-1, kinematics.nv)
-        if np.all(np.isfinite(W_at)):
-            break
-        # W undefined here (a rolling disk lying flat has no contact point): move a little
-        q0 = q0 + rng.uniform(-0.1, 0.1, q0.size)
-        normalize_quaternions(kinematics, q0)
-    else:
+    for _ in range(samples):
+        trial = first + RANK_PERTURBATION * rng.standard_normal(first.size)
+        assembly = assemble(kinematics, trial, t)
+        if assembly.converged:
+            configurations.append(RankConfiguration(assembly.x, True))
+    return configurations
+
+
+def independent_rows_at(
+    matrix_at: Callable[[np.ndarray], np.ndarray],
+    configurations: list[RankConfiguration],
+    tolerance: float = RANK_TOLERANCE,
+) -> tuple[list[int], RankConfiguration | None]:
+    """Independent rows (:func:`independent_rows`) of ``matrix_at(q)``, a constraint
+    Jacobian at tree configuration q, at the first of ``configurations`` where it has its
+    highest rank, and that configuration; ([], None) when it is nowhere finite."""
+    best: tuple[list[int], RankConfiguration] | None = None
+    for configuration in configurations:
+        matrix = np.asarray(matrix_at(configuration.q), dtype=float)
+        if not np.all(np.isfinite(matrix)):
+            continue  # a rolling disk lying flat has no contact point
+        rows = independent_rows(matrix, tolerance)
+        if best is None or len(rows) > len(best[0]):
+            best = (rows, configuration)
+    return best if best is not None else ([], None)
+
+
+def _rank(
+    model: Model, topology: Topology, q: np.ndarray | None, t: float, tolerance: float
+) -> None:
+    kinematics = TreeKinematics(model)
+    w_function = kinematics.function("W", [kinematics.velocity_constraint_matrix], with_v=False)
+
+    def w_at(q_at: np.ndarray) -> np.ndarray:
+        return np.asarray(w_function(t, q_at), dtype=float).reshape(-1, kinematics.nv)
+
+    configurations = rank_configurations(model, kinematics, q, t)
+    independent, decided = independent_rows_at(w_at, configurations, tolerance)
+    if decided is None:
         raise ModelError(
             f"model {model.name!r}: the constraint Jacobian is not finite near the given "
             "configuration; pass a configuration where every contact is defined"
         )
     names = list(kinematics.velocity_constraint_names)
-    independent = independent_rows(W_at, tolerance)
     redundant = [names[i] for i in range(len(names)) if i not in independent]
     topology.rank = len(independent)
     topology.dof = kinematics.nv - topology.rank
     topology.constraint_names = names
     topology.redundant_constraints = redundant
     topology.redundant_elements = list(dict.fromkeys(_element_of(n) for n in redundant))
-    topology.configuration = q_at
-    topology.assembled = assembly.converged
+    topology.configuration = decided.q
+    topology.assembled = decided.assembled
 
 
 def assemble(kinematics: TreeKinematics, q0: np.ndarray, t: float = 0.0) -> GaussNewtonResult:

@@ -15,6 +15,15 @@ the parent's body frame; the ground's frame is the inertial frame) and a frame C
 the child (``child_frame``, in the child's body frame). The joint's coordinates q give the
 pose of C relative to P; at the neutral q, C coincides with P. See
 :mod:`workbench.mechanics.joints` for each type's coordinates and velocities.
+
+``initial_configuration`` {tree joint: coordinates} is where the model is analysed: the
+rank of the constraint Jacobian, hence the degrees of freedom and which constraint rows
+are redundant, are decided there (assembled, and confirmed at a few random assembled
+configurations near it; :func:`workbench.mechanics.topology.rank_configurations`), by
+``workbench describe`` and every formalism alike. Joints left out take their neutral
+coordinates. A neutral configuration can be singular (a four-link loop with every angle zero
+has all bars along one line), so a problem's model carries the problem's initial joint
+coordinates here (:class:`workbench.plugin.problem.Problem` fills it in).
 """
 
 from __future__ import annotations
@@ -40,7 +49,9 @@ from workbench.model.validation import validate_model
 
 @dataclass
 class Model:
-    """A mechanism: ``kind`` is "planar" or "spatial"; ``gravity`` in m/s^2 (inertial)."""
+    """A mechanism: ``kind`` is "planar" or "spatial"; ``gravity`` in m/s^2 (inertial);
+    ``initial_configuration`` {tree joint: coordinates} where its rank is decided (see the
+    module docstring)."""
 
     name: str
     kind: Literal["planar", "spatial"] = "spatial"
@@ -49,6 +60,7 @@ class Model:
     joints: dict[str, Joint] = field(default_factory=dict)
     forces: list[ForceElement] = field(default_factory=list)
     nonholonomic: list[NonholonomicConstraint] = field(default_factory=list)
+    initial_configuration: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.gravity is None:

@@ -10,7 +10,16 @@ A formalism plugin subclasses :class:`Formalism`, registers with
    options (the runner pairs it only with integrators accepting one of them);
 4. implements :meth:`Formalism.build` (model, options) -> :class:`~workbench.equations.Equations`,
    usually by describing a :class:`~workbench.equations.MechanicalSystem` and calling
-   :func:`~workbench.equations.build_equations`.
+   :func:`~workbench.equations.build_equations`;
+5. if it decides anything from the rank of the constraints (rows to drop as redundant, a
+   velocity partition), decides it where ``workbench describe`` does: at
+   :func:`workbench.mechanics.topology.rank_configurations` (model) — the model's
+   ``initial_configuration``, which a problem's model carries (the problem's initial joint
+   coordinates), assembled, confirmed at random assembled ones — with
+   :func:`~workbench.mechanics.topology.independent_rows_at`; names the rows it removes in
+   ``Equations.notes`` ("removed redundant constraint rows: ..."); and, if it keeps a
+   fixed velocity partition, offers ``Equations.partition_matrices`` so runs report where
+   it turns singular. The conformance kit's ``dof`` check holds it to describe's count.
 
 A feature the formalism cannot handle raises :class:`PluginError` from :meth:`check`,
 naming the formalisms that do handle it. A limit that is not one of :data:`FEATURES`

@@ -5,7 +5,11 @@ A problem plugin subclasses :class:`Problem` and registers with
 
 1. set ``name``, ``summary`` (one line) and ``source`` (the book section it follows);
 2. implement :meth:`Problem.model` returning a :class:`~workbench.model.Model`
-   (parameters in SI units, documented in the module docstring);
+   (parameters in SI units, documented in the module docstring); the base class sets the
+   returned model's ``initial_configuration`` to :meth:`initial_joint_coordinates` (unless
+   ``model()`` set one), so the rank of the constraints, the degrees of freedom and any
+   redundant rows are decided at the problem's initial configuration, not at the neutral
+   one (which can be singular) — by ``workbench describe`` and every formalism alike;
 3. set ``t_end`` (and ``t_start`` if not 0) and ``n_samples`` (output times);
 4. implement :meth:`initial_joint_coordinates` / :meth:`initial_joint_velocities`:
    values for the spanning-tree joints that are not driven (joints left out start at
@@ -21,6 +25,7 @@ A problem plugin subclasses :class:`Problem` and registers with
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -102,6 +107,11 @@ class Problem:
     def __init__(self, options: Any = None) -> None:
         self.options = parse_options(self.Options, options, f"problem {self.name!r}")
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "model" in cls.__dict__:
+            cls.model = _with_initial_configuration(cls.__dict__["model"])
+
     def model(self) -> Model:
         raise NotImplementedError(f"problem {self.name!r} must implement model()")
 
@@ -123,3 +133,17 @@ class Problem:
 
     def sample_times(self) -> np.ndarray:
         return np.linspace(self.t_start, self.t_end, self.n_samples)
+
+
+def _with_initial_configuration(build: Callable[[Problem], Model]) -> Callable[[Problem], Model]:
+    """Wrap a problem's ``model()`` so the model carries the problem's initial joint
+    coordinates as its ``initial_configuration`` (contract item 2)."""
+
+    @functools.wraps(build)
+    def model(self: Problem) -> Model:
+        built = build(self)
+        if isinstance(built, Model) and not built.initial_configuration:
+            built.initial_configuration = dict(self.initial_joint_coordinates())
+        return built
+
+    return model

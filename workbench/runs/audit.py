@@ -13,7 +13,10 @@ Columns (:data:`AUDIT_COLUMNS`):
   constraint Jacobian W(t, q) (rows of the mechanical form), over the output times and,
   around each sampled local minimum, over a cubic Hermite interpolant of q between output
   times (a singular configuration is crossed between samples); ``jacobian_sv_ratio_at``
-  its time. NaN without constraints.
+  its time. For a formalism whose equations keep no constraint rows but solve a fixed
+  block W_d of W for dependent velocities (``Equations.partition_matrices``, a note
+  beginning with PARTITION_NOTE): sigma_min(W_d) / sigma_max(W) instead, found the same
+  way. NaN without constraints.
 - ``dof_start``, ``dof_max``: nv - rank W at the start and the most along the output
   times (rank by :func:`workbench.numerics.linalg.independent_rows`, the algorithm every
   formalism and ``describe`` use).
@@ -24,7 +27,8 @@ Columns (:data:`AUDIT_COLUMNS`):
 - ``reference_accuracy``: the relative accuracy the reference states for itself.
 
 Warnings (column ``warnings``, "; "-separated, one line): a singular passage (ratio below
-SINGULAR_RATIO), a change of DOF along the run, a rotation defect beyond ROTATION_FACTOR
+SINGULAR_RATIO; for a fixed velocity partition, a singular partition), a change of DOF
+along the run, a rotation defect beyond ROTATION_FACTOR
 times rtol, constraint rows removed by the formalism (a note that begins "removed"), an
 energy error beyond ENERGY_FACTOR times rtol for a conservative problem, and an end error
 below the reference's accuracy (the scd is then capped at what the reference supports).
@@ -41,6 +45,7 @@ from scipy.optimize import minimize_scalar
 from workbench.numerics.linalg import independent_rows
 
 SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
+PARTITION_NOTE = "fixed velocity partition"  # how a formalism's notes declare one
 ROTATION_FACTOR = 100.0  # rotation defect beyond this times rtol: a warning
 ENERGY_FACTOR = 1e3  # relative energy error beyond this times rtol: a warning
 REFINE_EVALUATIONS = 40  # Hermite-interpolated evaluations of W around each sampled minimum
@@ -99,6 +104,8 @@ def health_audit(
         width, jacobian = nq, _residual_jacobian(equations)
     else:
         row["dof_start"] = row["dof_max"] = nv
+        if getattr(equations, "partition_matrices", None) is not None:
+            row.update(_partition_audit(equations.partition_matrices, mechanical, times, q, v))
         return row
 
     matrices = np.stack([jacobian(t, q_k) for t, q_k in zip(times, q, strict=True)])
@@ -113,7 +120,10 @@ def health_audit(
     best, best_at = float(np.min(ratios)), float(times[int(np.argmin(ratios))])
     deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
     for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
-        ratio, at = _refine(mechanical, jacobian, times, q, v, k, rank)
+        ratio, at = _refine(
+            mechanical, lambda t, q_t: _singular_value_ratio(jacobian(t, q_t), rank),
+            times, q, v, k,
+        )  # fmt: skip
         if ratio < best:
             best, best_at = ratio, at
     # the rank can only have dropped where W came close to singular
@@ -135,7 +145,14 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     """The warnings of a row from its audit columns and metrics (see the module)."""
     found = []
     ratio, at = audit.get("jacobian_sv_ratio_min", math.nan), audit.get("jacobian_sv_ratio_at")
-    if ratio < SINGULAR_RATIO:
+    partition = PARTITION_NOTE in audit.get("formalism_notes", "")
+    if ratio < SINGULAR_RATIO and partition:
+        found.append(
+            f"singular velocity partition: the block W_d of the constraints solved for the "
+            f"dependent velocities lost rank near t = {at:.4g} s (sigma_min(W_d)/sigma_max(W) "
+            f"{ratio:.1e}); the formalism keeps one partition for the run, digits are lost there"
+        )
+    elif ratio < SINGULAR_RATIO:
         found.append(
             f"singular passage: the constraint Jacobian lost rank near t = {at:.4g} s "
             f"(sigma_min/sigma_max {ratio:.1e}), the run may have changed assembly branch"
@@ -182,10 +199,31 @@ def _local_minima(values: np.ndarray) -> list[int]:
     return [int(i) for i in k[(values[k] <= values[k - 1]) & (values[k] <= values[k + 1])]]
 
 
-def _refine(mechanical: Any, jacobian: Any, times: np.ndarray, q: np.ndarray,
-            v: np.ndarray, k: int, rank: int) -> tuple[float, float]:  # fmt: skip
-    """The smallest singular-value ratio of W around sample k, on the cubic Hermite
-    interpolant of q (through q and q' = H v + f at the neighbouring samples)."""
+def _partition_audit(partition: Any, mechanical: Any, times: np.ndarray, q: np.ndarray,
+                     v: np.ndarray) -> dict[str, Any]:  # fmt: skip
+    """For a formalism with a fixed velocity partition (no constraint rows left in its
+    equations): the least sigma_min(W_d) / sigma_max(W) along the run and its time, in
+    the columns of W's own ratio (``jacobian_sv_ratio_min``, ``..._at``)."""
+
+    def ratio(t: float, q_t: np.ndarray) -> float:
+        w_d, w = (np.atleast_2d(np.asarray(x, dtype=float)) for x in partition(t, q_t))
+        scale = np.linalg.norm(w, 2)
+        return float(np.linalg.svd(w_d, compute_uv=False)[-1] / scale) if scale > 0 else 0.0
+
+    ratios = np.array([ratio(t, q_k) for t, q_k in zip(times, q, strict=True)])
+    best, best_at = float(np.min(ratios)), float(times[int(np.argmin(ratios))])
+    deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
+    for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
+        value, at = _refine(mechanical, ratio, times, q, v, k)
+        if value < best:
+            best, best_at = value, at
+    return {"jacobian_sv_ratio_min": best, "jacobian_sv_ratio_at": best_at}
+
+
+def _refine(mechanical: Any, ratio: Any, times: np.ndarray, q: np.ndarray,
+            v: np.ndarray, k: int) -> tuple[float, float]:  # fmt: skip
+    """The smallest ``ratio(t, q)`` around sample k (a singular-value ratio), on the cubic
+    Hermite interpolant of q (through q and q' = H v + f at the neighbouring samples)."""
     rates = [np.ravel(mechanical.qdot(times[j], q[j], v[j])[0]).copy() for j in (k - 1, k, k + 1)]
 
     def q_at(t: float) -> np.ndarray:
@@ -199,7 +237,7 @@ def _refine(mechanical: Any, jacobian: Any, times: np.ndarray, q: np.ndarray,
         )  # fmt: skip
 
     result = minimize_scalar(
-        lambda t: _singular_value_ratio(jacobian(t, q_at(t)), rank),
+        lambda t: ratio(t, q_at(t)),
         bounds=(times[k - 1], times[k + 1]),
         method="bounded",
         options={"maxiter": REFINE_EVALUATIONS, "xatol": 1e-9 * max(1.0, abs(times[k]))},

@@ -114,7 +114,8 @@ def _canonical(value: Any) -> Any:
         return {
             f.name: _canonical(getattr(value, f.name))
             for f in dataclasses.fields(value)
-            if f.name not in ("shapes", "color")  # visual only
+            # visual only; the model's initial configuration is the fingerprint's "q0"
+            if f.name not in ("shapes", "color", "initial_configuration")
         }
     if isinstance(value, dict):
         return {str(k): _canonical(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}

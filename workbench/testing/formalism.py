@@ -5,6 +5,9 @@ Per catalog problem whose features the formalism supports (physics is the oracle
 
 * ``build`` — builds, and the :class:`~workbench.equations.Equations` have consistent
   sizes and the declared forms (``equations``);
+* ``dof`` — the equations keep the degrees of freedom ``workbench describe`` finds (nv
+  minus the rank of their constraint rows at the consistent initial state): no row that
+  is independent at the problem's initial configuration was removed;
 * ``observables`` — at random consistent states, body poses, twists and energies equal
   those of a reference formalism at the same physical state (same quantities, same units);
 * ``accelerations`` — the time derivatives of the body twists agree with the reference;
@@ -29,6 +32,7 @@ from workbench.errors import one_line
 from workbench.mechanics.forces import is_conservative_model
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.numerics.geometry import length_scale, pose_error
+from workbench.numerics.linalg import independent_rows
 from workbench.plugin.formalism import FEATURES, Formalism
 from workbench.plugin.registry import get_formalism
 from workbench.testing.common import check_structure, problem_instances, resolve_plugin
@@ -191,6 +195,7 @@ def _check_problem(
     report.passed("build", name, f"{time.perf_counter() - started:.2f} s")
     if not _check_equations(report, plugin, options, equations, name):
         return
+    _check_dof(report, problem, model, equations, name)
     reference_name, reference = reference_equations(problem, model, plugin.name)
     states = list(random_joint_states(problem, n_states, seed))
     if "agreement" in groups:
@@ -200,6 +205,40 @@ def _check_problem(
         _check_jacobians(report, equations, state, name)
     if "motion" in groups:
         _check_motion(report, problem, model, equations, reference, reference_name, state, horizon)
+
+
+def _check_dof(
+    report: ConformanceReport, problem: Any, model: Any, equations: Equations, name: str
+) -> None:
+    """The equations keep the DOF ``workbench describe`` finds: nv - rank of the
+    constraint rows they keep, at the consistent initial state (both decided at the
+    problem's initial configuration, which the model carries)."""
+    from workbench.equations.initial import consistent_initial_state
+    from workbench.mechanics.topology import analyze
+
+    try:
+        expected = analyze(model).dof
+        state = consistent_initial_state(equations, problem)
+    except Exception as error:  # noqa: BLE001
+        report.failed("dof", name, f"at the initial state: {one_line(error)}")
+        return
+    nv, mechanical = equations.nv, equations.forms.get("mechanical")
+    nc = int(mechanical.n_constraints) if mechanical is not None else 0
+    rank = 0
+    if nc:
+        (w_matrix,) = mechanical.velocity_matrix(problem.t_start, state.q)
+        rank = len(independent_rows(np.reshape(np.asarray(w_matrix, dtype=float), (nc, nv))))
+    dof = nv - rank
+    if dof == expected:
+        report.passed("dof", name, f"{dof} (as workbench describe)")
+    else:
+        report.failed(
+            "dof",
+            name,
+            f"the equations keep {dof} degrees of freedom at the initial state ({nv} "
+            f"velocities, rank {rank} of {nc} constraint rows); workbench describe finds "
+            f"{expected}: decide the rank at workbench.mechanics.topology.rank_configurations",
+        )
 
 
 def _check_agreement(
