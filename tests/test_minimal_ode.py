@@ -2,6 +2,7 @@
 loop describe the same motion, and the state-space form stays on the constraint manifold."""
 
 import numpy as np
+import pytest
 from scipy.integrate import solve_ivp
 
 from workbench.equations.initial import consistent_initial_state
@@ -48,3 +49,68 @@ def test_forms_follow_the_options():
     assert minimal.forms({"loops": "state-space"}) == {"ode": 0, "dae": 0, "mechanical": 0}
     assert "ode" not in minimal.forms({"index": 3})
     assert minimal.forms({"index": 1})["ode"] == 0
+
+
+# ---- a constraint row that vanishes identically -------------------------------------------
+
+RAIL_RADIUS, RAIL_CARRIAGE, RAIL_BALL, RAIL_STIFFNESS = 0.1, 0.5, 1.0, 20.0
+RAIL_BALL_INERTIA = 0.4 * RAIL_BALL * RAIL_RADIUS**2
+
+
+def ball_on_a_rail():
+    """A ball (1 kg, r = 0.1 m) on an axle along y, carried along x at height r by a
+    carriage (0.5 kg) on a spring (20 N/m) to the origin; it rolls on z = 0. In joint
+    coordinates the sphere's contact height and its sideways rolling row vanish
+    identically: only x' = r theta' constrains the motion (1 DOF)."""
+    from workbench.model import Frame, JointSpringDamper, Model, RollingSphere
+
+    model = Model("ball-on-a-rail", kind="spatial", gravity=(0.0, 0.0, -9.81))
+    model.add_body("carriage", RAIL_CARRIAGE, inertia=(0.01, 0.01, 0.01))
+    model.add_body("ball", RAIL_BALL, inertia=(RAIL_BALL_INERTIA,) * 3)
+    model.add_joint(
+        "rail", "prismatic", "ground", "carriage",
+        axis=(1.0, 0.0, 0.0), parent_frame=Frame.at(0.0, 0.0, RAIL_RADIUS),
+    )  # fmt: skip
+    model.add_joint("axle", "revolute", "carriage", "ball", axis=(0.0, 1.0, 0.0))
+    model.add_force(JointSpringDamper("spring", "rail", RAIL_STIFFNESS, 0.0))
+    model.add_nonholonomic(RollingSphere("contact", "ball", radius=RAIL_RADIUS))
+    return model
+
+
+def test_identically_vanishing_contact_rows_are_removed_and_the_motion_kept():
+    """Joint-space pipelines remove the dependent rows (named in the notes) instead of
+    building a singular [M W^T; W 0] (the ode form returned inf, IDA could not start);
+    the carriage then oscillates at omega^2 = k / (m_c + m_b + I / r^2)."""
+    from workbench.plugin.registry import get_integrator
+    from workbench.testing.states import formalism_state
+
+    model = ball_on_a_rail()
+    omega = np.sqrt(RAIL_STIFFNESS / (RAIL_CARRIAGE + RAIL_BALL + RAIL_BALL_INERTIA / 0.01))
+    x0, u0 = 0.05, 0.2  # m, m/s; the ball turns at u0 / r (rolling)
+    q0, v0 = np.array([x0, 0.3]), np.array([u0, u0 / RAIL_RADIUS])
+    times = np.linspace(0.0, 1.0, 11)
+    exact = x0 * np.cos(omega * times) + u0 / omega * np.sin(omega * times)
+    for name, index in [("minimal-ode", 1), ("minimal-ode", 2), ("minimal-ode", 3),
+                        ("lagrange-ad", 1), ("lagrange-ad", 2)]:  # fmt: skip
+        equations = get_formalism(name)().build(model, {"index": index})
+        assert "removed redundant constraint rows: contact.height, contact[1]" in equations.notes
+        state = formalism_state(equations, 0.0, q0, v0)
+        if index == 1:
+            rate = np.ravel(equations.forms["ode"].rhs(0.0, state.y0(equations, "ode"))[0])
+            assert rate[2] == pytest.approx(-(omega**2) * x0, rel=1e-12)
+            assert rate[3] == pytest.approx(-(omega**2) * x0 / RAIL_RADIUS, rel=1e-12)
+            continue
+        if index == 3:
+            continue  # IDA takes index <= 2; the index-3 form is checked by its Jacobian
+        run = get_integrator("sundials-ida")().solve(
+            equations, state.y0(equations, "dae"), state.yp0(equations, "dae"), times,
+            1e-10, 1e-12,
+        )  # fmt: skip
+        assert run.success, run.message
+        assert np.max(np.abs(run.y[:, 0] - exact)) < 1e-7
+        rolling = run.y[:, 2] - RAIL_RADIUS * run.y[:, 3]  # x' - r theta'
+        assert np.max(np.abs(rolling)) < 1e-9
+    dae = get_formalism("minimal-ode")().build(model, {"index": 3}).forms["dae"]
+    y = np.r_[q0, v0, np.zeros(dae.n - 4)]
+    jacobian = np.asarray(dae.jacobian(0.0, y, np.zeros(dae.n), 100.0)[0])
+    assert np.linalg.matrix_rank(jacobian) == dae.n

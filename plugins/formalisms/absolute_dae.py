@@ -94,6 +94,7 @@ class AbsoluteCoordinates:
         self.v = ca.SX.sym("v", nv_body * len(names))
         self.slices: dict[str, tuple[slice, slice]] = {}
         self.bodies: dict[str, BodyState] = {}
+        self.quaternions: dict[str, Any] = {}  # spatial: Euler parameters of each body
         self.q_names: list[str] = []
         self.v_names: list[str] = []
         rates = []
@@ -118,6 +119,7 @@ class AbsoluteCoordinates:
                 rates.append(v_b)
             else:
                 p, omega_body = q_b[3:7], v_b[3:6]
+                self.quaternions[name] = p
                 rotation = rot.quaternion_to_matrix(p)
                 position, velocity = q_b[0:3], v_b[0:3]
                 angular_velocity = ca.mtimes(rotation, omega_body)
@@ -146,7 +148,9 @@ def joint_coordinates_from_poses(
     """(q_joint, v_joint) of every joint carrying a spring or force, from the body poses.
 
     Driven joints take the drive's values (their velocities do not depend on v, so a joint
-    force on them does no virtual work, as in joint-coordinate formalisms).
+    force on them does no virtual work, as in joint-coordinate formalisms). Spherical and
+    free joints: see :func:`quaternion_joint_coordinates`; the others' v_joint is the rate
+    of q_joint.
     """
     result = {}
     for name in fm.joints_with_forces(model):
@@ -155,12 +159,54 @@ def joint_coordinates_from_poses(
             q_d, v_d, _ = jk.drive_values(joint, coords.t)
             result[name] = (q_d, v_d)
             continue
+        if joint.type in ("spherical", "free"):
+            result[name] = quaternion_joint_coordinates(joint, coords)
+            continue
         q_joint = fm.relative_joint_coordinates(model, coords.bodies, name)
         v_joint = ca.mtimes(ca.jacobian(q_joint, coords.q), coords.qdot) + ca.jacobian(
             q_joint, coords.t
         )
         result[name] = (q_joint, v_joint)
     return result
+
+
+def quaternion_joint_coordinates(joint: Joint, coords: AbsoluteCoordinates) -> tuple[Any, Any]:
+    """(q_joint, v_joint) of a spherical or free joint, as the tree defines them.
+
+    q' = H(p) omega is not v for Euler parameters, so v_joint is not the rate of q_joint
+    but the joint's own velocities (:mod:`workbench.mechanics.joints`): the angular velocity
+    of C relative to P in C, preceded for a free joint by the rate of C's origin in P
+    coordinates. The Euler parameters of C in P invert :func:`joint_space_map`'s
+    composition p_child = p_parent (x) P's rotation (x) q_joint (x) C's rotation^-1
+    exactly, sign included, so a joint force sees the same q as in joint coordinates.
+    """
+
+    def body_quaternion(body: str) -> Any:
+        return ca.DM([1.0, 0.0, 0.0, 0.0]) if body == GROUND else coords.quaternions[body]
+
+    def conjugate(p: Any) -> Any:
+        return ca.vertcat(p[0], -p[1], -p[2], -p[3])
+
+    parent_side = quaternion_multiply(
+        body_quaternion(joint.parent), _constant_quaternion(joint.parent_frame.rotation)
+    )
+    # the conjugate of the very constant joint_space_map uses (SciPy may return either
+    # sign for the quaternion of a transposed matrix)
+    child_side = quaternion_multiply(
+        body_quaternion(joint.child),
+        conjugate(_constant_quaternion(joint.child_frame.rotation.T)),
+    )
+    p_joint = quaternion_multiply(conjugate(parent_side), child_side)
+    parent = fm.GROUND_STATE if joint.parent == GROUND else coords.bodies[joint.parent]
+    child = coords.bodies[joint.child]
+    r_p, rot_p = parent.frame(joint.parent_frame)
+    r_c, rot_c = child.frame(joint.child_frame)
+    omega = ca.mtimes(rot_c.T, child.angular_velocity - parent.angular_velocity)
+    if joint.type == "spherical":
+        return p_joint, omega
+    r_rel = ca.mtimes(rot_p.T, r_c - r_p)
+    r_rate = ca.mtimes(ca.jacobian(r_rel, coords.q), coords.qdot) + ca.jacobian(r_rel, coords.t)
+    return ca.vertcat(r_rel, p_joint), ca.vertcat(r_rate, omega)
 
 
 # ---- joint space -> absolute coordinates --------------------------------------------------

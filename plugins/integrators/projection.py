@@ -25,6 +25,13 @@ Projection of (q, v) at time t, in the metric ``metric`` ("mass": M(q), "identit
 * velocity (after the position step): v <- v - M^-1 W^T (W M^-1 W^T)^-1 (W v + w), the
   orthogonal projection onto W v + w = 0 in the chosen metric (one linear solve; it
   also covers nonholonomic rows).
+
+In the mass metric both corrections are solved as the augmented system
+[M B^T; B 0] [dv; mu] = [0; -r] (r = g, or W v + w with W for B), which gives the formulas
+above when M is invertible and stays nonsingular when it is not but M is positive
+definite on the null space of B: absolute coordinates give point masses zero rotational
+inertia, and the constraints fix those directions (minimal-norm least squares, so
+redundant rows do no harm either).
 """
 
 from __future__ import annotations
@@ -67,12 +74,16 @@ def project_state(
     if nc == 0:
         return y, 0
 
-    def inverse_mass(q: np.ndarray) -> Any:
+    def correction(q: np.ndarray, b: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        """dv of least dv^T M dv (mass) or |dv| (identity) with b dv = -residual."""
         if metric == "identity":
-            return lambda x: x
+            return -b.T @ np.linalg.lstsq(b @ b.T, residual, rcond=None)[0]
         (mass,) = mech.mass(t, q)
         mass = np.atleast_2d(mass)
-        return lambda x: np.linalg.solve(mass, x)
+        rows = b.shape[0]
+        augmented = np.block([[mass, b.T], [b, np.zeros((rows, rows))]])
+        rhs = np.concatenate([np.zeros(nv), -np.asarray(residual, dtype=float).ravel()])
+        return np.linalg.lstsq(augmented, rhs, rcond=None)[0][:nv]
 
     if m:
         scale = 1.0 + np.max(np.abs(q))
@@ -94,17 +105,12 @@ def project_state(
             else:
                 (h_matrix,) = mech.kinematics(t, q)
                 h_matrix = np.reshape(h_matrix, (nq, nv))
-                b = g_q @ h_matrix
-                m_inv_bt = inverse_mass(q)(b.T)
-                dv = -m_inv_bt @ np.linalg.lstsq(b @ m_inv_bt, g, rcond=None)[0]
-                q = q + h_matrix @ dv
+                q = q + h_matrix @ correction(q, g_q @ h_matrix, np.ravel(g))
         y[:nq] = q
     if mode == "position+velocity":
         (w_matrix,) = mech.velocity_matrix(t, q)
         (residual,) = mech.velocity_constraints(t, q, v)
-        w_matrix = np.reshape(w_matrix, (nc, nv))
-        m_inv_wt = inverse_mass(q)(w_matrix.T)
-        v = v - m_inv_wt @ np.linalg.lstsq(w_matrix @ m_inv_wt, residual, rcond=None)[0]
+        v = v + correction(q, np.reshape(w_matrix, (nc, nv)), np.ravel(residual))
         y[nq : nq + nv] = v
     return y, iterations
 

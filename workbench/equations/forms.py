@@ -38,8 +38,14 @@ from workbench.equations.contract import (
 )
 from workbench.equations.evaluate import FastFunction, dense_function, lazy_dense_function
 from workbench.equations.observables import build_observables
-from workbench.mechanics.kinematics import BodyState
+from workbench.mechanics.kinematics import (
+    BodyState,
+    initial_joint_values,
+    normalize_quaternions,
+)
+from workbench.mechanics.topology import assemble
 from workbench.model import Model
+from workbench.numerics.linalg import independent_rows
 
 # ---- building -------------------------------------------------------------------------
 
@@ -304,6 +310,72 @@ def joint_space_system(
     )
 
 
+def independent_joint_space_rows(model: Model, kinematics: Any) -> list[int]:
+    """Rows of the tree's velocity constraints W v + w that are independent (kept).
+
+    W is evaluated at the assembled neutral configuration and at an assembled perturbed
+    one (the rank only drops at singular configurations, so the larger wins);
+    :func:`~workbench.numerics.linalg.independent_rows` decides, the test ``workbench
+    describe`` and the absolute-coordinate formalism use. A row can be dependent for
+    good: a rolling sphere carried by a joint that keeps it at its height and lets it
+    turn about one horizontal axis only has a contact-height row and a sideways rolling
+    row that vanish identically in joint coordinates.
+    """
+    k = kinematics
+    n_rows = int(k.velocity_constraints.numel())
+    if n_rows == 0:
+        return []
+    w_function = k.function("W", [k.velocity_constraint_matrix], with_v=False)
+    neutral = initial_joint_values(model, k, {}, velocities=False)
+    perturbed = neutral + 0.1 * np.random.default_rng(0).standard_normal(neutral.size)
+    normalize_quaternions(k, perturbed)
+    best: list[int] | None = None
+    for start in (neutral, perturbed):
+        assembly = assemble(k, start)
+        q_at = assembly.x if assembly.converged else start
+        w_at = np.asarray(w_function(0.0, q_at), dtype=float).reshape(n_rows, k.nv)
+        if not np.all(np.isfinite(w_at)):
+            continue
+        rows = independent_rows(w_at)
+        if best is None or len(rows) > len(best):
+            best = rows
+    return list(range(n_rows)) if best is None else best
+
+
+def without_redundant_rows(
+    model: Model, kinematics: Any, system: MechanicalSystem
+) -> tuple[MechanicalSystem, list[str]]:
+    """``system`` without its dependent constraint rows, and the names of those removed.
+
+    A dependent row makes [M W^T; W 0] and every iteration matrix singular (the ode form
+    returns inf, an implicit integrator cannot start); removing it leaves the motion as
+    it was, since the remaining rows impose the same constraints.
+    """
+    names = list(system.constraint_names)
+    kept = independent_joint_space_rows(model, kinematics)
+    if len(kept) == system.n_constraints:
+        return system, []
+    n_h = system.n_holonomic
+    kept_h = [i for i in kept if i < n_h]
+    g, c = system.position_constraints, system.velocity_constraints
+    reduced = MechanicalSystem(
+        t=system.t,
+        q=system.q,
+        v=system.v,
+        qdot=system.qdot,
+        mass=system.mass,
+        forces=system.forces,
+        q_names=system.q_names,
+        v_names=system.v_names,
+        position_constraints=g[kept_h] if kept_h else None,
+        velocity_constraints=c[kept] if kept else None,
+        constraint_names=[names[i] for i in kept] if names else [],
+        acceleration=system.acceleration,
+    )
+    removed = [names[i] if names else f"c[{i}]" for i in range(system.n_constraints)]
+    return reduced, [removed[i] for i in range(len(removed)) if i not in kept]
+
+
 def build_joint_space_equations(
     formalism: str,
     model: Model,
@@ -315,8 +387,12 @@ def build_joint_space_equations(
 ) -> Equations:
     """:func:`build_equations` for formalisms whose coordinates are the tree's free joint
     coordinates (``kinematics`` a TreeKinematics): the joint-space map is the identity.
-    ``options`` carries ``index``, ``baumgarte_alpha`` and ``baumgarte_beta``."""
+    ``options`` carries ``index``, ``baumgarte_alpha`` and ``baumgarte_beta``. Dependent
+    constraint rows are removed (:func:`without_redundant_rows`) and named in the notes."""
     k = kinematics
+    system, removed = without_redundant_rows(model, k, system)
+    if removed:
+        notes = [*(notes or []), f"removed redundant constraint rows: {', '.join(removed)}"]
     return build_equations(
         formalism,
         model,
