@@ -40,12 +40,9 @@ from workbench.equations.evaluate import FastFunction, dense_function, lazy_dens
 from workbench.equations.observables import build_observables
 from workbench.mechanics.kinematics import (
     BodyState,
-    initial_joint_values,
-    normalize_quaternions,
 )
-from workbench.mechanics.topology import assemble
+from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import Model
-from workbench.numerics.linalg import independent_rows
 
 # ---- building -------------------------------------------------------------------------
 
@@ -313,33 +310,25 @@ def joint_space_system(
 def independent_joint_space_rows(model: Model, kinematics: Any) -> list[int]:
     """Rows of the tree's velocity constraints W v + w that are independent (kept).
 
-    W is evaluated at the assembled neutral configuration and at an assembled perturbed
-    one (the rank only drops at singular configurations, so the larger wins);
-    :func:`~workbench.numerics.linalg.independent_rows` decides, the test ``workbench
-    describe`` and the absolute-coordinate formalism use. A row can be dependent for
-    good: a rolling sphere carried by a joint that keeps it at its height and lets it
-    turn about one horizontal axis only has a contact-height row and a sideways rolling
-    row that vanish identically in joint coordinates.
+    Decided where ``workbench describe`` and every formalism decide it
+    (:func:`~workbench.mechanics.topology.rank_configurations`: the problem's initial
+    configuration, assembled, confirmed at random assembled ones) by
+    :func:`~workbench.numerics.linalg.independent_rows`. A row can be dependent for good:
+    a rolling sphere carried by a joint that keeps it at its height and lets it turn about
+    one horizontal axis only has a contact-height row and a sideways rolling row that
+    vanish identically in joint coordinates.
     """
     k = kinematics
     n_rows = int(k.velocity_constraints.numel())
     if n_rows == 0:
         return []
     w_function = k.function("W", [k.velocity_constraint_matrix], with_v=False)
-    neutral = initial_joint_values(model, k, {}, velocities=False)
-    perturbed = neutral + 0.1 * np.random.default_rng(0).standard_normal(neutral.size)
-    normalize_quaternions(k, perturbed)
-    best: list[int] | None = None
-    for start in (neutral, perturbed):
-        assembly = assemble(k, start)
-        q_at = assembly.x if assembly.converged else start
-        w_at = np.asarray(w_function(0.0, q_at), dtype=float).reshape(n_rows, k.nv)
-        if not np.all(np.isfinite(w_at)):
-            continue
-        rows = independent_rows(w_at)
-        if best is None or len(rows) > len(best):
-            best = rows
-    return list(range(n_rows)) if best is None else best
+
+    def w_at(q: np.ndarray) -> np.ndarray:
+        return np.asarray(w_function(0.0, q), dtype=float).reshape(n_rows, k.nv)
+
+    rows, where = independent_rows_at(w_at, rank_configurations(model, k))
+    return list(range(n_rows)) if where is None else rows
 
 
 def without_redundant_rows(
