@@ -256,3 +256,53 @@ def bad_value(rng: np.random.Generator, shape: tuple[int, ...] = ()) -> Any:
     if choice == 3:
         return [["x"] * 3] * 3 if len(shape) == 2 else ["x", 1, 2]
     return BAD_NUMBERS[int(rng.integers(len(BAD_NUMBERS)))]
+
+
+MODEL_SLOTS = (
+    "mass",
+    "point-mass",
+    "com",
+    "inertia",
+    "gravity",
+    "frame-position",
+    "frame-rotation",
+    "joint-frame",
+    "axis",
+    "stiffness",
+    "rest",
+    "initial-q",
+    "initial-v",
+)
+
+
+def model_case(seed: int) -> tuple[str, str, Any]:
+    """(slot, the element its ModelError must name, a bad value) of model fuzz case ``seed``."""
+    rng = np.random.default_rng([5, seed])
+    slot = MODEL_SLOTS[seed % len(MODEL_SLOTS)]
+    shape = {
+        "com": (3,),
+        "inertia": (3, 3) if rng.random() < 0.5 else (3,),
+        "gravity": (3,),
+        "frame-position": (3,),
+        "frame-rotation": (3, 3),
+        "axis": (3,),
+        "initial-q": (1,),
+        "initial-v": (1,),
+    }.get(slot, ())
+    value = bad_value(rng, shape)
+    element = {
+        "mass": "body 'link'",
+        "point-mass": "body 'bob'",
+        "com": "body 'link'",
+        "inertia": "body 'link'",
+        "gravity": "gravity",
+        "frame-position": "frame",
+        "frame-rotation": "frame",
+        "joint-frame": "joint 'hinge'",
+        "axis": "joint 'hinge'",
+        "stiffness": "force 'spring'",
+        "rest": "force 'spring'",
+        "initial-q": "joint 'hinge'",
+        "initial-v": "joint 'hinge'",
+    }[slot]
+    return slot, element, value

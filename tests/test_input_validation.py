@@ -137,3 +137,102 @@ def test_fuzzed_sweep_specs_give_one_line_or_a_sweep(monkeypatch, tmp_path) -> N
     assert time.perf_counter() - started < 600  # only a hang gets near this
     assert valid > 50 and len(kinds) == 10, (valid, kinds)
     print(f"\n1100 specs: {valid} valid, slowest validation {slowest:.2f} s, {kinds}")
+
+
+# ---- item 5: non-finite and wrong-typed models ----------------------------------------
+
+
+def build_model(slot: str, value):
+    """A planar two-body pendulum with ``value`` put in ``slot``; validated, initial state read."""
+    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+    from workbench.model import Frame, JointSpringDamper, Model
+
+    def pick(name, good):
+        return value if slot == name else good
+
+    model = Model("fuzz", "spatial", gravity=pick("gravity", (0.0, 0.0, -9.81)))
+    model.add_body(
+        "link",
+        pick("mass", 1.0),
+        com=pick("com", (0.5, 0.0, 0.0)),
+        inertia=pick("inertia", (0.01, 0.1, 0.1)),
+    )
+    model.add_point_mass("bob", pick("point-mass", 0.5))
+    if slot == "frame-position":
+        frame = Frame(position=value)
+    elif slot == "frame-rotation":
+        frame = Frame(rotation=value)
+    else:
+        frame = pick("joint-frame", Frame.at(0.0, 0.0, 0.0))
+    model.add_joint(
+        "hinge",
+        "revolute",
+        "ground",
+        "link",
+        parent_frame=frame,
+        axis=pick("axis", (0.0, 1.0, 0.0)),
+    )
+    model.add_joint(
+        "rod",
+        "prismatic",
+        "link",
+        "bob",
+        parent_frame=Frame.at(1.0, 0.0, 0.0),
+        axis=(1.0, 0.0, 0.0),
+    )
+    model.add_force(
+        JointSpringDamper("spring", "hinge", pick("stiffness", 1.0), rest=pick("rest", 0.0))
+    )
+    model.validate()
+    kinematics = TreeKinematics(model)
+    initial_joint_values(model, kinematics, {"hinge": pick("initial-q", 0.1)}, False)
+    initial_joint_values(model, kinematics, {"hinge": pick("initial-v", 0.0)}, True)
+    return model
+
+
+@pytest.mark.parametrize(
+    "slot, value, fragment",
+    [
+        ("mass", "1", "body 'link': mass must be a number (float), not str '1'"),
+        ("mass", None, "body 'link': mass must be a number"),
+        ("gravity", "down", "gravity: gravity must be numbers"),
+        ("gravity", [0.0, float("nan"), 0.0], "gravity = [0.0, nan, 0.0] contains NaN"),
+        ("inertia", "big", "body 'link': inertia must be numbers"),
+        ("initial-q", float("nan"), "joint 'hinge': initial coordinate [nan] contains NaN"),
+        ("initial-v", float("inf"), "joint 'hinge': initial velocity [inf] contains NaN or inf"),
+        ("initial-q", "0.1", "joint 'hinge': initial coordinate must be numbers"),
+        ("joint-frame", (0, 0, 0), "joint 'hinge': parent_frame must be a Frame"),
+    ],
+)
+def test_bad_model_values_are_model_errors_naming_the_element(slot, value, fragment) -> None:
+    from workbench.errors import ModelError
+
+    with pytest.raises(ModelError, match=None) as caught:
+        build_model(slot, value)
+    assert fragment in str(caught.value)
+
+
+def test_the_fuzz_model_is_sound_without_a_bad_value() -> None:
+    build_model("none", None)
+
+
+def test_fuzzed_models_give_model_errors_naming_the_element() -> None:
+    """1,300 models with NaN, inf or a wrong type in one place: a ModelError naming it."""
+    from workbench.errors import ModelError
+
+    outcomes: dict[str, int] = {}
+    for seed in range(1300):
+        slot, element, value = fuzz_inputs.model_case(seed)
+        try:
+            build_model(slot, value)
+        except ModelError as error:
+            assert element in str(error), (seed, slot, value, str(error))
+            assert "\n" not in str(error)
+            outcomes["ModelError"] = outcomes.get("ModelError", 0) + 1
+        except Exception as error:  # noqa: BLE001 - the point of the test
+            pytest.fail(f"model {seed} ({slot}={value!r}): {type(error).__name__}: {error}")
+        else:
+            # a few "bad" values are fine where they land (e.g. 9 inertia numbers)
+            outcomes[f"accepted {slot}"] = outcomes.get(f"accepted {slot}", 0) + 1
+    assert outcomes.get("ModelError", 0) >= 1000, outcomes
+    print(outcomes)
