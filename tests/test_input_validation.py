@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -236,3 +237,83 @@ def test_fuzzed_models_give_model_errors_naming_the_element() -> None:
             outcomes[f"accepted {slot}"] = outcomes.get(f"accepted {slot}", 0) + 1
     assert outcomes.get("ModelError", 0) >= 1000, outcomes
     print(outcomes)
+
+
+# ---- item 4: trajectories of the wrong shape -----------------------------------------
+
+
+def pendulum_equations():
+    from workbench.equations.initial import consistent_initial_state
+    from workbench.plugin.registry import get_formalism, get_problem
+
+    problem = get_problem("simple-pendulum")({})
+    equations = get_formalism("minimal-ode")().build(problem.model(), {})
+    return equations, consistent_initial_state(equations, problem).y0(equations, "ode")
+
+
+def shaped_integrator(times_of, y_of):
+    from workbench.plugin.integrator import Integrator
+
+    class Shaped(Integrator):
+        name = "shaped"
+        accepts = {"ode": 0}
+
+        def integrate(self, task, trajectory):
+            trajectory.times = times_of(task.times)
+            trajectory.y = y_of(task.times, task.y0)
+
+    return Shaped()
+
+
+@pytest.mark.parametrize(
+    "times_of, y_of, fragment",
+    [
+        (
+            lambda t: t,
+            lambda t, y0: np.zeros((t.size, 1)),
+            "y of shape (5, 1); expected (5,) and (5, 2)",
+        ),
+        (lambda t: t, lambda t, y0: np.zeros((t.size - 1, 2)), "y of shape (4, 2)"),
+        (lambda t: t, lambda t, y0: np.zeros(2 * t.size), "y of shape (10,)"),
+        (lambda t: t[::-1].copy(), lambda t, y0: np.zeros((t.size, 2)), "not increasing"),
+        (lambda t: t * 1.5, lambda t, y0: np.zeros((t.size, 2)), "not the requested"),
+        (
+            lambda t: np.zeros((t.size, 1)),
+            lambda t, y0: np.zeros((t.size, 2)),
+            "times of shape (5, 1)",
+        ),
+    ],
+)
+def test_a_trajectory_of_the_wrong_shape_fails_the_run(times_of, y_of, fragment) -> None:
+    equations, y0 = pendulum_equations()
+    times = np.linspace(0.0, 1.0, 5)
+    trajectory = shaped_integrator(times_of, y_of).solve(equations, y0, None, times, 1e-6, 1e-9)
+    assert not trajectory.success
+    assert trajectory.message.startswith("integrator 'shaped': ")
+    assert fragment in trajectory.message
+    assert "\n" not in trajectory.message
+    assert trajectory.y.shape == (1, 2) and trajectory.times.shape == (1,)
+
+
+def test_a_trajectory_of_the_right_shape_is_kept() -> None:
+    equations, y0 = pendulum_equations()
+    times = np.linspace(0.0, 1.0, 5)
+    integrator = shaped_integrator(lambda t: t, lambda t, y0: np.tile(y0, (t.size, 1)))
+    trajectory = integrator.solve(equations, y0, None, times, 1e-6, 1e-9)
+    assert trajectory.success and trajectory.y.shape == (5, 2)
+
+
+def test_a_multi_line_message_becomes_one_line() -> None:
+    from workbench.plugin.integrator import Integrator
+
+    class Chatty(Integrator):
+        name = "chatty"
+        accepts = {"ode": 0}
+
+        def integrate(self, task, trajectory):
+            trajectory.success = False
+            trajectory.message = "the solver said:\n  step size too small\n\n  at t = 0.1"
+
+    equations, y0 = pendulum_equations()
+    trajectory = Chatty().solve(equations, y0, None, np.linspace(0, 1, 3), 1e-6, 1e-9)
+    assert trajectory.message == "the solver said: | step size too small | at t = 0.1"

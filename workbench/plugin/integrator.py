@@ -15,7 +15,10 @@ An integrator plugin subclasses :class:`Integrator`, registers with
 :meth:`Integrator.solve` wraps it: it times the stages (setup, integrate), counts every
 evaluation of the equations' right-hand sides and Jacobians (``FastFunction.n_calls``),
 turns any exception, NaN or early stop into a failed :class:`Trajectory` carrying the
-time reached and the reason, and never raises for a numerical failure.
+time reached and the reason, and never raises for a numerical failure. It also checks
+what ``integrate`` returned: ``times`` (k,) equal to the first k requested output times
+and ``y`` (k, n_states of the form); anything else fails the run with a one-line reason
+naming the plugin and the shapes. ``trajectory.message`` always ends up one line.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from workbench.equations import Equations
-from workbench.errors import ConfigError, PluginError
+from workbench.errors import ConfigError, PluginError, one_line
 from workbench.plugin.options import NoOptions, parse_options
 
 
@@ -159,7 +162,9 @@ class Integrator:
         calls = {key: f.n_calls - before[key] for key, f in counted.items()}
         trajectory.stats.n_rhs = max(trajectory.stats.n_rhs, calls["rhs"])
         trajectory.stats.n_jac = max(trajectory.stats.n_jac, calls["jac"])
+        _check_shapes(self.name, trajectory, times, y0, _state_widths(equations, form, y0))
         _check_result(trajectory, times)
+        trajectory.message = _one_line(trajectory.message)
         return trajectory
 
 
@@ -186,6 +191,72 @@ class _Sum:
     @property
     def n_calls(self) -> int:
         return sum(f.n_calls for f in self.functions)
+
+
+def _one_line(message: Any) -> str:
+    """A trajectory's message as one line (a result row's message is one line)."""
+    text = str(message)
+    return " | ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def _state_widths(equations: Equations, form: str, y0: np.ndarray) -> list[int]:
+    """The widths a state row of ``form`` may have: [q, v], then its multipliers if any."""
+    base = equations.nq + equations.nv
+    widths = {y0.size, base, base + equations.n_holonomic, base + equations.n_constraints}
+    n = getattr(equations.forms[form], "n", None)
+    if isinstance(n, int):
+        widths.add(n)
+    if form != "mechanical":  # ode and dae states are exactly the form's n (or y0's size)
+        widths = {y0.size} | ({n} if isinstance(n, int) else set())
+    return sorted(widths)
+
+
+def _check_shapes(
+    name: str, trajectory: Trajectory, times: np.ndarray, y0: np.ndarray, widths: list[int]
+) -> None:
+    """Fail a trajectory whose times and states are not (k,) and (k, n_states) at the first k
+    requested output times, keeping only the initial state (metrics need the shapes right).
+    ``widths``: the accepted n_states (the form's [q, v, (lambda), (mu)] layouts)."""
+    n_states = y0.size
+    try:
+        got_times = np.asarray(trajectory.times, dtype=float)
+        got_y = np.asarray(trajectory.y, dtype=float)
+    except (TypeError, ValueError) as error:
+        problem = f"times and y are not float arrays ({one_line(error)})"
+    else:
+        k = got_times.shape[0] if got_times.ndim == 1 else -1
+        if k == 0 and got_y.size == 0:  # nothing reached, not even the start
+            got_y = got_y.reshape(0, n_states)
+        problem = ""
+        if (
+            got_times.ndim != 1
+            or got_y.ndim != 2
+            or got_y.shape[0] != k
+            or got_y.shape[1] not in widths
+        ):
+            rows = k if k >= 0 else "n_times"
+            width = " or ".join(map(str, widths))
+            problem = (
+                f"returned times of shape {got_times.shape} and y of shape {got_y.shape}; "
+                f"expected ({rows},) and ({rows}, {width}) (n_times x the states of its form)"
+            )
+        elif k > times.size:
+            problem = f"returned {k} output times, more than the {times.size} requested"
+        elif k and not np.allclose(got_times, times[:k], rtol=1e-12, atol=0.0):
+            bad = int(np.argmax(~np.isclose(got_times, times[:k], rtol=1e-12, atol=0.0)))
+            order = "not increasing" if np.any(np.diff(got_times) <= 0) else "not the requested"
+            problem = (
+                f"returned output times {order}: times[{bad}] = {got_times[bad]:g}, "
+                f"requested {times[bad]:g}"
+            )
+        if not problem:
+            trajectory.times, trajectory.y = got_times, got_y
+            return
+    trajectory.success = False
+    trajectory.message = f"integrator {name!r}: {problem}" + (
+        f" (its own message: {trajectory.message})" if trajectory.message else ""
+    )
+    trajectory.times, trajectory.y = times[:1].copy(), y0[None, :].copy()
 
 
 def _check_result(trajectory: Trajectory, times: np.ndarray) -> None:
