@@ -317,3 +317,39 @@ def test_a_multi_line_message_becomes_one_line() -> None:
     equations, y0 = pendulum_equations()
     trajectory = Chatty().solve(equations, y0, None, np.linspace(0, 1, 3), 1e-6, 1e-9)
     assert trajectory.message == "the solver said: | step size too small | at t = 0.1"
+
+
+# ---- item 10: every message of a row is one line --------------------------------------
+
+
+@pytest.fixture
+def restore_registry():
+    from workbench.plugin.registry import REGISTRY
+
+    REGISTRY.discover()
+    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
+    yield REGISTRY
+    for kind, entries in saved.items():
+        REGISTRY.entries[kind] = entries
+
+
+def test_a_multi_line_skip_reason_is_one_line_in_the_row(restore_registry) -> None:
+    from workbench.plugin.integrator import Integrator
+    from workbench.runs.execute import RunSpec, execute_run, status_row
+
+    class Picky(Integrator):
+        name = "picky-multi-line"
+        summary = "refuses every system, in several lines"
+        accepts = {"ode": 0}
+
+        def incompatibility(self, equations, options):
+            return "I refuse:\n  reason one\n  reason two"
+
+    restore_registry.add("integrator", Picky)
+    spec = RunSpec("simple-pendulum", "minimal-ode", "picky-multi-line", 1e-6, 1e-9)
+    row = execute_run(spec).row
+    assert row["status"] == "skipped"
+    assert row["message"] == "integrator 'picky-multi-line': I refuse: | reason one | reason two"
+    assert status_row(spec, "failed", "worker died\nTraceback:\n  x")["message"] == (
+        "worker died | Traceback: | x"
+    )

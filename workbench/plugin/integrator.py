@@ -32,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from workbench.equations import Equations
-from workbench.errors import ConfigError, PluginError, one_line
+from workbench.errors import ConfigError, PluginError, one_line, one_line_text
 from workbench.plugin.options import NoOptions, parse_options
 
 
@@ -164,7 +164,7 @@ class Integrator:
         trajectory.stats.n_jac = max(trajectory.stats.n_jac, calls["jac"])
         _check_shapes(self.name, trajectory, times, y0, _state_widths(equations, form, y0))
         _check_result(trajectory, times)
-        trajectory.message = _one_line(trajectory.message)
+        trajectory.message = one_line_text(trajectory.message)
         return trajectory
 
 
@@ -191,12 +191,6 @@ class _Sum:
     @property
     def n_calls(self) -> int:
         return sum(f.n_calls for f in self.functions)
-
-
-def _one_line(message: Any) -> str:
-    """A trajectory's message as one line (a result row's message is one line)."""
-    text = str(message)
-    return " | ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
 def _state_widths(equations: Equations, form: str, y0: np.ndarray) -> list[int]:

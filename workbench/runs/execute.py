@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import compiled
-from workbench.errors import ConfigError, one_line
+from workbench.errors import ConfigError, one_line, one_line_text
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
@@ -250,7 +250,7 @@ def base_row(spec: RunSpec) -> dict[str, Any]:
 
 def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[str, Any]:
     """A row without metrics (skipped, timeout, a worker that died)."""
-    row = base_row(spec) | {"status": status, "message": message}
+    row = base_row(spec) | {"status": status, "message": one_line_text(message)}
     row.update(extra)
     row.update(environment())
     return row
@@ -360,6 +360,8 @@ def execute_run(
     row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
     row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
+    # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
+    row["message"] = one_line_text(row["message"])
     return RunResult(row, series)
 
 
