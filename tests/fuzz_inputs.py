@@ -306,3 +306,64 @@ def model_case(seed: int) -> tuple[str, str, Any]:
         "initial-v": "joint 'hinge'",
     }[slot]
     return slot, element, value
+
+
+RUN_NUMBERS = [
+    "1e-6",
+    "1e-3",
+    "0.5",
+    "inf",
+    "-inf",
+    "nan",
+    "2",
+    "1",
+    "0",
+    "-1e-6",
+    "1e400",
+    "abc",
+    "",
+    "9" * 5000,
+]
+RUN_OPTIONS = [
+    "step=1e-3",
+    "step=1e-300",
+    "step=-1",
+    "step=inf",
+    "step=nan",
+    "step=abc",
+    "step=" + "9" * 5000,
+    "step=[1, 2]",
+    "index=1",
+    "index=7",
+    "formalism.index=2",
+    "integrator.step=2e-3",
+    "problem.initial_angle=0.3",
+    "problem.initial_angle=x",
+    "nonsense=1",
+    "=",
+    "x",
+    "planet.step=1",
+    "max_step=1e-300",
+    "max_step=0.1",
+]
+RUN_PLUGINS = [
+    ("simple-pendulum", "minimal-ode", "rk4"),
+    ("simple-pendulum", "minimal-ode", "scipy-rk45"),
+    ("double-pendulum", "recursive", "rk4"),
+    ("simple-pendelum", "minimal-ode", "rk4"),
+    ("simple-pendulum", "minimal", "rk4"),
+    ("simple-pendulum", "minimal-ode", "rk5"),
+]
+
+
+def run_command(seed: int) -> list[str]:
+    """The arguments of ``workbench run`` fuzz case ``seed``."""
+    rng = np.random.default_rng([8, seed])
+    problem, formalism, integrator = RUN_PLUGINS[int(rng.integers(len(RUN_PLUGINS)))]
+    args = ["run", problem, "-f", formalism, "-i", integrator]
+    for flag in ("--rtol", "--atol", "--time-limit"):
+        if rng.random() < 0.5:
+            args += [flag, RUN_NUMBERS[int(rng.integers(len(RUN_NUMBERS)))]]
+    for _ in range(int(rng.integers(0, 3))):
+        args += ["-o", RUN_OPTIONS[int(rng.integers(len(RUN_OPTIONS)))]]
+    return args

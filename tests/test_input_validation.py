@@ -353,3 +353,78 @@ def test_a_multi_line_skip_reason_is_one_line_in_the_row(restore_registry) -> No
     assert status_row(spec, "failed", "worker died\nTraceback:\n  x")["message"] == (
         "worker died | Traceback: | x"
     )
+
+
+# ---- item 8: `workbench run` is validated like a spec and has a time limit ------------
+
+
+def invoke_run(args: list[str]):
+    return runner.invoke(app, ["run", "simple-pendulum", "-f", "minimal-ode", "-i", "rk4", *args])
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--rtol", "inf"], "rtol: must be a finite number > 0, not inf"),
+        (["--rtol", "2"], "rtol: a relative tolerance must be < 1"),
+        (["--atol", "inf"], "atol: must be a finite number > 0, not inf"),
+        (["--atol", "0"], "atol: must be a finite number > 0, not 0.0"),
+        (["-o", "step=1e-300"], "need 1e+301 steps over the problem's"),
+        (["-o", "step=-1"], "step must be a positive number"),
+        (["--time-limit", "0"], "--time-limit must be a finite number"),
+    ],
+)
+def test_run_refuses_what_a_spec_refuses(args, fragment) -> None:
+    result = invoke_run(args)
+    assert result.exit_code == 2, result.output
+    assert fragment in one_line_error(result.output)
+
+
+def test_a_spec_refuses_a_step_that_needs_too_many_steps() -> None:
+    with pytest.raises(ConfigError, match=r"integrators\[0\].options: integrator 'rk4'"):
+        parse_spec(spec('[{name = "rk4", options = {step = 1e-300}}]'))
+    with pytest.raises(ConfigError, match=r"atol_factor"):
+        parse_spec(spec() + "atol_factor = 1e-320")
+
+
+def test_run_has_the_sweeps_time_limit_and_kills_at_it() -> None:
+    import inspect
+
+    from workbench.cli.runs import run
+    from workbench.runs.sweep_spec import DEFAULT_TIME_LIMIT
+
+    default = inspect.signature(run).parameters["time_limit"].default
+    assert default == DEFAULT_TIME_LIMIT
+    started = time.perf_counter()
+    result = invoke_run(["-o", "step=1e-8", "--time-limit", "3"])
+    assert result.exit_code == 0, result.output
+    assert "timeout" in result.output
+    assert time.perf_counter() - started < 60
+
+
+@pytest.mark.slow
+def test_fuzzed_run_command_lines_give_one_line_or_a_row(monkeypatch) -> None:
+    """240 seeded `workbench run` command lines: exit 2 with one line, or a printed row."""
+    import workbench.runs.dask_pool as dask_pool
+    from workbench.runs.execute import RunSpec, status_row
+
+    def quick(spec_data, limit, plugins, reference_dir, sys_path):
+        assert 0 < limit < float("inf")
+        return status_row(RunSpec.from_dict(spec_data), "ok", "validated, not run"), None
+
+    monkeypatch.setattr(dask_pool, "run_in_subprocess", quick)
+    outcomes = {"rows": 0, "errors": 0}
+    started = time.perf_counter()
+    for seed in range(240):
+        args = fuzz_inputs.run_command(seed)
+        result = runner.invoke(app, args)
+        if result.exit_code == 0:
+            assert "validated, not run" in result.output, (seed, args)
+            outcomes["rows"] += 1
+        else:
+            assert result.exit_code == 2, (seed, args, result.output, result.exception)
+            one_line_error(result.output)
+            outcomes["errors"] += 1
+    assert time.perf_counter() - started < 300
+    assert outcomes["rows"] >= 5 and outcomes["errors"] >= 100, outcomes
+    print(outcomes)

@@ -82,6 +82,34 @@ class IntegrationTask:
     options: Any
 
 
+MAX_STEPS = 1e9
+"""The most steps a run's options may force over the problem's time span."""
+
+
+def tolerance_problem(name: str, value: Any) -> str | None:
+    """Why ``value`` is not a valid tolerance ``name`` ("rtol": 0 < rtol < 1; "atol": > 0,
+    both finite numbers), or None. The one check of ``workbench run`` and sweep specs."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return f"must be a number, not {type(value).__name__}"
+    try:
+        number = float(value)
+    except OverflowError:
+        return "must be a finite number"
+    if not math.isfinite(number) or number <= 0:
+        return f"must be a finite number > 0, not {number!r}"
+    if name == "rtol" and number >= 1:
+        return f"a relative tolerance must be < 1, not {number!r}"
+    return None
+
+
+def check_tolerances(rtol: Any, atol: Any) -> None:
+    """ConfigError naming the tolerance unless 0 < rtol < 1 and atol > 0, both finite."""
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        problem = tolerance_problem(name, value)
+        if problem:
+            raise ConfigError(f"{name}: {problem}")
+
+
 class Integrator:
     """Base class of integrator plugins (see the module docstring)."""
 
@@ -101,6 +129,30 @@ class Integrator:
             if form in forms and forms[form] <= max_index:
                 return form
         return None
+
+    @classmethod
+    def min_steps(cls, options: Any, span: float) -> float:
+        """The fewest steps ``options`` force over ``span`` seconds (0: not known).
+
+        The default reads an option ``step`` (a fixed step) or ``max_step`` (a bound on the
+        step; 0 or inf meaning none); a plugin with other step options overrides this.
+        """
+        fewest = 0.0
+        for name in ("step", "max_step"):
+            step = getattr(options, name, None)
+            if isinstance(step, int | float) and not isinstance(step, bool) and step > 0:
+                fewest = max(fewest, span / float(step))
+        return fewest
+
+    @classmethod
+    def check_step_count(cls, options: Any, span: float) -> None:
+        """ConfigError when ``options`` would need more than MAX_STEPS steps over ``span``."""
+        steps = cls.min_steps(options, span)
+        if steps > MAX_STEPS:
+            raise ConfigError(
+                f"integrator {cls.name!r}: its step options need {steps:.3g} steps over the "
+                f"problem's {span:g} s, more than {MAX_STEPS:.0e}; give a larger step"
+            )
 
     def incompatibility(self, equations: Equations, options: Any) -> str | None:
         """A reason these equations cannot be integrated by this method, or None."""

@@ -57,8 +57,9 @@ from typing import Any
 
 from workbench.errors import ConfigError, PluginError, one_line
 from workbench.plugin import registry
+from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.registry import Kind
-from workbench.runs.execute import RunSpec
+from workbench.runs.execute import RunSpec, problem_span
 
 DEFAULT_OUT = "reports/latest"
 
@@ -193,10 +194,15 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
         raise fail(
             "tolerances", f"must be a non-empty list of numbers > 0, not {_show(tolerances)}"
         )
-    rtols = [_positive(t, f"tolerances[{i}]", fail) for i, t in enumerate(tolerances)]
+    for index, rtol in enumerate(tolerances):  # the checks `workbench run` makes too
+        problem = tolerance_problem("rtol", rtol)
+        if problem:
+            raise fail(f"tolerances[{index}]", problem)
+        problem = tolerance_problem("atol", float(rtol) * atol_factor)
+        if problem:
+            raise fail("atol_factor", f"atol = {rtol!r} * atol_factor {problem}")
+    rtols = [float(t) for t in tolerances]
     for index, rtol in enumerate(rtols):
-        if rtol >= 1:
-            raise fail(f"tolerances[{index}]", f"relative tolerances must be < 1, got {rtol!r}")
         if rtol in rtols[:index]:
             raise fail(
                 f"tolerances[{index}]",
@@ -231,11 +237,17 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
     problems = _expand(plans["problems"], "problem", "problems", fail)
     formalisms = _expand(plans["formalisms"], "formalism", "formalisms", fail)
     integrators = _expand(plans["integrators"], "integrator", "integrators", fail)
+    span = max(problem_span(instance) for *_, instance in problems)
+    for name, _, item_key, parsed in integrators:
+        try:
+            registry.get_integrator(name).check_step_count(parsed, span)
+        except ConfigError as error:
+            raise fail(f"{item_key}.options", one_line(error, with_type=False)) from None
 
     # entries and tolerances are free of repeats, so every run is distinct (no ids to hash)
     runs = [
         RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
-        for (p_name, p_opts, _), (f_name, f_opts, _), (i_name, i_opts, _), rtol in (
+        for (p_name, p_opts, *_), (f_name, f_opts, *_), (i_name, i_opts, *_), rtol in (
             itertools.product(problems, formalisms, integrators, rtols)
         )
     ]
@@ -366,13 +378,15 @@ def _expand(
     kind: Kind,
     key: str,
     fail: Callable[[str, str], ConfigError],
-) -> list[tuple[str, dict[str, Any], str]]:
-    """(name, normalized options, key) of every plugin x option combination; no repeats."""
+) -> list[tuple[str, dict[str, Any], str, Any]]:
+    """(name, normalized options, key, parsed) of every plugin x option combination; no
+    repeats. ``parsed``: the problem instance, or the options instance of a formalism or
+    integrator."""
     entries = []
     seen: dict[str, str] = {}
     for name, options, item_key, _ in plan:
         for combination in _grid(options, f"{item_key}.options", fail):
-            normalized = _normalized_options(kind, name, combination, item_key, fail)
+            normalized, parsed = _normalized_options(kind, name, combination, item_key, fail)
             identity = json.dumps([name, normalized], sort_keys=True)
             if identity in seen:
                 raise fail(
@@ -381,7 +395,7 @@ def _expand(
                     f"(also {seen[identity]}); list every {kind} and option value once",
                 )
             seen[identity] = item_key
-            entries.append((name, normalized, item_key))
+            entries.append((name, normalized, item_key, parsed))
     return entries
 
 
@@ -434,20 +448,22 @@ def _normalized_options(
     options: dict[str, Any],
     key: str,
     fail: Callable[[str, str], ConfigError],
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], Any]:
     from workbench.plugin.options import options_dict
 
     plugin = registry.REGISTRY.get(kind, name)
     try:
         if kind == "problem":
-            parsed = plugin(options).options
+            instance = plugin(options)
+            parsed = instance.options
         else:
-            parsed = plugin.parse_options(options)
+            instance = parsed = plugin.parse_options(options)
     except ConfigError as error:
         raise fail(f"{key}.options", one_line(error, with_type=False)) from None
     except Exception as error:  # noqa: BLE001 - a plugin's own checks may raise anything
         raise fail(f"{key}.options", one_line(error)) from None
-    return json.loads(json.dumps(options_dict(parsed), default=_jsonable_value))
+    normalized = json.loads(json.dumps(options_dict(parsed), default=_jsonable_value))
+    return normalized, instance
 
 
 def _jsonable_value(value: Any) -> Any:
