@@ -34,7 +34,7 @@ def one_line(error: BaseException, with_type: bool = True) -> str:
         text = str(error)
     except Exception:  # noqa: BLE001 - a broken __str__ must not hide the error
         text = "<exception str() failed>"
-    message = " | ".join(line.strip() for line in text.splitlines() if line.strip())
+    message = one_line_text(text)
     if not with_type:
         return message or type(error).__name__
     kind = type(error)
@@ -42,3 +42,11 @@ def one_line(error: BaseException, with_type: bool = True) -> str:
     if kind.__module__ not in ("builtins", "__main__"):
         name = f"{kind.__module__}.{name}"
     return f"{name}: {message}" if message else name
+
+
+def one_line_text(text: object) -> str:
+    """``text`` as one line: its non-empty lines, stripped, joined with ' | '.
+
+    What every ``message`` of a result row goes through (the row schema says one line).
+    """
+    return " | ".join(line.strip() for line in str(text).splitlines() if line.strip())

@@ -17,9 +17,22 @@ import typer
 from rich.console import Console
 
 from workbench import __version__
-from workbench.errors import WorkbenchError, one_line
+from workbench.errors import WorkbenchError, one_line, one_line_text
 
 EXIT_BAD_INPUT = 2
+
+try:  # recent typer vendors click: its parser raises typer._click's exceptions
+    from typer._click import exceptions as _typer_click
+except ImportError:  # pragma: no cover - older typer uses click itself
+    _typer_click = click.exceptions
+USAGE_ERRORS = tuple({click.UsageError, _typer_click.UsageError})
+NO_ARGS_IS_HELP = tuple(
+    {
+        m.NoArgsIsHelpError
+        for m in (click.exceptions, _typer_click)
+        if hasattr(m, "NoArgsIsHelpError")
+    }
+)
 
 
 def fail(error: WorkbenchError) -> typer.Exit:
@@ -30,13 +43,23 @@ def fail(error: WorkbenchError) -> typer.Exit:
 
 
 class WorkbenchGroup(typer.core.TyperGroup):
-    """The one place where a WorkbenchError becomes a one-line message and exit code 2."""
+    """The one place where a WorkbenchError becomes a one-line message and exit code 2.
+
+    A command's bad arguments (``--rtol abc``, an unknown option) are one line too, with
+    the command's help to turn to; ``workbench COMMAND`` alone still prints its usage."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
         except WorkbenchError as error:
             raise fail(error) from None
+        except NO_ARGS_IS_HELP:
+            raise
+        except USAGE_ERRORS as error:
+            command = error.ctx.command_path if error.ctx is not None else "workbench"
+            text = one_line_text(error.format_message())
+            typer.echo(f"error: {text} (see {command} --help)", err=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
 
 
 app = typer.Typer(
@@ -89,4 +112,3 @@ def main() -> None:
         app()
     except WorkbenchError as error:  # raised outside a command (e.g. by a callback)
         sys.exit(fail(error).exit_code)
-

@@ -56,7 +56,9 @@ def run(
     problem: Annotated[str, typer.Argument(help="Problem name (`workbench list problems`).")],
     formalism: Annotated[str, typer.Option("-f", "--formalism", help="Formalism name.")],
     integrator: Annotated[str, typer.Option("-i", "--integrator", help="Integrator name.")],
-    rtol: Annotated[float, typer.Option("--rtol", help="Relative tolerance.")] = 1e-6,
+    rtol: Annotated[
+        float, typer.Option("--rtol", help="Relative tolerance (0 < rtol < 1).")
+    ] = 1e-6,
     atol: Annotated[
         float | None, typer.Option("--atol", help="Absolute tolerance (default rtol * 1e-3).")
     ] = None,
@@ -67,16 +69,26 @@ def run(
     out: Annotated[
         str | None, typer.Option("--out", help="Also store the run in this results directory.")
     ] = None,
+    time_limit: Annotated[
+        float,
+        typer.Option("--time-limit", help="Seconds before the run is killed (a timeout row)."),
+    ] = 120.0,
 ) -> None:
-    """Run one problem with one formalism and integrator and print its metrics."""
+    """Run one problem with one formalism and integrator and print its metrics.
+
+    The checks are a sweep specification's (tolerances, typed options, step counts); the
+    run executes in a child process that is killed at ``--time-limit``, as a sweep's are.
+    """
+    import os
     from pathlib import Path
 
     from workbench.errors import ConfigError
     from workbench.runs import store
-    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
+    from workbench.runs.dask_pool import run_in_subprocess
+    from workbench.runs.execute import RunSpec, normalized_spec
 
-    if not rtol > 0 or (atol is not None and not atol > 0):
-        raise ConfigError(f"tolerances must be > 0 (rtol={rtol}, atol={atol})")
+    if not (0 < time_limit < float("inf")):
+        raise ConfigError(f"--time-limit must be a finite number of seconds > 0, not {time_limit}")
     classes = {
         "problem": registry.get_problem(problem),
         "formalism": registry.get_formalism(formalism),
@@ -90,20 +102,26 @@ def run(
             formalism,
             integrator,
             rtol,
-            atol if atol else rtol * 1e-3,
+            atol if atol is not None else rtol * 1e-3,
             options["problem"],
             options["formalism"],
             options["integrator"],
         )
     )
-    reference_dir = Path(out) / "references" if out else None
-    result = execute_run(spec, reference_dir=reference_dir)
+    reference_dir = ""
     if out:
-        store.write_run(Path(out), result.row, result.series)
+        reference_dir = str((Path(out) / "references").resolve())
+        os.makedirs(reference_dir, exist_ok=True)
+    # the child imports the modules that registered these plugins (built-in or not)
+    plugins = sorted({plugin.__module__ for plugin in classes.values()})
+    paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+    row, series = run_in_subprocess(spec.to_dict(), time_limit, plugins, reference_dir, paths)
+    if out:
+        store.write_run(Path(out), row, series)
     table = Table(title=f"run {spec.run_id}", title_justify="left", show_header=False)
     table.add_column("metric", no_wrap=True)
     table.add_column("value")
-    for name, value in result.row.items():
+    for name, value in row.items():
         table.add_row(name, _cell(value))
     console().print(table)
 

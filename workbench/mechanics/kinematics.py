@@ -11,6 +11,7 @@ body coordinates, and the core uses it for consistent initial states and DOF cou
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,6 +21,7 @@ import numpy as np
 from workbench.errors import ModelError
 from workbench.mechanics import joints as jk
 from workbench.model import GROUND, Frame, Joint, KnifeEdge, Model, RollingDisk, RollingSphere
+from workbench.model.elements import real_array
 
 
 @dataclass
@@ -220,6 +222,12 @@ def initial_joint_values(model: Model, kinematics: TreeKinematics, values: dict[
     """Stack per-joint initial values into the free-joint vector (neutral/zero if absent)."""
     size = kinematics.nv if velocities else kinematics.nq
     out = np.zeros(size)
+    what = "velocity" if velocities else "coordinate"
+    if not isinstance(values, Mapping):
+        raise ModelError(
+            f"model {model.name!r}: the initial joint {what} values must be a mapping of "
+            f"joint name -> value(s), not {type(values).__name__}"
+        )
     known = {j.name for j in kinematics.free_joints}
     for name in values:
         if name not in known:
@@ -234,11 +242,22 @@ def initial_joint_values(model: Model, kinematics: TreeKinematics, values: dict[
         target = v_slice if velocities else q_slice
         n = target.stop - target.start
         default = np.zeros(n) if velocities else jk.neutral_coordinates(joint)
-        value = np.asarray(values.get(joint.name, default), dtype=float).reshape(-1)
+        where = f"model {model.name!r}, joint {joint.name!r}"
+        value = real_array(values.get(joint.name, default), where, f"initial {what}").reshape(-1)
         if value.shape != (n,):
             raise ModelError(
                 f"model {model.name!r}: joint {joint.name!r} ({joint.type}) takes {n} "
                 f"{'velocities' if velocities else 'coordinates'}, got {value.size}"
+            )
+        if not np.all(np.isfinite(value)):
+            raise ModelError(
+                f"{where}: initial {what} {value.tolist()} contains NaN or inf; give finite "
+                "numbers"
+            )
+        if not velocities and joint.type in ("spherical", "free") and not np.any(value[-4:]):
+            raise ModelError(
+                f"{where}: the initial Euler parameters (the last 4 coordinates) are all "
+                "zero; give a unit quaternion, e.g. (1, 0, 0, 0)"
             )
         out[target] = value
     return out

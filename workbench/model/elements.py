@@ -13,6 +13,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from workbench.errors import ModelError
+
 GROUND = "ground"
 
 JointType = Literal[
@@ -29,6 +31,54 @@ JOINT_TYPES: tuple[str, ...] = (
     "fixed",
 )
 PLANAR_JOINT_TYPES: tuple[str, ...] = ("revolute", "prismatic", "planar", "fixed")
+
+
+def real_array(
+    value: Any, where: str, name: str, shape: tuple[int, ...] | None = None
+) -> np.ndarray:
+    """``value`` as a float array (of ``shape`` if given) of real numbers, else ModelError.
+
+    Strings, booleans, complex numbers and objects are refused (``np.asarray(value,
+    dtype=float)`` would read ``"1"`` as 1.0); ``where`` names the element, ``name`` the
+    parameter. Finiteness is validation's to judge (it names the element too).
+    """
+    expected = "a number" if shape == () else f"numbers of shape {shape}" if shape else "numbers"
+    try:
+        array = np.asarray(value)
+        kind = array.dtype.kind
+        if _not_numbers(value):
+            kind = "?"
+        elif kind == "O":  # e.g. a list of NumPy and Python numbers: try a float array
+            array, kind = np.asarray(value, dtype=float), "f"
+    except (TypeError, ValueError, OverflowError):
+        kind = "?"
+    if kind not in ("i", "u", "f"):
+        raise ModelError(
+            f"{where}: {name} must be {expected} (float), not {type(value).__name__} "
+            f"{_short(value)}"
+        )
+    array = array.astype(float)
+    if shape is not None and array.shape != shape:
+        if array.size == int(np.prod(shape)) and shape != ():
+            return array.reshape(shape)
+        raise ModelError(
+            f"{where}: {name} must be {expected}, not an array of shape {array.shape}"
+        )
+    return array
+
+
+def _not_numbers(value: Any) -> bool:
+    """Holds a string, boolean or None (NumPy would read them as numbers or NaN)."""
+    if value is None or isinstance(value, str | bytes | bool | np.bool_):
+        return True
+    if isinstance(value, list | tuple):
+        return any(_not_numbers(item) for item in value)
+    return False
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _vector(value: Any, size: int = 3) -> np.ndarray:
@@ -51,8 +101,9 @@ class Frame:
         return Frame(np.array([x, y, z], dtype=float), np.eye(3))
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", np.asarray(self.position, dtype=float).reshape(3))
-        object.__setattr__(self, "rotation", np.asarray(self.rotation, dtype=float).reshape(3, 3))
+        object.__setattr__(self, "position", real_array(self.position, "frame", "position", (3,)))
+        rotation = real_array(self.rotation, "frame", "rotation", (3, 3))
+        object.__setattr__(self, "rotation", rotation)
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from workbench.model.elements import (
     Joint,
     NonholonomicConstraint,
     Shape,
+    real_array,
 )
 from workbench.model.validation import validate_model
 
@@ -67,7 +68,7 @@ class Model:
             self.gravity = (
                 np.array([0.0, -9.81, 0.0]) if self.kind == "planar" else np.array([0, 0, -9.81])
             )
-        self.gravity = np.asarray(self.gravity, dtype=float)
+        self.gravity = real_array(self.gravity, f"model {self.name!r}, gravity", "gravity")
 
     # -- building ---------------------------------------------------------------------
     def add_body(
@@ -80,9 +81,12 @@ class Model:
     ) -> Body:
         """Add a rigid body. ``inertia``: 3x3 about the centre of mass in the body frame,
         three principal moments, or (planar models) a scalar Izz."""
+        where = f"model {self.name!r}, body {name!r}"
+        if inertia is not None:  # None: validation says a rigid body needs an inertia
+            inertia = real_array(inertia, where, "inertia")
         inertia_matrix = _inertia_matrix(inertia, self.kind)
-        body = Body(name, float(mass), np.asarray(com, dtype=float), inertia_matrix, False,
-                    tuple(shapes))
+        com_vector = real_array(com, where, "com (centre of mass)")
+        body = Body(name, _mass(where, mass), com_vector, inertia_matrix, False, tuple(shapes))
         self._add(self.bodies, name, body)
         return body
 
@@ -90,7 +94,8 @@ class Model:
         self, name: str, mass: float, shapes: tuple[Shape, ...] | list[Shape] = ()
     ) -> Body:
         """Add a point mass at its body frame's origin (no rotational inertia)."""
-        body = Body(name, float(mass), np.zeros(3), np.zeros((3, 3)), True, tuple(shapes))
+        where = f"model {self.name!r}, body {name!r}"
+        body = Body(name, _mass(where, mass), np.zeros(3), np.zeros((3, 3)), True, tuple(shapes))
         self._add(self.bodies, name, body)
         return body
 
@@ -108,6 +113,13 @@ class Model:
         drive: Drive | None = None,
     ) -> Joint:
         """Add a joint; ``cut=True`` marks a loop-closing joint."""
+        where = f"model {self.name!r}, joint {name!r}"
+        for frame_name, frame in (("parent_frame", parent_frame), ("child_frame", child_frame)):
+            if frame is not None and not isinstance(frame, Frame):
+                raise ModelError(
+                    f"{where}: {frame_name} must be a Frame (e.g. Frame.at(x, y, z)), not "
+                    f"{frame.__class__.__name__}"  # (type is a parameter here)
+                )
         joint = Joint(
             name,
             type,
@@ -115,8 +127,8 @@ class Model:
             child,
             parent_frame or Frame(),
             child_frame or Frame(),
-            np.asarray(axis, dtype=float).reshape(-1),
-            np.asarray(axis2, dtype=float).reshape(-1),
+            real_array(axis, where, "axis").reshape(-1),
+            real_array(axis2, where, "axis2").reshape(-1),
             cut,
             drive,
         )
@@ -168,6 +180,11 @@ class Model:
         """Raise ModelError naming the fault and its fix; return self when the model is sound."""
         validate_model(self)
         return self
+
+
+def _mass(where: str, mass: Any) -> float:
+    """A mass is a real number (a string such as "1" is refused); its sign is validation's."""
+    return float(real_array(mass, where, "mass", ()))
 
 
 def _inertia_matrix(inertia: Any, kind: str) -> np.ndarray:

@@ -39,6 +39,7 @@ from workbench.model.elements import (
     RollingDisk,
     RollingSphere,
     SpringDamper,
+    real_array,
 )
 
 if TYPE_CHECKING:  # validation judges a Model; it does not need the class to run
@@ -89,12 +90,7 @@ def _where(model: Model, what: str) -> str:
 
 def _finite_vector(model: Model, what: str, name: str, value: Any, size: int = 3) -> np.ndarray:
     """``value`` as a float array of ``size`` finite entries, else ModelError."""
-    try:
-        array = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ModelError(
-            f"{_where(model, what)}: {name} must be {size} numbers, not {value!r}"
-        ) from None
+    array = real_array(value, _where(model, what), name).reshape(-1)
     if array.shape != (size,):
         raise ModelError(
             f"{_where(model, what)}: {name} must have {size} components, not {array.size}"
@@ -108,10 +104,7 @@ def _finite_vector(model: Model, what: str, name: str, value: Any, size: int = 3
 
 
 def _finite_scalar(model: Model, what: str, name: str, value: Any) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{_where(model, what)}: {name} must be a number, not {value!r}") from None
+    number = float(real_array(value, _where(model, what), name, ()))
     if not np.isfinite(number):
         raise ModelError(f"{_where(model, what)}: {name} = {number} is not finite; give a number")
     return number
@@ -169,7 +162,7 @@ def _check_body(model: Model, body: Body) -> None:
 
 
 def _check_inertia(model: Model, what: str, inertia: Any) -> None:
-    matrix = np.asarray(inertia, dtype=float)
+    matrix = real_array(inertia, _where(model, what), "inertia")
     if matrix.shape != (3, 3) or np.all(np.isnan(matrix)):
         hint = (
             " (a scalar inertia is only accepted in planar models)"
@@ -231,7 +224,7 @@ def _check_shape(model: Model, what: str, shape: Any) -> None:
 
 def _check_frame(model: Model, what: str, name: str, frame: Frame, planar: bool) -> None:
     position = _finite_vector(model, what, f"{name} position", frame.position)
-    rotation = np.asarray(frame.rotation, dtype=float)
+    rotation = real_array(frame.rotation, _where(model, what), f"{name} rotation")
     if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
         raise ModelError(
             f"{_where(model, what)}: {name} rotation must be a 3x3 matrix of finite numbers"
@@ -389,7 +382,7 @@ def _check_force(model: Model, element: Any) -> None:
             )
         _check_nonnegative(model, what, "stiffness", element.stiffness)
         _check_nonnegative(model, what, "damping", element.damping)
-        rest = np.atleast_1d(np.asarray(element.rest, dtype=float))
+        rest = np.atleast_1d(real_array(element.rest, _where(model, what), "rest"))
         if not np.all(np.isfinite(rest)):
             raise ModelError(f"{_where(model, what)}: rest = {rest.tolist()} is not finite")
     elif isinstance(element, JointForce):

@@ -15,7 +15,10 @@ An integrator plugin subclasses :class:`Integrator`, registers with
 :meth:`Integrator.solve` wraps it: it times the stages (setup, integrate), counts every
 evaluation of the equations' right-hand sides and Jacobians (``FastFunction.n_calls``),
 turns any exception, NaN or early stop into a failed :class:`Trajectory` carrying the
-time reached and the reason, and never raises for a numerical failure.
+time reached and the reason, and never raises for a numerical failure. It also checks
+what ``integrate`` returned: ``times`` (k,) equal to the first k requested output times
+and ``y`` (k, n_states of the form); anything else fails the run with a one-line reason
+naming the plugin and the shapes. ``trajectory.message`` always ends up one line.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from workbench.equations import Equations
-from workbench.errors import ConfigError, PluginError
+from workbench.errors import ConfigError, PluginError, one_line, one_line_text
 from workbench.plugin.options import NoOptions, parse_options
 
 
@@ -79,6 +82,34 @@ class IntegrationTask:
     options: Any
 
 
+MAX_STEPS = 1e9
+"""The most steps a run's options may force over the problem's time span."""
+
+
+def tolerance_problem(name: str, value: Any) -> str | None:
+    """Why ``value`` is not a valid tolerance ``name`` ("rtol": 0 < rtol < 1; "atol": > 0,
+    both finite numbers), or None. The one check of ``workbench run`` and sweep specs."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return f"must be a number, not {type(value).__name__}"
+    try:
+        number = float(value)
+    except OverflowError:
+        return "must be a finite number"
+    if not math.isfinite(number) or number <= 0:
+        return f"must be a finite number > 0, not {number!r}"
+    if name == "rtol" and number >= 1:
+        return f"a relative tolerance must be < 1, not {number!r}"
+    return None
+
+
+def check_tolerances(rtol: Any, atol: Any) -> None:
+    """ConfigError naming the tolerance unless 0 < rtol < 1 and atol > 0, both finite."""
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        problem = tolerance_problem(name, value)
+        if problem:
+            raise ConfigError(f"{name}: {problem}")
+
+
 class Integrator:
     """Base class of integrator plugins (see the module docstring)."""
 
@@ -98,6 +129,30 @@ class Integrator:
             if form in forms and forms[form] <= max_index:
                 return form
         return None
+
+    @classmethod
+    def min_steps(cls, options: Any, span: float) -> float:
+        """The fewest steps ``options`` force over ``span`` seconds (0: not known).
+
+        The default reads an option ``step`` (a fixed step) or ``max_step`` (a bound on the
+        step; 0 or inf meaning none); a plugin with other step options overrides this.
+        """
+        fewest = 0.0
+        for name in ("step", "max_step"):
+            step = getattr(options, name, None)
+            if isinstance(step, int | float) and not isinstance(step, bool) and step > 0:
+                fewest = max(fewest, span / float(step))
+        return fewest
+
+    @classmethod
+    def check_step_count(cls, options: Any, span: float) -> None:
+        """ConfigError when ``options`` would need more than MAX_STEPS steps over ``span``."""
+        steps = cls.min_steps(options, span)
+        if steps > MAX_STEPS:
+            raise ConfigError(
+                f"integrator {cls.name!r}: its step options need {steps:.3g} steps over the "
+                f"problem's {span:g} s, more than {MAX_STEPS:.0e}; give a larger step"
+            )
 
     def incompatibility(self, equations: Equations, options: Any) -> str | None:
         """A reason these equations cannot be integrated by this method, or None."""
@@ -159,7 +214,9 @@ class Integrator:
         calls = {key: f.n_calls - before[key] for key, f in counted.items()}
         trajectory.stats.n_rhs = max(trajectory.stats.n_rhs, calls["rhs"])
         trajectory.stats.n_jac = max(trajectory.stats.n_jac, calls["jac"])
+        _check_shapes(self.name, trajectory, times, y0, _state_widths(equations, form, y0))
         _check_result(trajectory, times)
+        trajectory.message = one_line_text(trajectory.message)
         return trajectory
 
 
@@ -186,6 +243,66 @@ class _Sum:
     @property
     def n_calls(self) -> int:
         return sum(f.n_calls for f in self.functions)
+
+
+def _state_widths(equations: Equations, form: str, y0: np.ndarray) -> list[int]:
+    """The widths a state row of ``form`` may have: [q, v], then its multipliers if any."""
+    base = equations.nq + equations.nv
+    widths = {y0.size, base, base + equations.n_holonomic, base + equations.n_constraints}
+    n = getattr(equations.forms[form], "n", None)
+    if isinstance(n, int):
+        widths.add(n)
+    if form != "mechanical":  # ode and dae states are exactly the form's n (or y0's size)
+        widths = {y0.size} | ({n} if isinstance(n, int) else set())
+    return sorted(widths)
+
+
+def _check_shapes(
+    name: str, trajectory: Trajectory, times: np.ndarray, y0: np.ndarray, widths: list[int]
+) -> None:
+    """Fail a trajectory whose times and states are not (k,) and (k, n_states) at the first k
+    requested output times, keeping only the initial state (metrics need the shapes right).
+    ``widths``: the accepted n_states (the form's [q, v, (lambda), (mu)] layouts)."""
+    n_states = y0.size
+    try:
+        got_times = np.asarray(trajectory.times, dtype=float)
+        got_y = np.asarray(trajectory.y, dtype=float)
+    except (TypeError, ValueError) as error:
+        problem = f"times and y are not float arrays ({one_line(error)})"
+    else:
+        k = got_times.shape[0] if got_times.ndim == 1 else -1
+        if k == 0 and got_y.size == 0:  # nothing reached, not even the start
+            got_y = got_y.reshape(0, n_states)
+        problem = ""
+        if (
+            got_times.ndim != 1
+            or got_y.ndim != 2
+            or got_y.shape[0] != k
+            or got_y.shape[1] not in widths
+        ):
+            rows = k if k >= 0 else "n_times"
+            width = " or ".join(map(str, widths))
+            problem = (
+                f"returned times of shape {got_times.shape} and y of shape {got_y.shape}; "
+                f"expected ({rows},) and ({rows}, {width}) (n_times x the states of its form)"
+            )
+        elif k > times.size:
+            problem = f"returned {k} output times, more than the {times.size} requested"
+        elif k and not np.allclose(got_times, times[:k], rtol=1e-12, atol=0.0):
+            bad = int(np.argmax(~np.isclose(got_times, times[:k], rtol=1e-12, atol=0.0)))
+            order = "not increasing" if np.any(np.diff(got_times) <= 0) else "not the requested"
+            problem = (
+                f"returned output times {order}: times[{bad}] = {got_times[bad]:g}, "
+                f"requested {times[bad]:g}"
+            )
+        if not problem:
+            trajectory.times, trajectory.y = got_times, got_y
+            return
+    trajectory.success = False
+    trajectory.message = f"integrator {name!r}: {problem}" + (
+        f" (its own message: {trajectory.message})" if trajectory.message else ""
+    )
+    trajectory.times, trajectory.y = times[:1].copy(), y0[None, :].copy()
 
 
 def _check_result(trajectory: Trajectory, times: np.ndarray) -> None:

@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import compiled
-from workbench.errors import ConfigError, one_line
+from workbench.errors import one_line, one_line_text
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
@@ -114,17 +114,19 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
 
     Two specs that mean the same run then have the same id.
     """
+    from workbench.plugin.integrator import check_tolerances
     from workbench.plugin.options import options_dict
 
-    problem_options = options_dict(registry.get_problem(spec.problem)(spec.problem_options).options)
+    check_tolerances(spec.rtol, spec.atol)
+    problem = registry.get_problem(spec.problem)(spec.problem_options)
+    problem_options = options_dict(problem.options)
     formalism_options = options_dict(
         registry.get_formalism(spec.formalism).parse_options(spec.formalism_options)
     )
-    integrator_options = options_dict(
-        registry.get_integrator(spec.integrator).parse_options(spec.integrator_options)
-    )
-    if not (spec.rtol > 0 and spec.atol > 0):
-        raise ConfigError(f"tolerances must be positive (rtol={spec.rtol}, atol={spec.atol})")
+    integrator_class = registry.get_integrator(spec.integrator)
+    parsed = integrator_class.parse_options(spec.integrator_options)
+    integrator_class.check_step_count(parsed, problem_span(problem))
+    integrator_options = options_dict(parsed)
     return RunSpec(
         spec.problem,
         spec.formalism,
@@ -135,6 +137,14 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
         formalism_options,
         integrator_options,
     )
+
+
+def problem_span(problem: Any) -> float:
+    """The length in seconds of a problem's time span (its output times')."""
+    try:
+        return abs(float(problem.t_end) - float(problem.t_start))
+    except (AttributeError, TypeError, ValueError):
+        return 0.0
 
 
 # ---- equations cache (one per worker process) ---------------------------------------
@@ -250,7 +260,7 @@ def base_row(spec: RunSpec) -> dict[str, Any]:
 
 def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[str, Any]:
     """A row without metrics (skipped, timeout, a worker that died)."""
-    row = base_row(spec) | {"status": status, "message": message}
+    row = base_row(spec) | {"status": status, "message": one_line_text(message)}
     row.update(extra)
     row.update(environment())
     return row
@@ -361,6 +371,8 @@ def execute_run(
     row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
     row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
+    # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
+    row["message"] = one_line_text(row["message"])
     return RunResult(row, series)
 
 

@@ -31,8 +31,11 @@ only, without packaging them with entry points.
 
 Everything is validated before anything is written (:func:`load_spec`): unknown keys,
 wrong types, unknown plugins (with close matches), unknown or ill-typed options, tolerances
-that are not positive, empty grids and TOML syntax errors (with the line) raise one
-:class:`~workbench.errors.ConfigError` naming the key.
+that are not positive, empty grids, duplicates (a value repeated in a grid or in
+``tolerances``, a plugin listed twice with the same options), grids larger than
+``MAX_RUNS``, tables nested deeper than ``MAX_DEPTH`` and TOML syntax errors (with the line;
+also integers too long to read) raise one :class:`~workbench.errors.ConfigError` naming the
+key. Validation never expands a grid before it has counted it, so it stays fast.
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ import json
 import math
 import os
 import re
+import reprlib
+import sys
 import tomllib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -50,10 +55,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from workbench.errors import ConfigError, PluginError
+from workbench.errors import ConfigError, PluginError, one_line
 from workbench.plugin import registry
+from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.registry import Kind
-from workbench.runs.execute import RunSpec
+from workbench.runs.execute import RunSpec, problem_span
 
 DEFAULT_OUT = "reports/latest"
 
@@ -65,6 +71,17 @@ DEFAULT_ATOL_FACTOR = 1e-3
 
 
 DEFAULT_JOBS = 2
+
+
+MAX_JOBS = 1024
+
+
+MAX_RUNS = 100_000
+"""The most runs a specification may expand to (counted before anything is expanded)."""
+
+
+MAX_DEPTH = 16
+"""The deepest nesting of tables and lists a specification may have (options included)."""
 
 
 TOP_LEVEL_KEYS = {
@@ -128,13 +145,25 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
     """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key)."""
     try:
         data = tomllib.loads(text)
+    except RecursionError:
+        raise ConfigError(
+            f"{source}: invalid TOML: tables or arrays nested too deeply to read "
+            f"(a specification needs at most {MAX_DEPTH} levels)"
+        ) from None
     except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"{source}: invalid TOML: {error}") from None
+        raise ConfigError(f"{source}: invalid TOML: {one_line(error, with_type=False)}") from None
+    except ValueError:  # Python refuses to convert integers of more than 4300 digits
+        raise ConfigError(
+            f"{source}: invalid TOML: an integer has too many digits to read "
+            f"(at most {sys.get_int_max_str_digits()}); no setting needs such a number"
+        ) from None
 
     def fail(key: str, message: str) -> ConfigError:
         line = _key_line(text, key)
         where = f"line {line}: " if line else ""
-        return ConfigError(f"{source}: {where}{key}: {message}")
+        return ConfigError(one_line(ConfigError(f"{source}: {where}{key}: {message}"), False))
+
+    _check_depth(data, fail)
 
     unknown = sorted(set(data) - set(TOP_LEVEL_KEYS))
     if unknown:
@@ -151,39 +180,77 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
 
     out = data.get("out", DEFAULT_OUT)
     if not isinstance(out, str) or not out.strip():
-        raise fail("out", f"must be a non-empty string, not {out!r}")
+        raise fail("out", f"must be a non-empty string, not {_show(out)}")
     jobs = data.get("jobs", DEFAULT_JOBS)
-    if not _is_int(jobs) or jobs < 1:
-        raise fail("jobs", f"must be an integer >= 1, not {jobs!r}")
+    if not _is_int(jobs) or not 1 <= jobs <= MAX_JOBS:
+        raise fail("jobs", f"must be an integer from 1 to {MAX_JOBS}, not {_show(jobs)}")
     time_limit = _positive(data.get("time_limit", DEFAULT_TIME_LIMIT), "time_limit", fail)
     atol_factor = _positive(data.get("atol_factor", DEFAULT_ATOL_FACTOR), "atol_factor", fail)
     missing = data.get("missing_plugins", "error")
     if missing not in ("error", "skip"):
-        raise fail("missing_plugins", f'must be "error" or "skip", not {missing!r}')
+        raise fail("missing_plugins", f'must be "error" or "skip", not {_show(missing)}')
     tolerances = data["tolerances"]
     if not isinstance(tolerances, list) or not tolerances:
-        raise fail("tolerances", f"must be a non-empty list of numbers > 0, not {tolerances!r}")
-    rtols = [_positive(t, f"tolerances[{i}]", fail) for i, t in enumerate(tolerances)]
-    if any(r >= 1 for r in rtols):
-        raise fail("tolerances", f"relative tolerances must be < 1, got {rtols}")
+        raise fail(
+            "tolerances", f"must be a non-empty list of numbers > 0, not {_show(tolerances)}"
+        )
+    for index, rtol in enumerate(tolerances):  # the checks `workbench run` makes too
+        problem = tolerance_problem("rtol", rtol)
+        if problem:
+            raise fail(f"tolerances[{index}]", problem)
+        problem = tolerance_problem("atol", float(rtol) * atol_factor)
+        if problem:
+            raise fail("atol_factor", f"atol = {rtol!r} * atol_factor {problem}")
+    rtols = [float(t) for t in tolerances]
+    for index, rtol in enumerate(rtols):
+        if rtol in rtols[:index]:
+            raise fail(
+                f"tolerances[{index}]",
+                f"{rtol!r} is listed twice (also tolerances[{rtols.index(rtol)}]); "
+                "give every tolerance once",
+            )
     plugins = data.get("plugins", [])
     if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
-        raise fail("plugins", f"must be a list of module names, not {plugins!r}")
+        raise fail("plugins", f"must be a list of module names, not {_show(plugins)}")
     import_plugin_modules(plugins, f"{source}: plugins")
 
-    problems = _entries(data["problems"], "problem", "problems", missing, fail)
-    formalisms = _entries(data["formalisms"], "formalism", "formalisms", missing, fail)
-    integrators = _entries(data["integrators"], "integrator", "integrators", missing, fail)
+    # every list is resolved and its grids counted before any grid is expanded
+    plans = {
+        key: _plan(data[key], kind, key, missing, fail)
+        for kind, key in (
+            ("problem", "problems"),
+            ("formalism", "formalisms"),
+            ("integrator", "integrators"),
+        )
+    }
+    sizes = {key: sum(size for *_, size in plan) for key, plan in plans.items()}
+    sizes["tolerances"] = len(rtols)
+    count = math.prod(sizes.values())
+    if count > MAX_RUNS:
+        raise fail(
+            max(sizes, key=lambda key: sizes[key]),
+            f"the sweep would have {count} runs ({sizes['problems']} problems x "
+            f"{sizes['formalisms']} formalisms x {sizes['integrators']} integrators x "
+            f"{len(rtols)} tolerances); at most {MAX_RUNS}: make the grids smaller or "
+            "split the sweep",
+        )
+    problems = _expand(plans["problems"], "problem", "problems", fail)
+    formalisms = _expand(plans["formalisms"], "formalism", "formalisms", fail)
+    integrators = _expand(plans["integrators"], "integrator", "integrators", fail)
+    span = max(problem_span(instance) for *_, instance in problems)
+    for name, _, item_key, parsed in integrators:
+        try:
+            registry.get_integrator(name).check_step_count(parsed, span)
+        except ConfigError as error:
+            raise fail(f"{item_key}.options", one_line(error, with_type=False)) from None
 
-    runs: list[RunSpec] = []
-    seen: set[str] = set()
-    for (p_name, p_opts, _), (f_name, f_opts, _), (i_name, i_opts, _), rtol in itertools.product(
-        problems, formalisms, integrators, rtols
-    ):
-        spec = RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
-        if spec.run_id not in seen:
-            seen.add(spec.run_id)
-            runs.append(spec)
+    # entries and tolerances are free of repeats, so every run is distinct (no ids to hash)
+    runs = [
+        RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
+        for (p_name, p_opts, *_), (f_name, f_opts, *_), (i_name, i_opts, *_), rtol in (
+            itertools.product(problems, formalisms, integrators, rtols)
+        )
+    ]
     if not runs:
         raise ConfigError(f"{source}: the sweep has no runs")
     return SweepSpec(runs, Path(out), int(jobs), time_limit, list(plugins), source, text)
@@ -199,29 +266,56 @@ def _key_line(text: str, key: str) -> int | None:
     return None
 
 
+_SHORT = reprlib.Repr()
+_SHORT.maxstring, _SHORT.maxother, _SHORT.maxlong = 60, 60, 40
+_SHORT.maxlist, _SHORT.maxdict, _SHORT.maxlevel = 6, 6, 3
+
+
+def _show(value: Any) -> str:
+    """``repr(value)`` cut short: messages stay one readable line whatever the input."""
+    return _SHORT.repr(value)
+
+
+def _check_depth(data: Any, fail: Callable[[str, str], ConfigError]) -> None:
+    """Refuse nesting deeper than MAX_DEPTH (walked without recursion)."""
+    stack = [(data, "", 0)]
+    while stack:
+        value, key, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise fail(key, f"nested more than {MAX_DEPTH} levels deep; no setting needs that")
+        if isinstance(value, dict):
+            stack.extend((v, f"{key}.{k}" if key else str(k), depth + 1) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
+
+
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _positive(value: Any, key: str, fail: Callable[[str, str], ConfigError]) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise fail(key, f"must be a number > 0, not {value!r}")
+        raise fail(key, f"must be a number > 0, not {_show(value)}")
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise fail(key, f"must be a finite number > 0, not {_show(value)}") from None
     if not math.isfinite(value) or value <= 0:
-        raise fail(key, f"must be a finite number > 0, not {value!r}")
+        raise fail(key, f"must be a finite number > 0, not {_show(value)}")
     return float(value)
 
 
-def _entries(
+def _plan(
     value: Any, kind: Kind, key: str, missing: str, fail: Callable[[str, str], ConfigError]
-) -> list[tuple[str, dict[str, Any], str]]:
-    """(name, normalized options, key) of every plugin x option combination of a list."""
+) -> list[tuple[str, dict[str, Any], str, int]]:
+    """(name, option grid, key, grid size) of every plugin a list names (grids unexpanded)."""
     if value == "all":
         value = ["all"]
     if not isinstance(value, list) or not value:
         raise fail(
             key,
             f'must be a non-empty list of names or {{name, options}} tables, or "all"'
-            f", not {value!r}",
+            f", not {_show(value)}",
         )
     named: list[tuple[str, Any, str]] = []
     wants_all, all_options, all_key = False, {}, f"{key}[all]"
@@ -236,7 +330,7 @@ def _entries(
             if extra:
                 raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
             if not isinstance(all_options, dict):
-                raise fail(f"{item_key}.options", f"must be a table, not {all_options!r}")
+                raise fail(f"{item_key}.options", f"must be a table, not {_show(all_options)}")
         elif isinstance(item, str):
             named.append((item, {}, item_key))
         elif isinstance(item, dict):
@@ -245,13 +339,13 @@ def _entries(
                 raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
             name = item.get("name")
             if not isinstance(name, str) or not name:
-                raise fail(f"{item_key}.name", f"must be a plugin name (string), not {name!r}")
+                raise fail(f"{item_key}.name", f"must be a plugin name (string), not {_show(name)}")
             options = item.get("options", {})
             if not isinstance(options, dict):
-                raise fail(f"{item_key}.options", f"must be a table, not {options!r}")
+                raise fail(f"{item_key}.options", f"must be a table, not {_show(options)}")
             named.append((name, options, item_key))
         else:
-            raise fail(item_key, f"must be a name or a {{name, options}} table, not {item!r}")
+            raise fail(item_key, f"must be a name or a {{name, options}} table, not {_show(item)}")
     explicit = {name for name, _, _ in named}
     if wants_all:
         declared: set[str] = set()
@@ -265,7 +359,7 @@ def _entries(
         unknown = sorted(set(all_options) - declared)
         if unknown:
             raise fail(f"{all_key}.options.{unknown[0]}", f"no registered {kind} has this option")
-    entries = []
+    resolved = []
     for name, options, item_key in named:
         try:
             registry.REGISTRY.get(kind, name)
@@ -273,12 +367,35 @@ def _entries(
             if missing == "skip" and name not in registry.REGISTRY.entries[kind]:
                 continue
             raise fail(item_key, str(error)) from None
-        for combination in _grid(options, f"{item_key}.options", fail):
-            entries.append(
-                (name, _normalized_options(kind, name, combination, item_key, fail), item_key)
-            )
-    if not entries:
+        resolved.append((name, options, item_key, _grid_size(options, f"{item_key}.options", fail)))
+    if not resolved:
         raise fail(key, f"no registered {kind} left to run (empty grid)")
+    return resolved
+
+
+def _expand(
+    plan: list[tuple[str, dict[str, Any], str, int]],
+    kind: Kind,
+    key: str,
+    fail: Callable[[str, str], ConfigError],
+) -> list[tuple[str, dict[str, Any], str, Any]]:
+    """(name, normalized options, key, parsed) of every plugin x option combination; no
+    repeats. ``parsed``: the problem instance, or the options instance of a formalism or
+    integrator."""
+    entries = []
+    seen: dict[str, str] = {}
+    for name, options, item_key, _ in plan:
+        for combination in _grid(options, f"{item_key}.options", fail):
+            normalized, parsed = _normalized_options(kind, name, combination, item_key, fail)
+            identity = json.dumps([name, normalized], sort_keys=True)
+            if identity in seen:
+                raise fail(
+                    item_key,
+                    f"{kind} {name!r} with options {_show(normalized)} is listed twice "
+                    f"(also {seen[identity]}); list every {kind} and option value once",
+                )
+            seen[identity] = item_key
+            entries.append((name, normalized, item_key, parsed))
     return entries
 
 
@@ -288,16 +405,40 @@ def _option_names(plugin: Any) -> set[str]:
     return {name for name, _, _ in option_fields(plugin.Options)}
 
 
+def _grid_values(name: str, value: Any, key: str, fail: Callable[[str, str], ConfigError]) -> list:
+    """The values of one grid axis (a list is a grid; anything else one value); no repeats."""
+    values = value if isinstance(value, list) else [value]
+    if not values:
+        raise fail(f"{key}.{name}", "empty list of values (empty grid)")
+    shown: dict[str, int] = {}
+    for index, item in enumerate(values):
+        # the type is part of the value: 1 and 1.0 (and true) are told apart here; options
+        # that coerce them alike meet again as a repeated plugin after normalization
+        identity = f"{type(item).__name__}:{json.dumps(item, sort_keys=True, default=str)}"
+        if identity in shown:
+            raise fail(
+                f"{key}.{name}",
+                f"the value {_show(item)} is listed twice (positions {shown[identity]} and "
+                f"{index}); give every value of a grid once",
+            )
+        shown[identity] = index
+    return values
+
+
+def _grid_size(options: dict[str, Any], key: str, fail: Callable[[str, str], ConfigError]) -> int:
+    size = 1
+    for name, value in options.items():
+        size *= len(_grid_values(name, value, key, fail))
+        if size > MAX_RUNS:
+            raise fail(key, f"the option grid has more than {MAX_RUNS} combinations")
+    return size
+
+
 def _grid(
     options: dict[str, Any], key: str, fail: Callable[[str, str], ConfigError]
 ) -> list[dict[str, Any]]:
-    names, axes = [], []
-    for name, value in options.items():
-        values = value if isinstance(value, list) else [value]
-        if not values:
-            raise fail(f"{key}.{name}", "empty list of values (empty grid)")
-        names.append(name)
-        axes.append(values)
+    names = list(options)
+    axes = [_grid_values(name, options[name], key, fail) for name in names]
     return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*axes)]
 
 
@@ -307,20 +448,22 @@ def _normalized_options(
     options: dict[str, Any],
     key: str,
     fail: Callable[[str, str], ConfigError],
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], Any]:
     from workbench.plugin.options import options_dict
 
     plugin = registry.REGISTRY.get(kind, name)
     try:
         if kind == "problem":
-            parsed = plugin(options).options
+            instance = plugin(options)
+            parsed = instance.options
         else:
-            parsed = plugin.parse_options(options)
+            instance = parsed = plugin.parse_options(options)
     except ConfigError as error:
-        raise fail(f"{key}.options", str(error)) from None
+        raise fail(f"{key}.options", one_line(error, with_type=False)) from None
     except Exception as error:  # noqa: BLE001 - a plugin's own checks may raise anything
-        raise fail(f"{key}.options", f"{type(error).__name__}: {error}") from None
-    return json.loads(json.dumps(options_dict(parsed), default=_jsonable_value))
+        raise fail(f"{key}.options", one_line(error)) from None
+    normalized = json.loads(json.dumps(options_dict(parsed), default=_jsonable_value))
+    return normalized, instance
 
 
 def _jsonable_value(value: Any) -> Any:

@@ -11,6 +11,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from workbench.errors import one_line_text
+
 Status = Literal["pass", "fail", "skip"]
 
 
@@ -25,6 +27,9 @@ class CheckResult:
     error: float = math.nan
     tolerance: float = math.nan
     message: str = ""
+
+    def __post_init__(self) -> None:
+        self.message = one_line_text(self.message)  # a check's message is one line
 
     def line(self) -> str:
         size = ""
