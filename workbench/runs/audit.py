@@ -46,6 +46,7 @@ from workbench.numerics.linalg import independent_rows
 
 SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
 PARTITION_NOTE = "fixed velocity partition"  # how a formalism's notes declare one
+MEASURE = "_measured_on"  # audit key (not a column): "partition" when W_d was measured
 ROTATION_FACTOR = 100.0  # rotation defect beyond this times rtol: a warning
 ENERGY_FACTOR = 1e3  # relative energy error beyond this times rtol: a warning
 REFINE_EVALUATIONS = 40  # Hermite-interpolated evaluations of W around each sampled minimum
@@ -106,6 +107,7 @@ def health_audit(
         row["dof_start"] = row["dof_max"] = nv
         if getattr(equations, "partition_matrices", None) is not None:
             row.update(_partition_audit(equations.partition_matrices, mechanical, times, q, v))
+            row[MEASURE] = "partition"
         return row
 
     matrices = np.stack([jacobian(t, q_k) for t, q_k in zip(times, q, strict=True)])
@@ -145,7 +147,7 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     """The warnings of a row from its audit columns and metrics (see the module)."""
     found = []
     ratio, at = audit.get("jacobian_sv_ratio_min", math.nan), audit.get("jacobian_sv_ratio_at")
-    partition = PARTITION_NOTE in audit.get("formalism_notes", "")
+    partition = audit.get(MEASURE) == "partition"  # what the ratio was measured on
     if ratio < SINGULAR_RATIO and partition:
         found.append(
             f"singular velocity partition: the block W_d of the constraints solved for the "

@@ -41,7 +41,7 @@ import pandas as pd
 
 from workbench.equations import Equations
 from workbench.numerics.geometry import length_scale, pose_error
-from workbench.runs.audit import audit_warnings, health_audit
+from workbench.runs.audit import MEASURE, audit_warnings, health_audit
 from workbench.runs.references import ReferencePoses
 from workbench.runs.store import SERIES_COLUMNS
 
@@ -153,6 +153,7 @@ def trajectory_metrics(
     audit = health_audit(equations, times, y[:n], sampled.rotations, rtol)
     audit["reference_accuracy"] = reference.accuracy
     found = audit_warnings(audit, row, rtol, problem.conservative)
+    audit.pop(MEASURE, None)
     if row["err_end"] / length < reference.accuracy:  # more digits than the reference has
         row["scd"] = -math.log10(reference.accuracy)
     row.update(audit, warnings="; ".join(found))
