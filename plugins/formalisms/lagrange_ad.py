@@ -26,7 +26,7 @@ from typing import Any
 
 import casadi as ca
 
-from workbench.equations import Equations, MechanicalSystem, build_joint_space_equations
+from workbench.equations import Equations, build_joint_space_equations, joint_space_system
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.mechanics.lagrangian import joint_space_lagrangian, quaternion_joints
 from workbench.model import Model
@@ -70,18 +70,6 @@ class LagrangeAD(Formalism):
             - ca.jacobian(momentum, k.t)
             + nonconservative
         )
-        system = MechanicalSystem(
-            t=k.t,
-            q=k.q,
-            v=k.v,
-            qdot=k.qdot,
-            mass=mass,
-            forces=forces,
-            q_names=k.q_names,
-            v_names=k.v_names,
-            position_constraints=k.closure_constraints,
-            velocity_constraints=k.velocity_constraints,
-            constraint_names=k.velocity_constraint_names,
-        )
+        system = joint_space_system(k, mass, forces)
         ode = system.n_constraints == 0 or options.index == 1
         return build_joint_space_equations(self.name, model, k, system, options, ode)
