@@ -367,3 +367,51 @@ def run_command(seed: int) -> list[str]:
     for _ in range(int(rng.integers(0, 3))):
         args += ["-o", RUN_OPTIONS[int(rng.integers(len(RUN_OPTIONS)))]]
     return args
+
+
+def build_model(slot: str, value):
+    """A planar two-body pendulum with ``value`` put in ``slot``; validated, initial state read."""
+    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+    from workbench.model import Frame, JointSpringDamper, Model
+
+    def pick(name, good):
+        return value if slot == name else good
+
+    model = Model("fuzz", "spatial", gravity=pick("gravity", (0.0, 0.0, -9.81)))
+    model.add_body(
+        "link",
+        pick("mass", 1.0),
+        com=pick("com", (0.5, 0.0, 0.0)),
+        inertia=pick("inertia", (0.01, 0.1, 0.1)),
+    )
+    model.add_point_mass("bob", pick("point-mass", 0.5))
+    if slot == "frame-position":
+        frame = Frame(position=value)
+    elif slot == "frame-rotation":
+        frame = Frame(rotation=value)
+    else:
+        frame = pick("joint-frame", Frame.at(0.0, 0.0, 0.0))
+    model.add_joint(
+        "hinge",
+        "revolute",
+        "ground",
+        "link",
+        parent_frame=frame,
+        axis=pick("axis", (0.0, 1.0, 0.0)),
+    )
+    model.add_joint(
+        "rod",
+        "prismatic",
+        "link",
+        "bob",
+        parent_frame=Frame.at(1.0, 0.0, 0.0),
+        axis=(1.0, 0.0, 0.0),
+    )
+    model.add_force(
+        JointSpringDamper("spring", "hinge", pick("stiffness", 1.0), rest=pick("rest", 0.0))
+    )
+    model.validate()
+    kinematics = TreeKinematics(model)
+    initial_joint_values(model, kinematics, {"hinge": pick("initial-q", 0.1)}, False)
+    initial_joint_values(model, kinematics, {"hinge": pick("initial-v", 0.0)}, True)
+    return model

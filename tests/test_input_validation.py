@@ -143,54 +143,6 @@ def test_fuzzed_sweep_specs_give_one_line_or_a_sweep(monkeypatch, tmp_path) -> N
 # ---- item 5: non-finite and wrong-typed models ----------------------------------------
 
 
-def build_model(slot: str, value):
-    """A planar two-body pendulum with ``value`` put in ``slot``; validated, initial state read."""
-    from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
-    from workbench.model import Frame, JointSpringDamper, Model
-
-    def pick(name, good):
-        return value if slot == name else good
-
-    model = Model("fuzz", "spatial", gravity=pick("gravity", (0.0, 0.0, -9.81)))
-    model.add_body(
-        "link",
-        pick("mass", 1.0),
-        com=pick("com", (0.5, 0.0, 0.0)),
-        inertia=pick("inertia", (0.01, 0.1, 0.1)),
-    )
-    model.add_point_mass("bob", pick("point-mass", 0.5))
-    if slot == "frame-position":
-        frame = Frame(position=value)
-    elif slot == "frame-rotation":
-        frame = Frame(rotation=value)
-    else:
-        frame = pick("joint-frame", Frame.at(0.0, 0.0, 0.0))
-    model.add_joint(
-        "hinge",
-        "revolute",
-        "ground",
-        "link",
-        parent_frame=frame,
-        axis=pick("axis", (0.0, 1.0, 0.0)),
-    )
-    model.add_joint(
-        "rod",
-        "prismatic",
-        "link",
-        "bob",
-        parent_frame=Frame.at(1.0, 0.0, 0.0),
-        axis=(1.0, 0.0, 0.0),
-    )
-    model.add_force(
-        JointSpringDamper("spring", "hinge", pick("stiffness", 1.0), rest=pick("rest", 0.0))
-    )
-    model.validate()
-    kinematics = TreeKinematics(model)
-    initial_joint_values(model, kinematics, {"hinge": pick("initial-q", 0.1)}, False)
-    initial_joint_values(model, kinematics, {"hinge": pick("initial-v", 0.0)}, True)
-    return model
-
-
 @pytest.mark.parametrize(
     "slot, value, fragment",
     [
@@ -209,12 +161,12 @@ def test_bad_model_values_are_model_errors_naming_the_element(slot, value, fragm
     from workbench.errors import ModelError
 
     with pytest.raises(ModelError, match=None) as caught:
-        build_model(slot, value)
+        fuzz_inputs.build_model(slot, value)
     assert fragment in str(caught.value)
 
 
 def test_the_fuzz_model_is_sound_without_a_bad_value() -> None:
-    build_model("none", None)
+    fuzz_inputs.build_model("none", None)
 
 
 def test_fuzzed_models_give_model_errors_naming_the_element() -> None:
@@ -225,7 +177,7 @@ def test_fuzzed_models_give_model_errors_naming_the_element() -> None:
     for seed in range(1300):
         slot, element, value = fuzz_inputs.model_case(seed)
         try:
-            build_model(slot, value)
+            fuzz_inputs.build_model(slot, value)
         except ModelError as error:
             assert element in str(error), (seed, slot, value, str(error))
             assert "\n" not in str(error)
