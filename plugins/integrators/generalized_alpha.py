@@ -67,20 +67,29 @@ from workbench.plugin.registry import integrator
 
 
 @dataclass(frozen=True)
-class GeneralizedAlphaOptions:
-    rho_inf: float = 0.9  # spectral radius at infinity, in [0, 1]
+class StepOptions:
+    """The options every member of the generalized-alpha family shares."""
+
     step: float | None = None  # s; None: min(1e-3, smallest output interval)
     adaptive: bool = False
     newton_tol: float = 1e-10  # on the position increment, relative to 1 + |q|
     max_newton: int = 12
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.rho_inf <= 1.0:
-            raise ConfigError(f"rho_inf must lie in [0, 1], not {self.rho_inf}")
         if self.step is not None and not (self.step > 0 and math.isfinite(self.step)):
             raise ConfigError(f"step must be a positive number of seconds, not {self.step}")
         if not self.newton_tol > 0 or self.max_newton < 1:
             raise ConfigError("newton_tol must be > 0 and max_newton >= 1")
+
+
+@dataclass(frozen=True)
+class GeneralizedAlphaOptions(StepOptions):
+    rho_inf: float = 0.9  # spectral radius at infinity, in [0, 1]
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 0.0 <= self.rho_inf <= 1.0:
+            raise ConfigError(f"rho_inf must lie in [0, 1], not {self.rho_inf}")
 
 
 def chung_hulbert(rho_inf: float) -> tuple[float, float, float, float]:
@@ -174,7 +183,7 @@ class GeneralizedAlpha(Integrator):
                             h = h_try * factor
                             if h < h_min:
                                 raise IntegrationError(
-                                    f"generalized-alpha: step size {h:.3g} s underflow "
+                                    f"{self.name}: step size {h:.3g} s underflow "
                                     f"at t = {t:.6g}"
                                 )
                 else:
@@ -195,11 +204,16 @@ class GeneralizedAlpha(Integrator):
             trajectory.y = np.array(rows)
             trajectory.times = np.array(reached)
 
+    @staticmethod
+    def parameters(options: Any) -> tuple[float, float, float, float]:
+        """(alpha_m, alpha_f, beta, gamma) of this member of the family."""
+        return chung_hulbert(options.rho_inf)
+
     # ---- one step -------------------------------------------------------------------
     def _setup(
         self, options: Any, mech: Any, nq: int, nv: int, nc: int, m: int, identity: bool
     ) -> None:
-        self.alpha_m, self.alpha_f, self.beta, self.gamma = chung_hulbert(options.rho_inf)
+        self.alpha_m, self.alpha_f, self.beta, self.gamma = self.parameters(options)
         self.mech, self.nq, self.nv, self.nc, self.m = mech, nq, nv, nc, m
         self.identity = identity
         self.newton_tol, self.max_newton = options.newton_tol, options.max_newton
@@ -255,14 +269,14 @@ class GeneralizedAlpha(Integrator):
                 residual = np.concatenate([residual, constraint])
             if not np.all(np.isfinite(residual)) or not np.all(np.isfinite(matrix)):
                 raise _NewtonFailure(
-                    f"generalized-alpha: the equations became NaN or infinite at "
+                    f"{self.name}: the equations became NaN or infinite at "
                     f"t = {t_new:.6g} (step {h:.3g} s, Newton iteration {iteration})"
                 )
             try:
                 lu = scipy.linalg.lu_factor(matrix, check_finite=False)
             except (ValueError, np.linalg.LinAlgError) as error:
                 raise _NewtonFailure(
-                    f"generalized-alpha: singular iteration matrix at t = {t_new:.6g}: {error}"
+                    f"{self.name}: singular iteration matrix at t = {t_new:.6g}: {error}"
                 ) from None
             stats.n_lu += 1
             stats.n_newton += 1
@@ -285,7 +299,7 @@ class GeneralizedAlpha(Integrator):
                 break  # diverging
             last = increment
         raise _NewtonFailure(
-            f"generalized-alpha: Newton did not converge at t = {t_new:.6g} with step {h:.3g} s "
+            f"{self.name}: Newton did not converge at t = {t_new:.6g} with step {h:.3g} s "
             f"(last position increment {last:.3g}); reduce the step or use adaptive=True"
         )
 
