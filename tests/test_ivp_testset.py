@@ -68,3 +68,18 @@ def test_car_axis_reproduces_the_published_end_state() -> None:
     # the published positions give the full poses of all three bodies
     expected = car_axis_poses(data["time"], reference)
     assert np.max(np.abs(poses[:, :3] - expected[:, :3])) < 1e-11
+
+
+def test_mixed_scd_is_the_test_sets_measure_on_pose_components() -> None:
+    from workbench.runs.metrics import mixed_scd
+
+    reference = car_axis_poses(0.0, [0.0, 0.5, 1.0, 0.5])
+    poses = reference.copy()
+    poses[2, 1] += 3e-9  # yr: |err| / (1 + 0.5) = 2e-9
+    assert mixed_scd(poses, reference) == pytest.approx(-np.log10(2e-9))
+    poses[1, 3:] *= -1  # the same rotation: no error
+    assert mixed_scd(poses, reference) == pytest.approx(-np.log10(2e-9))
+    poses[0, 6] += 1.1e-8  # a quaternion component: |err| / (1 + |ref|) = 1.1e-8
+    assert mixed_scd(poses, reference) == pytest.approx(-np.log10(1.1e-8))
+    reference[0, 3:] = np.nan  # orientation unknown: drops out
+    assert mixed_scd(poses, reference) == pytest.approx(-np.log10(2e-9))

@@ -78,6 +78,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("err_max", "max over output times of the pose error (m)"),
     ("err_end", "pose error at the end time (m)"),
     ("scd", "-log10(err_end / length_scale)"),
+    ("scd_mixed", "min over end-pose components of -log10(|err| / (1 + |ref|)) (test set)"),
     ("drift_pos_max", "max position-level constraint residual"),
     ("drift_pos_final", "final position-level constraint residual"),
     ("drift_vel_max", "max velocity-level constraint residual"),
