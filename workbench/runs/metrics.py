@@ -197,5 +197,3 @@ def trajectory_metrics(
         columns=SERIES_COLUMNS,
     )
     return row, series
-
-
