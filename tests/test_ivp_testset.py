@@ -21,7 +21,7 @@ from workbench.testing import check_problem
 BEST = Pipeline("minimal-ode", {"index": 1}, "scipy-dop853")
 
 
-@pytest.mark.parametrize("name", ["andrews", "car-axis"])
+@pytest.mark.parametrize("name", ["andrews", "car-axis", "iftomm-a03"])
 def test_conformance(name: str) -> None:
     report = check_problem(name).raise_if_failed()
     # the stored two-pipeline reference is checked against a tight run too
@@ -32,6 +32,16 @@ def test_andrews_poses_invert_to_the_test_set_angles() -> None:
     angles = np.array([ANDREWS_Q0[name] for name in ANDREWS_Q0]) + [12.0, -11.0, 0, 0, 0, 0, 0]
     recovered = andrews_angles(andrews_poses(angles), angles + 0.5)
     assert np.max(np.abs(recovered - angles)) < 1e-13
+
+
+def test_iftomm_a03_is_andrews_over_a_longer_time() -> None:
+    """The two stored references (computed separately) agree where they overlap."""
+    andrews, a03 = get_problem("andrews")(), get_problem("iftomm-a03")()
+    at = np.array([andrews.t_end])
+    first = stored_reference(andrews).poses(at)[0]
+    second = stored_reference(a03).poses(at)[0]
+    assert np.max(np.abs(first[:, :3] - second[:, :3])) < 1e-12  # m
+    assert a03.t_end == 0.05 and andrews.model().bodies.keys() == a03.model().bodies.keys()
 
 
 def _end_poses(name: str, rtol: float) -> np.ndarray:
