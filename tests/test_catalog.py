@@ -49,6 +49,11 @@ EXPECTED = {
     # N + 1 cranks and N couplers: 3N + 1 revolutes, 2 rows each for N cut ones
     "iftomm-a02": ({}, 1, 2),
     "iftomm-a02[n=5]": ({"n": 5}, 1, 5),
+    # 7 revolutes in the tree - 3 cut revolutes at E x 2 rows
+    "andrews": ({}, 1, 3),
+    "iftomm-a03": ({}, 1, 3),
+    # driven revolute (0) + prismatic (1) + revolute (1)
+    "car-axis": ({}, 2, 0),
 }
 
 RTOL = 1e-10

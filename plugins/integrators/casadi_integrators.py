@@ -14,10 +14,15 @@ opts)`` returns the states at every output time.
   whose Jacobian with respect to z, [dF/dy_d' dF/dy_a], is nonsingular exactly when
   F has index <= 1 (for the mechanical index-1 form it is [I 0 0; 0 M W^T; 0 W 0]).
   The multipliers come out at every output time with the state.
-* ``casadi-collocation``: fixed-step Radau IIA collocation (``collocation`` plugin,
-  order 2 ``degree`` - 1) on the ``ode`` form. Its number of steps is
-  ``intervals_per_output`` per output interval, or, when that is 0, derived from rtol:
-  steps no longer than rtol^(1 / order) s.
+* ``casadi-collocation``: Radau IIA collocation (``collocation`` plugin, order
+  p = 2 ``degree`` - 1) on the ``ode`` form, one output interval at a time (the interval
+  mapped to [0, 1], its start and length as parameters). Its steps per output interval are
+  ``intervals_per_output``, or, when that is 0, refined until rtol is met: m steps, then
+  2m, accepted when the estimate |y_2m - y_m| / (2^p - 1) is within atol + rtol |y| at
+  every output (the steps reported count every march). The rootfinder's residual
+  tolerance follows the tolerances (a hundredth of atol + rtol |y0|, at least 1e-10)
+  instead of CasADi's fixed 1e-12. A step that fails ends the run at the start of its
+  output interval, with the trajectory up to there.
 
 Statistics come from ``Function.stats()``: CVODES/IDAS steps, right-hand-side
 evaluations, error-test failures (rejected steps), Newton iterations and linear setups
@@ -26,8 +31,8 @@ collocation plugin reports only its steps.
 
 Failures: the SUNDIALS plugins raise on a failed step; the time reached is taken from
 the stats, and the integration is repeated on the output times before it to return
-them (cheap, and only on failure). The fixed-step plugins do not report a failed
-implicit step at all (CasADi keeps the last state and returns success), so a stalled
+them (cheap, and only on failure). A failed implicit step of the fixed-step plugins may
+also pass unreported (CasADi keeping the last state and returning success), so a stalled
 state — unchanged over an output interval although its derivative is not zero, or a
 non-finite derivative at an output — is reported as the failure.
 """
@@ -249,7 +254,7 @@ class CasadiIdas(CasadiBase):
 @dataclass(frozen=True)
 class CollocationOptions:
     degree: int = 3  # collocation points per step; Radau IIA order 2 degree - 1
-    intervals_per_output: int = 0  # steps per output interval; 0 = from rtol
+    intervals_per_output: int = 0  # steps per output interval; 0 = refined until rtol is met
 
     def __post_init__(self) -> None:
         if not 1 <= self.degree <= 9:
@@ -261,37 +266,143 @@ class CollocationOptions:
             )
 
 
+MAX_ELEMENTS = 200_000  # collocation steps over the whole run before giving up
+ROOTFINDER_MARGIN = 1e-2  # rootfinder residual tolerance / the step's error tolerance
+ROOTFINDER_FLOOR = 1e-10  # Andrews: 1e-12 fails near t = 0.002 s, 1e-10 completes
+MAX_FAILED_REFINEMENTS = 2  # failed marches refined in a row before the failure stands
+
+
+@dataclass
+class _March:
+    """Collocation steps taken output interval by output interval."""
+
+    times: np.ndarray  # output times reached
+    y: np.ndarray  # (len(times), n)
+    steps: int
+    failure: str = ""  # empty: every interval was integrated
+
+
 @integrator
 class CasadiCollocation(CasadiBase):
     name = "casadi-collocation"
-    summary = "CasADi Radau IIA collocation, fixed steps from rtol or intervals_per_output"
+    summary = "CasADi Radau IIA collocation, steps refined until rtol is met (or fixed)"
     Options = CollocationOptions
     accepts: ClassVar[dict[str, int]] = {"ode": 0}
     plugin = "collocation"
 
-    def n_elements(self, task: IntegrationTask) -> int:
-        intervals = len(task.times) - 1
-        if task.options.intervals_per_output:
-            return intervals * task.options.intervals_per_output
-        order = 2 * task.options.degree - 1
-        step = task.rtol ** (1.0 / order)
-        return max(intervals, math.ceil((task.times[-1] - task.times[0]) / step))
-
     def plugin_options(self, task: IntegrationTask) -> dict[str, Any]:
+        # the rootfinder's residual (in the state's units) is asked for a hundredth of
+        # the error allowed, not CasADi's fixed 1e-12, which Andrews' squeezer (rates of
+        # 1e3 rad/s) cannot reach in double precision, and never below ROOTFINDER_FLOOR
+        scale = max(1.0, float(np.max(np.abs(task.y0))))
+        tolerance = max(ROOTFINDER_MARGIN * (task.atol + task.rtol * scale), ROOTFINDER_FLOOR)
         return {
             "collocation_scheme": "radau",
             "show_eval_warnings": False,
-            "rootfinder_options": {"show_eval_warnings": False},
             "interpolation_order": task.options.degree,
-            "number_of_finite_elements": self.n_elements(task),
+            "rootfinder_options": {
+                "show_eval_warnings": False,
+                "abstol": tolerance,
+                "abstolStep": tolerance,
+            },
         }
 
-    def fill_stats(self, trajectory: Trajectory, stats: dict[str, Any]) -> None:
-        trajectory.stats.n_steps = int(stats.get("n_call_step", 0))
-        trajectory.stats.n_rejected = 0
+    def step_function(self, task: IntegrationTask, elements: int) -> ca.Function:
+        """One output interval [t_k, t_k + h] as tau in [0, 1] (parameters t_k, h), in
+        ``elements`` steps: dy/dtau = h f(t_k + h tau, y)."""
+        dae, _ = _ode_dae(task)
+        sym = ca.SX if isinstance(dae["x"], ca.SX) else ca.MX
+        tau, start, length = sym.sym("tau"), sym.sym("t_k"), sym.sym("h")
+        ode = length * ca.substitute(dae["ode"], dae["t"], start + length * tau)
+        scaled = {"t": tau, "x": dae["x"], "p": ca.vertcat(start, length), "ode": ode}
+        options = self.plugin_options(task) | {"number_of_finite_elements": elements}
+        return ca.integrator("casadi_collocation", self.plugin, scaled, 0.0, 1.0, options)
+
+    def march(self, task: IntegrationTask, elements: int) -> _March:
+        """Integrate interval by interval, ``elements`` steps in each; stop at the first
+        failed interval (CasADi raises for the whole call, keeping no partial result)."""
+        step = self.step_function(task, elements)
+        times = task.times
+        y = np.empty((times.size, task.y0.size))
+        y[0] = task.y0
+        for k in range(times.size - 1):
+            h = float(times[k + 1] - times[k])
+            try:
+                y[k + 1] = np.asarray(step(x0=y[k], p=[float(times[k]), h])["xf"]).ravel()
+            except RuntimeError as error:
+                failure = (
+                    f"{self.name}: at t = {times[k]:g}: the step to {times[k + 1]:g} failed "
+                    f"({_error_line(error)})"
+                )
+                return _March(times[: k + 1], y[: k + 1], k * elements, failure)
+            if not np.all(np.isfinite(y[k + 1])):
+                failure = f"{self.name}: at t = {times[k]:g}: non-finite state at {times[k + 1]:g}"
+                return _March(times[: k + 1], y[: k + 1], k * elements, failure)
+        return _March(times, y, (times.size - 1) * elements)
+
+    def initial_elements(self, task: IntegrationTask) -> int:
+        """Steps per output interval to start from: steps of rtol^(1/order) times the
+        run's length (the error of a step of relative length x is about x^(order+1))."""
+        order = 2 * task.options.degree - 1
+        span = float(task.times[-1] - task.times[0])
+        longest = float(np.max(np.diff(task.times)))
+        return max(1, math.ceil(longest / (span * task.rtol ** (1.0 / order))))
+
+    def refined(self, task: IntegrationTask) -> tuple[_March, int]:
+        """March with m steps per output interval, then 2m: the estimate of the finer
+        march's error, |y_2m - y_m| / (2^p - 1) (p = 2 degree - 1), must be within
+        atol + rtol |y| at every output, else m grows by what the estimate asks for. A
+        failed march (a step too long for Newton's iteration) is refined too, up to
+        MAX_FAILED_REFINEMENTS times; the result's steps count every march."""
+        order = 2 * task.options.degree - 1
+        intervals = task.times.size - 1
+        elements = self.initial_elements(task)
+        coarse = self.march(task, elements)
+        total, failed = coarse.steps, 0
+        while True:
+            if 2 * elements * intervals > MAX_ELEMENTS:
+                if not coarse.failure:
+                    coarse.failure = (
+                        f"{self.name}: rtol {task.rtol:g} not met with {elements} steps per "
+                        f"output interval ({elements * intervals} steps; the limit is "
+                        f"{MAX_ELEMENTS})"
+                    )
+                return coarse, total
+            fine = self.march(task, 2 * elements)
+            total += fine.steps
+            if fine.failure or coarse.failure:
+                failed = failed + 1 if fine.failure else 0
+                if failed > MAX_FAILED_REFINEMENTS:
+                    return fine, total
+                coarse, elements = fine, 2 * elements
+                continue
+            estimate = np.abs(fine.y - coarse.y) / (2**order - 1)
+            worst = float(np.max(estimate / (task.atol + task.rtol * np.abs(fine.y))))
+            if worst <= 1.0:
+                return fine, total
+            growth = 1.3 * worst ** (1.0 / order)  # error ~ (steps)^-p, with a margin
+            if growth <= 2.0:
+                coarse, elements = fine, 2 * elements
+            else:
+                elements = math.ceil(elements * growth)
+                coarse = self.march(task, elements)
+                total += coarse.steps
 
     def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
-        super().integrate(task, trajectory)
+        """Fixed ``intervals_per_output`` steps, or :meth:`refined` until rtol is met."""
+        fixed = task.options.intervals_per_output
+        if fixed:
+            result = self.march(task, fixed)
+            total = result.steps
+        else:
+            result, total = self.refined(task)
+        trajectory.times, trajectory.y = result.times, result.y
+        trajectory.stats.n_steps = total
+        trajectory.stats.n_rejected = 0
+        if result.failure:
+            trajectory.success = False
+            trajectory.message = result.failure
+            return
         stalled = _first_stalled(task, trajectory.times, trajectory.y)
         if stalled is not None:
             trajectory.success = False

@@ -78,6 +78,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("err_max", "max over output times of the pose error (m)"),
     ("err_end", "pose error at the end time (m)"),
     ("scd", "-log10(err_end / length_scale)"),
+    ("scd_mixed", "min over end-pose components of -log10(|err| / (1 + |ref|)) (test set)"),
     ("drift_pos_max", "max position-level constraint residual"),
     ("drift_pos_final", "final position-level constraint residual"),
     ("drift_vel_max", "max velocity-level constraint residual"),
@@ -122,7 +123,8 @@ ENVIRONMENT_FILE = "environment.json"
 #   3  adds the health audit (warnings, jacobian_sv_ratio_*, dof_*, rotation_defect_max,
 #      formalism_notes, reference_accuracy); older rows were never audited: their
 #      warnings say so instead of reading as "nothing wrong"
-SCHEMA_VERSION = 3
+#   4  adds scd_mixed (the IVP test set's mixed measure); older rows never measured it: NaN
+SCHEMA_VERSION = 4
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -134,10 +136,15 @@ def _migrate_2_to_3(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 3, "warnings": not_audited}
 
 
+def _migrate_3_to_4(row: dict[str, Any]) -> dict[str, Any]:
+    return row | {"schema_version": 4, "scd_mixed": math.nan}
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
     2: _migrate_2_to_3,
+    3: _migrate_3_to_4,
 }
 
 
