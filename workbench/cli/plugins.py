@@ -72,15 +72,20 @@ def list_command(
 
 @app.command()
 def describe(
-    name: Annotated[str, typer.Argument(help="A problem, formalism or integrator name.")],
+    name: Annotated[
+        str, typer.Argument(help="A problem, formalism or integrator name, or a robot file.")
+    ],
     option: Annotated[
         list[str] | None,
         typer.Option("-o", "--option", help="A problem's option NAME=VALUE (e.g. -o n=40)."),
     ] = None,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
+    from workbench.plugin.robot_problem import robot_file_problem
+
+    name, option = robot_file_problem(name, option or [])
     kind, plugin = registry.any_plugin(name)
-    options = _problem_options(name, kind, option or [])
+    options = _problem_options(name, kind, option)
     out = console()
     out.print(f"{name} ({kind}, {plugin.__module__})", style="bold")
     summary = getattr(plugin, "summary", "")

@@ -32,7 +32,9 @@ class ImportedRobot:
     visual meshes; ``links``: {link or MJCF body: (model body or "ground", the link's frame
     in that body)} (welded links share a body); ``file_joint_types``: {model joint: its
     type in the file} (e.g. "continuous", "hinge"); ``initial_coordinates`` /
-    ``initial_velocities``: {joint: values} from the file (an MJCF keyframe), else empty.
+    ``initial_velocities``: {joint: values} from the file (an MJCF keyframe), else empty;
+    ``notes``: what the file has that the model leaves out (one line each: actuators,
+    armature, joint friction, contacts), so that nothing is dropped unsaid.
     """
 
     model: Model
@@ -43,6 +45,7 @@ class ImportedRobot:
     file_joint_types: dict[str, str] = field(default_factory=dict)
     initial_coordinates: dict[str, Any] = field(default_factory=dict)
     initial_velocities: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
 
 def transform(frame: Frame) -> np.ndarray:

@@ -383,6 +383,11 @@ class _Builder:
             axis=axis,
         )
         self.imported.file_joint_types[name] = joint.type
+        dynamics = joint.dynamics
+        if dynamics is not None and (dynamics.damping or dynamics.friction):
+            self.imported.notes.append(
+                f"joint {name!r}: <dynamics> damping/friction not modelled (moves freely)"
+            )
         limit = joint.limit
         if joint.type in ("revolute", "prismatic") and limit is not None:
             if limit.lower is not None and limit.upper is not None:

@@ -1,0 +1,104 @@
+"""Where a user meets imported robots: ``workbench describe FILE``, ``workbench run FILE``,
+sweep entries ``{ urdf = PATH }`` / ``{ mjcf = PATH }`` relative to the specification, and
+the "robot" problem's initial state (options q0 / v0, else the MJCF keyframe)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench.errors import ConfigError
+from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+from workbench.plugin.robot_problem import RobotProblem
+from workbench.runs.sweep_spec import parse_spec
+
+REPO = Path(__file__).resolve().parents[1]
+ARM = REPO / "tests" / "robots" / "arm.xml"
+HANG = 600  # seconds only a hung command reaches
+
+
+def workbench(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess:
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
+    command = [sys.executable, "-m", "workbench", *args]
+    return subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=HANG)
+
+
+def test_describe_a_robot_file_lists_its_bodies_joints_and_dof():
+    result = workbench("describe", str(ARM))
+    assert result.returncode == 0, result.stderr
+    for fragment in ("robot (problem", "upper", "forearm", "wrist", "spherical", "DOF"):
+        assert fragment in result.stdout
+
+
+def test_run_a_robot_file_conserves_energy(tmp_path):
+    """The free-floating MJCF body with two limbs (no dampers): a run from the file's
+    folder finishes ok and its energy error is that of the integrator's tolerance."""
+    shutil.copy(REPO / "tests" / "robots" / "floating.xml", tmp_path / "floating.xml")
+    result = workbench(
+        "run", "floating.xml", "-f", "recursive", "-i", "sundials-cvode-bdf", "--rtol", "1e-8",
+        "-o", "t_end=0.3", "-o", "v0={hip1 = 2.0, root = [0, 0, 1, 0.5, 0, 0]}", cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    rows = {}
+    for line in result.stdout.splitlines():
+        cells = [cell.strip() for cell in line.split("│") if cell.strip()]
+        if len(cells) == 2:
+            rows[cells[0]] = cells[1]
+    assert rows["status"] == "ok", rows
+    assert 0 < float(rows["energy_err_max"]) < 1e-5
+
+
+def test_a_missing_robot_file_is_one_line(tmp_path):
+    result = workbench("describe", "nowhere.urdf", cwd=tmp_path)
+    assert result.returncode != 0
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "nowhere.urdf" in lines[0] and "not found" in lines[0]
+
+
+def test_sweep_entries_resolve_paths_relative_to_the_spec(tmp_path, monkeypatch):
+    (tmp_path / "robots").mkdir()
+    shutil.copy(ARM, tmp_path / "robots" / "arm.xml")
+    spec = tmp_path / "spec.toml"
+    text = """problems = [{ mjcf = "robots/arm.xml", t_end = 0.5, q0 = { shoulder = 0.2 } }]
+formalisms = ["recursive"]
+integrators = ["sundials-cvode-bdf"]
+tolerances = [1e-6]
+"""
+    spec.write_text(text)
+    monkeypatch.chdir(REPO)  # not the spec's folder
+    parsed = parse_spec(text, str(spec))
+    (run,) = parsed.runs
+    assert run.problem == "robot"
+    assert run.problem_options["file"] == str((tmp_path / "robots" / "arm.xml").resolve())
+    assert run.problem_options["t_end"] == 0.5
+    with pytest.raises(ConfigError, match=r"problems\[0\]\.urdf.*not found"):
+        parse_spec(text.replace('mjcf = "robots/arm.xml"', 'urdf = "robots/gone.urdf"'), str(spec))
+    with pytest.raises(ConfigError, match="not a URDF file"):
+        parse_spec(text.replace("mjcf =", "urdf ="), str(spec))
+
+
+def test_initial_state_from_options_or_keyframe():
+    from importlib import resources
+
+    linkage = str(resources.files("workbench.problems").joinpath("robot_files/rssr_linkage.xml"))
+    problem = RobotProblem({"file": linkage})
+    model = problem.model()
+    kinematics = TreeKinematics(model)
+    v0 = initial_joint_values(model, kinematics, problem.initial_joint_velocities(), True)
+    assert v0[kinematics.joint_slices["crank_joint"][1]] == pytest.approx(3.0)  # the keyframe
+    given = RobotProblem({"file": str(ARM), "q0": [0.1, 0.02, 1.0, 0.0, 0.0, 0.0, 0.3]})
+    assert given.initial_joint_coordinates() == {
+        "shoulder": 0.1, "elbow": 0.02, "wrist": [1.0, 0.0, 0.0, 0.0], "knuckle": 0.3,
+    }  # fmt: skip
+    with pytest.raises(ConfigError, match="'hip' is not a joint of arm.xml"):
+        RobotProblem({"file": str(ARM), "q0": {"hip": 0.1}}).initial_joint_coordinates()
+    with pytest.raises(ConfigError, match="3 values for 7"):
+        RobotProblem({"file": str(ARM), "q0": [0.1, 0.2, 0.3]}).initial_joint_coordinates()
+    q = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
+    assert np.all(np.isfinite(q))
