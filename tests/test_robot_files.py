@@ -102,3 +102,36 @@ def test_initial_state_from_options_or_keyframe():
         RobotProblem({"file": str(ARM), "q0": [0.1, 0.2, 0.3]}).initial_joint_coordinates()
     q = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
     assert np.all(np.isfinite(q))
+
+
+def test_visual_meshes_reach_the_recording(tmp_path):
+    """A URDF link's STL mesh becomes a mesh shape of its body (scaled, at the visual's
+    origin) and an Asset3D in the Rerun recording; a COLLADA mesh goes through trimesh."""
+    rr = pytest.importorskip("rerun")
+    trimesh = pytest.importorskip("trimesh")
+    from workbench.model.importers import load_robot
+    from workbench.outputs.recording import RerunSink
+
+    trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(tmp_path / "link.stl")
+    (tmp_path / "robot.urdf").write_text(
+        """<robot name="meshy"><link name="base"/>
+<link name="arm"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial>
+<visual><origin xyz="0 0 0.5" rpy="0 0 1.5707963267948966"/>
+<geometry><mesh filename="link.stl" scale="2 2 2"/></geometry></visual></link>
+<joint name="j" type="continuous"><parent link="base"/><child link="arm"/></joint></robot>"""
+    )
+    model = load_robot(tmp_path / "robot.urdf").model
+    (shape,) = model.bodies["arm"].shapes
+    assert shape.kind == "mesh" and shape.size == (2.0, 2.0, 2.0)
+    np.testing.assert_allclose(shape.frame.position, [0, 0, 0.5])
+    np.testing.assert_allclose(shape.frame.rotation @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    entries = dict(RerunSink()._geometry(model, "meshy"))
+    place, asset = entries["bodies/arm/meshes/0"]
+    assert isinstance(asset, rr.Asset3D) and isinstance(place, rr.Transform3D)
+    trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(tmp_path / "link.dae")
+    (tmp_path / "robot.urdf").write_text(
+        (tmp_path / "robot.urdf").read_text().replace(".stl", ".dae")
+    )
+    model = load_robot(tmp_path / "robot.urdf").model
+    _, mesh = dict(RerunSink()._geometry(model, "meshy-dae"))["bodies/arm/meshes/0"]
+    assert isinstance(mesh, rr.Mesh3D)

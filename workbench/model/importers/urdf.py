@@ -345,9 +345,10 @@ class _Builder:
                 scale = np.broadcast_to(
                     np.asarray(1.0 if geometry.mesh.scale is None else geometry.mesh.scale), 3
                 )
-                self.imported.meshes.append(
-                    MeshVisual(body, resolved, frame, tuple(float(s) for s in scale))
-                )
+                scale = tuple(float(s) for s in scale)
+                self.imported.meshes.append(MeshVisual(body, resolved, frame, scale))
+                if body != GROUND:
+                    shapes[body].append(Shape("mesh", scale, frame, path=str(resolved)))
             elif body != GROUND:
                 shape = _shape(geometry, frame)
                 if shape is not None:
