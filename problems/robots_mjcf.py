@@ -2,8 +2,9 @@
 
 ``rssr-linkage`` — the spatial RSSR linkage of ``robot_files/rssr_linkage.xml`` (shipped
 with the catalog): a crank (aluminium rod, 0.1 m) turning about z at the origin, a coupler
-(0.38 m, with a 0.1 m square plate across its middle) on a ball joint at its tip, a rocker (0.15 m) turning about x at (0.3, 0.2, 0.1) m;
-the MJCF <connect> equality closing the loop becomes a spherical loop-closing joint.
+(0.38 m, with a 0.1 m square plate across its middle) on a ball joint at the crank's tip,
+and a rocker (0.15 m) turning about x at (0.3, 0.2, 0.1) m; the MJCF <connect> equality
+closing the loop becomes a spherical loop-closing joint.
 5 joint coordinates - 3 closure rows = 2 DOF. Gravity (0, 0, -9.81) m/s^2. Initial state:
 the file's keyframe (the assembled rest pose; crank 3 rad/s, rocker -2 rad/s, the
 coupler's angular velocity normal to its axis); t_end = 1 s. Energy is conserved.

@@ -12,6 +12,7 @@ round-off (docs/robots.md gives the measured gap).
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -98,3 +99,31 @@ def test_closed_loop_formalisms_agree_on_the_rssr_linkage():
         for name, equations in built.items():
             ours = body_accelerations(equations, formalism_state(equations, 0.0, q, v))
             np.testing.assert_allclose(ours, reference, rtol=0, atol=1e-9 * scale, err_msg=name)
+
+
+def test_weld_becomes_a_fixed_cut_joint_at_the_compiled_relative_pose():
+    """tests/robots/weld.xml: two bodies on ball joints welded by <weld>. The fixed cut
+    joint closes at qpos0 (where MuJoCo compiled the relative pose), and at random
+    configurations its position rows have the length of MuJoCo's own weld residual."""
+    import mujoco
+
+    from workbench.model.importers.mjcf import load_mjcf
+
+    path = str(Path(__file__).parent / "robots" / "weld.xml")
+    model = load_mjcf(path).model
+    assert model.joints["w"].type == "fixed" and model.joints["w"].cut
+    kinematics = TreeKinematics(model)
+    closure = kinematics.function("g", [kinematics.closure_constraints])
+    at_rest = np.array([1.0, 0, 0, 0, 1.0, 0, 0, 0])
+    assert np.abs(np.asarray(closure(0.0, at_rest, np.zeros(6)))).max() < 1e-12
+    theirs = mujoco.MjModel.from_xml_path(path)
+    data = mujoco.MjData(theirs)
+    rng = np.random.default_rng(2)
+    for _ in range(3):
+        q = rng.standard_normal(8)
+        q[:4] /= np.linalg.norm(q[:4])
+        q[4:] /= np.linalg.norm(q[4:])
+        data.qpos[:] = q  # ball joints: the same Euler parameters in both
+        mujoco.mj_forward(theirs, data)
+        ours = np.asarray(closure(0.0, q, np.zeros(6))).ravel()
+        assert np.linalg.norm(ours[:3]) == pytest.approx(np.linalg.norm(data.efc_pos[:3]), rel=1e-9)

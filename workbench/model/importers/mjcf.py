@@ -213,9 +213,9 @@ class _Builder:
             parent = Frame(place1[:3, :3] @ data[0:3] + place1[:3, 3], np.eye(3))
             child = Frame(place2[:3, :3] @ data[3:6] + place2[:3, 3], np.eye(3))
             kind = "spherical"
-        else:  # weld: anchor on body2 data[0:3], body1's point data[3:6], relpose quat data[6:10]
-            relative = _placement(data[3:6], data[6:10])  # body2 frame in body1's at rest
-            parent = frame_of(place1 @ relative @ _translation(data[0:3]))
+        else:  # weld: data[0:3] the anchor in body2, data[3:6] the point of body1 that
+            # coincides with it and data[6:10] body2's orientation in body1, both at rest
+            parent = frame_of(place1 @ _placement(data[3:6], data[6:10]))
             child = frame_of(place2 @ _translation(data[0:3]))
             kind = "fixed"
         self.model.add_joint(name, kind, owner1, owner2, parent, child, cut=True)
