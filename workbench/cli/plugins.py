@@ -150,6 +150,8 @@ def _problem_table(problem: Any) -> Table:
     reference = given_reference(problem)
     table.add_row("reference", reference.kind if reference is not None else "none")
     table.add_row("time span", f"{problem.t_start:g} .. {problem.t_end:g} s")
+    for label, value in problem.describe_rows():
+        table.add_row(label, value)
     return table
 
 

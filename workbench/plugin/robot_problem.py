@@ -93,6 +93,20 @@ class RobotProblem(Problem):
         given = self._values(self.options.v0, "v0", coordinates=False)
         return given if given is not None else dict(self.imported().initial_velocities)
 
+    def describe_rows(self) -> list[tuple[str, str]]:
+        imported = self.imported()
+        limits = ", ".join(
+            f"{joint} {low:g} .. {high:g}" for joint, (low, high) in imported.limits.items()
+        )
+        welded = [link for link, (body, _) in imported.links.items() if link != body]
+        return [
+            ("file", str(imported.source)),
+            ("links welded", ", ".join(welded) or "none"),
+            ("joint limits (not enforced)", limits or "none"),
+            ("meshes", str(len(imported.meshes))),
+            *(("not modelled", note) for note in imported.notes),
+        ]
+
     def _values(self, value: Any, option: str, coordinates: bool) -> dict[str, Any] | None:
         """{joint: value} from a table by joint name or a list in tree-joint order."""
         from workbench.mechanics.joints import DIMENSIONS
