@@ -138,3 +138,46 @@ def test_visual_meshes_reach_the_recording(tmp_path):
     model = load_robot(tmp_path / "robot.urdf").model
     _, mesh = dict(RerunSink()._geometry(model, "meshy-dae"))["bodies/arm/meshes/0"]
     assert isinstance(mesh, rr.Mesh3D)
+
+
+PLANAR_URDF = """<robot name="slider">
+<link name="table"/>
+<link name="puck"><inertial><origin xyz="0.1 0 0"/><mass value="2"/>
+<inertia ixx="0.1" iyy="0.2" izz="0.3" ixy="0.01"/></inertial></link>
+<joint name="glide" type="{kind}"><parent link="table"/><child link="puck"/>
+<origin xyz="0 0 1" rpy="0.2 0.1 0"/><axis xyz="{axis}"/></joint></robot>"""
+
+
+@pytest.mark.parametrize(
+    ("kind", "axis"),
+    [
+        ("planar", "0 0 1"),  # plane normal near z: gravity mostly normal to the plane
+        ("planar", "0 1 0"),  # plane normal near y: the plane nearly holds the vertical
+        ("floating", "1 0 0"),  # free fall
+    ],
+)
+def test_planar_and_floating_urdf_joints_fall_as_they_should(tmp_path, kind, axis):
+    """From rest, gravity acts at the centre of mass, so the puck does not start turning
+    and its frame accelerates as gravity projected on the joint's plane (planar: the plane
+    normal to the file's axis, tilted by the origin's rpy) or at g (floating)."""
+    from scipy.spatial.transform import Rotation
+
+    from workbench.model.importers import load_robot
+    from workbench.plugin.registry import get_formalism
+    from workbench.testing.states import body_accelerations, formalism_state
+
+    (tmp_path / "slider.urdf").write_text(PLANAR_URDF.format(kind=kind, axis=axis))
+    model = load_robot(tmp_path / "slider.urdf").model
+    equations = get_formalism("recursive")().build(model)
+    kinematics = TreeKinematics(model)
+    q = initial_joint_values(model, kinematics, {}, False)
+    state = formalism_state(equations, 0.0, q, np.zeros(kinematics.nv))
+    rates = body_accelerations(equations, state).reshape(-1, 6)[0]
+    gravity = np.array([0.0, 0.0, -9.81])
+    want = gravity
+    if kind == "planar":
+        normal = Rotation.from_euler("xyz", [0.2, 0.1, 0.0]).as_matrix() @ np.array(
+            [float(x) for x in axis.split()]
+        )
+        want = gravity - normal * (normal @ gravity)
+    np.testing.assert_allclose(rates[:3], want, atol=1e-9)
