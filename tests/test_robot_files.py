@@ -181,3 +181,22 @@ def test_planar_and_floating_urdf_joints_fall_as_they_should(tmp_path, kind, axi
         )
         want = gravity - normal * (normal @ gravity)
     np.testing.assert_allclose(rates[:3], want, atol=1e-9)
+
+
+def test_without_example_robot_data_the_robots_module_says_how_to_install_it(monkeypatch):
+    """The URDF robots of the catalog need the robots extra; without it their module
+    fails to import with the pip command (the registry lists it as broken with that)."""
+    import importlib.util
+    from importlib import metadata
+
+    real = metadata.distribution
+
+    def missing(name: str):
+        if name == "example-robot-data":
+            raise metadata.PackageNotFoundError(name)
+        return real(name)
+
+    monkeypatch.setattr(metadata, "distribution", missing)
+    spec = importlib.util.spec_from_file_location("robots_probe", REPO / "problems" / "robots.py")
+    with pytest.raises(ImportError, match=r"pip install 'mbs-workbench\[robots\]'"):
+        spec.loader.exec_module(importlib.util.module_from_spec(spec))
