@@ -5,6 +5,9 @@
 2. ``docs/images/rerun-viewer.png``: the Rerun web viewer showing the recording of a small
    sweep (double pendulum, two formalisms, a loose and a tight tolerance) in the
    workbench's blueprint: 3D view beside the drift and energy plots.
+3. ``docs/images/rerun-robot.png``: the same viewer on a run of the UR5 imported from
+   example-robot-data's URDF (the robots extra), drawn with its own meshes
+   (``--only robot`` makes this one alone).
 
 Needs the test extra (selenium) and Debian's chromium + chromium-driver; the viewer is
 served by ``rerun --serve-web`` on 127.0.0.1 only and rendered by headless Chromium with
@@ -47,6 +50,15 @@ atol_factor = 1e-3
 problems = ["double-pendulum"]
 formalisms = ["minimal-ode", { name = "absolute-dae", options = { index = 1 } }]
 integrators = ["scipy-radau"]
+"""
+ROBOT_SPEC = """
+jobs = 2
+time_limit = 120.0
+tolerances = [1e-6]
+atol_factor = 1e-3
+problems = ["ur5"]
+formalisms = ["recursive"]
+integrators = ["sundials-cvode-bdf"]
 """
 VIEWER_SIZE = (1600, 900)
 MAX_BYTES = 300_000
@@ -146,9 +158,14 @@ def main() -> None:
     parser.add_argument("--images", type=Path, default=ROOT / "docs" / "images")
     parser.add_argument("--work", type=Path, default=ROOT / "reports" / "screenshots")
     parser.add_argument("--settle", type=float, default=20.0, help="seconds for the viewer")
+    parser.add_argument("--only", choices=["all", "robot"], default="all")
     args = parser.parse_args()
     args.images.mkdir(parents=True, exist_ok=True)
 
+    robot = sweep(ROBOT_SPEC, args.work / "robot") / "recording.rrd"
+    viewer_screenshot(robot, args.images / "rerun-robot.png", args.settle)
+    if args.only == "robot":
+        return
     diagram = sweep(DIAGRAM_SPEC, args.work / "diagram")
     figure = diagram / "report" / "figures" / "double-pendulum-work-precision.png"
     save_small_png(figure, args.images / "work-precision.png")

@@ -8,6 +8,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+from importlib import metadata
 
 import numpy as np
 import pytest
@@ -19,6 +20,15 @@ from workbench.mechanics.topology import analyze
 from workbench.plugin.registry import REGISTRY, get_problem
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
 from workbench.runs.references import given_reference
+
+
+def _has_robot_data() -> bool:
+    try:
+        metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return False
+    return True
+
 
 # case: (options, dof from the rank of the constraint Jacobian, independent loops),
 # derived by hand (Gruebler / counting velocities minus independent constraint rows).
@@ -54,7 +64,11 @@ EXPECTED = {
     "iftomm-a03": ({}, 1, 3),
     # driven revolute (0) + prismatic (1) + revolute (1)
     "car-axis": ({}, 2, 0),
+    "rssr-linkage": ({}, 2, 1),  # revolute 1 + ball 3 + revolute 1 - 3 rows of the connect
 }
+if _has_robot_data():  # the robots extra
+    EXPECTED["ur5"] = ({}, 6, 0)  # 6 revolutes, fixed base
+    EXPECTED["solo12"] = ({}, 18, 0)  # free base 6 + 12 revolutes
 
 RTOL = 1e-10
 ATOL = 1e-12

@@ -72,15 +72,20 @@ def list_command(
 
 @app.command()
 def describe(
-    name: Annotated[str, typer.Argument(help="A problem, formalism or integrator name.")],
+    name: Annotated[
+        str, typer.Argument(help="A problem, formalism or integrator name, or a robot file.")
+    ],
     option: Annotated[
         list[str] | None,
         typer.Option("-o", "--option", help="A problem's option NAME=VALUE (e.g. -o n=40)."),
     ] = None,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
+    from workbench.plugin.robot_problem import robot_file_problem
+
+    name, option = robot_file_problem(name, option or [])
     kind, plugin = registry.any_plugin(name)
-    options = _problem_options(name, kind, option or [])
+    options = _problem_options(name, kind, option)
     out = console()
     out.print(f"{name} ({kind}, {plugin.__module__})", style="bold")
     summary = getattr(plugin, "summary", "")
@@ -145,6 +150,8 @@ def _problem_table(problem: Any) -> Table:
     reference = given_reference(problem)
     table.add_row("reference", reference.kind if reference is not None else "none")
     table.add_row("time span", f"{problem.t_start:g} .. {problem.t_end:g} s")
+    for label, value in problem.describe_rows():
+        table.add_row(label, value)
     return table
 
 

@@ -53,7 +53,9 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
 
 @app.command()
 def run(
-    problem: Annotated[str, typer.Argument(help="Problem name (`workbench list problems`).")],
+    problem: Annotated[
+        str, typer.Argument(help="Problem name (`workbench list problems`) or a .urdf/.xml file.")
+    ],
     formalism: Annotated[str, typer.Option("-f", "--formalism", help="Formalism name.")],
     integrator: Annotated[str, typer.Option("-i", "--integrator", help="Integrator name.")],
     rtol: Annotated[
@@ -89,6 +91,9 @@ def run(
 
     if not (0 < time_limit < float("inf")):
         raise ConfigError(f"--time-limit must be a finite number of seconds > 0, not {time_limit}")
+    from workbench.plugin.robot_problem import robot_file_problem
+
+    problem, option = robot_file_problem(problem, option or [])
     classes = {
         "problem": registry.get_problem(problem),
         "formalism": registry.get_formalism(formalism),

@@ -111,13 +111,15 @@ class Shape:
     """Visual geometry for 3D logging, placed at ``frame`` in the body frame.
 
     kind: "box" (size = full edge lengths x, y, z), "cylinder" (radius, length along the
-    frame's z), "sphere" (radius), "capsule" (radius, length along z).
+    frame's z), "sphere" (radius), "capsule" (radius, length along z), "mesh" (size = the
+    scale along x, y, z of the mesh file at ``path``, e.g. a robot file's visual mesh).
     """
 
-    kind: Literal["box", "cylinder", "sphere", "capsule"]
+    kind: Literal["box", "cylinder", "sphere", "capsule", "mesh"]
     size: tuple[float, ...]
     frame: Frame = field(default_factory=Frame)
     color: tuple[int, int, int] = (120, 160, 220)
+    path: str = ""
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,7 @@ JOINT_SPRING_TYPES: tuple[str, ...] = (
 SPINNING_POINT_MASS_TYPES: tuple[str, ...] = ("spherical", "universal", "cylindrical", "free")
 """Joint types that rotate a spatial point mass about an axis through it."""
 
-SHAPE_SIZES: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "capsule": 2}
+SHAPE_SIZES: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "capsule": 2, "mesh": 3}
 
 
 def validate_model(model: Model) -> None:
@@ -212,7 +212,13 @@ def _check_shape(model: Model, what: str, shape: Any) -> None:
             f"{', '.join(SHAPE_SIZES)}"
         )
     size = _finite_vector(model, what, f"{kind} shape size", shape.size, SHAPE_SIZES[kind])
-    if np.any(size <= 0):
+    if kind == "mesh":  # a scale: negative mirrors the mesh, zero flattens it
+        if np.any(size == 0) or not getattr(shape, "path", ""):
+            raise ModelError(
+                f"{_where(model, what)}: a mesh shape needs a file path and a non-zero scale "
+                f"(got path {getattr(shape, 'path', '')!r}, scale {size.tolist()})"
+            )
+    elif np.any(size <= 0):
         raise ModelError(
             f"{_where(model, what)}: {kind} shape size {size.tolist()} must be > 0 (m)"
         )

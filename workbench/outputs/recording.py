@@ -146,6 +146,9 @@ class RerunSink:
             body_path = entity_path("bodies", name)
             for kind, archetype in _shape_archetypes(body.shapes).items():
                 entries.append((f"{body_path}/{SHAPE_ENTITIES[kind]}", [archetype]))
+            meshes = [shape for shape in body.shapes if shape.kind == "mesh"]
+            for index, shape in enumerate(meshes):  # a robot file's visual meshes
+                entries.append((f"{body_path}/meshes/{index}", _mesh_archetypes(shape)))
         axis_length = 0.3 * _model_scale(model)
         for joint in model.joints.values():
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
@@ -342,7 +345,10 @@ def view_coordinates(model: Any) -> Any:
 
 def _model_scale(model: Any) -> float:
     """A length typical of the model (largest shape extent or joint offset), for axes."""
-    sizes = [max(shape.size) for body in model.bodies.values() for shape in body.shapes]
+    sizes = [
+        max(shape.size) for body in model.bodies.values() for shape in body.shapes
+        if shape.kind != "mesh"
+    ]  # fmt: skip
     offsets = [
         float(np.linalg.norm(frame.position))
         for joint in model.joints.values()
@@ -350,6 +356,30 @@ def _model_scale(model: Any) -> float:
     ]
     scale = max(sizes + offsets, default=0.0)
     return scale if scale > 0 else 1.0
+
+
+def _mesh_archetypes(shape: Any) -> list[Any]:
+    """A mesh file at its frame, scaled: Rerun reads glTF, GLB, OBJ and STL itself
+    (Asset3D); other formats (COLLADA .dae of many URDFs) go through trimesh (Mesh3D)."""
+    import rerun as rr
+
+    place = rr.Transform3D(
+        translation=shape.frame.position, mat3x3=shape.frame.rotation @ np.diag(shape.size)
+    )
+    if Path(shape.path).suffix.lower() in (".glb", ".gltf", ".obj", ".stl"):
+        return [place, rr.Asset3D(path=shape.path)]
+    import trimesh
+
+    mesh = trimesh.load(shape.path, force="mesh")
+    return [
+        place,
+        rr.Mesh3D(
+            vertex_positions=np.asarray(mesh.vertices, dtype=np.float32),
+            triangle_indices=np.asarray(mesh.faces, dtype=np.uint32),
+            vertex_normals=np.asarray(mesh.vertex_normals, dtype=np.float32),
+            albedo_factor=tuple(shape.color),
+        ),
+    ]
 
 
 def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:

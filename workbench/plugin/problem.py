@@ -131,6 +131,11 @@ class Problem:
         :func:`workbench.runs.references.given_reference` and ``problem_reference``."""
         return None
 
+    def describe_rows(self) -> list[tuple[str, str]]:
+        """Extra (property, value) rows ``workbench describe`` shows in the model table
+        (e.g. what an imported file holds beyond the model); none by default."""
+        return []
+
     def sample_times(self) -> np.ndarray:
         return np.linspace(self.t_start, self.t_end, self.n_samples)
 

@@ -131,6 +131,8 @@ class Registry:
                 getattr(package, "__path__", []), package_name + "."
             ):
                 self._import(kind, module.name.rsplit(".", 1)[-1], module.name)
+        if "problem" in self.builtin_packages:  # the core's own: a robot read from a file
+            self._import("problem", "robot", "workbench.plugin.robot_problem")
         for kind, group in self.entry_point_groups.items():
             for entry_point in metadata.entry_points(group=group):
                 try:
@@ -152,7 +154,10 @@ class Registry:
     def list(self, kind: Kind) -> list[PluginInfo]:
         check_kind(kind)
         self.discover()
-        return sorted(self.entries[kind].values(), key=lambda info: info.name)
+        # a plugin with ``listed = False`` (the robot-file problem, which needs its file) is
+        # found by name but left out of listings and "all"
+        listed = [i for i in self.entries[kind].values() if getattr(i.plugin, "listed", True)]
+        return sorted(listed, key=lambda info: info.name)
 
     def get(self, kind: Kind, name: str) -> type:
         """The plugin class registered as ``name``; PluginError with close matches otherwise."""

@@ -214,6 +214,10 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
         raise fail("plugins", f"must be a list of module names, not {_show(plugins)}")
     import_plugin_modules(plugins, f"{source}: plugins")
 
+    from workbench.plugin.robot_problem import robot_entries
+
+    base = Path(source).parent if Path(source).is_file() else Path.cwd()
+    data["problems"] = robot_entries(data["problems"], base, fail)  # { urdf = PATH } entries
     # every list is resolved and its grids counted before any grid is expanded
     plans = {
         key: _plan(data[key], kind, key, missing, fail)

@@ -1,0 +1,191 @@
+"""Bad robot files: each gives one ModelError line naming the element at fault (and, for
+URDF, its line), never a traceback, a silent default or a dropped element."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from workbench.errors import ModelError
+from workbench.model.importers import load_robot
+
+pytest.importorskip("yourdfpy", reason="yourdfpy is a dependency of the workbench")
+
+INERTIAL = '<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial>'
+
+
+def urdf(links: str = "", joints: str = "", arm: str = INERTIAL) -> str:
+    return f"""<?xml version="1.0"?>
+<robot name="bad">
+  <link name="base"/>
+  <link name="arm">{arm}</link>
+  {links}
+  <joint name="shoulder" type="revolute">
+    <parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+  </joint>
+  {joints}
+</robot>
+"""
+
+
+MJCF_BODY = '<body name="b"><joint name="h" axis="0 0 1"/><geom size="0.1"/></body>'
+
+
+def mjcf(body: str = MJCF_BODY, extra: str = "") -> str:
+    return f'<mujoco model="bad"><worldbody>{body}</worldbody>{extra}</mujoco>'
+
+
+CASES = {
+    # name: (file name, text, fragments the one line must contain)
+    "missing inertia": (
+        "robot.urdf",
+        urdf(arm='<inertial><mass value="1"/></inertial>'),
+        ["link 'arm' (line 4)", "no <inertia>"],
+    ),
+    "missing inertia component": (
+        "robot.urdf",
+        urdf(arm='<inertial><mass value="1"/><inertia ixx="1" iyy="1"/></inertial>'),
+        ["link 'arm'", "<inertia> (line 4)", "no izz"],
+    ),
+    "zero mass": (
+        "robot.urdf",
+        urdf(arm='<inertial><mass value="0"/><inertia ixx="1" iyy="1" izz="1"/></inertial>'),
+        ["link 'arm' (line 4)", "moves with joint 'shoulder'", "no mass"],
+    ),
+    "no inertial on a moving link": (
+        "robot.urdf",
+        urdf(arm=""),
+        ["link 'arm' (line 4)", "no mass"],
+    ),
+    "unknown joint type": (
+        "robot.urdf",
+        urdf(
+            links=f'<link name="hand">{INERTIAL}</link>',
+            joints='<joint name="wrist" type="ball"><parent link="arm"/><child link="hand"/>'
+            "</joint>",
+        ),
+        ["joint 'wrist' (line 9)", "unknown joint type 'ball'"],
+    ),
+    "mimic joint": (
+        "robot.urdf",
+        urdf(
+            links=f'<link name="hand">{INERTIAL}</link>',
+            joints='<joint name="wrist" type="revolute"><parent link="arm"/><child link="hand"/>'
+            '<mimic joint="shoulder" multiplier="2"/></joint>',
+        ),
+        ["joint 'wrist' (line 9)", "mimic", "mimic='independent'"],
+    ),
+    "broken XML": ("robot.urdf", urdf().replace("</robot>", "</robo>"), ["broken XML at line"]),
+    "missing mesh": (
+        "robot.urdf",
+        urdf(
+            arm=INERTIAL + '<visual><geometry><mesh filename="meshes/gone.stl"/></geometry>'
+            "</visual>"
+        ),
+        ["link 'arm' (line 4)", "mesh 'meshes/gone.stl' not found"],
+    ),  # fmt: skip
+    "cycle": (
+        "robot.urdf",
+        urdf()
+        .replace('<link name="base"/>', "")
+        .replace('<parent link="base"/>', '<parent link="arm"/>')
+        .replace('<child link="arm"/>', '<child link="arm2"/>')
+        .replace(
+            "</robot>",
+            f'<link name="arm2">{INERTIAL}</link><joint name="back" '
+            'type="revolute"><parent link="arm2"/><child link="arm"/></joint></robot>',
+        ),
+        ["cycle"],
+    ),  # fmt: skip
+    "unknown parent link": (
+        "robot.urdf",
+        urdf().replace('<parent link="base"/>', '<parent link="nowhere"/>'),
+        ["joint 'shoulder' (line 6)", "unknown parent link 'nowhere'"],
+    ),
+    "NaN attribute": (
+        "robot.urdf",
+        urdf().replace('<axis xyz="0 0 1"/>', '<origin xyz="0 nan 0"/><axis xyz="0 0 1"/>'),
+        ["joint 'shoulder'", "<origin> (line 7)", "xyz='0 nan 0'", "not a finite number"],
+    ),
+    "zero axis": (
+        "robot.urdf",
+        urdf().replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'),
+        ["joint 'shoulder' (line 6)", "<axis> is zero"],
+    ),
+    "not a robot": ("robot.urdf", "<mujoco/>", ["root element is <mujoco>"]),
+    "unsupported MJCF element (tendon)": (
+        "scene.xml",
+        mjcf(
+            '<body name="b"><joint name="h" axis="0 0 1"/><geom size="0.1"/>'
+            '<site name="s1"/></body><site name="s0" pos="0 0 1"/>',
+            '<tendon><spatial name="cable"><site site="s0"/><site site="s1"/></spatial></tendon>',
+        ),
+        ["tendon 'cable'", "cannot be represented"],
+    ),
+    "unsupported MJCF equality (joint)": (
+        "scene.xml",
+        mjcf(
+            MJCF_BODY + '<body name="c"><joint name="k" axis="0 1 0"/><geom size="0.1"/></body>',
+            '<equality><joint name="couple" joint1="h" joint2="k"/></equality>',
+        ),
+        ["equality 'couple' (joint)", "cannot be represented"],
+    ),
+    "MJCF body with two joints": (
+        "scene.xml",
+        mjcf(
+            '<body name="b"><joint name="h1" axis="0 0 1"/><joint name="h2" axis="0 1 0"/>'
+            '<geom size="0.1"/></body>'
+        ),
+        ["body 'b' has 2 joints (h1, h2)"],
+    ),  # fmt: skip
+    "unknown MJCF element": (
+        "scene.xml",
+        mjcf('<bodyy name="b"/>'),
+        ["MuJoCo cannot compile it", "bodyy"],
+    ),
+    "massless MJCF body": (
+        "scene.xml",
+        mjcf('<body name="b"><joint name="h" axis="0 0 1"/></body>'),
+        ["MuJoCo cannot compile it", "mass"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_a_bad_file_gives_one_line_naming_the_element(case: str, tmp_path: Path) -> None:
+    name, text, fragments = CASES[case]
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ModelError) as raised:
+        load_robot(path)
+    message = str(raised.value)
+    assert "\n" not in message, message
+    assert str(path) in message, message
+    for fragment in fragments:
+        assert fragment in message, message
+
+
+def test_the_command_line_prints_a_bad_file_as_one_line(tmp_path: Path) -> None:
+    _, text, fragments = CASES["mimic joint"]
+    (tmp_path / "robot.urdf").write_text(text)
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
+    result = subprocess.run(
+        [sys.executable, "-m", "workbench", "describe", "robot.urdf"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert result.returncode != 0
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    assert all(fragment in lines[0] for fragment in fragments), lines[0]
+
+
+def test_mimic_joints_import_as_independent_joints_when_asked(tmp_path: Path) -> None:
+    _, text, _ = CASES["mimic joint"]
+    path = tmp_path / "robot.urdf"
+    path.write_text(text)
+    imported = load_robot(path, mimic="independent")
+    assert [j.name for j in imported.model.tree_joints] == ["shoulder", "wrist"]

@@ -1,0 +1,202 @@
+"""Where a user meets imported robots: ``workbench describe FILE``, ``workbench run FILE``,
+sweep entries ``{ urdf = PATH }`` / ``{ mjcf = PATH }`` relative to the specification, and
+the "robot" problem's initial state (options q0 / v0, else the MJCF keyframe)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench.errors import ConfigError
+from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+from workbench.plugin.robot_problem import RobotProblem
+from workbench.runs.sweep_spec import parse_spec
+
+REPO = Path(__file__).resolve().parents[1]
+ARM = REPO / "tests" / "robots" / "arm.xml"
+HANG = 600  # seconds only a hung command reaches
+
+
+def workbench(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess:
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1")
+    command = [sys.executable, "-m", "workbench", *args]
+    return subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=HANG)
+
+
+def test_describe_a_robot_file_lists_its_bodies_joints_and_dof():
+    result = workbench("describe", str(ARM))
+    assert result.returncode == 0, result.stderr
+    fragments = ("robot (problem", "upper", "forearm", "wrist", "spherical", "DOF")
+    # what the file holds beyond the model: the welded body, the limit, what is left out
+    fragments += ("links welded", "sensor", "elbow -0.2 .. 0.2", "contacts are not modelled")
+    for fragment in fragments:
+        assert fragment in result.stdout
+
+
+def test_run_a_robot_file_conserves_energy(tmp_path):
+    """The free-floating MJCF body with two limbs (no dampers): a run from the file's
+    folder finishes ok and its energy error is that of the integrator's tolerance."""
+    shutil.copy(REPO / "tests" / "robots" / "floating.xml", tmp_path / "floating.xml")
+    result = workbench(
+        "run", "floating.xml", "-f", "recursive", "-i", "sundials-cvode-bdf", "--rtol", "1e-8",
+        "-o", "t_end=0.3", "-o", "v0={hip1 = 2.0, root = [0, 0, 1, 0.5, 0, 0]}", cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    rows = {}
+    for line in result.stdout.splitlines():
+        cells = [cell.strip() for cell in line.split("│") if cell.strip()]
+        if len(cells) == 2:
+            rows[cells[0]] = cells[1]
+    assert rows["status"] == "ok", rows
+    assert 0 < float(rows["energy_err_max"]) < 1e-5
+
+
+def test_a_missing_robot_file_is_one_line(tmp_path):
+    result = workbench("describe", "nowhere.urdf", cwd=tmp_path)
+    assert result.returncode != 0
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "nowhere.urdf" in lines[0] and "not found" in lines[0]
+
+
+def test_sweep_entries_resolve_paths_relative_to_the_spec(tmp_path, monkeypatch):
+    (tmp_path / "robots").mkdir()
+    shutil.copy(ARM, tmp_path / "robots" / "arm.xml")
+    spec = tmp_path / "spec.toml"
+    text = """problems = [{ mjcf = "robots/arm.xml", t_end = 0.5, q0 = { shoulder = 0.2 } }]
+formalisms = ["recursive"]
+integrators = ["sundials-cvode-bdf"]
+tolerances = [1e-6]
+"""
+    spec.write_text(text)
+    monkeypatch.chdir(REPO)  # not the spec's folder
+    parsed = parse_spec(text, str(spec))
+    (run,) = parsed.runs
+    assert run.problem == "robot"
+    assert run.problem_options["file"] == str((tmp_path / "robots" / "arm.xml").resolve())
+    assert run.problem_options["t_end"] == 0.5
+    with pytest.raises(ConfigError, match=r"problems\[0\]\.urdf.*not found"):
+        parse_spec(text.replace('mjcf = "robots/arm.xml"', 'urdf = "robots/gone.urdf"'), str(spec))
+    with pytest.raises(ConfigError, match="not a URDF file"):
+        parse_spec(text.replace("mjcf =", "urdf ="), str(spec))
+
+
+def test_initial_state_from_options_or_keyframe():
+    from importlib import resources
+
+    linkage = str(resources.files("workbench.problems").joinpath("robot_files/rssr_linkage.xml"))
+    problem = RobotProblem({"file": linkage})
+    model = problem.model()
+    kinematics = TreeKinematics(model)
+    v0 = initial_joint_values(model, kinematics, problem.initial_joint_velocities(), True)
+    assert v0[kinematics.joint_slices["crank_joint"][1]] == pytest.approx(3.0)  # the keyframe
+    given = RobotProblem({"file": str(ARM), "q0": [0.1, 0.02, 1.0, 0.0, 0.0, 0.0, 0.3]})
+    assert given.initial_joint_coordinates() == {
+        "shoulder": 0.1, "elbow": 0.02, "wrist": [1.0, 0.0, 0.0, 0.0], "knuckle": 0.3,
+    }  # fmt: skip
+    with pytest.raises(ConfigError, match="'hip' is not a joint of arm.xml"):
+        RobotProblem({"file": str(ARM), "q0": {"hip": 0.1}}).initial_joint_coordinates()
+    with pytest.raises(ConfigError, match="3 values for 7"):
+        RobotProblem({"file": str(ARM), "q0": [0.1, 0.2, 0.3]}).initial_joint_coordinates()
+    q = initial_joint_values(model, kinematics, problem.initial_joint_coordinates(), False)
+    assert np.all(np.isfinite(q))
+
+
+def test_visual_meshes_reach_the_recording(tmp_path):
+    """A URDF link's STL mesh becomes a mesh shape of its body (scaled, at the visual's
+    origin) and an Asset3D in the Rerun recording; a COLLADA mesh goes through trimesh."""
+    rr = pytest.importorskip("rerun")
+    trimesh = pytest.importorskip("trimesh")
+    from workbench.model.importers import load_robot
+    from workbench.outputs.recording import RerunSink
+
+    trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(tmp_path / "link.stl")
+    (tmp_path / "robot.urdf").write_text(
+        """<robot name="meshy"><link name="base"/>
+<link name="arm"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial>
+<visual><origin xyz="0 0 0.5" rpy="0 0 1.5707963267948966"/>
+<geometry><mesh filename="link.stl" scale="2 2 2"/></geometry></visual></link>
+<joint name="j" type="continuous"><parent link="base"/><child link="arm"/></joint></robot>"""
+    )
+    model = load_robot(tmp_path / "robot.urdf").model
+    (shape,) = model.bodies["arm"].shapes
+    assert shape.kind == "mesh" and shape.size == (2.0, 2.0, 2.0)
+    np.testing.assert_allclose(shape.frame.position, [0, 0, 0.5])
+    np.testing.assert_allclose(shape.frame.rotation @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    entries = dict(RerunSink()._geometry(model, "meshy"))
+    place, asset = entries["bodies/arm/meshes/0"]
+    assert isinstance(asset, rr.Asset3D) and isinstance(place, rr.Transform3D)
+    trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(tmp_path / "link.dae")
+    (tmp_path / "robot.urdf").write_text(
+        (tmp_path / "robot.urdf").read_text().replace(".stl", ".dae")
+    )
+    model = load_robot(tmp_path / "robot.urdf").model
+    _, mesh = dict(RerunSink()._geometry(model, "meshy-dae"))["bodies/arm/meshes/0"]
+    assert isinstance(mesh, rr.Mesh3D)
+
+
+PLANAR_URDF = """<robot name="slider">
+<link name="table"/>
+<link name="puck"><inertial><origin xyz="0.1 0 0"/><mass value="2"/>
+<inertia ixx="0.1" iyy="0.2" izz="0.3" ixy="0.01"/></inertial></link>
+<joint name="glide" type="{kind}"><parent link="table"/><child link="puck"/>
+<origin xyz="0 0 1" rpy="0.2 0.1 0"/><axis xyz="{axis}"/></joint></robot>"""
+
+
+@pytest.mark.parametrize(
+    ("kind", "axis"),
+    [
+        ("planar", "0 0 1"),  # plane normal near z: gravity mostly normal to the plane
+        ("planar", "0 1 0"),  # plane normal near y: the plane nearly holds the vertical
+        ("floating", "1 0 0"),  # free fall
+    ],
+)
+def test_planar_and_floating_urdf_joints_fall_as_they_should(tmp_path, kind, axis):
+    """From rest, gravity acts at the centre of mass, so the puck does not start turning
+    and its frame accelerates as gravity projected on the joint's plane (planar: the plane
+    normal to the file's axis, tilted by the origin's rpy) or at g (floating)."""
+    from scipy.spatial.transform import Rotation
+
+    from workbench.model.importers import load_robot
+    from workbench.plugin.registry import get_formalism
+    from workbench.testing.states import body_accelerations, formalism_state
+
+    (tmp_path / "slider.urdf").write_text(PLANAR_URDF.format(kind=kind, axis=axis))
+    model = load_robot(tmp_path / "slider.urdf").model
+    equations = get_formalism("recursive")().build(model)
+    kinematics = TreeKinematics(model)
+    q = initial_joint_values(model, kinematics, {}, False)
+    state = formalism_state(equations, 0.0, q, np.zeros(kinematics.nv))
+    rates = body_accelerations(equations, state).reshape(-1, 6)[0]
+    gravity = np.array([0.0, 0.0, -9.81])
+    want = gravity
+    if kind == "planar":
+        normal = Rotation.from_euler("xyz", [0.2, 0.1, 0.0]).as_matrix() @ np.array(
+            [float(x) for x in axis.split()]
+        )
+        want = gravity - normal * (normal @ gravity)
+    np.testing.assert_allclose(rates[:3], want, atol=1e-9)
+
+
+def test_without_example_robot_data_the_robots_module_says_how_to_install_it(monkeypatch):
+    """The URDF robots of the catalog need the robots extra; without it their module
+    fails to import with the pip command (the registry lists it as broken with that)."""
+    import importlib.util
+    from importlib import metadata
+
+    real = metadata.distribution
+
+    def missing(name: str):
+        if name == "example-robot-data":
+            raise metadata.PackageNotFoundError(name)
+        return real(name)
+
+    monkeypatch.setattr(metadata, "distribution", missing)
+    spec = importlib.util.spec_from_file_location("robots_probe", REPO / "problems" / "robots.py")
+    with pytest.raises(ImportError, match=r"pip install 'mbs-workbench\[robots\]'"):
+        spec.loader.exec_module(importlib.util.module_from_spec(spec))

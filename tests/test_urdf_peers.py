@@ -1,0 +1,153 @@
+"""URDF robots of example-robot-data, imported by workbench.model.importers.urdf: every
+formalism that supports the model gives the accelerations of Pinocchio's ``aba`` built from
+the same file (``pin.buildModelFromUrdf``) at random states under random joint torques, to
+1e-9 relative, and its mass matrix equals ``pin.crba``.
+
+Formalisms in joint coordinates are compared with Pinocchio directly (coordinates mapped
+by tests/robot_peers.py); the others (absolute coordinates, momenta) through the time
+derivative of every body's twist, against the recursive formalism's, which is itself
+checked against Pinocchio here.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from tests.robot_peers import PinocchioMap, example_robot, pinocchio_model, random_state
+from workbench.model import JointForce
+from workbench.model.importers.urdf import load_urdf
+from workbench.plugin.registry import get_formalism, plugin_names
+from workbench.testing.states import body_accelerations, formalism_state
+
+ROBOTS = {
+    # name: (file in example-robot-data, import options)
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),  # 4 fixed joints (world, ee_link, ...)
+    "panda": ("panda_description/urdf/panda.urdf", {"mimic": "independent"}),  # prismatic
+    "solo12": ("solo_description/robots/solo12.urdf", {"floating_base": True}),  # free base
+    "double-pendulum": (  # continuous joints
+        "double_pendulum_description/urdf/double_pendulum_continuous.urdf",
+        {},
+    ),
+}
+STATES = 3
+RELATIVE = 1e-9
+
+
+@functools.cache
+def imported(robot: str, torques: bool = True):
+    """The imported robot, with a constant random torque on every actuated joint."""
+    relative, options = ROBOTS[robot]
+    result = load_urdf(example_robot(relative), **options)
+    if torques:
+        rng = np.random.default_rng(5)
+        for joint in result.model.tree_joints:
+            if joint.type != "free":
+                value = float(rng.uniform(-5.0, 5.0))
+                result.model.add_force(
+                    JointForce(f"torque {joint.name}", joint.name, lambda t, q, v, c=value: c)
+                )
+    return result
+
+
+@functools.cache
+def built(robot: str, formalism: str):
+    return get_formalism(formalism)().build(imported(robot).model)
+
+
+def supporting(robot: str) -> list[str]:
+    model = imported(robot).model
+    return [
+        name for name in plugin_names("formalism") if not get_formalism(name).unsupported(model)
+    ]
+
+
+def torque_vector(robot: str, peers: PinocchioMap) -> np.ndarray:
+    tau = np.zeros(peers.kinematics.nv)
+    for force in imported(robot).model.forces:
+        _, v_slice = peers.kinematics.joint_slices[force.joint]
+        tau[v_slice] = force.function(0.0, None, None)
+    return tau
+
+
+def states(robot: str, peers: PinocchioMap):
+    rng = np.random.default_rng(11)
+    for _ in range(STATES):
+        yield random_state(peers.kinematics, rng)
+
+
+def in_joint_coordinates(equations, q: np.ndarray, v: np.ndarray) -> bool:
+    q_f, v_f = (np.ravel(x) for x in equations.joint_space_map(0.0, q, v))
+    return (
+        q_f.shape == q.shape
+        and v_f.shape == v.shape
+        and np.allclose(q_f, q)
+        and np.allclose(v_f, v)
+    )
+
+
+@pytest.mark.parametrize("robot", list(ROBOTS))
+def test_every_formalism_equals_pinocchio_aba(robot: str) -> None:
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    peers = PinocchioMap(imported(robot), pinocchio_model(imported(robot)))
+    data = peers.pin_model.createData()
+    tau_pin = peers.state(*random_state(peers.kinematics, np.random.default_rng(0)))[
+        2
+    ] @ torque_vector(robot, peers)
+    formalisms = supporting(robot)
+    assert "recursive" in formalisms
+    compared = []
+    for q, v in states(robot, peers):
+        q_pin, v_pin, _ = peers.state(q, v)
+        expected = pin.aba(peers.pin_model, data, q_pin, v_pin, tau_pin)
+        scale = np.abs(expected).max()
+        assert scale > 1.0
+        reference = formalism_state(built(robot, "recursive"), 0.0, q, v)
+        for name in formalisms:
+            equations = built(robot, name)
+            state = formalism_state(equations, 0.0, q, v)
+            if in_joint_coordinates(equations, q, v):
+                ours = peers.accelerations(q, v, state.acceleration)
+                np.testing.assert_allclose(
+                    ours, expected, rtol=0, atol=RELATIVE * scale, err_msg=name
+                )
+                if "ode" in equations.forms:  # the formalism's own algorithm (e.g. ABA)
+                    (f,) = equations.forms["ode"].rhs(0.0, np.concatenate([q, v]))
+                    ours = peers.accelerations(q, v, np.ravel(f)[q.size :])
+                    np.testing.assert_allclose(
+                        ours, expected, rtol=0, atol=RELATIVE * scale, err_msg=name
+                    )
+            else:
+                theirs = body_accelerations(built(robot, "recursive"), reference)
+                ours = body_accelerations(equations, state)
+                np.testing.assert_allclose(
+                    ours, theirs, rtol=0, atol=RELATIVE * np.abs(theirs).max(), err_msg=name
+                )
+            compared.append(name)
+    assert set(compared) == set(formalisms)
+
+
+@pytest.mark.parametrize("robot", list(ROBOTS))
+def test_joint_space_mass_matrices_equal_pinocchio_crba(robot: str) -> None:
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    peers = PinocchioMap(imported(robot), pinocchio_model(imported(robot)))
+    data = peers.pin_model.createData()
+    checked = 0
+    for q, v in states(robot, peers):
+        q_pin, _, t_matrix = peers.state(q, v)
+        upper = pin.crba(peers.pin_model, data, q_pin)
+        expected = np.triu(upper) + np.triu(upper, 1).T
+        for name in supporting(robot):
+            equations = built(robot, name)
+            if "mechanical" not in equations.forms or not in_joint_coordinates(equations, q, v):
+                continue
+            (mass,) = equations.forms["mechanical"].mass(0.0, q)
+            mass = np.reshape(mass, (v.size, v.size))
+            np.testing.assert_allclose(
+                t_matrix @ mass @ t_matrix.T, expected, rtol=0,
+                atol=RELATIVE * np.abs(expected).max(), err_msg=name,
+            )  # fmt: skip
+            checked += 1
+    assert checked >= STATES

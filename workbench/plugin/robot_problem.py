@@ -1,0 +1,204 @@
+"""The problem of a robot read from a file: ``workbench run robot.urdf``, a sweep entry
+``{ urdf = "robot.urdf" }`` or ``{ mjcf = "scene.xml" }`` (docs/robots.md).
+
+The problem "robot" takes the file as its option ``file`` (an absolute path, so a run's id
+names the file wherever the run executes); the command line and the sweep specification
+turn a path into it (:func:`robot_problem_options`). The robot moves unforced under
+gravity from ``q0`` / ``v0`` ({joint: value}, or one list of every tree joint's coordinates
+in the file's order), else the file's keyframe (MJCF), else the neutral configuration at
+rest. Its energy is conserved unless the file has joint dampers.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from workbench.errors import ConfigError
+from workbench.model import JointSpringDamper, Model
+from workbench.model.importers import ImportedRobot, load_robot, robot_format
+from workbench.plugin.problem import Problem
+from workbench.plugin.registry import problem
+
+ROBOT_PROBLEM = "robot"
+ENTRY_KEYS = ("urdf", "mjcf")
+
+
+@dataclass(frozen=True)
+class RobotOptions:
+    file: str = ""
+    t_end: float = 1.0
+    n_samples: int = 101
+    q0: Any = None
+    v0: Any = None
+    floating_base: bool = False  # URDF: a free joint under the root link
+    mimic: Literal["error", "independent"] = "error"  # URDF mimic joints
+    keyframe: int = 0  # MJCF: the keyframe of the initial state, if the file has one
+
+    def __post_init__(self) -> None:
+        if not self.file:
+            raise ConfigError("option 'file' is required: the path of a .urdf or MJCF .xml file")
+        if robot_format(self.file) is None:
+            raise ConfigError(f"file {self.file!r}: give a .urdf or an MJCF .xml file")
+        if not self.t_end > 0:
+            raise ConfigError(f"t_end must be > 0 s, not {self.t_end}")
+        if self.n_samples < 2:
+            raise ConfigError(f"n_samples must be >= 2, not {self.n_samples}")
+
+
+@functools.cache
+def _imported(file: str, floating_base: bool, mimic: str, keyframe: int) -> ImportedRobot:
+    if robot_format(file) == "urdf":
+        return load_robot(file, floating_base=floating_base, mimic=mimic)
+    return load_robot(file, keyframe=keyframe)
+
+
+@problem
+class RobotProblem(Problem):
+    name = ROBOT_PROBLEM
+    summary = "A robot read from a URDF or MJCF file (option file), moving unforced under gravity"
+    source = "the file named by the option file (URDF: ROS URDF spec; MJCF: MuJoCo XML reference)"
+    Options = RobotOptions
+    listed = False  # needs its file: named, never part of "all" or the catalog's listings
+
+    def __init__(self, options: Any = None) -> None:
+        super().__init__(options)
+        self.t_end = float(self.options.t_end)
+        self.n_samples = int(self.options.n_samples)
+
+    def imported(self) -> ImportedRobot:
+        o = self.options
+        return _imported(o.file, o.floating_base, o.mimic, o.keyframe)
+
+    def model(self) -> Model:
+        model = copy.deepcopy(self.imported().model)
+        model.initial_configuration = self.initial_joint_coordinates()
+        return model
+
+    @property
+    def conservative(self) -> bool:  # type: ignore[override]
+        return not any(
+            isinstance(force, JointSpringDamper) and force.damping
+            for force in self.imported().model.forces
+        )
+
+    def initial_joint_coordinates(self) -> dict[str, Any]:
+        given = self._values(self.options.q0, "q0", coordinates=True)
+        return given if given is not None else dict(self.imported().initial_coordinates)
+
+    def initial_joint_velocities(self) -> dict[str, Any]:
+        given = self._values(self.options.v0, "v0", coordinates=False)
+        return given if given is not None else dict(self.imported().initial_velocities)
+
+    def describe_rows(self) -> list[tuple[str, str]]:
+        imported = self.imported()
+        limits = ", ".join(
+            f"{joint} {low:g} .. {high:g}" for joint, (low, high) in imported.limits.items()
+        )
+        welded = [link for link, (body, _) in imported.links.items() if link != body]
+        return [
+            ("file", str(imported.source)),
+            ("links welded", ", ".join(welded) or "none"),
+            ("joint limits (not enforced)", limits or "none"),
+            ("meshes", str(len(imported.meshes))),
+            *(("not modelled", note) for note in imported.notes),
+        ]
+
+    def _values(self, value: Any, option: str, coordinates: bool) -> dict[str, Any] | None:
+        """{joint: value} from a table by joint name or a list in tree-joint order."""
+        from workbench.mechanics.joints import DIMENSIONS
+
+        if value is None:
+            return None
+        joints = [j for j in self.imported().model.tree_joints if j.drive is None]
+        if isinstance(value, dict):
+            unknown = sorted(set(value) - {j.name for j in joints})
+            if unknown:
+                names = ", ".join(j.name for j in joints)
+                raise ConfigError(
+                    f"problem 'robot', option {option}: {unknown[0]!r} is not a joint of "
+                    f"{Path(self.options.file).name} (its joints: {names})"
+                )
+            return dict(value)
+        if isinstance(value, list | tuple):
+            sizes = [DIMENSIONS[j.type][0 if coordinates else 1] for j in joints]
+            if len(value) != sum(sizes):
+                raise ConfigError(
+                    f"problem 'robot', option {option}: {len(value)} values for {sum(sizes)} "
+                    "joint coordinates; give one per coordinate in the file's joint order "
+                    "(`workbench describe FILE`) or a table {joint = value}"
+                )
+            result, start = {}, 0
+            for joint, size in zip(joints, sizes, strict=True):
+                part = list(value[start : start + size])
+                result[joint.name] = part[0] if size == 1 else part
+                start += size
+            return result
+        raise ConfigError(
+            f"problem 'robot', option {option}: give a table {{joint = value}} or a list of "
+            f"numbers, not {value!r}"
+        )
+
+
+def robot_problem_options(path: str | Path, base: Path | None = None) -> dict[str, Any]:
+    """The "robot" problem's options for a robot file ``path`` (relative to ``base``,
+    default the working directory); ConfigError if it is missing."""
+    resolved = (Path(base or Path.cwd()) / Path(path).expanduser()).resolve()
+    if not resolved.is_file():
+        raise ConfigError(f"robot file {str(path)!r} not found (looked for {resolved})")
+    return {"file": str(resolved)}
+
+
+def robot_entries(problems: Any, base: Path, fail: Any) -> Any:
+    """A sweep's ``problems`` with every ``{ urdf = PATH, ... }`` or ``{ mjcf = PATH, ... }``
+    entry turned into ``{ name = "robot", options = { file = ABSOLUTE PATH, ... } }``; the
+    other keys of the entry are the robot problem's options, PATH is relative to ``base``
+    (the specification's folder). ``fail(key, message)`` makes the ConfigError."""
+    if not isinstance(problems, list):
+        return problems
+    entries = []
+    for index, item in enumerate(problems):
+        keys = [key for key in ENTRY_KEYS if isinstance(item, dict) and key in item]
+        if not keys:
+            entries.append(item)
+            continue
+        key = f"problems[{index}].{keys[0]}"
+        if len(keys) > 1 or "name" in item or "options" in item:
+            raise fail(key, "a robot entry names one file (urdf or mjcf) and its options")
+        path = item[keys[0]]
+        if not isinstance(path, str) or not path:
+            raise fail(key, f"must be the path of a robot file, not {path!r}")
+        expected = "urdf" if keys[0] == "urdf" else "mjcf"
+        if robot_format(path) != expected:
+            raise fail(key, f"{path!r} is not a {expected.upper()} file (.urdf / .xml)")
+        try:
+            options = robot_problem_options(path, base)
+        except ConfigError as error:
+            raise fail(key, str(error)) from None
+        options.update({k: v for k, v in item.items() if k != keys[0]})
+        entries.append({"name": ROBOT_PROBLEM, "options": options})
+    return entries
+
+
+def robot_file_problem(problem: str, option: list[str]) -> tuple[str, list[str]]:
+    """A robot file named where a problem is (``workbench run/describe robot.urdf``) -> the
+    "robot" problem and its ``-o problem.file=...`` first among the ``-o`` options."""
+    import json
+
+    if robot_format(problem) is None:
+        return problem, option
+    path = robot_problem_options(problem)["file"]
+    return ROBOT_PROBLEM, [f"problem.file={json.dumps(path)}", *option]
+
+
+__all__ = [
+    "ENTRY_KEYS",
+    "ROBOT_PROBLEM",
+    "RobotProblem",
+    "robot_entries",
+    "robot_file_problem",
+    "robot_problem_options",
+]
