@@ -13,9 +13,10 @@ Option ``precision``: "double", "extended" (x86 80-bit long double, 64-bit manti
 "quad" (IEEE binary128, where the heyoka build supports it); states are returned as
 doubles. ``high_accuracy`` (heyoka's option) trades some speed for smaller round-off in
 the Taylor summation, for tolerances near machine precision. ``compact_mode``: heyoka's
-mode for large expressions (functions instead of one straight-line body, compiling in
-seconds where the default could take minutes); "auto" turns it on above
-COMPACT_MODE_INSTRUCTIONS CasADi instructions.
+mode for large expressions (loops over functions instead of one straight-line body);
+"auto" turns it on above COMPACT_MODE_INSTRUCTIONS CasADi instructions. Measured at tol
+1e-15 (2026-11-23, loaded 2-core machine): the heavy top's 760 instructions compile in
+3.6 s compact and 164 s not, and integrate in 0.016 s against 0.011 s.
 
 Statistics: ``n_steps`` are heyoka's steps; each step evaluates the right-hand side's
 Taylor jet once, counted as ``n_rhs``; no Jacobian, no rejected steps (a Taylor step is
@@ -43,7 +44,7 @@ from workbench.plugins.integrators._casadi_heyoka import (
 PRECISIONS: dict[str, Any] = {"double": float, "extended": np.longdouble}
 if hasattr(hy, "real128"):
     PRECISIONS["quad"] = hy.real128
-COMPACT_MODE_INSTRUCTIONS = 3000
+COMPACT_MODE_INSTRUCTIONS = 50
 
 
 @dataclass(frozen=True)
