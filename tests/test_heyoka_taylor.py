@@ -56,7 +56,8 @@ def test_every_supported_operation_agrees_with_casadi():
     ("problem", "formalism", "options", "relative"),
     [
         ("double-pendulum", "recursive", {}, 1e-14),
-        ("heavy-top", "recursive", {}, 1e-14),
+        # the rotation's division by p^T p: 1.05e-14 of the largest component (measured)
+        ("heavy-top", "recursive", {}, 2e-14),
         ("heavy-top", "minimal-ode", {"index": 1}, 1e-14),
         ("rolling-pendulum", "minimal-ode", {"index": 1}, 1e-14),
         # 1,559 instructions whose own round-off is about 1e-14: CasADi's double evaluation
