@@ -84,6 +84,19 @@ def test_relative_coordinates_invert_the_transform(kind):
     assert np.allclose(recovered, q, atol=1e-12)
 
 
+@pytest.mark.parametrize("angle_between_axes", [np.pi / 2, np.pi / 3, 2.5])
+def test_universal_angles_are_recovered_from_the_transform(angle_between_axes):
+    """Both angles of a universal joint, anywhere in (-pi, pi), perpendicular axes or not."""
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    normal = np.cross(axis, [1.0, 0, 0]) / np.linalg.norm(np.cross(axis, [1.0, 0, 0]))
+    axis2 = np.cos(angle_between_axes) * axis + np.sin(angle_between_axes) * normal
+    joint = Joint("j", "universal", "ground", "b", axis=axis, axis2=axis2)
+    for q in np.random.default_rng(4).uniform(-np.pi, np.pi, (20, 2)):
+        _, rot_rel = jk.relative_transform(joint, q)
+        recovered = np.ravel(jk.relative_coordinates(joint, np.zeros(3), np.asarray(rot_rel)))
+        assert np.allclose(recovered, q, rtol=0, atol=1e-13)
+
+
 @pytest.mark.parametrize("kind", SPATIAL)
 def test_symbolic_and_numeric_paths_agree(kind):
     joint = make_joint(kind)

@@ -100,7 +100,7 @@ def test_stored_poses_reproduced_by_the_stored_pipeline(name: str) -> None:
     stored = recorded(name)
     meta = stored.metadata
     first = meta["pipelines"][meta["stored_pipeline"]]
-    pipeline = Pipeline(first["formalism"], first["formalism_options"], first["integrator"])
+    pipeline = Pipeline.from_entry(first)
     poses, bodies, _ = solve_poses(
         get_problem(name)(), pipeline, stored.times, meta["rtol"], meta["atol"]
     )
@@ -327,3 +327,84 @@ def test_formalism_follows_the_reference_early(name: str, formalism: str, option
     length = length_scale(model, expected)
     error = pose_error(poses, expected, length)  # a NaN orientation: position only
     assert error.max() < EARLY_TOLERANCE * length, f"{error.max():.3g} m, L = {length:.3g} m"
+
+
+# ---- (e) the accuracy a reference states ---------------------------------------------------
+
+
+def pendulum_poses(times: np.ndarray, theta0: float) -> np.ndarray:
+    """The simple pendulum's exact bob poses (l = 1 m, g = 9.81 m/s^2), (n, 1, 7)."""
+    from workbench.problems.simple_pendulum import exact_solution, period
+
+    # reduced by the period: SciPy's elliptic functions lose digits at large arguments
+    theta = exact_solution(np.mod(times, period(theta0, 1.0, 9.81)), theta0, 1.0, 9.81)
+    poses = np.zeros((times.size, 1, 7))
+    poses[:, 0, 0], poses[:, 0, 1] = np.sin(theta), -np.cos(theta)
+    poses[:, 0, 3], poses[:, 0, 6] = np.cos(theta / 2), np.sin(theta / 2)
+    return poses
+
+
+def test_stored_reference_states_an_accuracy_it_has() -> None:
+    """The simple pendulum's stored reference is within its stated accuracy (or the exact
+    solution's own round-off) of the exact elliptic-function motion, and that accuracy is
+    below 1e-13 (heyoka's Taylor method in extended precision, checked against a looser run
+    of the same); the reference it replaced was 2.9e-11 off."""
+    problem = get_problem("simple-pendulum")()
+    given = given_reference(problem)
+    times = problem.sample_times()
+    error = pose_error(given.poses(times), pendulum_poses(times, 0.5), 1.0).max()
+    assert given.accuracy <= 1e-13
+    # 5e-15: the exact solution's own round-off in double precision (SciPy's elliptic
+    # functions at arguments up to 31 differ by 3e-15 rad from the same reduced by the
+    # period, the way pendulum_poses evaluates them)
+    assert error <= max(given.accuracy, 5e-15), (error, given.accuracy)
+
+
+def test_stored_references_state_their_first_pipelines_accuracy() -> None:
+    """Every stored file records how its accuracy was estimated, and the runner states it
+    (never below the round-off of double-precision poses); references made through heyoka
+    state 1e-13 or better where the motion allows."""
+    from workbench.runs.references import ROUND_OFF_ACCURACY
+
+    for path in STORED:
+        meta = read_reference(path).metadata
+        # files made before the estimate existed state their pipelines' agreement
+        accuracy = meta.get("accuracy", meta["agreement"])
+        problem = get_problem(meta["problem"])()
+        stated = given_reference(problem).accuracy
+        assert stated == pytest.approx(max(accuracy["relative"], ROUND_OFF_ACCURACY))
+        if meta["pipelines"][0]["integrator"] == "heyoka-taylor":
+            assert accuracy["estimated_by"].startswith("difference from")
+            # the articulated arm's motion amplifies round-off: 2.9e-13 (measured)
+            assert stated <= (5e-13 if path.stem == "articulated-arm" else 1e-13), path.stem
+
+
+def test_computed_reference_states_a_measured_accuracy(tmp_path: Path) -> None:
+    """Options not stored: the computed reference of the pendulum released from 1 rad is
+    within its stated (measured, not assumed) accuracy of the exact motion, below 1e-13."""
+    problem = get_problem("simple-pendulum")({"initial_angle": 1.0})
+    times = np.linspace(0.0, 5.0, 26)
+    reference = computed_reference(problem, problem.name, {"initial_angle": 1.0}, times, tmp_path)
+    error = pose_error(reference.poses, pendulum_poses(times, 1.0), 1.0).max()
+    assert reference.accuracy <= 1e-13
+    assert error <= max(reference.accuracy, 5e-15), (error, reference.accuracy)
+    assert "heyoka-taylor" in reference.description
+    cached = sorted(tmp_path.glob("*.json"))
+    assert len(cached) == 1 and json.loads(cached[0].read_text())["accuracy"] == reference.accuracy
+
+
+def test_a_pipeline_that_cannot_compute_gives_way_to_the_next() -> None:
+    from workbench.errors import ConfigError
+    from workbench.runs.references import solve_first_available
+
+    problem = get_problem("simple-pendulum")()
+    times = np.linspace(0.0, 1.0, 5)
+    missing = Pipeline("minimal-ode", {"index": 1}, "no-such-integrator")
+    working = Pipeline("minimal-ode", {"index": 1}, "scipy-dop853", check={"rtol": 1e-6})
+    used, poses, _, _, accuracy = solve_first_available(
+        problem, [missing, working], times, 1e-10, 1e-11
+    )
+    assert used is working and poses.shape == (5, 1, 7)
+    assert 0 < accuracy["relative"] < 1e-4 and "rtol 1e-06" in accuracy["estimated_by"]
+    with pytest.raises(ConfigError, match="no-such-integrator"):
+        solve_first_available(problem, [missing], times, 1e-10, 1e-11)

@@ -386,4 +386,9 @@ class AbsoluteDae(Formalism):
             ode=system.n_constraints == 0 or options.index == 1,
             notes=notes,
             compiler=Compiler.from_options(options),
+            quaternion_slices=[
+                slice(q_slice.start + 3, q_slice.stop)
+                for name, (q_slice, _) in coords.slices.items()
+                if name in coords.quaternions
+            ],
         )

@@ -37,7 +37,7 @@ from workbench.equations import (
     MechanicalSystem,
     build_equations,
 )
-from workbench.mechanics.kinematics import BodyState, TreeKinematics
+from workbench.mechanics.kinematics import BodyState, TreeKinematics, quaternion_slices
 from workbench.mechanics.lagrangian import joint_space_lagrangian, quaternion_joints
 from workbench.model import Model
 from workbench.plugin.formalism import Formalism
@@ -110,4 +110,5 @@ class Hamilton(Formalism):
             ([k.t, k.q, k.v], [k.q, momentum]),
             joint_coordinates={j.name: rest[i] for i, j in enumerate(model.tree_joints)},
             notes=["state [q, p]: the velocity slots hold the generalized momenta p = M q'"],
+            quaternion_slices=quaternion_slices(k),
         )

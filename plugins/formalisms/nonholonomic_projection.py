@@ -48,7 +48,7 @@ import numpy as np
 from workbench.equations import Equations, MechanicalSystem, build_equations
 from workbench.equations.compiled import Compiler
 from workbench.errors import ConfigError, ModelError
-from workbench.mechanics.kinematics import BodyState, TreeKinematics
+from workbench.mechanics.kinematics import BodyState, TreeKinematics, quaternion_slices
 from workbench.mechanics.newton_euler import newton_euler_forces
 from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import Model
@@ -228,6 +228,7 @@ class NonholonomicProjection(Formalism):
             joint_coordinates={name: qv[0] for name, qv in joint_coordinates.items()},
             notes=notes,
             compiler=Compiler.from_options(options),
+            quaternion_slices=quaternion_slices(kinematics),
         )
         if partition.dependent.size:
             equations.partition_matrices = partition_matrices(kinematics, partition)

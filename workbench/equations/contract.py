@@ -142,6 +142,10 @@ class Equations:
     # constraints W (m, nv) for dependent velocities (a velocity partition) offers it, so
     # the run's audit reports where sigma_min(W_d) / sigma_max(W) falls (digits are lost)
     partition_matrices: Any = None
+    # slices of q holding Euler parameters (4 each): they stay on the unit sphere only as
+    # well as the integrator keeps them there; the rotations built from them are
+    # normalized, so the run's audit reads their norm here
+    quaternion_slices: list[slice] = field(default_factory=list)
 
     @property
     def nq(self) -> int:

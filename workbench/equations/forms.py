@@ -38,9 +38,7 @@ from workbench.equations.contract import (
 )
 from workbench.equations.evaluate import FastFunction, dense_function, lazy_dense_function
 from workbench.equations.observables import build_observables
-from workbench.mechanics.kinematics import (
-    BodyState,
-)
+from workbench.mechanics.kinematics import BodyState, quaternion_slices
 from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import Model
 
@@ -129,6 +127,7 @@ def build_equations(
     joint_coordinates: dict[str, Any] | None = None,
     notes: list[str] | None = None,
     compiler: Compiler | None = None,
+    quaternion_slices: list[slice] | None = None,
 ) -> Equations:
     """Derive all forms and observables from a formalism's symbolic description.
 
@@ -142,6 +141,7 @@ def build_equations(
     ``joint_coordinates``: q of each joint with a spring (for the potential energy);
     recovered from the poses when not given. ``compiler``: how the functions of the forms
     (evaluated in integrators' hot loops) run; observables stay in the CasADi VM.
+    ``quaternion_slices``: the slices of q that hold Euler parameters (for the audit).
     """
     compiler = compiler if compiler is not None else Compiler()
 
@@ -276,6 +276,7 @@ def build_equations(
         joint_space_map=dense_function("joint_space_map", map_inputs, map_outputs),
         notes=list(notes or []),
         compile_warnings=compiler.warnings,
+        quaternion_slices=list(quaternion_slices or []),
     )
 
 
@@ -394,4 +395,5 @@ def build_joint_space_equations(
         joint_coordinates={j.name: k.joint_coordinates(j)[0] for j in model.tree_joints},
         notes=notes,
         compiler=Compiler.from_options(options),
+        quaternion_slices=quaternion_slices(k),
     )

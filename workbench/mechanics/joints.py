@@ -232,8 +232,9 @@ def _perp(a: np.ndarray, d: Any) -> Any:
 def relative_coordinates(joint: Joint, rel_r: Any, rel_rot: Any) -> Any:
     """Joint coordinates from C's pose relative to P (inverse of relative_transform).
 
-    For revolute, prismatic, cylindrical and planar joints (angles in (-pi, pi]); used for
-    joint forces and springs in absolute-coordinate formalisms and for energies.
+    For revolute, prismatic, cylindrical, universal and planar joints (angles in
+    (-pi, pi]); used for joint forces and springs in absolute-coordinate formalisms and for
+    energies.
     """
     xp = ops(rel_r, rel_rot)
     a = unit(joint.axis)
@@ -246,6 +247,8 @@ def relative_coordinates(joint: Joint, rel_r: Any, rel_rot: Any) -> Any:
         return vector([_lin(a, rel_r), angle])
     if joint.type == "prismatic":
         return vector([_lin(a, rel_r)])
+    if joint.type == "universal":
+        return vector(_universal_angles(a, unit(joint.axis2), rel_rot, xp))
     if joint.type == "planar":
         return vector([rel_r[0], rel_r[1], xp.arctan2(rel_rot[1, 0], rel_rot[0, 0])])
     if joint.type == "fixed":
@@ -253,8 +256,23 @@ def relative_coordinates(joint: Joint, rel_r: Any, rel_rot: Any) -> Any:
     raise ValueError(
         f"joint {joint.name!r}: coordinates of a {joint.type} joint cannot be recovered from "
         "poses here; joint forces and springs are supported on revolute, prismatic, "
-        "cylindrical and planar joints"
+        "cylindrical, universal and planar joints"
     )
+
+
+def _universal_angles(a: np.ndarray, b: np.ndarray, rel_rot: Any, xp: Any) -> list[Any]:
+    """The two angles of a universal joint, R = R_a(q0) R_b(q1), from R (a, b unit, not
+    parallel; perpendicular or not).
+
+    R b = R_a(q0) b: q0 is the angle of b's part normal to a turned about a. R^T a =
+    R_b(-q1) a: q1 is the angle of a's part normal to b turned back about b.
+    """
+    normal = np.cross(a, b)
+    b_normal_to_a = b - (a @ b) * a
+    a_normal_to_b = a - (a @ b) * b
+    first = xp.arctan2(_inner(normal, rel_rot, b), _inner(b_normal_to_a, rel_rot, b))
+    second = xp.arctan2(_inner(a, rel_rot, normal), _inner(a, rel_rot, a_normal_to_b))
+    return [first, second]
 
 
 def drive_values(joint: Joint, t: Any) -> tuple[Any, Any, Any]:

@@ -57,15 +57,22 @@ def axis_angle_to_matrix(axis: Any, angle: Any) -> Any:
 
 
 def quaternion_to_matrix(p: Any) -> Any:
-    """Rotation matrix of unit Euler parameters p = (p0, p1, p2, p3), scalar first (3.7.1)."""
+    """Rotation matrix of Euler parameters p = (p0, p1, p2, p3), scalar first (3.7.1).
+
+    Written homogeneous and divided by p^T p, so R(s p) = R(p) for s > 0: Euler parameters
+    that an integrator lets drift off the unit sphere still give a rotation (the unit-sphere
+    form 2 (p0^2 + p1^2) - 1 ... is not one off the sphere, and the drift then fed back into
+    the dynamics: issue 17 item 8, the rolling ball under IDA). For unit p the two agree.
+    """
     p0, p1, p2, p3 = entries(p, 4)
-    return matrix(
-        [
-            [2 * (p0 * p0 + p1 * p1) - 1, 2 * (p1 * p2 - p0 * p3), 2 * (p1 * p3 + p0 * p2)],
-            [2 * (p1 * p2 + p0 * p3), 2 * (p0 * p0 + p2 * p2) - 1, 2 * (p2 * p3 - p0 * p1)],
-            [2 * (p1 * p3 - p0 * p2), 2 * (p2 * p3 + p0 * p1), 2 * (p0 * p0 + p3 * p3) - 1],
-        ]
-    )
+    a, b, c, d = p0 * p0, p1 * p1, p2 * p2, p3 * p3
+    inverse = 1 / (a + b + c + d)
+    rows = [
+        [a + b - c - d, 2 * (p1 * p2 - p0 * p3), 2 * (p1 * p3 + p0 * p2)],
+        [2 * (p1 * p2 + p0 * p3), a - b + c - d, 2 * (p2 * p3 - p0 * p1)],
+        [2 * (p1 * p3 - p0 * p2), 2 * (p2 * p3 + p0 * p1), a - b - c + d],
+    ]
+    return matrix([[entry * inverse for entry in row] for row in rows])
 
 
 def quaternion_rate_matrix(p: Any, frame: str = "body") -> Any:

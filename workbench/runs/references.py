@@ -70,7 +70,7 @@ DIRECTORY = "references"
 POSE_COLUMNS = ["x", "y", "z", "p0", "p1", "p2", "p3"]
 PIPELINES_GROUP = "workbench.reference_pipelines"
 
-_REFERENCE_MEMORY: dict[str, tuple[str, np.ndarray, str]] = {}
+_REFERENCE_MEMORY: dict[str, tuple[np.ndarray, str, float]] = {}  # poses, description, accuracy
 
 
 class ReferenceDisagreement(IntegrationError):
@@ -83,15 +83,63 @@ class ReferenceTimesMismatch(WorkbenchError):
 
 @dataclass(frozen=True)
 class Pipeline:
-    """A formalism (+ options) and an integrator: one way of computing the motion."""
+    """A formalism (+ options) and an integrator (+ options): one way of computing the motion.
+
+    ``rtol`` / ``atol``: the pipeline's own tolerances (None: the caller's). ``check``: how
+    its accuracy is estimated, as changes to this pipeline ({"integrator_options": ...,
+    "rtol": ..., "atol": ...}) for a second, less accurate run; the two runs' largest pose
+    difference is the stated accuracy of the first (an over-estimate of its error).
+    """
 
     formalism: str
     formalism_options: dict[str, Any]
     integrator: str
+    integrator_options: dict[str, Any] = field(default_factory=dict)
+    rtol: float | None = None
+    atol: float | None = None
+    check: dict[str, Any] | None = None
+
+    @classmethod
+    def from_entry(cls, entry: dict[str, Any]) -> Pipeline:
+        """From a configuration table or a stored reference's metadata."""
+        return cls(
+            entry["formalism"],
+            dict(entry.get("formalism_options", entry.get("options", {})) or {}),
+            entry["integrator"],
+            dict(entry.get("integrator_options", {}) or {}),
+            entry.get("rtol"),
+            entry.get("atol"),
+            entry.get("check"),
+        )
+
+    def tolerances(self, rtol: float, atol: float) -> tuple[float, float]:
+        """(rtol, atol) this pipeline runs at when the caller asks for (rtol, atol)."""
+        return (self.rtol or rtol, self.atol or atol)
+
+    def checked(self) -> Pipeline | None:
+        """The less accurate run that estimates this one's accuracy, or None."""
+        if not self.check:
+            return None
+        changes = {
+            k: v for k, v in self.check.items() if k in ("integrator_options", "rtol", "atol")
+        }
+        if "integrator_options" in changes:
+            changes["integrator_options"] = self.integrator_options | changes["integrator_options"]
+        return dataclasses.replace(self, check=None, **changes)
 
     def label(self) -> str:
-        options = ",".join(f"{k}={v}" for k, v in sorted(self.formalism_options.items()))
-        return f"{self.formalism}{f'({options})' if options else ''} + {self.integrator}"
+        def listed(values: dict[str, Any]) -> str:
+            return ",".join(f"{k}={v}" for k, v in sorted(values.items()))
+
+        options, integrator_options = (
+            listed(self.formalism_options),
+            listed(self.integrator_options),
+        )
+        tolerance = f" at rtol {self.rtol:g}" if self.rtol else ""
+        return (
+            f"{self.formalism}{f'({options})' if options else ''} + {self.integrator}"
+            f"{f'({integrator_options})' if integrator_options else ''}{tolerance}"
+        )
 
 
 @dataclass
@@ -173,23 +221,28 @@ def _fits(when: str | None, model: Any) -> bool:
     return {None: True, "tree": tree, "nonholonomic": bool(model.nonholonomic)}.get(when, False)
 
 
-def configured_pipeline(purpose: str, model: Any) -> Pipeline:
-    """The configured pipeline for ``purpose`` ("stored.first", "stored.second" or
-    "computed") and ``model``; ConfigError if none is configured."""
+def configured_pipelines(purpose: str, model: Any) -> list[Pipeline]:
+    """The configured pipelines for ``purpose`` ("stored.first", "stored.second" or
+    "computed") that fit ``model``, in the order to try them; ConfigError if none is."""
     entries: Any = pipeline_configuration()
     for part in purpose.split("."):
         entries = entries.get(part, {}) if isinstance(entries, dict) else {}
-    for entry in entries or []:
-        if _fits(entry.get("when"), model):
-            return Pipeline(entry["formalism"], dict(entry.get("options", {})), entry["integrator"])
-    raise ConfigError(
-        f"no {purpose} reference pipeline is configured for model {model.name!r}: install the "
-        f"built-in plugins or a package with a {PIPELINES_GROUP!r} entry point"
-    )
+    fitting = [Pipeline.from_entry(e) for e in entries or [] if _fits(e.get("when"), model)]
+    if not fitting:
+        raise ConfigError(
+            f"no {purpose} reference pipeline is configured for model {model.name!r}: install "
+            f"the built-in plugins or a package with a {PIPELINES_GROUP!r} entry point"
+        )
+    return fitting
+
+
+def configured_pipeline(purpose: str, model: Any) -> Pipeline:
+    """The first configured pipeline for ``purpose`` that fits ``model``."""
+    return configured_pipelines(purpose, model)[0]
 
 
 def pipelines(model: Any) -> tuple[Pipeline, Pipeline]:
-    """The two independent pipelines of a stored reference for ``model``."""
+    """The first-choice pipelines of a stored reference for ``model``."""
     return configured_pipeline("stored.first", model), configured_pipeline("stored.second", model)
 
 
@@ -199,7 +252,9 @@ def pipelines(model: Any) -> tuple[Pipeline, Pipeline]:
 def solve_poses(
     problem: Any, pipeline: Pipeline, times: np.ndarray, rtol: float, atol: float
 ) -> tuple[np.ndarray, list[str], dict[str, Any]]:
-    """Body poses (n_times, n_bodies, 7) of ``problem`` along ``pipeline``, body names, cost."""
+    """Body poses (n_times, n_bodies, 7) of ``problem`` along ``pipeline``, body names, cost
+    (which records the tolerances used: the pipeline's own, else ``rtol`` and ``atol``)."""
+    rtol, atol = pipeline.tolerances(rtol, atol)
     model = problem.model()
     formalism_class = registry.get_formalism(pipeline.formalism)
     formalism_class.check(model)
@@ -214,7 +269,7 @@ def solve_poses(
     built = time.perf_counter()
     trajectory = integrator.solve(
         equations, state.y0(equations, form), state.yp0(equations, form), times, rtol, atol,
-        None, form,
+        pipeline.integrator_options or None, form,
     )  # fmt: skip
     if not trajectory.success:
         raise IntegrationError(
@@ -224,6 +279,8 @@ def solve_poses(
     rows = zip(times, trajectory.y, strict=True)
     poses = np.stack([equations.observables.poses(t, row[:nq]) for t, row in rows])
     cost = {
+        "rtol": rtol,
+        "atol": atol,
         "build_s": round(built - started, 3),
         "integrate_s": round(trajectory.stats.integrate_s, 3),
         "n_steps": int(trajectory.stats.n_steps),
@@ -250,6 +307,42 @@ def agreement(
     }
 
 
+def solve_checked(
+    problem: Any, pipeline: Pipeline, times: np.ndarray, rtol: float, atol: float
+) -> tuple[np.ndarray, list[str], dict[str, Any], dict[str, Any] | None]:
+    """:func:`solve_poses` and, when the pipeline has a ``check``, its accuracy estimate: the
+    largest pose difference from the check run (an :func:`agreement` dict naming the check
+    pipeline and its cost), else None."""
+    poses, bodies, cost = solve_poses(problem, pipeline, times, rtol, atol)
+    check = pipeline.checked()
+    if check is None:
+        return poses, bodies, cost, None
+    check_poses, _, check_cost = solve_poses(problem, check, times, rtol, atol)
+    length = length_scale(problem.model(), poses)
+    accuracy = agreement(poses, check_poses, times, bodies, length)
+    accuracy["estimated_by"] = f"difference from {check.label()}"
+    accuracy["check_cost"] = check_cost
+    return poses, bodies, cost, accuracy
+
+
+def solve_first_available(
+    problem: Any, candidates: list[Pipeline], times: np.ndarray, rtol: float, atol: float
+) -> tuple[Pipeline, np.ndarray, list[str], dict[str, Any], dict[str, Any] | None]:
+    """The first of ``candidates`` that can compute ``problem`` (:func:`solve_checked`):
+    one whose plugins are not installed, that refuses the model or fails moves on to the
+    next; ConfigError naming every reason when none can."""
+    reasons = []
+    for pipeline in candidates:
+        try:
+            return (pipeline, *solve_checked(problem, pipeline, times, rtol, atol))
+        except WorkbenchError as error:
+            line = (str(error).strip().splitlines() or [type(error).__name__])[-1]
+            reasons.append(f"{pipeline.label()}: {line}")
+    raise ConfigError(
+        f"{problem.name}: no reference pipeline could compute it ({'; '.join(reasons)})"
+    )
+
+
 def compute_reference(
     name: str,
     rtol: float = REFERENCE_RTOL,
@@ -259,6 +352,12 @@ def compute_reference(
     progress: Callable[[str], None] | None = None,
 ) -> StoredReference:
     """Poses of problem ``name`` (default options) by two pipelines that must agree.
+
+    The first pipeline's poses are kept; its accuracy is estimated by its ``check`` run
+    (:func:`solve_checked`; metadata ``accuracy``), and the second pipeline, sharing
+    neither formalism nor integrator, confirms it to within ``threshold`` L (metadata
+    ``agreement``). Each is the first configured one that can compute the problem
+    (:func:`solve_first_available`), unless ``chosen`` names both.
 
     samples: number of equally spaced times over the time span (default: the problem's
     ``n_samples``, so the reference serves the runner's output times). Raises
@@ -274,13 +373,21 @@ def compute_reference(
     n = samples or problem.n_samples
     times = np.linspace(problem.t_start, problem.t_end, n)
     atol = rtol * ATOL_FACTOR
-    chosen = chosen or pipelines(model)
+    candidates = (
+        ([chosen[0]], [chosen[1]])
+        if chosen
+        else (
+            configured_pipelines("stored.first", model),
+            configured_pipelines("stored.second", model),
+        )
+    )
     results = []
-    for pipeline in chosen:
+    for purpose in candidates:
         if progress:
-            progress(f"{name}: {pipeline.label()}")
-        results.append(solve_poses(problem, pipeline, times, rtol, atol))
-    (poses_a, bodies, cost_a), (poses_b, bodies_b, cost_b) = results
+            progress(f"{name}: {purpose[0].label()}")
+        results.append(solve_first_available(problem, purpose, times, rtol, atol))
+    (first, poses_a, bodies, cost_a, accuracy), (second, poses_b, bodies_b, cost_b, _) = results
+    chosen = (first, second)
     if bodies != bodies_b:
         raise ConfigError(f"{name}: the pipelines name different bodies ({bodies} vs {bodies_b})")
     length = length_scale(model, poses_a)
@@ -312,6 +419,8 @@ def compute_reference(
         ],
         "stored_pipeline": 0,
         "agreement": agreed,
+        # the stored poses' accuracy: the first pipeline's check, else the agreement
+        "accuracy": accuracy or {**agreed, "estimated_by": "agreement of the two pipelines"},
         "versions": versions,
         "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
@@ -370,12 +479,13 @@ def stored_reference(problem: Any) -> Any:
     if metadata.get("fingerprint") != problem_fingerprint(problem):
         return None
     agreed = metadata.get("agreement", {})
+    # the first pipeline's own accuracy estimate; files written before it: the agreement
+    accuracy = stated_accuracy(float(metadata.get("accuracy", agreed).get("relative", math.nan)))
     labels = " vs ".join(p.get("label", "?") for p in metadata.get("pipelines", []))
     description = (
         f"stored {path.name}: {labels}, rtol {metadata.get('rtol', math.nan):g}, "
-        f"agreement {agreed.get('relative', math.nan):.2g} L"
+        f"accuracy {accuracy:.2g} L, agreement {agreed.get('relative', math.nan):.2g} L"
     )
-    accuracy = float(agreed.get("relative", math.nan))  # the two pipelines' agreement
     return Reference("stored", lambda times: poses_at(stored, times), description, accuracy)
 
 
@@ -417,11 +527,18 @@ class ReferencePoses:
     accuracy: float = math.nan  # relative to the length scale; see ACCURACY
 
 
-# The relative accuracy a reference states when it does not say: an analytic one is exact
-# up to the round-off of its evaluation; a computed one is a single pipeline at
-# REFERENCE_RTOL, not cross-checked: credited with 100 times that tolerance.
+# The relative accuracy an analytic reference states when it does not say: exact up to the
+# round-off of its evaluation. Stored and computed references state what was measured, but
+# never less than ROUND_OFF_ACCURACY: their poses come from states in double precision
+# through the observables' arithmetic (two runs that agree to the last bit do not make a
+# reference exact).
 ANALYTIC_ACCURACY = 1e-13
-COMPUTED_ACCURACY = 1e-9
+ROUND_OFF_ACCURACY = 1e-15
+
+
+def stated_accuracy(measured: float) -> float:
+    """The accuracy a stored or computed reference states for a measured estimate."""
+    return max(float(measured), ROUND_OFF_ACCURACY) if not math.isnan(measured) else math.nan
 
 
 def _problem_key(problem_name: str, problem_options: dict[str, Any], times: np.ndarray) -> dict:
@@ -474,23 +591,26 @@ def computed_reference(
     times: np.ndarray,
     reference_dir: Path | None = None,
 ) -> ReferencePoses:
-    """One tight-tolerance run (rtol REFERENCE_RTOL, atol REFERENCE_ATOL) of the configured
-    ``computed`` pipeline, cached in memory and on disk under
-    ``<reference_dir>/<problem>-<hash>.parquet`` (the hash covers the problem's options,
-    output times, pipeline, tolerances and fingerprint; written atomically, and a lock file
-    keeps concurrent workers from computing it twice)."""
+    """A tight-tolerance run of the first configured ``computed`` pipeline that can compute
+    the problem (rtol REFERENCE_RTOL, atol REFERENCE_ATOL unless the pipeline sets its own),
+    its accuracy estimated by the pipeline's ``check`` run (NaN, unknown, without one).
+
+    Cached in memory and on disk under ``<reference_dir>/<problem>-<hash>.parquet`` with the
+    description and accuracy in a ``.json`` beside it (the hash covers the problem's options,
+    output times, the configured pipelines, tolerances and fingerprint; written atomically,
+    and a lock file keeps concurrent workers from computing it twice)."""
     model = problem.model()
-    pipeline = configured_pipeline("computed", model)
+    candidates = configured_pipelines("computed", model)
     key = _problem_key(problem_name, problem_options, times)
-    key["pipeline"] = [pipeline.formalism, pipeline.formalism_options, pipeline.integrator]
+    key["pipelines"] = [dataclasses.asdict(p) for p in candidates]
     key["tolerances"] = [REFERENCE_RTOL, REFERENCE_ATOL]
     # the model and initial condition too: a cached reference of an edited problem (same
     # name, options and times) was served as its reference before
     key["fingerprint"] = problem_fingerprint(problem)
     digest = reference_hash(key)
     if digest in _REFERENCE_MEMORY:
-        kind, poses, description = _REFERENCE_MEMORY[digest]
-        return ReferencePoses(kind, poses, description, accuracy=COMPUTED_ACCURACY)
+        poses, description, accuracy = _REFERENCE_MEMORY[digest]
+        return ReferencePoses("computed", poses, description, accuracy=accuracy)
     path = None
     if reference_dir is not None:
         path = Path(reference_dir) / f"{problem_name}-{digest}.parquet"
@@ -501,25 +621,33 @@ def computed_reference(
             try:
                 frame = pd.read_parquet(path)
                 poses = _frame_to_poses(frame, times.size)
-                description = f"computed, read from {path.name}"
-                _REFERENCE_MEMORY[digest] = ("computed", poses, description)
+                about = json.loads(path.with_suffix(".json").read_text())
+                description = f"{about['description']} (read from {path.name})"
+                accuracy = float(about["accuracy"])
+                _REFERENCE_MEMORY[digest] = (poses, description, accuracy)
                 seconds = time.perf_counter() - started
-                return ReferencePoses("computed", poses, description, seconds, COMPUTED_ACCURACY)
+                return ReferencePoses("computed", poses, description, seconds, accuracy)
             except Exception:  # noqa: BLE001 - an unreadable cache file is recomputed
                 pass
-        poses, bodies, _ = solve_poses(problem, pipeline, times, REFERENCE_RTOL, REFERENCE_ATOL)
-        description = (
-            f"computed: {pipeline.formalism} {pipeline.formalism_options} + "
-            f"{pipeline.integrator}, rtol {REFERENCE_RTOL:g}, atol {REFERENCE_ATOL:g}"
+        pipeline, poses, bodies, cost, estimate = solve_first_available(
+            problem, candidates, times, REFERENCE_RTOL, REFERENCE_ATOL
         )
+        accuracy = stated_accuracy(float(estimate["relative"])) if estimate else math.nan
+        description = (
+            f"computed: {pipeline.label()}, rtol {cost['rtol']:g}, atol {cost['atol']:g}, "
+            + (f"accuracy {accuracy:.2g} L ({estimate['estimated_by']})" if estimate else
+               "accuracy not estimated (the pipeline has no check)")
+        )  # fmt: skip
         if path is not None:
             try:
                 write_parquet_atomic(_poses_to_frame(times, poses, bodies), path)
+                about = {"description": description, "accuracy": accuracy, "estimate": estimate}
+                write_json_atomic(about, path.with_suffix(".json"))
             except OSError:  # a read-only output dir only costs the recomputation
                 pass
-    _REFERENCE_MEMORY[digest] = ("computed", poses, description)
+    _REFERENCE_MEMORY[digest] = (poses, description, accuracy)
     seconds = time.perf_counter() - started
-    return ReferencePoses("computed", poses, description, seconds, COMPUTED_ACCURACY)
+    return ReferencePoses("computed", poses, description, seconds, accuracy)
 
 
 def problem_reference(
