@@ -179,6 +179,16 @@ def test_scorecard_picks_the_cheapest_tolerance_that_meets_the_precision():
     assert card.table.loc[g_pair, "iftomm-a01"] == NOT_REACHED
 
 
+def test_ivp_scorecard_lists_scd_against_cost_of_ok_runs():
+    from workbench.outputs.report.scorecards import ivp_scorecard
+
+    rows = [_row("f", "i", 1e-6, 0.2, 1e-6), _row("f", "i", 1e-9, 0.5, 1e-9, status="failed")]
+    frame = prepare_results(pd.DataFrame(rows))
+    table = ivp_scorecard(frame, {"iftomm-a01": {"suite": "ivp"}})
+    assert list(table.columns) == ["problem", "pair", "rtol", "scd", "cpu_s", "n_rhs"]
+    assert table[["rtol", "cpu_s"]].values.tolist() == [[1e-6, 0.2]]  # the failed run left out
+
+
 def test_scorecard_of_a_real_tiny_a01_sweep_has_a_finite_entry(tmp_path):
     text = f"""
 out = "{tmp_path.as_posix()}"
