@@ -267,6 +267,9 @@ LARGE = {"articulated-arm", "parallel-robot", "binary-tree", "spatial-chain", "p
 # problems that pass a singular configuration early: compared before it (A02: all bars
 # horizontal at t = 0.45 s; what happens through it is the trust tests' subject)
 BEFORE_SINGULAR = {"iftomm-a02": 0.3}
+# long spans: "early" is at most this many seconds (A01 runs 2000 s; a tenth of it is 400
+# pendulum periods, where DOP853 at rtol 1e-9 has drifted 5e-6 m from the exact motion)
+EARLY_AT_MOST = {"iftomm-a01": 20.0}
 EARLY_FRACTION = 0.1  # of the time span
 EARLY_TOLERANCE = 1e-6  # pose error / L at rtol 1e-9
 
@@ -303,7 +306,8 @@ def test_formalism_follows_the_reference_early(name: str, formalism: str, option
     assert reference is not None, f"{name}: no analytic or stored reference"
     times = problem.sample_times()
     span = EARLY_FRACTION * (problem.t_end - problem.t_start)
-    times = times[times <= problem.t_start + min(span, BEFORE_SINGULAR.get(name, span))]
+    span = min(span, BEFORE_SINGULAR.get(name, span), EARLY_AT_MOST.get(name, span))
+    times = times[times <= problem.t_start + span]
     equations = formalism_class().build(model, options)
     state = consistent_initial_state(equations, problem)
     ode = equations.forms["ode"]

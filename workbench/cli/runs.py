@@ -140,7 +140,11 @@ def _cell(value: Any) -> str:
 @app.command()
 def sweep(
     spec: Annotated[
-        str | None, typer.Argument(help="Sweep specification (TOML); default: the default sweep.")
+        str | None,
+        typer.Argument(
+            help="Sweep specification (TOML file) or suite name (default, iftomm, ...); "
+            "default: the default sweep.",
+        )
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
     scheduler: Annotated[

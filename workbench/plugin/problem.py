@@ -20,7 +20,12 @@ A problem plugin subclasses :class:`Problem` and registers with
    quantities);
 7. optionally give a :meth:`reference`: analytic body poses. Without one, a stored
    trajectory in ``references/`` beside the module (``workbench reference NAME``) is used,
-   else a computed one: that choice is made by :mod:`workbench.runs.references`.
+   else a computed one: that choice is made by :mod:`workbench.runs.references`;
+8. optionally declare ``benchmark``, when the problem belongs to a published benchmark
+   suite that scores codes by a required precision: a dict with ``suite`` (e.g.
+   "iftomm", "ivp"), ``precision`` (the bound), ``measure`` (the result column compared
+   with it, e.g. "err_max" or "energy_err_max") and ``variables`` (what the benchmark
+   itself measures, in words). The report's scorecards are built from it.
 """
 
 from __future__ import annotations
@@ -103,6 +108,7 @@ class Problem:
     n_samples: ClassVar[int] = 101
     conservative: ClassVar[bool] = True
     independent_coordinates: ClassVar[tuple[tuple[str, int], ...] | None] = None
+    benchmark: ClassVar[dict[str, Any] | None] = None
 
     def __init__(self, options: Any = None) -> None:
         self.options = parse_options(self.Options, options, f"problem {self.name!r}")

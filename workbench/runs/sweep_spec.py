@@ -1,6 +1,8 @@
 """A sweep specification: problems x formalisms x integrators (option grids) x tolerances.
 
-A sweep specification is a TOML file (the default: ``workbench/runs/default_sweep.toml``)::
+A sweep specification is a TOML file, or the name of a suite shipped with the workbench in
+``workbench/runs/suites/NAME.toml`` (``default``, the default sweep; ``iftomm``, the IFToMM
+benchmark problems; :func:`suite_names` lists them)::
 
     out = "reports/latest"         # output directory (``--out`` overrides)
     jobs = 2                       # local worker processes (``--jobs`` overrides)
@@ -114,14 +116,40 @@ class SweepSpec:
     text: str = ""
 
 
+SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
+
+
+def _suites() -> Any:
+    return resources.files("workbench.runs").joinpath("suites")
+
+
+def suite_names() -> list[str]:
+    """The sweep suites shipped with the workbench (``workbench/runs/suites/*.toml``)."""
+    return sorted(f.name[:-5] for f in _suites().iterdir() if f.name.endswith(".toml"))
+
+
+def suite_text(name: str) -> str:
+    """The TOML text of suite ``name``; an unknown name is a ConfigError listing the suites."""
+    if SUITE_NAME.fullmatch(name) and name in suite_names():
+        return _suites().joinpath(f"{name}.toml").read_text("utf-8")
+    raise ConfigError(
+        f"unknown sweep suite {name!r} (and no such file): the suites are "
+        f"{', '.join(suite_names())}; or give the path of a TOML specification"
+    )
+
+
 def default_spec_text() -> str:
-    return resources.files("workbench.runs").joinpath("default_sweep.toml").read_text("utf-8")
+    return suite_text("default")
 
 
 def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
-    """Read and validate a sweep specification (None: the default one); nothing is written."""
+    """Read and validate a sweep specification: a TOML file, or the name of a shipped suite
+    (None: the default one); nothing is written. A name that is both an existing file and
+    a suite is read as the file."""
     if path is None:
-        return parse_spec(default_spec_text(), "default sweep (workbench/runs/default_sweep.toml)")
+        path = "default"
+    if isinstance(path, str) and SUITE_NAME.fullmatch(path) and not Path(path).exists():
+        return parse_spec(suite_text(path), f"suite {path} (workbench/runs/suites/{path}.toml)")
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

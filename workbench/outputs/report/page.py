@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import platform
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
@@ -18,6 +19,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescap
 
 from workbench.outputs.report.analysis import run_environment
 from workbench.outputs.report.figures import FigureFiles, slug
+from workbench.outputs.report.scorecards import Scorecard
 from workbench.outputs.report.tables import shows_index, table_cells
 from workbench.runs.environment import cpu_model, distribution_versions
 
@@ -88,6 +90,7 @@ def render_page(
     footnotes: list[str],
     sections: list[ProblemSection],
     command: str,
+    scorecards: Sequence[Scorecard] = (),
 ) -> str:
     """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
 
@@ -107,6 +110,7 @@ def render_page(
             status=PageTable.of(status, "status"),
             footnotes=[note.split("] ", 1)[1] for note in footnotes],
             sections=sections,
+            scorecards=[(c.title, c.note, PageTable.of(c.table, c.name)) for c in scorecards],
             command=command,
             run_environment="; ".join(run_environment(runs)),
             versions=", ".join(f"{name} {version}" for name, version in library_versions().items()),

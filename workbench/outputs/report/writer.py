@@ -26,6 +26,7 @@ from workbench.outputs.report.analysis import (
 from workbench.outputs.report.figures import drift_figure, slug, work_precision_figure
 from workbench.outputs.report.page import PageTable, ProblemSection, render_page
 from workbench.outputs.report.pool import figure_executor, figure_jobs
+from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
 from workbench.runs.progress import progress_bar
 
@@ -64,6 +65,9 @@ def write_report(
     write_table(summary, out / "tables", "summary")
     write_table(matrix, out / "tables", "status")
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
+    cards = scorecards(runs)
+    for card in cards:
+        write_table(card.table, out / "tables", card.name)
 
     jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
     show = len(problems) > 1 if progress is None else progress
@@ -81,7 +85,7 @@ def write_report(
             sections.append(future.result())
             bar.step(problem)
 
-    page = render_page(title, runs, summary, matrix, footnotes, sections, command)
+    page = render_page(title, runs, summary, matrix, footnotes, sections, command, cards)
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
     return index
