@@ -143,8 +143,8 @@ def test_a05_a_third_pipeline_reproduces_the_reference():
 def test_suites_are_found_by_name_and_unknown_ones_listed():
     assert {"default", "iftomm"} <= set(suite_names())
     iftomm = load_spec("iftomm")
-    assert {r.problem for r in iftomm.runs} == {"iftomm-a01", "iftomm-a02", "iftomm-a04",
-                                                "iftomm-a05"}  # fmt: skip
+    assert {r.problem for r in iftomm.runs} == {"iftomm-a01", "iftomm-a02", "iftomm-a03",
+                                                "iftomm-a04", "iftomm-a05"}  # fmt: skip
     assert load_spec().source == load_spec("default").source
     with pytest.raises(ConfigError, match="unknown sweep suite 'nope'.*default, iftomm"):
         load_spec("nope")
