@@ -32,7 +32,12 @@ from workbench.plugin import registry
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run
 from workbench.runs.sweep_spec import import_plugin_modules
-from workbench.runs.unfinished import died_message, record_unfinished, timeout_message
+from workbench.runs.unfinished import (
+    died_message,
+    record_unfinished,
+    row_stamp,
+    timeout_message,
+)
 
 
 def _worker_main(
@@ -127,6 +132,7 @@ class _Worker:
     spec: RunSpec | None = None
     deadline: float = math.inf
     pair: tuple[str, ...] | None = None  # equations_key of its last run: built, cached
+    stamp: tuple[int, int] | None = None  # row_stamp of its run when it was handed over
 
 
 Keyed = tuple[tuple[str, ...], RunSpec]  # (equations_key, run), the key computed once
@@ -245,6 +251,7 @@ def run_local(
                     others = {w.pair for w in workers if w is not worker}
                     worker.pair, worker.spec = _take_next(queue, worker.pair, others)
                     worker.deadline = now + limit
+                    worker.stamp = row_stamp(out, worker.spec.run_id)
                     worker.conn.send(worker.spec.to_dict())
             deadline = min((w.deadline for w in workers), default=math.inf)
             timeout = max(0.0, min(deadline - now, 1.0))
@@ -261,7 +268,11 @@ def run_local(
                             record(message[2])
                             worker.spec, worker.deadline = None, math.inf
                         elif message[0] == "error" and worker.spec is not None:
-                            record(record_unfinished(out, worker.spec, "failed", message[2]))
+                            record(
+                                record_unfinished(
+                                    out, worker.spec, "failed", message[2], worker.stamp
+                                )
+                            )
                             worker.spec, worker.deadline = None, math.inf
                 except (EOFError, OSError):
                     pass  # the process died: handled below
@@ -281,9 +292,9 @@ def run_local(
                             )
                     retire(worker)
                 elif worker.spec is not None and now > worker.deadline:
-                    spec = worker.spec
+                    spec, stamp = worker.spec, worker.stamp
                     retire(worker)
-                    record(record_unfinished(out, spec, "timeout", timeout_message(limit)))
+                    record(record_unfinished(out, spec, "timeout", timeout_message(limit), stamp))
     finally:
         for worker in list(workers):
             with contextlib.suppress(Exception):

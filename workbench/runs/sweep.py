@@ -1,7 +1,8 @@
 """Running a sweep: the runs not yet done, through a local pool or a Dask cluster.
 
-Execution (:func:`run_sweep`): run ids whose row exists in ``<out>/runs`` are skipped
-(resume). Runs go to a small pool of worker processes of our own (concurrent.futures
+Execution (:func:`run_sweep`): runs whose row and series in ``<out>`` are whole are
+skipped (resume; :mod:`workbench.runs.resume` says what is broken, stale or redone).
+Runs go to a small pool of worker processes of our own (concurrent.futures
 cannot kill a running task): each worker builds and caches equations, runs, and writes the
 run's files itself; the parent enforces each run's time limit by killing the worker (row
 ``timeout``) and starting a fresh one, and a worker that dies mid-run (segfault, SIGKILL)
@@ -17,8 +18,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +32,7 @@ from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.progress import progress_bar
+from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
@@ -44,6 +48,7 @@ class SweepSummary:
     seconds: float
     results: Path | None = None
     recording: Path | None = None
+    stale: int = 0  # stale rows kept (not redone)
 
     @property
     def total(self) -> int:
@@ -58,6 +63,9 @@ def run_sweep(
     scheduler: str | None = None,
     show_progress: bool = True,
     recorder: Any = None,
+    rerun: frozenset[str] | set[str] = frozenset(),
+    fresh: bool = False,
+    say: Callable[[str], None] | None = None,
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
@@ -65,7 +73,11 @@ def run_sweep(
     ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``end_file()``; class
     attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
     ``prepare()``), e.g. :class:`workbench.outputs.recording.RerunSink`; None records
-    nothing. Passed in, so the runs layer knows no recording format."""
+    nothing. Passed in, so the runs layer knows no recording format.
+
+    ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
+    runs (:func:`workbench.runs.resume.plan_resume`); ``say`` receives the one-line
+    findings of the resume (default: printed on stderr)."""
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
     jobs = int(jobs or sweep.jobs)
@@ -75,8 +87,10 @@ def run_sweep(
     if not limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {limit}")
     store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
-    done = store.completed_run_ids(out_dir)
-    todo = [spec for spec in sweep.runs if spec.run_id not in done]
+    plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
+    for line in plan.lines():
+        (say or _stderr)(line)
+    todo = plan.todo
     (out_dir / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
     (out_dir / "references").mkdir(exist_ok=True)
     # the machine that starts the sweep (with Dask, the client; rows name their workers)
@@ -108,7 +122,12 @@ def run_sweep(
         time.perf_counter() - started,
         results,
         recording,
+        stale=0 if "stale" in plan.rerun or fresh else len(plan.stale),
     )
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager

@@ -25,10 +25,26 @@ def timeout_message(limit: float) -> str:
     return f"time limit of {limit:g} s exceeded; the run's worker process was killed"
 
 
-def record_unfinished(out: Path, spec: RunSpec, status: str, message: str) -> str:
-    """Write a row for a run that produced none (timeout, dead worker); keep a real one."""
-    existing = store.read_row(store.row_path(out, spec.run_id))
-    if existing is not None:
-        return existing.get("status", status)
+def row_stamp(out: Path, run_id: str) -> tuple[int, int] | None:
+    """(inode, mtime in ns) of the run's row file, or None: taken when a run is handed to a
+    worker, it tells a row written by that attempt (a new file, renamed into place) from an
+    older one (a re-run of a done row)."""
+    try:
+        stat = store.row_path(out, run_id).stat()
+    except OSError:
+        return None
+    return stat.st_ino, stat.st_mtime_ns
+
+
+def record_unfinished(
+    out: Path, spec: RunSpec, status: str, message: str, before: tuple[int, int] | None = None
+) -> str:
+    """Write a row for a run that produced none (timeout, dead worker) and return its
+    status; keep a row its attempt did write (the worker died after writing it), i.e. one
+    whose :func:`row_stamp` differs from ``before``, the stamp taken at the attempt's start."""
+    if row_stamp(out, spec.run_id) != before:
+        existing = store.read_row(store.row_path(out, spec.run_id))
+        if existing is not None:
+            return existing.get("status", status)
     store.write_run(out, status_row(spec, status, message), None)
     return status
