@@ -22,7 +22,7 @@ import sys
 import time
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -49,9 +49,12 @@ class SweepSummary:
     results: Path | None = None
     recording: Path | None = None
     stale: int = 0  # stale rows kept (not redone)
+    # runs left without a row by the infrastructure (run id -> why): a resume redoes them
+    unfinished: dict[str, str] = field(default_factory=dict)
 
     @property
     def total(self) -> int:
+        """Runs attempted, completed or not."""
         return sum(self.counts.values())
 
 
@@ -106,10 +109,12 @@ def run_sweep(
             advance(counts)
 
         if scheduler:
-            run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record)
+            unfinished = run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record)
         else:
             tick = lambda: advance(None)  # noqa: E731
-            run_local(todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder)
+            unfinished = run_local(
+                todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder
+            )
     results = store.consolidate(out_dir)
     recording = None
     if recorder is not None:
@@ -123,6 +128,7 @@ def run_sweep(
         results,
         recording,
         stale=0 if "stale" in plan.rerun or fresh else len(plan.stale),
+        unfinished=unfinished,
     )
 
 
@@ -142,7 +148,9 @@ def _progress(total: int, show: bool, threaded: bool = True):
                 bar.tick()
                 return
             text = "  ".join(
-                f"{s} {counts[s]}" for s in ("ok", "failed", "skipped", "timeout") if counts[s]
+                f"{s} {counts[s]}"
+                for s in ("ok", "failed", "skipped", "timeout", "unfinished")
+                if counts[s]
             )
             bar.update(sum(counts.values()), text)
 
