@@ -193,8 +193,9 @@ class Die(TestRk45):
         os.kill(os.getpid(), signal.SIGSEGV)
 
 
-FLAKY = "WORKBENCH_TEST_FLAKY"  # hang | raise | kill | kill-once: what test-flaky does
-FLAKY_MARKER = "WORKBENCH_TEST_FLAKY_MARKER"  # kill-once: a file made by the first kill
+# what test-flaky does: hang | raise | kill | kill-parent, or one of them once (MODE-once)
+FLAKY = "WORKBENCH_TEST_FLAKY"
+FLAKY_MARKER = "WORKBENCH_TEST_FLAKY_MARKER"  # MODE-once: a file made the first time
 
 
 @integrator
@@ -204,11 +205,17 @@ class Flaky(TestRk45):
 
     def integrate(self, task, trajectory):
         mode = os.environ.get(FLAKY, "")
-        if mode == "kill-once" and not os.path.exists(os.environ[FLAKY_MARKER]):
-            open(os.environ[FLAKY_MARKER], "w").close()
-            mode = "kill"
+        if mode.endswith("-once"):
+            if os.path.exists(os.environ[FLAKY_MARKER]):
+                mode = ""
+            else:
+                open(os.environ[FLAKY_MARKER], "w").close()
+                mode = mode.removesuffix("-once")
         if mode == "kill":  # as an operator or the OOM killer would: not the run's fault
             os.kill(os.getpid(), signal.SIGKILL)
+        if mode == "kill-parent":  # a Dask run's parent: its Dask worker
+            os.kill(os.getppid(), signal.SIGKILL)
+            time.sleep(60)
         if mode == "hang":
             while True:
                 time.sleep(1.0)

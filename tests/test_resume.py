@@ -116,13 +116,19 @@ def test_a_fixed_plugin_makes_its_rows_stale_and_rerun_stale_redoes_them(
     assert buggy["err_end"].to_numpy() == pytest.approx(0.05 * 9.81 / 2, rel=1e-3)
     plant(tmp_path, "1.0")  # fixed
     kept, lines = sweep_lines(text)
-    assert kept.total == 0 and kept.stale == 2
+    assert kept.total == 0 and len(kept.stale) == 2
     assert "resuming: 2 of 2 done (2 stale)" in lines
     warning = next(line for line in lines if "STALE" in line)
     assert "producer_formalism sha256:" in warning and "--rerun stale" in warning
     assert store.load_results(out).set_index("run_id")["scd"].equals(buggy["scd"])
+    # the report marks them (a warning: shown as such and never recommended)
+    from workbench.outputs.report.analysis import warning_kinds
+    from workbench.runs.resume import mark_stale
+
+    marked = mark_stale(store.load_results(out), kept.stale)
+    assert all("stale" in warning_kinds(w) for w in marked["warnings"])
     redone, lines = sweep_lines(text, rerun={"stale"})
-    assert redone.total == 2 and redone.counts["ok"] == 2 and redone.stale == 0
+    assert redone.total == 2 and redone.counts["ok"] == 2 and redone.stale == {}
     assert any(line.startswith("redoing 2 stale row(s)") for line in lines)
     fixed = store.load_results(out).set_index("run_id")
     assert (fixed["scd"] > buggy["scd"] + 3).all()  # 0.05 g/2 off -> the rk45 tolerance
@@ -144,7 +150,7 @@ def test_rows_of_an_older_schema_have_an_unknown_producer_not_stale(
             row.pop(column)
         path.write_text(json.dumps(row | {"schema_version": 3}))
     again, lines = sweep_lines(text)
-    assert again.total == 0 and again.stale == 0
+    assert again.total == 0 and again.stale == {}
     assert "resuming: 2 of 2 done (0 stale)" in lines
     assert any("2 done row(s) do not record what produced them" in line for line in lines)
     assert set(store.load_results(tmp_path)["producer_formalism"]) == {"unknown"}
@@ -248,3 +254,41 @@ def test_a_run_whose_worker_is_killed_twice_has_no_row_and_resume_redoes_it(
     monkeypatch.delenv(FLAKY)
     summary, _ = sweep_lines(spec.read_text())
     assert summary.counts == {"ok": 2} and summary.already_done == 0
+
+
+@pytest.mark.slow
+def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
+    fake_plugins,  # noqa: F811
+    tmp_path,
+    monkeypatch,
+) -> None:
+    """A Dask worker killed under its task, and a run's child killed from outside."""
+    dask = pytest.importorskip("dask")
+    distributed = pytest.importorskip("distributed")
+    from tests.fake_plugins import FLAKY, FLAKY_MARKER
+
+    text = spec_text(tmp_path, '["test-flaky"]', problems=FALLING).replace(
+        "tolerances = [1e-4, 1e-6]", "tolerances = [1e-6]"
+    )
+    monkeypatch.setenv(FLAKY_MARKER, str(tmp_path / "killed"))
+
+    def sweep_on_a_cluster(mode: str, **options):
+        monkeypatch.setenv(FLAKY, mode)  # before the cluster: its workers' environment
+        with distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster:
+            # 120 s: a task's limit covers its child's start-up; only a hung run reaches it
+            return sweep_lines(
+                text, time_limit=120.0, scheduler=cluster.scheduler_address, **options
+            )[0]
+
+    # the scheduler gives up on a task at its first lost worker (KilledWorker): our retry
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        lost_once = sweep_on_a_cluster("kill-parent-once")
+    assert (tmp_path / "killed").exists()  # a Dask worker was killed
+    assert lost_once.counts == {"ok": 1} and lost_once.unfinished == {}
+    killed = sweep_on_a_cluster("kill", fresh=True)
+    assert killed.counts == {"unfinished": 1}
+    (reason,) = killed.unfinished.values()
+    assert "SIGKILL" in reason and "(2 attempts)" in reason
+    assert list(store.load_results(tmp_path)["status"]) == ["ok"]  # the old row is kept

@@ -194,7 +194,11 @@ def sweep(
     typer.echo(
         f"{summary.total} runs in {summary.seconds:.1f} s ({counts}); "
         f"{summary.already_done} already done"
-        + (f", {summary.stale} of them stale (--rerun stale redoes them)" if summary.stale else "")
+        + (
+            f", {len(summary.stale)} of them stale (--rerun stale redoes them)"
+            if summary.stale
+            else ""
+        )
     )
     typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
     from workbench.outputs.report import report_directory
@@ -202,7 +206,9 @@ def sweep(
     if summary.unfinished and not store.completed_run_ids(summary.out):
         typer.echo("report: none (no run has a row yet)")
     else:
-        index = report_directory(summary.out, command=" ".join(["workbench", *sys.argv[1:]]))
+        index = report_directory(
+            summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
+        )
         typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")

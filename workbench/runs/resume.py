@@ -14,8 +14,11 @@ finishes, so an interrupted re-run keeps the old row.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import pandas as pd
 
 from workbench.errors import ConfigError
 from workbench.runs import store
@@ -111,4 +114,21 @@ def plan_resume(
     return plan
 
 
-__all__ = ["RERUN_KINDS", "ResumePlan", "parse_rerun", "plan_resume"]
+def mark_stale(frame: pd.DataFrame, stale: Mapping[str, str]) -> pd.DataFrame:
+    """``frame`` with a ``stale`` warning added to the rows of ``stale`` (run id -> what
+    changed), so a report shows them as runs with warnings and never recommends them."""
+    frame = frame.copy()
+    reasons = frame["run_id"].map(dict(stale))
+    marked = reasons.notna()
+    notes = (
+        "stale: made by other code than this sweep's (" + reasons[marked] + "); "
+        "redo with `workbench sweep --rerun stale`"
+    )
+    old = frame.loc[marked, "warnings"].fillna("").astype(str)
+    frame.loc[marked, "warnings"] = [
+        f"{o}; {n}" if o else n for o, n in zip(old, notes, strict=True)
+    ]
+    return frame
+
+
+__all__ = ["RERUN_KINDS", "ResumePlan", "mark_stale", "parse_rerun", "plan_resume"]

@@ -48,7 +48,8 @@ class SweepSummary:
     seconds: float
     results: Path | None = None
     recording: Path | None = None
-    stale: int = 0  # stale rows kept (not redone)
+    # stale rows kept, not redone (run id -> what changed): the report marks them
+    stale: dict[str, str] = field(default_factory=dict)
     # runs left without a row by the infrastructure (run id -> why): a resume redoes them
     unfinished: dict[str, str] = field(default_factory=dict)
 
@@ -127,7 +128,7 @@ def run_sweep(
         time.perf_counter() - started,
         results,
         recording,
-        stale=0 if "stale" in plan.rerun or fresh else len(plan.stale),
+        stale={} if "stale" in plan.rerun or fresh else plan.stale,
         unfinished=unfinished,
     )
 
