@@ -17,6 +17,18 @@ from workbench.runs.sweep import parse_spec, run_sweep
 FALLING = '["test-falling"]'  # an analytic reference: no reference pipeline to run
 
 
+@pytest.fixture(autouse=True)
+def fresh_workers(monkeypatch):
+    """Workers started by spawn: each imports the plugins anew from their files and sees
+    the environment of the moment, as the workers of a new `workbench sweep` do (a fork or
+    a forkserver started by an earlier test would hand them the modules it had loaded)."""
+    import multiprocessing
+
+    from workbench.runs import local_pool
+
+    monkeypatch.setattr(local_pool, "_context", lambda: multiprocessing.get_context("spawn"))
+
+
 def sweep_lines(text: str, **options) -> tuple[object, list[str]]:
     lines: list[str] = []
     summary = run_sweep(parse_spec(text), show_progress=False, say=lines.append, **options)
@@ -107,7 +119,9 @@ def test_a_fixed_plugin_makes_its_rows_stale_and_rerun_stale_redoes_them(
     text = spec_text(out, '["test-rk45"]', problems=FALLING).replace(
         '"minimal-ode", options = { index = [1] }', '"test-planted"'
     )
-    text = text.replace('plugins = ["tests.fake_plugins"]', 'plugins = ["tests.fake_plugins"]')
+    text = text.replace(
+        'plugins = ["tests.fake_plugins"]', 'plugins = ["tests.fake_plugins", "planted_formalism"]'
+    )
     plant(tmp_path, "1.05")  # the bug: gravity 5 % too strong
     first, _ = sweep_lines(text)
     assert first.counts["ok"] == 2

@@ -17,7 +17,9 @@ Python is not other code of ours; rows name their machine). Rows written before
 producers were recorded (schema < 4) have producer ``unknown``: reported on resume, not
 stale (nothing says they differ). Known limit: a plugin's source hash covers the modules
 of its class hierarchy, not every module they call; a change elsewhere in the workbench
-shows through ``version_workbench`` only when its version changes.
+shows through ``version_workbench`` only when its version changes; a source file is
+read at a process's first row of that plugin, so a plugin edited while a long-lived
+process (a notebook, a forkserver) holds its old module is hashed as edited.
 """
 
 from __future__ import annotations
