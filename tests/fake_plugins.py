@@ -9,6 +9,7 @@ registers them in the global registry (tests restore the registry afterwards).
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
 import time
@@ -185,10 +186,42 @@ class ReturnNan(TestRk45):
 @integrator
 class Die(TestRk45):
     name = "test-die"
-    summary = "Kills its own process (test)"
+    summary = "Crashes its own process: SIGSEGV, as a fault in native code would (test)"
 
     def integrate(self, task, trajectory):
-        os.kill(os.getpid(), signal.SIGKILL)
+        faulthandler.disable()  # pytest's dump of the crash is noise here
+        os.kill(os.getpid(), signal.SIGSEGV)
+
+
+# what test-flaky does: hang | raise | kill | kill-parent, or one of them once (MODE-once)
+FLAKY = "WORKBENCH_TEST_FLAKY"
+FLAKY_MARKER = "WORKBENCH_TEST_FLAKY_MARKER"  # MODE-once: a file made the first time
+
+
+@integrator
+class Flaky(TestRk45):
+    name = "test-flaky"
+    summary = "test-rk45, unless $WORKBENCH_TEST_FLAKY says hang, raise or kill (test)"
+
+    def integrate(self, task, trajectory):
+        mode = os.environ.get(FLAKY, "")
+        if mode.endswith("-once"):
+            if os.path.exists(os.environ[FLAKY_MARKER]):
+                mode = ""
+            else:
+                open(os.environ[FLAKY_MARKER], "w").close()
+                mode = mode.removesuffix("-once")
+        if mode == "kill":  # as an operator or the OOM killer would: not the run's fault
+            os.kill(os.getpid(), signal.SIGKILL)
+        if mode == "kill-parent":  # a Dask run's parent: its Dask worker
+            os.kill(os.getppid(), signal.SIGKILL)
+            time.sleep(60)
+        if mode == "hang":
+            while True:
+                time.sleep(1.0)
+        if mode == "raise":
+            raise RuntimeError("test-flaky raised")
+        super().integrate(task, trajectory)
 
 
 @problem

@@ -106,7 +106,7 @@ def test_misbehaving_plugins_give_rows_and_the_sweep_completes(fake_plugins, tmp
     }
     messages = good.set_index("integrator")["message"]
     assert "time limit of 20 s" in messages["test-hang"].iloc[0]
-    assert "worker process died (exit code -9, SIGKILL)" in messages["test-die"].iloc[0]
+    assert "worker process died (exit code -11, SIGSEGV)" in messages["test-die"].iloc[0]
     assert "raised" in messages["test-raise"].iloc[0]
     broken = frame[frame["formalism"] == "test-broken-build"]
     assert set(broken["status"]) == {"failed"}

@@ -154,15 +154,36 @@ def sweep(
     time_limit: Annotated[
         float | None, typer.Option("--time-limit", help="Seconds per run before it is killed.")
     ] = None,
+    rerun: Annotated[
+        str | None,
+        typer.Option(
+            "--rerun",
+            help="Redo done runs of these kinds: a comma list of failed, timeout, skipped, "
+            "stale (made by other code).",
+        ),
+    ] = None,
+    fresh: Annotated[
+        bool,
+        typer.Option(
+            "--fresh", help="Redo every run (a row is replaced only when its run finishes)."
+        ),
+    ] = False,
 ) -> None:
-    """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted."""
+    """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
+
+    Exit status 1 if some runs could not be completed (their worker was killed from
+    outside or lost): they have no row, and running the same command again redoes them.
+    """
     from workbench.errors import ConfigError
+    from workbench.runs import store
+    from workbench.runs.resume import parse_rerun
     from workbench.runs.sweep import load_spec, run_sweep
 
     if jobs is not None and jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if time_limit is not None and not time_limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
+    kinds = parse_rerun(rerun)
     loaded = load_spec(spec)
     from workbench.outputs.recording import SweepRecorder
 
@@ -173,19 +194,55 @@ def sweep(
         time_limit=time_limit,
         scheduler=scheduler,
         recorder=SweepRecorder,
+        rerun=kinds,
+        fresh=fresh,
+        say=typer.echo,
     )
-    counts = ", ".join(f"{summary.counts[s]} {s}" for s in ("ok", "failed", "skipped", "timeout"))
+    shown = ("ok", "failed", "skipped", "timeout") + (("unfinished",) if summary.unfinished else ())
+    counts = ", ".join(f"{summary.counts[s]} {s}" for s in shown)
     typer.echo(
         f"{summary.total} runs in {summary.seconds:.1f} s ({counts}); "
         f"{summary.already_done} already done"
+        + (
+            f", {len(summary.stale)} of them stale (--rerun stale redoes them)"
+            if summary.stale
+            else ""
+        )
     )
     typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
     from workbench.outputs.report import report_directory
 
-    index = report_directory(summary.out, command=" ".join(["workbench", *sys.argv[1:]]))
-    typer.echo(f"report: {index}")
+    if summary.unfinished and not store.completed_run_ids(summary.out):
+        typer.echo("report: none (no run has a row yet)")
+    else:
+        index = report_directory(
+            summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
+        )
+        typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
+    if summary.unfinished:
+        first, why = next(iter(summary.unfinished.items()))
+        again = " ".join(["workbench", *_without_rerun(sys.argv[1:])])
+        typer.echo(
+            f"{len(summary.unfinished)} run(s) could not be completed, not by their own fault "
+            f"(e.g. run {first}: {why}); they have no row: resume with `{again}`",
+            err=True,
+        )
+        raise typer.Exit(1)
+
+
+def _without_rerun(arguments: list[str]) -> list[str]:
+    """The command line without --fresh and --rerun (a resume redoes unfinished runs)."""
+    kept, skip = [], False
+    for argument in arguments:
+        if skip:
+            skip = False
+        elif argument == "--rerun":
+            skip = True
+        elif argument != "--fresh" and not argument.startswith("--rerun="):
+            kept.append(argument)
+    return kept
 
 
 RESULT_COLUMNS = [

@@ -8,20 +8,28 @@ cluster needs no shared file system.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
 import sys
 import tempfile
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, one_line
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, execute_run, status_row
 from workbench.runs.sweep_spec import import_plugin_modules
-from workbench.runs.unfinished import died_message, timeout_message
+from workbench.runs.unfinished import (
+    RETRIES,
+    InfrastructureError,
+    died_message,
+    killed_from_outside,
+    timeout_message,
+)
 
 
 def run_in_subprocess(
@@ -35,7 +43,8 @@ def run_in_subprocess(
 
     Used as the task of a Dask (or any concurrent.futures) executor: the child can be
     killed where a thread cannot, and the result is returned rather than written, so the
-    cluster needs no shared file system.
+    cluster needs no shared file system. InfrastructureError if the child was killed
+    from outside (no result of the run; see :mod:`workbench.runs.unfinished`).
     """
     import pandas as pd
 
@@ -69,6 +78,8 @@ def run_in_subprocess(
             message = died_message(completed.returncode)
             if tail[0]:
                 message += f": {tail[0]}"
+            if killed_from_outside(completed.returncode):
+                raise InfrastructureError(f"run {spec.run_id}: {message}")
             return status_row(spec, "failed", message), None
         series_file = store.series_path(Path(directory), spec.run_id)
         series = pd.read_parquet(series_file) if series_file.exists() else None
@@ -97,7 +108,9 @@ def run_dask(
     plugins: list[str],
     scheduler: str,
     record: Callable[[str], None],
-) -> None:
+) -> dict[str, str]:
+    """Run ``todo`` on the cluster; return the runs left without a row (run id -> why):
+    those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
     import concurrent.futures
 
     try:
@@ -110,24 +123,48 @@ def run_dask(
         raise ConfigError(f"cannot connect to the Dask scheduler {scheduler!r}: {error}") from None
     reference_dir = str((out / "references").resolve())
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+    unfinished: dict[str, str] = {}
+    failures: Counter[str] = Counter()
     try:
         executor = client.get_executor(pure=False)
-        futures = {
-            executor.submit(
+
+        def submit(spec: RunSpec) -> concurrent.futures.Future:
+            return executor.submit(
                 run_in_subprocess, spec.to_dict(), limit, plugins, reference_dir, paths
-            ): spec
-            for spec in todo
-        }
-        for future in concurrent.futures.as_completed(futures):
-            spec = futures[future]
-            try:
-                row, series = future.result()
-            except Exception as error:  # noqa: BLE001 - a lost task is a failed row
-                row, series = status_row(spec, "failed", f"dask task failed: {error}"), None
-            store.write_run(out, row, series)
-            record(row.get("status", "failed"))
+            )
+
+        futures = {submit(spec): spec for spec in todo}
+        while futures:
+            finished, _ = concurrent.futures.wait(
+                futures, return_when=concurrent.futures.FIRST_COMPLETED
+            )
+            for future in finished:
+                spec = futures.pop(future)
+                try:
+                    row, series = future.result()
+                except Exception as error:  # noqa: BLE001 - lost worker, scheduler, child
+                    # not a result of the run: once more, then left without a row
+                    failures[spec.run_id] += 1
+                    reason = _lost_message(error)
+                    if failures[spec.run_id] <= RETRIES:
+                        with contextlib.suppress(Exception):  # a lost client: unfinished
+                            futures[submit(spec)] = spec
+                            continue
+                    unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
+                    record("unfinished")
+                    continue
+                store.write_run(out, row, series)
+                record(row.get("status", "failed"))
     finally:
         client.close()
+    return unfinished
+
+
+def _lost_message(error: BaseException) -> str:
+    """Why a Dask task gave no result, in one line (a lost scheduler raises with no text)."""
+    if not str(error).strip():
+        return f"dask task lost ({type(error).__name__}: its worker or the scheduler was lost)"
+    return f"dask task failed: {one_line(error)}"
 
 
 if __name__ == "__main__":

@@ -48,10 +48,10 @@ from workbench.errors import one_line, one_line_text
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
+from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
+from workbench.runs.row_check import STATUSES
 from workbench.runs.store import SCHEMA_VERSION, empty_series
-
-STATUSES = ("ok", "failed", "skipped", "timeout")
 
 
 def canonical_json(value: Any) -> str:
@@ -260,9 +260,10 @@ def base_row(spec: RunSpec) -> dict[str, Any]:
 
 def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[str, Any]:
     """A row without metrics (skipped, timeout, a worker that died)."""
-    row = base_row(spec) | {"status": status, "message": one_line_text(message)}
+    row = base_row(spec) | {"status": status, "message": one_line_text(message), "n_samples": 0}
     row.update(extra)
     row.update(environment())
+    row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
     return row
 
 
@@ -371,6 +372,8 @@ def execute_run(
     row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
     row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
+    row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
+    row["n_samples"] = len(series)
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
     row["message"] = one_line_text(row["message"])
     return RunResult(row, series)

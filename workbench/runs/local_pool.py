@@ -3,8 +3,10 @@
 concurrent.futures cannot kill a running task, so each worker is a process with a pipe:
 it builds and caches equations, runs, and writes the run's files itself; the parent
 enforces each run's time limit by killing the worker (row ``timeout``) and starting a
-fresh one, and a worker that dies mid-run (segfault, SIGKILL) gives a ``failed`` row
-"worker process died (exit code ...)". A worker records each run through the
+fresh one. A worker that crashes mid-run (segfault, abort) gives a ``failed`` row
+"worker process died (exit code ...)"; one killed from outside (SIGKILL, SIGTERM) is no
+result: its run is tried once more, then left without a row (see
+:mod:`workbench.runs.unfinished`). A worker records each run through the
 ``recorder`` it is given (a class with ``begin_file(path)`` / ``end_file()``, made once a
 worker), so this layer knows no recording format.
 """
@@ -21,7 +23,7 @@ import os
 import signal
 import sys
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +34,15 @@ from workbench.plugin import registry
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run
 from workbench.runs.sweep_spec import import_plugin_modules
-from workbench.runs.unfinished import died_message, record_unfinished, timeout_message
+from workbench.runs.unfinished import (
+    RETRIES,
+    died_message,
+    killed_from_outside,
+    record_unfinished,
+    row_stamp,
+    timeout_message,
+    written_status,
+)
 
 
 def _worker_main(
@@ -127,6 +137,7 @@ class _Worker:
     spec: RunSpec | None = None
     deadline: float = math.inf
     pair: tuple[str, ...] | None = None  # equations_key of its last run: built, cached
+    stamp: tuple[int, int] | None = None  # row_stamp of its run when it was handed over
 
 
 Keyed = tuple[tuple[str, ...], RunSpec]  # (equations_key, run), the key computed once
@@ -204,11 +215,15 @@ def run_local(
     record: Callable[[str], None],
     tick: Callable[[], None] = lambda: None,
     recorder: Any = None,
-) -> None:
+) -> dict[str, str]:
+    """Run ``todo``; return the runs left without a row (run id -> why): those whose
+    worker was killed from outside twice (:mod:`workbench.runs.unfinished`)."""
     context = _context()
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     workers: list[_Worker] = []
     start_failures = 0
+    lost: Counter[str] = Counter()  # run id -> attempts whose worker was killed from outside
+    unfinished: dict[str, str] = {}
 
     def start() -> _Worker:
         parent_end, child_end = context.Pipe()
@@ -245,6 +260,7 @@ def run_local(
                     others = {w.pair for w in workers if w is not worker}
                     worker.pair, worker.spec = _take_next(queue, worker.pair, others)
                     worker.deadline = now + limit
+                    worker.stamp = row_stamp(out, worker.spec.run_id)
                     worker.conn.send(worker.spec.to_dict())
             deadline = min((w.deadline for w in workers), default=math.inf)
             timeout = max(0.0, min(deadline - now, 1.0))
@@ -261,7 +277,11 @@ def run_local(
                             record(message[2])
                             worker.spec, worker.deadline = None, math.inf
                         elif message[0] == "error" and worker.spec is not None:
-                            record(record_unfinished(out, worker.spec, "failed", message[2]))
+                            record(
+                                record_unfinished(
+                                    out, worker.spec, "failed", message[2], worker.stamp
+                                )
+                            )
                             worker.spec, worker.deadline = None, math.inf
                 except (EOFError, OSError):
                     pass  # the process died: handled below
@@ -270,8 +290,19 @@ def run_local(
                 if not worker.process.is_alive():
                     worker.process.join()
                     code = worker.process.exitcode
-                    if worker.spec is not None:
-                        record(record_unfinished(out, worker.spec, "failed", died_message(code)))
+                    spec, stamp = worker.spec, worker.stamp
+                    written = spec and written_status(out, spec.run_id, stamp)
+                    if spec is not None and not written and killed_from_outside(code):
+                        lost[spec.run_id] += 1
+                        if lost[spec.run_id] <= RETRIES:
+                            queue.appendleft((equations_key(spec), spec))  # once more
+                        else:
+                            unfinished[spec.run_id] = (
+                                f"{died_message(code)} {lost[spec.run_id]} times"
+                            )
+                            record("unfinished")
+                    elif spec is not None:
+                        record(record_unfinished(out, spec, "failed", died_message(code), stamp))
                     elif not worker.ready:
                         start_failures += 1
                         if start_failures >= 3:
@@ -281,9 +312,10 @@ def run_local(
                             )
                     retire(worker)
                 elif worker.spec is not None and now > worker.deadline:
-                    spec = worker.spec
+                    spec, stamp = worker.spec, worker.stamp
                     retire(worker)
-                    record(record_unfinished(out, spec, "timeout", timeout_message(limit)))
+                    record(record_unfinished(out, spec, "timeout", timeout_message(limit), stamp))
+        return unfinished
     finally:
         for worker in list(workers):
             with contextlib.suppress(Exception):

@@ -38,8 +38,9 @@ from typing import Any
 
 import pandas as pd
 
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, one_line
 from workbench.files import atomic_write
+from workbench.runs.row_check import row_defects, series_defect
 
 # The stable schema of a result row: (column, meaning). Units: seconds, metres, radians.
 SCHEMA: list[tuple[str, str]] = [
@@ -106,9 +107,15 @@ SCHEMA: list[tuple[str, str]] = [
     ("rotation_defect_max", "largest |R^T R - I| of the body rotations (0: orthonormal)"),
     ("formalism_notes", "the formalism's notes (rows removed, partitions chosen)"),
     ("reference_accuracy", "relative accuracy the reference states for itself"),
+    ("n_samples", "rows of the run's time series (0: none stored)"),
+    ("producer_problem", "what produced the row: the problem plugin's source hash or version"),
+    ("producer_formalism", "the formalism plugin's source hash or distribution version"),
+    ("producer_integrator", "the integrator plugin's source hash or distribution version"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
+PRODUCER_COLUMNS = ["producer_problem", "producer_formalism", "producer_integrator"]
+UNKNOWN_PRODUCER = "unknown"
 RUNS_DIR = "runs"
 SERIES_DIR = "series"
 RESULTS_FILE = "results.parquet"
@@ -124,7 +131,10 @@ ENVIRONMENT_FILE = "environment.json"
 #      formalism_notes, reference_accuracy); older rows were never audited: their
 #      warnings say so instead of reading as "nothing wrong"
 #   4  adds scd_mixed (the IVP test set's mixed measure); older rows never measured it: NaN
-SCHEMA_VERSION = 4
+#   5  adds n_samples (checked against the series on resume) and producer_problem,
+#      producer_formalism, producer_integrator (workbench.runs.producer); older rows'
+#      producer is "unknown": reported on resume, not stale
+SCHEMA_VERSION = 5
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -140,11 +150,17 @@ def _migrate_3_to_4(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 4, "scd_mixed": math.nan}
 
 
+def _migrate_4_to_5(row: dict[str, Any]) -> dict[str, Any]:
+    unknown = dict.fromkeys(PRODUCER_COLUMNS, UNKNOWN_PRODUCER)
+    return row | {"schema_version": 5} | unknown
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
     2: _migrate_2_to_3,
     3: _migrate_3_to_4,
+    4: _migrate_4_to_5,
 }
 
 
@@ -260,20 +276,44 @@ def remove_stale_temporaries(out: Path) -> list[Path]:
     return stale
 
 
-def completed_run_ids(out: Path) -> set[str]:
-    """Run ids with a readable row file (what a resumed sweep skips).
+def check_rows(out: Path) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
+    """(whole, bad): the rows of ``out`` that are whole, by run id (migrated to the
+    current schema), and what is wrong with each of the others, by run id (the file's
+    name): unreadable, not a row of the schema (:func:`~workbench.runs.row_check.row_defects`)
+    or its series broken (:func:`~workbench.runs.row_check.series_defect`).
 
     ConfigError if a row is of a newer schema: an older workbench must not add rows
     to a directory that a newer one wrote (it could not read the whole afterwards).
     """
     directory = Path(out) / RUNS_DIR
     if not directory.is_dir():
-        return set()
-    rows = {path: read_row(path) for path in sorted(directory.glob("*.json"))}
-    rows = {path: row for path, row in rows.items() if row is not None}
-    versions = [(str(path), row_schema_version(row, path)) for path, row in rows.items()]
-    _refuse_newer([(path, version) for path, version in versions if version > SCHEMA_VERSION])
-    return {path.stem for path in rows}
+        return {}, {}
+    whole, bad, newer = {}, {}, []
+    for path in sorted(directory.glob("*.json")):
+        row = read_row(path)
+        if row is None:
+            bad[path.stem] = "its row file is unreadable (truncated, corrupt or not a row)"
+            continue
+        version = row_schema_version(row, path)
+        if version > SCHEMA_VERSION:
+            newer.append((str(path), version))
+            continue
+        defects = row_defects(row, SCHEMA_COLUMNS, path.stem)
+        defect = "; ".join(defects) or series_defect(
+            series_path(out, path.stem), row, SERIES_COLUMNS
+        )
+        if defect:
+            bad[path.stem] = defect
+        else:
+            whole[path.stem] = migrate_row(row, path)
+    _refuse_newer(newer)
+    return whole, bad
+
+
+def completed_run_ids(out: Path) -> set[str]:
+    """Run ids whose row and series are whole (:func:`check_rows`): what a resumed sweep
+    may skip."""
+    return set(check_rows(out)[0])
 
 
 def frame_from_rows(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
@@ -350,12 +390,12 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     rows, unreadable, migrated, newer = [], [], [], []
     for row_file in sorted(directory.glob("*.json")):
         row = read_row(row_file)
-        if row is None:
-            unreadable.append(str(row_file))
-            continue
-        version = row_schema_version(row, row_file)
+        version = 0 if row is None else row_schema_version(row, row_file)
+        defects = ["unreadable"] if row is None else row_defects(row, SCHEMA_COLUMNS)
         if version > SCHEMA_VERSION:
             newer.append((str(row_file), version))
+        elif defects:
+            unreadable.append(f"{row_file} ({'; '.join(defects)})")
         else:
             if version < SCHEMA_VERSION:
                 migrated.append(str(row_file))
@@ -368,20 +408,40 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
             stacklevel=2,
         )
     frame = frame_from_rows(rows)
-    frame.attrs["unreadable"] = unreadable
+    frame.attrs["unreadable"] = [entry.partition(" (")[0] for entry in unreadable]
     frame.attrs["migrated"] = migrated
     return frame
 
 
 def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.DataFrame:
-    """Time series of one run (``run_id``) or of all runs of an output directory."""
+    """Time series of one run (``run_id``) or of all runs of an output directory.
+
+    One run's: ConfigError if it is missing or unreadable. All runs': a file that cannot
+    be read is left out with a warning naming it (a resumed sweep redoes its run)."""
     directory = Path(path) / SERIES_DIR
     if run_id is not None:
         file = directory / f"{run_id}.parquet"
         if not file.is_file():
             raise ConfigError(f"no time series for run {run_id!r} in {path}")
-        return pd.read_parquet(file)
-    frames = [pd.read_parquet(f) for f in sorted(directory.glob("*.parquet"))]
+        try:
+            return pd.read_parquet(file)
+        except Exception as error:  # noqa: BLE001 - pyarrow raises several kinds
+            raise ConfigError(
+                f"time series {file} is unreadable ({one_line(error)}); "
+                "re-run the sweep to redo its run"
+            ) from None
+    frames, unreadable = [], []
+    for file in sorted(directory.glob("*.parquet")):
+        try:
+            frames.append(pd.read_parquet(file))
+        except Exception:  # noqa: BLE001 - pyarrow raises several kinds
+            unreadable.append(str(file))
+    if unreadable:
+        warnings.warn(
+            f"{len(unreadable)} unreadable time series file(s) left out (re-run the sweep "
+            f"to redo their runs): {', '.join(unreadable[:5])}",
+            stacklevel=2,
+        )
     frames = [f for f in frames if len(f)]
     if not frames:
         return empty_series("")
@@ -391,9 +451,11 @@ def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.D
 __all__ = [
     "ENVIRONMENT_FILE",
     "MIGRATIONS",
+    "PRODUCER_COLUMNS",
     "SCHEMA",
     "SCHEMA_COLUMNS",
     "SCHEMA_VERSION",
+    "check_rows",
     "completed_run_ids",
     "consolidate",
     "frame_from_rows",

@@ -1,7 +1,8 @@
 """Running a sweep: the runs not yet done, through a local pool or a Dask cluster.
 
-Execution (:func:`run_sweep`): run ids whose row exists in ``<out>/runs`` are skipped
-(resume). Runs go to a small pool of worker processes of our own (concurrent.futures
+Execution (:func:`run_sweep`): runs whose row and series in ``<out>`` are whole are
+skipped (resume; :mod:`workbench.runs.resume` says what is broken, stale or redone).
+Runs go to a small pool of worker processes of our own (concurrent.futures
 cannot kill a running task): each worker builds and caches equations, runs, and writes the
 run's files itself; the parent enforces each run's time limit by killing the worker (row
 ``timeout``) and starting a fresh one, and a worker that dies mid-run (segfault, SIGKILL)
@@ -17,9 +18,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import time
 from collections import Counter
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +32,7 @@ from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.progress import progress_bar
+from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
@@ -44,9 +48,14 @@ class SweepSummary:
     seconds: float
     results: Path | None = None
     recording: Path | None = None
+    # stale rows kept, not redone (run id -> what changed): the report marks them
+    stale: dict[str, str] = field(default_factory=dict)
+    # runs left without a row by the infrastructure (run id -> why): a resume redoes them
+    unfinished: dict[str, str] = field(default_factory=dict)
 
     @property
     def total(self) -> int:
+        """Runs attempted, completed or not."""
         return sum(self.counts.values())
 
 
@@ -58,6 +67,9 @@ def run_sweep(
     scheduler: str | None = None,
     show_progress: bool = True,
     recorder: Any = None,
+    rerun: frozenset[str] | set[str] = frozenset(),
+    fresh: bool = False,
+    say: Callable[[str], None] | None = None,
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
@@ -65,7 +77,11 @@ def run_sweep(
     ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``end_file()``; class
     attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
     ``prepare()``), e.g. :class:`workbench.outputs.recording.RerunSink`; None records
-    nothing. Passed in, so the runs layer knows no recording format."""
+    nothing. Passed in, so the runs layer knows no recording format.
+
+    ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
+    runs (:func:`workbench.runs.resume.plan_resume`); ``say`` receives the one-line
+    findings of the resume (default: printed on stderr)."""
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
     jobs = int(jobs or sweep.jobs)
@@ -75,8 +91,10 @@ def run_sweep(
     if not limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {limit}")
     store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
-    done = store.completed_run_ids(out_dir)
-    todo = [spec for spec in sweep.runs if spec.run_id not in done]
+    plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
+    for line in plan.lines():
+        (say or _stderr)(line)
+    todo = plan.todo
     (out_dir / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
     (out_dir / "references").mkdir(exist_ok=True)
     # the machine that starts the sweep (with Dask, the client; rows name their workers)
@@ -92,10 +110,12 @@ def run_sweep(
             advance(counts)
 
         if scheduler:
-            run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record)
+            unfinished = run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record)
         else:
             tick = lambda: advance(None)  # noqa: E731
-            run_local(todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder)
+            unfinished = run_local(
+                todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder
+            )
     results = store.consolidate(out_dir)
     recording = None
     if recorder is not None:
@@ -108,7 +128,13 @@ def run_sweep(
         time.perf_counter() - started,
         results,
         recording,
+        stale={} if "stale" in plan.rerun or fresh else plan.stale,
+        unfinished=unfinished,
     )
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager
@@ -123,7 +149,9 @@ def _progress(total: int, show: bool, threaded: bool = True):
                 bar.tick()
                 return
             text = "  ".join(
-                f"{s} {counts[s]}" for s in ("ok", "failed", "skipped", "timeout") if counts[s]
+                f"{s} {counts[s]}"
+                for s in ("ok", "failed", "skipped", "timeout", "unfinished")
+                if counts[s]
             )
             bar.update(sum(counts.values()), text)
 

@@ -97,9 +97,14 @@ def report_directory(
     command: str | None = None,
     *,
     progress: bool | None = None,
+    stale: Mapping[str, str] | None = None,
 ) -> Path:
     """The report of a results directory written by :mod:`workbench.runs.store` (or of a
     results.parquet); return the path of its ``index.html``.
+
+    stale: rows made by other code than the sweep's (run id -> what changed, as
+    :func:`workbench.runs.resume.plan_resume` found them), marked with a ``stale``
+    warning (:func:`workbench.runs.resume.mark_stale`).
 
     out_dir: default ``<results directory>/report``. command: for the footer; default the
     equivalent ``workbench report`` command line. Time series are read from the directory's
@@ -116,6 +121,10 @@ def report_directory(
     frame = load_results(source)
     if len(frame) == 0:
         raise ConfigError(f"no result rows in {source}: run `workbench sweep --out {source}` first")
+    if stale:
+        from workbench.runs.resume import mark_stale
+
+        frame = mark_stale(frame, stale)
     directory = source if source.is_dir() else source.parent
     target = Path(out_dir) if out_dir is not None else directory / "report"
 

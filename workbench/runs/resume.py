@@ -1,0 +1,134 @@
+"""Resuming a sweep: which of its runs are done, which to redo, and what to tell the user.
+
+A run counts as done only if its row and series are whole
+(:func:`workbench.runs.store.check_rows`); a broken one is named in one line and redone.
+A done row whose producer differs from this process's
+(:func:`workbench.runs.producer.stale_reason`) is *stale*. By default a stale row is kept
+and the sweep says so loudly (a stale row is still a measurement, of other code, and a
+long sweep should not silently start over because a plugin's comment changed); the
+report marks it stale. ``rerun`` redoes the done rows of the named kinds
+(:data:`RERUN_KINDS`: a status, or ``stale``); ``fresh`` redoes every run. An existing
+row is never deleted: its replacement is written over it atomically when its run
+finishes, so an interrupted re-run keeps the old row.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from workbench.errors import ConfigError
+from workbench.runs import store
+from workbench.runs.execute import RunSpec
+from workbench.runs.producer import stale_reason, unknown_producer
+
+RERUN_KINDS = ("failed", "timeout", "skipped", "stale")
+SHOWN = 10  # broken or stale runs named one a line; the rest counted
+
+
+def parse_rerun(text: str | None) -> frozenset[str]:
+    """``"failed,timeout,stale"`` -> the kinds; ConfigError naming an unknown one."""
+    kinds = [word.strip() for word in (text or "").split(",") if word.strip()]
+    unknown = [kind for kind in kinds if kind not in RERUN_KINDS]
+    if unknown:
+        raise ConfigError(
+            f"--rerun {text!r}: unknown kind {unknown[0]!r}; "
+            f"a comma-separated list of {', '.join(RERUN_KINDS)}"
+        )
+    return frozenset(kinds)
+
+
+@dataclass
+class ResumePlan:
+    """What a sweep of ``total`` runs finds in its output directory and will do."""
+
+    total: int
+    todo: list[RunSpec]
+    done: int = 0  # runs of this sweep with a whole row (stale ones included)
+    broken: dict[str, str] = field(default_factory=dict)  # run id -> what is wrong
+    stale: dict[str, str] = field(default_factory=dict)  # run id -> what changed
+    unknown: int = 0  # done rows whose producer is unknown (written before schema 4)
+    rerun: frozenset[str] = frozenset()
+    fresh: bool = False
+    labels: dict[str, str] = field(default_factory=dict)
+
+    def lines(self) -> list[str]:
+        """One line a finding, for the start of the sweep."""
+        lines = [
+            f"run {run_id} ({self.labels.get(run_id, '?')}): {reason}; redoing it"
+            for run_id, reason in list(self.broken.items())[:SHOWN]
+        ]
+        if len(self.broken) > SHOWN:
+            lines.append(f"... and {len(self.broken) - SHOWN} more broken row(s), redone")
+        if self.fresh:
+            return lines + [
+                f"fresh: redoing all {self.total} runs (an existing row is replaced only "
+                "when its run finishes)"
+            ]
+        if self.done:
+            lines.append(f"resuming: {self.done} of {self.total} done ({len(self.stale)} stale)")
+        if self.stale:
+            first, why = next(iter(self.stale.items()))
+            example = f"e.g. run {first} ({self.labels.get(first, '?')}): {why}"
+            if "stale" in self.rerun:
+                lines.append(
+                    f"redoing {len(self.stale)} stale row(s), made by other code: {example}"
+                )
+            else:
+                lines.append(
+                    f"warning: {len(self.stale)} done row(s) are STALE, made by other code "
+                    f"({example}); kept and marked stale in the report: redo them with "
+                    "`--rerun stale`"
+                )
+        if self.unknown:
+            lines.append(
+                f"{self.unknown} done row(s) do not record what produced them (written "
+                "before producers were recorded); kept: `--fresh` redoes every run"
+            )
+        return lines
+
+
+def plan_resume(
+    runs: list[RunSpec], out: Path, rerun: frozenset[str] = frozenset(), fresh: bool = False
+) -> ResumePlan:
+    """The runs of ``runs`` to do now, given the rows in ``out`` (see the module docstring)."""
+    whole, broken = store.check_rows(out)
+    labels = {spec.run_id: spec.label() for spec in runs}
+    plan = ResumePlan(len(runs), [], rerun=rerun, fresh=fresh, labels=labels)
+    plan.broken = {run_id: why for run_id, why in broken.items() if run_id in labels}
+    for spec in runs:
+        row = whole.get(spec.run_id)
+        if fresh or row is None:
+            plan.todo.append(spec)
+            continue
+        plan.done += 1
+        stale = stale_reason(row)
+        if stale:
+            plan.stale[spec.run_id] = stale
+        plan.unknown += unknown_producer(row)
+        if row.get("status") in rerun or (stale and "stale" in rerun):
+            plan.todo.append(spec)
+    return plan
+
+
+def mark_stale(frame: pd.DataFrame, stale: Mapping[str, str]) -> pd.DataFrame:
+    """``frame`` with a ``stale`` warning added to the rows of ``stale`` (run id -> what
+    changed), so a report shows them as runs with warnings and never recommends them."""
+    frame = frame.copy()
+    reasons = frame["run_id"].map(dict(stale))
+    marked = reasons.notna()
+    notes = (
+        "stale: made by other code than this sweep's (" + reasons[marked] + "); "
+        "redo with `workbench sweep --rerun stale`"
+    )
+    old = frame.loc[marked, "warnings"].fillna("").astype(str)
+    frame.loc[marked, "warnings"] = [
+        f"{o}; {n}" if o else n for o, n in zip(old, notes, strict=True)
+    ]
+    return frame
+
+
+__all__ = ["RERUN_KINDS", "ResumePlan", "mark_stale", "parse_rerun", "plan_resume"]
