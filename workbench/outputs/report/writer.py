@@ -23,8 +23,21 @@ from workbench.outputs.report.analysis import (
     status_counts,
     status_matrix,
 )
-from workbench.outputs.report.figures import drift_figure, slug, work_precision_figure
-from workbench.outputs.report.page import PageTable, ProblemSection, render_page
+from workbench.outputs.report.figures import (
+    drift_figure,
+    error_figure,
+    slug,
+    work_precision_figure,
+)
+from workbench.outputs.report.overview import (
+    cost_at_target,
+    cost_ratio,
+    pareto_mask,
+    recommend,
+    trusted,
+)
+from workbench.outputs.report.overview_figures import convergence_figure, heat_map_figure
+from workbench.outputs.report.page import Overview, PageTable, ProblemSection, render_page
 from workbench.outputs.report.pool import figure_executor, figure_jobs
 from workbench.outputs.report.tables import write_table
 from workbench.runs.progress import progress_bar
@@ -64,6 +77,7 @@ def write_report(
     write_table(summary, out / "tables", "summary")
     write_table(matrix, out / "tables", "status")
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
+    overview = overview_of(runs, out)
 
     jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
     show = len(problems) > 1 if progress is None else progress
@@ -81,7 +95,7 @@ def write_report(
             sections.append(future.result())
             bar.step(problem)
 
-    page = render_page(title, runs, summary, matrix, footnotes, sections, command)
+    page = render_page(title, runs, overview, summary, matrix, footnotes, sections, command)
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
     return index
@@ -126,15 +140,58 @@ def report_directory(
     return write_report(frame, series_loader, target, command, progress=progress)
 
 
+def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
+    """The overview of the page: the recommendation, the heat map of cost at its target
+    (figure and table ``cost-at-target``), the Pareto fronts (table ``pareto``) and the
+    convergence of the fixed-step methods."""
+    recommendation = recommend(runs)
+    target, cost = recommendation.target, recommendation.cost
+    ratio = cost_ratio(cost_at_target(runs, target, cost))
+    heat_map = heat_map_figure(ratio, target, cost, out)
+    ratio_table = ratio.copy()
+    ratio_table.index.name = "problem"
+    write_table(ratio_table, out / "tables", "cost-at-target")
+    fronts = []
+    for _problem, group in runs.groupby("problem", sort=False):
+        front = group[pareto_mask(group)].sort_values("wall_s")
+        fronts.append(front[["problem", "pair", "rtol", "scd", "wall_s", "n_rhs"]])
+    pareto = pd.concat(fronts, ignore_index=True) if fronts else pd.DataFrame()
+    write_table(pareto, out / "tables", "pareto")
+    factor = f"{recommendation.factor:g}x"
+    ranking = recommendation.table.head(8).reset_index().rename(
+        columns={
+            "within": f"problems within {factor} of the best",
+            "reached": f"problems reaching scd >= {target:g}",
+            "geometric mean ratio": "geometric mean of cost / best",
+        }
+    )
+    write_table(ranking, out / "tables", "ranking")
+    return Overview(
+        sentence=recommendation.sentence,
+        target=target,
+        heat_map=heat_map,
+        ranking=PageTable.of(ranking, "ranking"),
+        pareto=PageTable.of(pareto, "pareto"),
+        convergence=convergence_figure(runs, out),
+        trusted_runs=len(trusted(runs)),
+    )
+
+
 def _load_series(
     runs: pd.DataFrame, series_loader: SeriesLoader | None
 ) -> dict[str, pd.DataFrame | None] | None:
-    """The time series of the runs a problem's drift figure draws (read in this process)."""
+    """The time series of the runs a problem's figures draw (read in this process): the
+    pairs at the middle tolerance and the runs of the error figure."""
     if series_loader is None:
         return None
     _rtol, chosen = drift_runs(runs)
+    wanted = list(chosen["run_id"])
+    candidates = trusted(runs)
+    if not candidates.empty:
+        front = candidates[pareto_mask(candidates)].sort_values("wall_s")
+        wanted += [candidates.loc[candidates["scd"].idxmax(), "run_id"], front["run_id"].iloc[0]]
     series: dict[str, pd.DataFrame | None] = {}
-    for run_id in chosen["run_id"]:
+    for run_id in dict.fromkeys(wanted):
         try:
             series[run_id] = series_loader(run_id)
         except (WorkbenchError, OSError, ValueError, KeyError) as error:
@@ -155,6 +212,7 @@ def problem_section(
     problem = str(runs["problem"].iloc[0])
     work_precision = work_precision_figure(runs, out, problem)
     drift, rtol = drift_figure(runs, series, out, problem)
+    error = error_figure(runs, series, out, problem)
     table = None
     if rtol is not None:
         name = f"drift-{slug(problem)}"
@@ -170,4 +228,5 @@ def problem_section(
         rtol=rtol,
         drift=drift,
         drift_table=table,
+        error=error,
     )
