@@ -109,7 +109,9 @@ def convergence_figure(runs: pd.DataFrame, out: Path) -> FigureFiles | None:
         of_problem = rows[rows["problem"] == problem]
         for pair, curve in of_problem.groupby("pair"):
             curve = curve.sort_values("fixed_step_s")
-            order = observed_order(curve["fixed_step_s"].to_numpy(), curve["relative_error"].to_numpy())
+            order = observed_order(
+                curve["fixed_step_s"].to_numpy(), curve["relative_error"].to_numpy()
+            )
             style = styles(str(pair)) | {"label": f"{pair}: order {order:.2f}"}
             ax.plot(curve["fixed_step_s"], curve["relative_error"], markersize=4, **style)
         log_axis(ax, "x")

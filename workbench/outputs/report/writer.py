@@ -158,12 +158,16 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
     pareto = pd.concat(fronts, ignore_index=True) if fronts else pd.DataFrame()
     write_table(pareto, out / "tables", "pareto")
     factor = f"{recommendation.factor:g}x"
-    ranking = recommendation.table.head(8).reset_index().rename(
-        columns={
-            "within": f"problems within {factor} of the best",
-            "reached": f"problems reaching scd >= {target:g}",
-            "geometric mean ratio": "geometric mean of cost / best",
-        }
+    ranking = (
+        recommendation.table.head(8)
+        .reset_index()
+        .rename(
+            columns={
+                "within": f"problems within {factor} of the best",
+                "reached": f"problems reaching scd >= {target:g}",
+                "geometric mean ratio": "geometric mean of cost / best",
+            }
+        )
     )
     write_table(ranking, out / "tables", "ranking")
     return Overview(
