@@ -75,7 +75,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("reference_kind", "analytic | stored | computed | none"),
     ("reference", "how the reference was obtained"),
     ("length_scale", "L of the pose error (m)"),
-    ("err_max", "max over output times of the pose error (m)"),
+    ("err_max", "max over output times of the pose error (m): its L-infinity norm"),
     ("err_end", "pose error at the end time (m)"),
     ("scd", "-log10(err_end / length_scale)"),
     ("drift_pos_max", "max position-level constraint residual"),
@@ -105,6 +105,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("rotation_defect_max", "largest |R^T R - I| of the body rotations (0: orthonormal)"),
     ("formalism_notes", "the formalism's notes (rows removed, partitions chosen)"),
     ("reference_accuracy", "relative accuracy the reference states for itself"),
+    ("err_l2", "root mean square over output times of the pose error (m): its L2 norm"),
+    ("fixed_step_s", "the step of a fixed-step method (s); NaN for an adaptive one"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -122,7 +124,9 @@ ENVIRONMENT_FILE = "environment.json"
 #   3  adds the health audit (warnings, jacobian_sv_ratio_*, dof_*, rotation_defect_max,
 #      formalism_notes, reference_accuracy); older rows were never audited: their
 #      warnings say so instead of reading as "nothing wrong"
-SCHEMA_VERSION = 3
+#   4  adds err_l2 (the error over the whole trajectory beside err_max and err_end) and
+#      fixed_step_s; older rows did not measure them: NaN
+SCHEMA_VERSION = 4
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -134,10 +138,15 @@ def _migrate_2_to_3(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 3, "warnings": not_audited}
 
 
+def _migrate_3_to_4(row: dict[str, Any]) -> dict[str, Any]:
+    return row | {"schema_version": 4, "err_l2": math.nan, "fixed_step_s": math.nan}
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
     2: _migrate_2_to_3,
+    3: _migrate_3_to_4,
 }
 
 
