@@ -67,6 +67,7 @@ def synthetic_results(
                             "n_rejected": int(digits),
                             "err_max": 10 ** (-scd + 0.5),
                             "err_end": 10**-scd,
+                            "err_l2": 10 ** (-scd + 0.2),
                             "scd": scd if status == "ok" else np.nan,
                             "drift_pos_max": rtol * (1 + f),
                             "drift_vel_max": rtol * (2 + f),
@@ -140,7 +141,12 @@ def test_report_files_and_links(tmp_path: Path) -> None:
     assert any(link.endswith(".pdf") for link in links)
     for link in links:
         assert (index.parent / link).is_file(), link
-    for name in ("summary", "status", "drift-simple-pendulum", "drift-heavy-top"):
+    for name in (
+        "summary",
+        "status",
+        "drift-simple-pendulum-rtol-1e-05",
+        "drift-heavy-top-rtol-1e-05",
+    ):
         for ext in ("csv", "md", "tex"):
             assert (index.parent / "tables" / f"{name}.{ext}").is_file()
         assert "\\toprule" in (index.parent / "tables" / f"{name}.tex").read_text()
@@ -228,10 +234,10 @@ def test_latex_table_is_booktabs_with_escaped_cells_and_headers() -> None:
     assert lines == [
         "\\begin{tabular}{rl}",
         "\\toprule",
-        "wall\\_s & pair \\\\",
+        "wall time [s] & formalism / integrator \\\\",
         "\\midrule",
         "0.01235 & a \\& b \\\\",
-        " & 50\\% \\textasciitilde x \\\\",
+        " & 50\\% \\textasciitilde{}x \\\\",
         "\\bottomrule",
         "\\end{tabular}",
     ]

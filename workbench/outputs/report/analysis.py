@@ -30,12 +30,16 @@ NUMERIC_COLUMNS: tuple[str, ...] = (
     "n_rejected",
     "err_max",
     "err_end",
+    "err_l2",
     "scd",
     "drift_pos_max",
     "drift_vel_max",
     "drift_nh_max",
     "energy_err_max",
     "invariant_err_max",
+    "fixed_step_s",
+    "length_scale",
+    "reference_accuracy",
 )
 DRIFT_TABLE_COLUMNS: tuple[str, ...] = (
     "drift_pos_max",
@@ -43,6 +47,8 @@ DRIFT_TABLE_COLUMNS: tuple[str, ...] = (
     "drift_nh_max",
     "energy_err_max",
     "invariant_err_max",
+    "err_end",
+    "err_l2",
     "err_max",
     "scd",
 )
@@ -162,11 +168,23 @@ def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) ->
                     "pair": best["pair"],
                     "rtol": best["rtol"],
                     "scd": best["scd"],
+                    "err_l2": best["err_l2"],
+                    "err_max": best["err_max"],
                     "wall_s": best["wall_s"],
                     "n_rhs": best["n_rhs"],
                 }
             )
-    columns = ["problem", "target scd", "pair", "rtol", "scd", "wall_s", "n_rhs"]
+    columns = [
+        "problem",
+        "target scd",
+        "pair",
+        "rtol",
+        "scd",
+        "err_l2",
+        "err_max",
+        "wall_s",
+        "n_rhs",
+    ]
     return pd.DataFrame(rows, columns=columns)
 
 

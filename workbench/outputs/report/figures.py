@@ -9,6 +9,7 @@ run in the figure workers (:mod:`workbench.outputs.report.pool`) with the Agg ba
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -392,6 +393,8 @@ def error_figure(
         return None
     front = candidates[pareto_mask(candidates)].sort_values("wall_s")
     picks = [candidates.loc[candidates["scd"].idxmax()], front.iloc[0]]
+    length = float(picks[0].get("length_scale", math.nan))
+    relative = math.isfinite(length) and length > 0  # else the error in metres
     figure, ax = plt.subplots(figsize=(8, 3.4))
     figure.subplots_adjust(left=0.1, right=0.97, bottom=0.16, top=0.86)
     seen = set()
@@ -403,7 +406,7 @@ def error_figure(
         if run_series is None or "ref_err" not in run_series:
             continue
         t = run_series["t"].to_numpy(dtype=float)
-        error = run_series["ref_err"].to_numpy(dtype=float) / float(pick.get("length_scale", 1.0))
+        error = run_series["ref_err"].to_numpy(dtype=float) / (length if relative else 1.0)
         keep = np.isfinite(error) & (error > 0)
         if keep.any():
             ax.plot(t[keep], error[keep], linewidth=1,
@@ -413,7 +416,7 @@ def error_figure(
         return None
     log_axis(ax, "y")
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("pose error / L [-]")
+    ax.set_ylabel("pose error / L [-]" if relative else "pose error [m]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="x-small", loc="best", frameon=False)
     figure.suptitle(f"{problem}: error along the trajectory", fontsize="medium")

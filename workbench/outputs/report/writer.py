@@ -43,6 +43,14 @@ from workbench.outputs.report.tables import write_table
 from workbench.runs.progress import progress_bar
 
 SeriesLoader = Callable[[str], pd.DataFrame | None]
+SUMMARY_CAPTION = (
+    "Cheapest pair (least wall time) reaching each target scd, among the runs without "
+    "warnings; errors are pose errors over the samples (L2: root mean square)"
+)
+STATUS_CAPTION = (
+    "Runs by status, per problem and pair; the numbers in brackets refer to the reasons "
+    "listed in the report"
+)
 
 
 def write_report(
@@ -74,8 +82,8 @@ def write_report(
     problems = list(dict.fromkeys(runs["problem"]))
     summary = cheapest_pairs(runs)
     matrix, footnotes = status_matrix(runs)
-    write_table(summary, out / "tables", "summary")
-    write_table(matrix, out / "tables", "status")
+    write_table(summary, out / "tables", "summary", SUMMARY_CAPTION)
+    write_table(matrix, out / "tables", "status", STATUS_CAPTION)
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
     overview = overview_of(runs, out)
 
@@ -150,13 +158,26 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
     heat_map = heat_map_figure(ratio, target, cost, out)
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
-    write_table(ratio_table, out / "tables", "cost-at-target")
+    write_table(
+        ratio_table,
+        out / "tables",
+        "cost-at-target",
+        f"Wall time of each pair at scd >= {target:g} divided by the least wall time on the "
+        "problem (1: the best; empty: not reached without warnings)",
+    )
     fronts = []
     for _problem, group in runs.groupby("problem", sort=False):
         front = group[pareto_mask(group)].sort_values("wall_s")
-        fronts.append(front[["problem", "pair", "rtol", "scd", "wall_s", "n_rhs"]])
+        columns = ["problem", "pair", "rtol", "scd", "err_l2", "err_max", "wall_s", "n_rhs"]
+        fronts.append(front[columns])
     pareto = pd.concat(fronts, ignore_index=True) if fronts else pd.DataFrame()
-    write_table(pareto, out / "tables", "pareto")
+    write_table(
+        pareto,
+        out / "tables",
+        "pareto",
+        "Pareto front of each problem: the runs without warnings that no other run beats "
+        "on both wall time and scd",
+    )
     factor = f"{recommendation.factor:g}x"
     ranking = (
         recommendation.table.head(8)
@@ -169,7 +190,9 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
             }
         )
     )
-    write_table(ranking, out / "tables", "ranking")
+    write_table(
+        ranking, out / "tables", "ranking", f"Pairs at scd >= {target:g}: {recommendation.sentence}"
+    )
     return Overview(
         sentence=recommendation.sentence,
         target=target,
@@ -219,9 +242,13 @@ def problem_section(
     error = error_figure(runs, series, out, problem)
     table = None
     if rtol is not None:
-        name = f"drift-{slug(problem)}"
+        name = f"drift-{slug(problem)}-rtol-{rtol:g}"
         frame = drift_table(runs)
-        write_table(frame, out / "tables", name)
+        caption = (
+            f"{problem}: largest constraint drift, energy and invariant errors and pose errors "
+            f"(end, L2 and maximum over the samples) of every pair at rtol = {rtol:g}"
+        )
+        write_table(frame, out / "tables", name, caption)
         table = PageTable.of(frame, name)
     return ProblemSection(
         problem=problem,
