@@ -30,7 +30,7 @@ def heat_map_figure(ratio: pd.DataFrame, target: float, cost: str, out: Path) ->
         return None
     values = ratio.to_numpy(dtype=float)
     rows, columns = values.shape
-    figure, ax = plt.subplots(figsize=(max(6.0, 2.5 + 0.42 * columns), 1.8 + 0.3 * rows))
+    figure, ax = plt.subplots(figsize=(max(7.5, 2.5 + 0.42 * columns), 1.8 + 0.3 * rows))
     top = float(np.nanmax(values))
     image = ax.imshow(
         np.ma.masked_invalid(values),
