@@ -77,7 +77,7 @@ def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_run
     assert "scd >= 6" in found.sentence
 
 
-def test_target_is_the_highest_reached_on_half_the_problems() -> None:
+def test_target_is_the_highest_reached_on_two_thirds_of_the_problems() -> None:
     runs = rows([("p1", "a / x", 8.5, 1.0), ("p2", "a / x", 6.5, 1.0), ("p3", "a / x", 5.0, 1.0)])
     assert overview_target(runs) == 6.0  # 8 on one of three, 6 on two of three
     nothing = recommend(rows([("p", "a / x", 1.0, 1.0)]), target=6.0)

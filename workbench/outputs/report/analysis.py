@@ -193,9 +193,9 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
 
     A cell reads e.g. ``4 ok, 1 failed [2]``: reason 2 says why. Runs share a reason when
     their status and the kind of their message agree (:func:`reason_key`: the message with
-    the model's and plugins' names and the numbers left out), so "formalism 'hamilton' does
-    not support loop-closing joints (model 'four-bar')" and the same of another formalism
-    and model are one reason, listed once with the problems it concerns.
+    the model's and plugins' names and the numbers left out), so "formalism 'A' does not
+    support loop-closing joints (model 'B')" and the same of another formalism and model
+    are one reason, listed once with the problems it concerns.
     """
     reason_ids: dict[tuple[str, str], int] = {}
     reason_runs: dict[tuple[str, str], list[str]] = {}
