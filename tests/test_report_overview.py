@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from tests.test_report import synthetic_results, synthetic_series
 from workbench.outputs.report import prepare_results, write_report
@@ -139,3 +140,30 @@ def test_overview_opens_the_page(tmp_path: Path) -> None:
     assert "within 2x of the best wall time" in page
     assert (tmp_path / "tables" / "cost-at-target.tex").is_file()
     assert (tmp_path / "tables" / "pareto.csv").is_file()
+
+
+def test_convergence_plot_of_fixed_step_runs_fits_the_order(tmp_path: Path) -> None:
+    """Rows with a fixed step and an end error C h^2 (a second-order method): the figure
+    is drawn and its legend states the order 2.00; adaptive rows (NaN step) are left out."""
+    from workbench.outputs.report.overview_figures import (
+        convergence_figure,
+        fixed_step_rows,
+        observed_order,
+    )
+
+    steps = np.array([1e-2, 1e-3, 1e-4])
+    points = [("p", "a / alpha", 3.0, 1.0)] * 3 + [("p", "a / dop", 8.0, 1.0)]
+    runs = rows(points)
+    runs["fixed_step_s"] = [*steps, np.nan]
+    runs["length_scale"] = 2.0
+    runs["err_end"] = [*(2.0 * 0.3 * steps**2), 1e-9]
+    chosen = fixed_step_rows(runs)
+    assert list(chosen["pair"].unique()) == ["a / alpha"]
+    assert observed_order(
+        chosen["fixed_step_s"].to_numpy(), chosen["relative_error"].to_numpy()
+    ) == (pytest.approx(2.0))
+    (tmp_path / "figures").mkdir()
+    figure = convergence_figure(runs, tmp_path)
+    assert figure is not None and (tmp_path / "figures" / "overview-convergence.png").is_file()
+    assert {axis.label for axis in figure.axes} == {"step h [s]", "end pose error / L [-]"}
+    assert convergence_figure(runs[runs["pair"] == "a / dop"], tmp_path) is None
