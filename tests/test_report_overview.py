@@ -167,3 +167,19 @@ def test_convergence_plot_of_fixed_step_runs_fits_the_order(tmp_path: Path) -> N
     assert figure is not None and (tmp_path / "figures" / "overview-convergence.png").is_file()
     assert {axis.label for axis in figure.axes} == {"step h [s]", "end pose error / L [-]"}
     assert convergence_figure(runs[runs["pair"] == "a / dop"], tmp_path) is None
+
+
+def test_seven_formalisms_get_seven_line_styles_and_markers() -> None:
+    """Colour by integrator; line style and marker by formalism, all distinct for 7+."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from workbench.outputs.report.figures import PairStyles
+
+    pairs = [(f"f{k}", f"i{j}") for k in range(7) for j in range(3)]
+    runs = rows([("p", f"{f} / {i}", 4.0, 1.0) for f, i in pairs])
+    styles = PairStyles(runs)
+    looks = {(str(s["linestyle"]), s["marker"], s["color"]) for s in map(styles, runs["pair"])}
+    assert len(looks) == 21  # every pair looks different
+    assert len({str(styles.marks[f][1]) for f in styles.formalisms}) == 7  # line styles
+    assert len({styles.marks[f][0] for f in styles.formalisms}) == 7  # markers
