@@ -239,7 +239,8 @@ def reason_key(status: str, row: Any) -> tuple[str, str]:
     warnings; otherwise its message without the model's name, plugin names and numbers
     (times reached, step sizes), which differ from run to run for one and the same reason."""
     if status == OK_WARNED:
-        return status, ", ".join(dict.fromkeys(warning_kinds(row.warnings)))
+        kinds = [_NUMBER.sub("#", kind) for kind in warning_kinds(row.warnings)]
+        return status, ", ".join(dict.fromkeys(kinds))
     text = _one_line(row.message) or "no reason recorded"
     text = _MODEL_NAME.sub("", text)
     text = _QUOTED_NAME.sub(lambda m: f"the {m.group(1)}", text)
