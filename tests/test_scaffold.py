@@ -264,9 +264,17 @@ def test_scaffolded_package_in_a_fresh_environment(tmp_path):
 
     listed = run(bin_dir / "workbench", "list", "formalisms").stdout
     assert "my-lagrange" in listed and "broken" not in listed
-    structural = run(
-        bin_dir / "python", "-m", "workbench.testing", "formalism", "my-lagrange", "--structural"
-    ).stdout
+    checked = run(
+        bin_dir / "python",
+        "-m",
+        "workbench.testing",
+        "formalism",
+        "my-lagrange",
+        "--structural",
+        check=False,
+    )
+    structural = checked.stdout
+    assert checked.returncode != 0  # the TODO summary fails metadata until written
     assert "1 failed" in structural and "PASS  registered" in structural
     assert "FAIL  metadata" in structural and "placeholder" in structural  # TODO summary
 
