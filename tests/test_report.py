@@ -177,7 +177,13 @@ def test_cheapest_pair_on_a_constructed_case() -> None:
     ]
     summary = cheapest_pairs(prepare_results(pd.DataFrame(rows)))
     chosen = dict(zip(summary["target scd"], summary["pair"], strict=True))
-    assert chosen == {2.0: "a / x", 4.0: "b / y", 6.0: "c / z"}
+    assert chosen == {
+        2.0: "a / x",
+        4.0: "b / y",
+        6.0: "c / z",
+        8.0: "none reached",
+        10.0: "none reached",
+    }
 
     rows[2]["scd"] = 5.0
     summary = cheapest_pairs(prepare_results(pd.DataFrame(rows)))

@@ -18,7 +18,7 @@ import pandas as pd
 from workbench.errors import ConfigError
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
-TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0)
+TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0, 8.0, 10.0)
 REQUIRED_COLUMNS: tuple[str, ...] = ("problem", "formalism", "integrator", "rtol", "status")
 NUMERIC_COLUMNS: tuple[str, ...] = (
     "atol",
