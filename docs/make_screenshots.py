@@ -8,6 +8,11 @@
 3. ``docs/images/rerun-robot.png``: the same viewer on a run of the UR5 imported from
    example-robot-data's URDF (the robots extra), drawn with its own meshes
    (``--only robot`` makes this one alone).
+4. ``docs/images/report-overview.png``: the first screen (1400 x 900 px) of the report of
+   the default sweep, in headless Chromium: the overview and its recommendation. The
+   default sweep takes minutes, so it is not run here: give its directory with
+   ``--default-sweep`` (default ``reports/latest``, where ``workbench sweep`` writes), or
+   ``--only-overview`` to make this picture alone.
 
 Needs the test extra (selenium) and Debian's chromium + chromium-driver; the viewer is
 served by ``rerun --serve-web`` on 127.0.0.1 only and rendered by headless Chromium with
@@ -61,6 +66,7 @@ formalisms = ["recursive"]
 integrators = ["sundials-cvode-bdf"]
 """
 VIEWER_SIZE = (1600, 900)
+FIRST_SCREEN = (1400, 900)
 MAX_BYTES = 300_000
 
 
@@ -153,19 +159,45 @@ def viewer_screenshot(recording: Path, target: Path, settle: float) -> None:
         server.wait(timeout=10)
 
 
+def overview_screenshot(results: Path, target: Path) -> None:
+    """The first screen of the report of the sweep in ``results`` (written afresh)."""
+    if not (results / "runs").is_dir():
+        raise SystemExit(
+            f"no sweep results in {results}: run `workbench sweep` (the default sweep) first, "
+            "or give its directory with --default-sweep"
+        )
+    report = results / "report"
+    subprocess.run(
+        [sys.executable, "-m", "workbench", "report", str(results), "-o", str(report)], check=True
+    )
+    driver = headless_chromium(*FIRST_SCREEN)
+    try:
+        driver.get((report / "index.html").resolve().as_uri())
+        time.sleep(1)  # the heat map image decodes
+        save_small_png(screenshot(driver), target)
+    finally:
+        driver.quit()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--images", type=Path, default=ROOT / "docs" / "images")
     parser.add_argument("--work", type=Path, default=ROOT / "reports" / "screenshots")
     parser.add_argument("--settle", type=float, default=20.0, help="seconds for the viewer")
     parser.add_argument("--only", choices=["all", "robot"], default="all")
+    parser.add_argument("--default-sweep", type=Path, default=ROOT / "reports" / "latest")
+    parser.add_argument("--only-overview", action="store_true", help="only report-overview.png")
     args = parser.parse_args()
     args.images.mkdir(parents=True, exist_ok=True)
 
+    overview_screenshot(args.default_sweep, args.images / "report-overview.png")
+    if args.only_overview:
+        return
     robot = sweep(ROBOT_SPEC, args.work / "robot") / "recording.rrd"
     viewer_screenshot(robot, args.images / "rerun-robot.png", args.settle)
     if args.only == "robot":
         return
+
     diagram = sweep(DIAGRAM_SPEC, args.work / "diagram")
     figure = diagram / "report" / "figures" / "double-pendulum-work-precision.png"
     save_small_png(figure, args.images / "work-precision.png")

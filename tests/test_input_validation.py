@@ -61,8 +61,8 @@ def one_line_error(text: str) -> str:
         ),
         (spec('["rk4", "rk4"]'), "integrators[1]: integrator 'rk4'"),
         (
-            spec('["rk4", {name = "rk4", options = {step = 1e-3}}]'),
-            "integrators[1]: integrator 'rk4' with options {'step': 0.001} is listed twice",
+            spec('["generalized-alpha", {name = "generalized-alpha", options = {rho_inf = 0.9}}]'),
+            "'rho_inf': 0.9, 'step': None} is listed twice (also integrators[0])",
         ),
         (
             spec(

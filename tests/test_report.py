@@ -67,6 +67,7 @@ def synthetic_results(
                             "n_rejected": int(digits),
                             "err_max": 10 ** (-scd + 0.5),
                             "err_end": 10**-scd,
+                            "err_l2": 10 ** (-scd + 0.2),
                             "scd": scd if status == "ok" else np.nan,
                             "drift_pos_max": rtol * (1 + f),
                             "drift_vel_max": rtol * (2 + f),
@@ -132,7 +133,7 @@ def test_report_files_and_links(tmp_path: Path) -> None:
     index = write_report(results, synthetic_series, tmp_path / "report", "workbench report x")
     assert index == tmp_path / "report" / "index.html"
     sources = image_sources(index)
-    assert len(sources) == 4  # two problems x (work-precision, drift)
+    assert len(sources) == 7  # the heat map, two problems x (work-precision, error, drift)
     for source in sources:
         assert (index.parent / source).is_file(), source
     links = re.findall(r'href="([^"#]+)"', index.read_text(encoding="utf-8"))
@@ -140,7 +141,12 @@ def test_report_files_and_links(tmp_path: Path) -> None:
     assert any(link.endswith(".pdf") for link in links)
     for link in links:
         assert (index.parent / link).is_file(), link
-    for name in ("summary", "status", "drift-simple-pendulum", "drift-heavy-top"):
+    for name in (
+        "summary",
+        "status",
+        "drift-simple-pendulum-rtol-1e-05",
+        "drift-heavy-top-rtol-1e-05",
+    ):
         for ext in ("csv", "md", "tex"):
             assert (index.parent / "tables" / f"{name}.{ext}").is_file()
         assert "\\toprule" in (index.parent / "tables" / f"{name}.tex").read_text()
@@ -154,7 +160,7 @@ def test_report_files_and_links(tmp_path: Path) -> None:
 
 def test_report_without_series_draws_no_drift(tmp_path: Path) -> None:
     index = write_report(synthetic_results(), None, tmp_path, "cmd")
-    assert len(image_sources(index)) == 2
+    assert len(image_sources(index)) == 3  # the heat map and the work-precision diagrams
     assert "no drift plot" in index.read_text(encoding="utf-8")
 
 
@@ -171,7 +177,13 @@ def test_cheapest_pair_on_a_constructed_case() -> None:
     ]
     summary = cheapest_pairs(prepare_results(pd.DataFrame(rows)))
     chosen = dict(zip(summary["target scd"], summary["pair"], strict=True))
-    assert chosen == {2.0: "a / x", 4.0: "b / y", 6.0: "c / z"}
+    assert chosen == {
+        2.0: "a / x",
+        4.0: "b / y",
+        6.0: "c / z",
+        8.0: "none reached",
+        10.0: "none reached",
+    }
 
     rows[2]["scd"] = 5.0
     summary = cheapest_pairs(prepare_results(pd.DataFrame(rows)))
@@ -179,7 +191,15 @@ def test_cheapest_pair_on_a_constructed_case() -> None:
 
 
 def test_status_matrix_counts_and_footnotes() -> None:
-    runs = prepare_results(synthetic_results())
+    results = synthetic_results()
+    failed = results.index[results["status"] == "failed"][0]
+    other = results.index[(results["status"] == "ok") & (results["problem"] == "simple-pendulum")]
+    results.loc[other[0], ["status", "message"]] = [
+        "failed",
+        "Newton iteration diverged at t = 7.25",
+    ]
+    assert results.loc[failed, "message"] != results.loc[other[0], "message"]
+    runs = prepare_results(results)
     matrix, footnotes = status_matrix(runs)
     assert list(matrix.index) == ["simple-pendulum", "heavy-top"]
     assert matrix.shape[1] == 4
@@ -188,7 +208,11 @@ def test_status_matrix_counts_and_footnotes() -> None:
         total += sum(int(n) for n in re.findall(r"(\d+) (?:ok|failed|timeout|skipped)", cell))
     assert total == len(runs)
     not_ok = runs[runs["status"] != "ok"]
-    assert len(footnotes) == not_ok.groupby(["status", "message"]).ngroups > 0
+    # the failures differ only in the time reached: one reason for all of them
+    assert not_ok.groupby(["status", "message"]).ngroups > not_ok["status"].nunique()
+    assert len(footnotes) == not_ok["status"].nunique() > 0
+    failure = next(note for note in footnotes if "] failed:" in note)
+    assert "Newton iteration diverged at t = #" in failure
 
 
 def test_labels_include_options_only_when_they_vary() -> None:
@@ -216,10 +240,10 @@ def test_latex_table_is_booktabs_with_escaped_cells_and_headers() -> None:
     assert lines == [
         "\\begin{tabular}{rl}",
         "\\toprule",
-        "wall\\_s & pair \\\\",
+        "wall time [s] & formalism / integrator \\\\",
         "\\midrule",
         "0.01235 & a \\& b \\\\",
-        " & 50\\% \\textasciitilde x \\\\",
+        " & 50\\% \\textasciitilde{}x \\\\",
         "\\bottomrule",
         "\\end{tabular}",
     ]
@@ -230,12 +254,12 @@ def test_latex_table_is_booktabs_with_escaped_cells_and_headers() -> None:
 
 def test_page_escapes_what_the_runs_say(tmp_path: Path) -> None:
     results = synthetic_results(problems=("<b>top</b>",), formalisms=("f",), integrators=("i",))
-    results.loc[0, ["status", "message"]] = ["failed", "<script>alert(1)</script> & more"]
+    results.loc[0, ["status", "message"]] = ["failed", "<script>alert(x)</script> & more"]
     index = write_report(results, None, tmp_path, "run <x> & 'y'")
     page = index.read_text(encoding="utf-8")
     assert_well_formed(page)
     assert "<b>top</b>" not in page and "&lt;b&gt;top&lt;/b&gt;" in page
-    assert "<script>" not in page and "&lt;script&gt;alert(1)&lt;/script&gt; &amp; more" in page
+    assert "<script>" not in page and "&lt;script&gt;alert(x)&lt;/script&gt; &amp; more" in page
     assert "run &lt;x&gt; &amp; &#39;y&#39;" in page
 
 
@@ -328,7 +352,7 @@ def test_problem_without_successful_runs_and_broken_series(tmp_path: Path) -> No
     with pytest.warns(UserWarning, match="no time series"):
         index = write_report(results, loader, tmp_path, "cmd")
     page = index.read_text(encoding="utf-8")
-    assert len(image_sources(index)) == 2  # only problem p has figures
+    assert len(image_sources(index)) == 4  # the heat map; only problem p has figures
     assert "No successful run" in page
     summary = pd.read_csv(tmp_path / "tables" / "summary.csv")
     assert set(summary.loc[summary["problem"] == "q", "pair"]) == {"none reached"}
@@ -353,3 +377,12 @@ def test_a_run_with_warnings_is_marked_and_never_recommended() -> None:
     assert any("ok with warnings" in cell for cell in cells.to_numpy().ravel())
     assert any(note.startswith("[") and "ok with warnings: singular passage" in note
                for note in footnotes)  # fmt: skip
+    # warnings differing only in their numbers are one reason
+    other = results["status"].eq("ok") & results["warnings"].eq("")
+    results.loc[other[other].index[:2], "warnings"] = [
+        "end error 3.2e-12 is below the reference's own accuracy 8.9e-12",
+        "end error 8.1e-12 is below the reference's own accuracy 8.9e-12",
+    ]
+    _cells, footnotes = status_matrix(prepare_results(results))
+    below = [note for note in footnotes if "below the reference" in note]
+    assert len(below) == 1 and "(2 run(s)" in below[0]

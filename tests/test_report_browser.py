@@ -107,7 +107,7 @@ def test_report_renders_in_chromium(browser: Any, tmp_path: Path) -> None:
     rendered = render(browser, index, screenshot)
 
     assert problems(browser, rendered) == []
-    assert len(rendered["images"]) == 2  # work-precision and drift
+    assert len(rendered["images"]) == 4  # heat map, work-precision, error and drift
     assert all(width >= 600 for _src, width in rendered["images"])
     assert any(link.endswith(".svg") for link in rendered["links"])
     assert any(link.endswith("#heavy-top") for link in rendered["links"])
@@ -131,3 +131,47 @@ def test_broken_page_fails_the_checks(browser: Any, tmp_path: Path) -> None:
     assert any("missing.csv" in p for p in found), found
     assert any("#nowhere" in p for p in found), found
     assert any("boom" in p for p in found), found
+
+
+FIRST_SCREEN = (1400, 900)  # px: the README's screenshot
+
+
+def test_first_screen_shows_the_overview_and_every_axis_is_labelled(
+    browser: Any, tmp_path: Path
+) -> None:
+    """At 1400 px the recommendation and the heat map start on the first screen; every
+    axis of every figure showing numbers has a label with a unit in brackets, and every
+    axis showing names has a label."""
+    import json
+    import re
+
+    index = write_report(synthetic_results(), synthetic_series, tmp_path / "report", "cmd")
+    set_viewport(browser, *FIRST_SCREEN)
+    browser.get(index.as_uri())
+    top = browser.execute_script(
+        """
+        const box = id => { const e = document.getElementById(id);
+            return e ? [e.getBoundingClientRect().top, e.getBoundingClientRect().bottom,
+                        e.innerText] : null; };
+        const heat = document.querySelector('#overview figure img');
+        return {overview: box('overview'), recommendation: box('recommendation'),
+                heat: heat ? heat.getBoundingClientRect().top : null};
+        """
+    )
+    assert top["overview"] is not None and top["recommendation"] is not None
+    _top, bottom, sentence = top["recommendation"]
+    assert bottom <= FIRST_SCREEN[1], "the recommendation is below the first screen"
+    assert "within 2x of the best wall time" in sentence
+    assert top["heat"] is not None and top["heat"] < FIRST_SCREEN[1]
+    figures = browser.execute_script(
+        "return Array.from(document.querySelectorAll('figure'),"
+        " f => [f.querySelector('img').getAttribute('src'), f.dataset.axes]);"
+    )
+    assert len(figures) >= 7  # the heat map; per problem work-precision, error, drift
+    for source, axes in figures:
+        axes = json.loads(axes)
+        assert axes, f"{source}: no axis recorded"
+        for axis in axes:
+            assert axis["label"].strip(), f"{source}: an axis without a label"
+            if axis["numeric"]:
+                assert re.search(r"\[[^\]]+\]", axis["label"]), f"{source}: {axis['label']!r}"

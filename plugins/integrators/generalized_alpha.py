@@ -39,8 +39,10 @@ keeps the update second-order accurate and explicit in the unknowns. Unit-norm c
 parameters are satisfied only if the formalism states them among g. A Lie-group variant
 (Bruls-Cardona) is out of scope.
 
-Step size: option ``step`` (s) or, by default, min(1e-3 s, smallest output interval);
-each output interval is divided into equal steps so that output times are hit exactly.
+Step size: option ``step`` (s) or, by default, the step the tolerance asks of an order-2
+method (:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-2 s at rtol 1e-4,
+1e-3 s at 1e-6, 1e-4 s at 1e-8); each output interval is divided into equal steps so that
+output times are hit exactly, and the row's ``fixed_step_s`` records the step used.
 With ``adaptive=True`` the step is controlled by an estimate of the local position error:
 the difference between the generalized-alpha position q_{n+1} and the second-order Taylor
 predictor q_n + h H (v_n + h/2 v'_n), both O(h^3) accurate locally, so the difference is
@@ -62,7 +64,12 @@ import scipy.linalg
 
 from workbench.equations.initial import accelerations
 from workbench.errors import ConfigError, IntegrationError
-from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.integrator import (
+    IntegrationTask,
+    Integrator,
+    Trajectory,
+    step_for_tolerance,
+)
 from workbench.plugin.registry import integrator
 
 
@@ -70,7 +77,7 @@ from workbench.plugin.registry import integrator
 class StepOptions:
     """The options every member of the generalized-alpha family shares."""
 
-    step: float | None = None  # s; None: min(1e-3, smallest output interval)
+    step: float | None = None  # s; None: from rtol (step_for_tolerance, order 2)
     adaptive: bool = False
     newton_tol: float = 1e-10  # on the position increment, relative to 1 + |q|
     max_newton: int = 12
@@ -101,9 +108,16 @@ def chung_hulbert(rho_inf: float) -> tuple[float, float, float, float]:
     return alpha_m, alpha_f, beta, gamma
 
 
-def default_step(times: np.ndarray, step: float | None) -> float:
-    """The requested step, or min(1e-3 s, smallest output interval)."""
-    return float(step) if step is not None else float(min(1e-3, np.min(np.diff(times))))
+ORDER = 2  # of positions and velocities (Arnold & Bruls 2007)
+
+
+def default_step(times: np.ndarray, step: float | None, rtol: float) -> float:
+    """The requested step, or the step of an order-2 method at ``rtol``
+    (:func:`~workbench.plugin.integrator.step_for_tolerance`), at most the smallest output
+    interval (the adaptive mode's first step)."""
+    if step is not None:
+        return float(step)
+    return float(min(step_for_tolerance(rtol, ORDER), np.min(np.diff(times))))
 
 
 def is_identity_kinematics(mech: Any, t: float, q: np.ndarray, nv: int) -> bool:
@@ -152,7 +166,9 @@ class GeneralizedAlpha(Integrator):
         stats.n_lu, stats.n_newton = 0, 0
         rows = [np.concatenate([q, v, lam])]
         reached = [t]
-        h = default_step(times, options.step)
+        h = default_step(times, options.step, task.rtol)
+        if not options.adaptive:
+            stats.fixed_step = h
         h_min = 1e-14 * max(1.0, abs(times[-1]))
         try:
             for t_out in times[1:]:

@@ -179,6 +179,7 @@ class Projected(Integrator):
                     form="ode",
                 )
                 stats.n_steps += max(result.stats.n_steps, 0)
+                stats.fixed_step = result.stats.fixed_step
                 stats.n_rejected += max(result.stats.n_rejected, 0)
                 n_lu += max(result.stats.n_lu, 0)
                 if not result.success:

@@ -29,9 +29,10 @@ coordinates (M = diag(m, m, I)) qualify; a mass matrix depending on q (most join
 coordinate formalisms) and absolute point-mass models whose rotation has zero inertia do
 not.
 
-Fixed step: option ``step`` (s), by default min(1e-3 s, smallest output interval); each
-output interval is divided into equal steps. Trajectories carry [q, v, lambda] with the
-multipliers of [M W^T; W 0] at each output state.
+Fixed step: option ``step`` (s), by default the step an order-2 method needs at rtol
+(:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-3 s at rtol 1e-6); each
+output interval is divided into equal steps; the row's ``fixed_step_s`` records the step.
+Trajectories carry [q, v, lambda] with the multipliers of [M W^T; W 0] at each output state.
 """
 
 from __future__ import annotations
@@ -45,13 +46,20 @@ import numpy as np
 from workbench.equations import Equations
 from workbench.equations.initial import accelerations
 from workbench.errors import ConfigError, IntegrationError
-from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.integrator import (
+    IntegrationTask,
+    Integrator,
+    Trajectory,
+    step_for_tolerance,
+)
 from workbench.plugin.registry import integrator
+
+ORDER = 2  # RATTLE is second order in positions and velocities (Hairer et al. VII.1)
 
 
 @dataclass(frozen=True)
 class RattleOptions:
-    step: float | None = None  # s; None: min(1e-3, smallest output interval)
+    step: float | None = None  # s; None: from rtol (step_for_tolerance, order 2)
     newton_tol: float = 1e-13  # on the position constraint residual, relative to 1 + |q|
     max_newton: int = 20
 
@@ -118,7 +126,8 @@ class Rattle(Integrator):
         _, lam, _ = accelerations(eq, t, q, v)
         rows, reached = [np.concatenate([q, v, lam])], [t]
         step = task.options.step
-        step = float(step) if step is not None else min(1e-3, float(np.diff(times).min()))
+        step = float(step) if step is not None else step_for_tolerance(task.rtol, ORDER)
+        self.stats.fixed_step = step
         self.force = self._forces(t, q)
         self.g_q = self._jacobian(t, q)
         try:

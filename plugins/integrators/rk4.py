@@ -4,8 +4,10 @@
     k4 = f(t + h, y + h k3),  y_next = y + h/6 (k1 + 2 k2 + 2 k3 + k4).
 
 Each output interval [t_i, t_i+1] is divided into ceil((t_i+1 - t_i) / step) equal steps,
-so steps land on the output times and no step is longer than option ``step``. The
-tolerances are not used: the step alone sets the accuracy (global error O(step^4)).
+so steps land on the output times and no step is longer than the step: option ``step``
+if given (then the tolerances are not used), else the step an order-4 method needs at rtol
+(:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-3 s at rtol 1e-6, 3.2e-4 s
+at 1e-8). The global error is O(step^4); the row's ``fixed_step_s`` records the step.
 """
 
 from __future__ import annotations
@@ -17,25 +19,30 @@ from typing import ClassVar
 import numpy as np
 
 from workbench.errors import ConfigError
-from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.integrator import (
+    IntegrationTask,
+    Integrator,
+    Trajectory,
+    step_for_tolerance,
+)
 from workbench.plugin.registry import integrator
 
-DEFAULT_STEP = 1e-3  # s
+ORDER = 4
 
 
 @dataclass(frozen=True)
 class Rk4Options:
-    step: float = DEFAULT_STEP  # s; largest step (output intervals are split evenly)
+    step: float | None = None  # s; largest step; None: from rtol (step_for_tolerance)
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.step) and self.step > 0):
+        if self.step is not None and not (math.isfinite(self.step) and self.step > 0):
             raise ConfigError(f"step must be a positive number of seconds, not {self.step}")
 
 
 @integrator
 class Rk4(Integrator):
     name = "rk4"
-    summary = "Classical Runge-Kutta order 4, fixed step (option step), steps land on outputs"
+    summary = "Classical Runge-Kutta order 4, fixed step (from rtol or option step)"
     Options = Rk4Options
     accepts: ClassVar[dict[str, int]] = {"ode": 0}
 
@@ -45,8 +52,10 @@ class Rk4(Integrator):
         y = task.y0.copy()
         rows = [y.copy()]
         steps = 0
+        step = task.options.step or step_for_tolerance(task.rtol, ORDER)
+        trajectory.stats.fixed_step = step
         for t_start, t_end in zip(times[:-1], times[1:], strict=True):
-            n = max(1, math.ceil((t_end - t_start) / task.options.step * (1 - 1e-12)))
+            n = max(1, math.ceil((t_end - t_start) / step * (1 - 1e-12)))
             h = (t_end - t_start) / n
             for i in range(n):
                 t = t_start + i * h

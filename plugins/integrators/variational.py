@@ -24,8 +24,10 @@ the kinetic energy (an O(h) relative error: linear convergence, rate O(h)).
 
 Unlike ``rattle`` it accepts a configuration-dependent M(q) (joint coordinates), and
 forces depending on v. It needs q' = v (H = identity, nq = nv, no offset f) and holonomic
-constraints only. Fixed step: option ``step`` (s), by default min(1e-3 s, smallest output
-interval), each output interval divided into equal steps. Trajectories carry
+constraints only. Fixed step: option ``step`` (s), by default taken from rtol by the rule
+of :func:`workbench.plugin.integrator.step_for_tolerance` for order 2 (at most the smallest
+output interval), each output interval divided into equal steps; the row's
+``fixed_step_s`` records it. Trajectories carry
 [q, v, lambda] with the multipliers of [M W^T; W 0] at each output state.
 """
 
@@ -47,7 +49,7 @@ from workbench.plugins.integrators.generalized_alpha import default_step, is_ide
 
 @dataclass(frozen=True)
 class VariationalOptions:
-    step: float | None = None  # s; None: min(1e-3, smallest output interval)
+    step: float | None = None  # s; None: from rtol (step_for_tolerance, order 2)
     newton_tol: float = 1e-13  # on the position increment, relative to 1 + |q|
     max_newton: int = 30
 
@@ -88,7 +90,8 @@ class VariationalMidpoint(Integrator):
         _, lam, _ = accelerations(eq, t, q, v)
         p = self._mass(t, q) @ v
         rows, reached = [np.concatenate([q, v, lam])], [t]
-        step = default_step(times, task.options.step)
+        step = default_step(times, task.options.step, task.rtol)
+        self.stats.fixed_step = step
         lam_position = np.zeros(self.nc)
         try:
             for t_out in times[1:]:

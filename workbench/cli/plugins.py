@@ -225,11 +225,15 @@ def new(
         typer.Option("--package", help="Write a separate installable package into this directory."),
     ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing files.")] = False,
+    spatial: Annotated[
+        bool,
+        typer.Option("--spatial", help="A problem: spatial placeholder (a spherical joint)."),
+    ] = False,
 ) -> None:
     """Write a ready-to-edit plugin: module, conformance test (and with --package, a package)."""
     from workbench.plugin.scaffold import scaffold
 
-    written = scaffold(describe_kind(kind), name, package=package, force=force)
+    written = scaffold(describe_kind(kind), name, package=package, force=force, spatial=spatial)
     for path in written.files:
         typer.echo(f"wrote {path}")
     typer.echo("next: " + "\n      ".join(written.next_steps))

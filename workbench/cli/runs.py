@@ -245,47 +245,67 @@ def _without_rerun(arguments: list[str]) -> list[str]:
     return kept
 
 
-RESULT_COLUMNS = [
-    "problem",
-    "formalism",
-    "formalism_options",
-    "integrator",
-    "rtol",
-    "status",
-    "wall_s",
-    "n_rhs",
-    "err_end",
-    "scd",
-    "drift_pos_max",
-    "energy_err_max",
-    "message",
-]
-
-
 @app.command()
 def results(
     path: Annotated[str, typer.Argument(help="A results directory or a results.parquet file.")],
+    by: Annotated[
+        str, typer.Option("--by", help="A line a problem (default), a problem x pair, or a run.")
+    ] = "problem",
+    columns: Annotated[
+        str | None,
+        typer.Option("--columns", "-c", help="Comma-separated columns to show, in order."),
+    ] = None,
+    where: Annotated[
+        list[str] | None,
+        typer.Option("--where", "-w", help="Keep rows with COLUMN OP VALUE, e.g. scd>=6 (repeat)."),
+    ] = None,
+    sort: Annotated[
+        str | None,
+        typer.Option("--sort", "-s", help="Comma-separated columns to sort by; -name descends."),
+    ] = None,
+    fmt: Annotated[
+        str, typer.Option("--format", "-f", help="table, csv, markdown or latex.")
+    ] = "table",
 ) -> None:
-    """Print the result rows of a sweep as a table."""
+    """Print a sweep's results: a line a problem (or --by pair, --by run), filtered and sorted."""
     import warnings
 
+    from workbench.errors import ConfigError
+    from workbench.outputs.report.tables import table_cells
+    from workbench.outputs.results_table import FORMATS, render, results_table
     from workbench.runs.store import load_results
 
+    if fmt not in FORMATS:
+        raise ConfigError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         frame = load_results(path)
     for warning in caught:
         typer.echo(f"warning: {warning.message}", err=True)
-    table = Table(title=f"{len(frame)} runs in {path}", title_justify="left")
-    for column in RESULT_COLUMNS:
-        table.add_column(column.replace("_options", " opts"), overflow="fold")
-    for row in frame[RESULT_COLUMNS].itertuples(index=False):
-        cells = [_cell(v) for v in row]
-        cells[-1] = cells[-1][:80]
-        table.add_row(*cells)
+
+    def split(text: str | None) -> list[str]:
+        return [item.strip() for item in (text or "").split(",") if item.strip()]
+
+    table = results_table(frame, by=by, columns=split(columns), where=where or [], sort=split(sort))
+    what = {"problem": "problems", "pair": "problem x pair lines", "run": "runs"}.get(by, by)
+    title = f"{len(table)} {what} of {len(frame)} runs in {path}"
+    if fmt != "table":
+        typer.echo(render(table, fmt, title), nl=False)
+        return
+    header, cells = table_cells(table)
+    shown = Table(title=title, title_justify="left")
+    for name in header:
+        shown.add_column(name, overflow="fold")
+    for line in cells:
+        shown.add_row(*line)
     out = console()
-    out.width = max(out.width, 180)  # a wide table: let a narrow terminal wrap it
-    out.print(table)
+    out.width = max(out.width, 160)  # a wide table: let a narrow terminal wrap it
+    out.print(shown)
+    if by != "run":
+        typer.echo(
+            "more: --by pair or --by run; choose with --where, --sort, --columns; "
+            "--format csv|markdown|latex"
+        )
 
 
 @app.command("reference")

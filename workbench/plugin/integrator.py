@@ -19,6 +19,12 @@ time reached and the reason, and never raises for a numerical failure. It also c
 what ``integrate`` returned: ``times`` (k,) equal to the first k requested output times
 and ``y`` (k, n_states of the form); anything else fails the run with a one-line reason
 naming the plugin and the shapes. ``trajectory.message`` always ends up one line.
+
+A fixed-step method does not ignore the tolerance: without a ``step`` option set by the
+user, it takes its step from rtol by :func:`step_for_tolerance` (the one documented rule,
+anchored at 1 ms for rtol 1e-6 and scaled by the method's order), and records the step it
+used in ``trajectory.stats.fixed_step`` (s; NaN for an adaptive method), which the result
+row carries as ``fixed_step_s``.
 """
 
 from __future__ import annotations
@@ -49,6 +55,7 @@ class SolverStats:
     setup_s: float = 0.0
     integrate_s: float = 0.0
     cpu_s: float = 0.0
+    fixed_step: float = math.nan  # s; the step of a fixed-step method, NaN if adaptive
 
 
 @dataclass
@@ -80,6 +87,29 @@ class IntegrationTask:
     rtol: float
     atol: float
     options: Any
+
+
+REFERENCE_STEP = 1e-3  # s: the fixed step at REFERENCE_RTOL
+REFERENCE_RTOL = 1e-6
+
+
+def step_for_tolerance(rtol: float, order: int) -> float:
+    """The step (s) of a fixed-step method of global order ``order`` at tolerance ``rtol``:
+
+        h = 1e-3 s * (rtol / 1e-6) ** (1 / order)
+
+    A global error C h^p follows rtol proportionally (10x smaller rtol, 10x smaller error)
+    when h scales as rtol^(1/p); the constant is anchored at 1 ms for rtol 1e-6, the step
+    these methods used before they read rtol, which suits mechanisms whose fastest motion
+    has periods of a tenth of a second and more. For a faster mechanism, or to study
+    convergence in the step itself, set the method's ``step`` option (then rtol is unused,
+    and the row's ``fixed_step_s`` says which step ran).
+    """
+    if not (order >= 1 and 0 < rtol < 1):
+        raise ConfigError(
+            f"step_for_tolerance needs order >= 1 and 0 < rtol < 1, got {order}, {rtol}"
+        )
+    return REFERENCE_STEP * (rtol / REFERENCE_RTOL) ** (1.0 / order)
 
 
 MAX_STEPS = 1e9
@@ -178,9 +208,7 @@ class Integrator:
         Trajectory (``success=False``) with ``t_reached`` and the reason in ``message``.
         """
         options = self.parse_options(options)
-        offered = {
-            name: getattr(obj, "index", 0) for name, obj in equations.forms.items()
-        }
+        offered = {name: getattr(obj, "index", 0) for name, obj in equations.forms.items()}
         form = form or self.select_form(offered)
         if form is None or form not in equations.forms:
             raise PluginError(

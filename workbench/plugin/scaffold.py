@@ -12,9 +12,13 @@ Three layouts (:func:`scaffold`):
   sweep, list the module under ``plugins``).
 
 The plugin module has the contract's methods and docstrings; the physics (a formalism's
-mass matrix and forces, an integrator's method) raises NotImplementedError until written,
-which only the conformance suite's physics checks reach: the plugin registers, lists and
-passes the structural checks as generated. The test module runs the conformance suite.
+mass matrix and forces, an integrator's method) raises NotImplementedError until written.
+As generated, the plugin registers, lists and passes the structural checks but
+``metadata``, which fails until the TODO summary and docstring are written. A problem is
+a planar pendulum, or with ``spatial=True`` a body on a spherical joint (quaternion
+coordinates). The test module runs the conformance suite; it needs pytest, which a
+package's ``test`` extra installs (``pip install -e "DIR[test]"``). A package ships the
+stored references of its ``references/`` directory (package data) in its wheel.
 """
 
 from __future__ import annotations
@@ -35,6 +39,14 @@ BUILTIN_DIRECTORIES = {
     "integrator": "plugins/integrators",
     "problem": "problems",
 }
+
+
+REFERENCES_README = """Stored references of this package's problem.
+
+`workbench reference NAME` writes NAME.npz and NAME.json here (beside the module that
+defines the problem); pyproject.toml ships them in the wheel as package data, so an
+installed package compares runs against the same reference.
+"""
 
 
 @dataclass
@@ -67,11 +79,12 @@ def scaffold(
     package: str | Path | None = None,
     force: bool = False,
     where: str | Path = ".",
+    spatial: bool = False,
 ) -> Scaffold:
     """Write the plugin ``name`` of ``kind`` (see the module docstring); returns the files.
 
     Refuses (ConfigError) to overwrite an existing file unless ``force``; ``where`` is the
-    directory that counts as current.
+    directory that counts as current; ``spatial``: a problem's spatial placeholder.
     """
     if kind not in KINDS:
         raise ConfigError(f"unknown plugin kind {kind!r}; use one of {', '.join(KINDS)}")
@@ -83,7 +96,9 @@ def scaffold(
     where = Path(where)
     values = {"name": name, "kind": kind, "module": module, "class_name": class_name}
     files: dict[Path, str] = {}
-    plugin_text = _render(f"{kind}.py.tmpl", values)
+    if spatial and kind != "problem":
+        raise ConfigError("--spatial is for problems only (a spatial placeholder mechanism)")
+    plugin_text = _render(f"{kind}_spatial.py.tmpl" if spatial else f"{kind}.py.tmpl", values)
     if package is not None:
         root = where / Path(package)
         values |= {
@@ -97,8 +112,10 @@ def scaffold(
         files[root / module / "plugin.py"] = plugin_text
         test_path = root / "tests" / f"test_{module}.py"
         import_line = ""  # found through its entry point
+        if kind == "problem":
+            files[root / module / "references" / "README.md"] = REFERENCES_README
         steps = [
-            f"pip install -e {root}   # registers {name!r} through its entry point",
+            f'pip install -e "{root}[test]"   # registers {name!r}; [test] installs pytest',
             f"workbench list {kind}s",
             f"python -m workbench.testing {kind} {name}",
             f"pytest {root / 'tests'}",
@@ -118,7 +135,7 @@ def scaffold(
         test_path = where / f"test_{module}.py"
         import_line = f"\nimport {module}  # noqa: F401, E402 - importing it registers the plugin\n"
         steps = [
-            f"pytest {test_path}",
+            f"pytest {test_path}   # needs pytest: pip install pytest",
             f'in a sweep spec: plugins = ["{module}"]  (or use --package for a package)',
         ]
     files[test_path] = _render(

@@ -409,6 +409,7 @@ def _record_trajectory(row: dict[str, Any], trajectory: Any) -> None:
             "n_rejected": int(stats.n_rejected),
             "n_lu": int(stats.n_lu),
             "n_newton": int(stats.n_newton),
+            "fixed_step_s": float(stats.fixed_step),
         }
     )
     if not trajectory.success:

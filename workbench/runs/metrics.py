@@ -55,7 +55,7 @@ from workbench.runs.store import SERIES_COLUMNS
 
 
 UNMEASURED_WITHOUT_STEPS = [
-    "err_max", "err_end", "scd", "scd_mixed",
+    "err_max", "err_end", "err_l2", "scd", "scd_mixed",
     "drift_pos_max", "drift_pos_final", "drift_vel_max", "drift_vel_final",
     "drift_nh_max", "drift_nh_final",
     "energy_err_max", "energy_err_final", "invariant_err_max",
@@ -65,6 +65,11 @@ UNMEASURED_WITHOUT_STEPS = [
 def _max(values: np.ndarray) -> float:
     finite = values[np.isfinite(values)]
     return float(np.max(finite)) if finite.size else math.nan
+
+
+def _rms(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(finite**2))) if finite.size else math.nan
 
 
 def _final(values: np.ndarray) -> float:
@@ -154,6 +159,7 @@ def trajectory_metrics(
         "length_scale": length,
         "err_max": _max(ref_err),
         "err_end": err_end,
+        "err_l2": _rms(ref_err),
         "scd": scd,
         "scd_mixed": scd_mixed,
         "drift_pos_max": _max(drift[:, 0]),

@@ -76,7 +76,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("reference_kind", "analytic | stored | computed | none"),
     ("reference", "how the reference was obtained"),
     ("length_scale", "L of the pose error (m)"),
-    ("err_max", "max over output times of the pose error (m)"),
+    ("err_max", "max over output times of the pose error (m): its L-infinity norm"),
     ("err_end", "pose error at the end time (m)"),
     ("scd", "-log10(err_end / length_scale)"),
     ("scd_mixed", "min over end-pose components of -log10(|err| / (1 + |ref|)) (test set)"),
@@ -111,6 +111,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("producer_problem", "what produced the row: the problem plugin's source hash or version"),
     ("producer_formalism", "the formalism plugin's source hash or distribution version"),
     ("producer_integrator", "the integrator plugin's source hash or distribution version"),
+    ("err_l2", "root mean square over output times of the pose error (m): its L2 norm"),
+    ("fixed_step_s", "the step of a fixed-step method (s); NaN for an adaptive one"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -134,7 +136,9 @@ ENVIRONMENT_FILE = "environment.json"
 #   5  adds n_samples (checked against the series on resume) and producer_problem,
 #      producer_formalism, producer_integrator (workbench.runs.producer); older rows'
 #      producer is "unknown": reported on resume, not stale
-SCHEMA_VERSION = 5
+#   6  adds err_l2 (the error over the whole trajectory beside err_max and err_end) and
+#      fixed_step_s; older rows did not measure them: NaN
+SCHEMA_VERSION = 6
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -155,12 +159,17 @@ def _migrate_4_to_5(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 5} | unknown
 
 
+def _migrate_5_to_6(row: dict[str, Any]) -> dict[str, Any]:
+    return row | {"schema_version": 6, "err_l2": math.nan, "fixed_step_s": math.nan}
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
     2: _migrate_2_to_3,
     3: _migrate_3_to_4,
     4: _migrate_4_to_5,
+    5: _migrate_5_to_6,
 }
 
 

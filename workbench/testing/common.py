@@ -25,6 +25,8 @@ FAST_PROBLEMS = (
 """The default problem subset: one small problem for each model feature (seconds)."""
 
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9-]*$")
+PLACEHOLDER = re.compile(r"\b(TODO|FIXME|XXX|TBD)\b")
+"""Words that mark text still to be written (the scaffold's templates use TODO)."""
 
 
 def resolve_plugin(kind: registry.Kind, plugin: str | type) -> type:
@@ -91,9 +93,16 @@ def check_structure(
     summary = getattr(plugin, "summary", "")
     if not (isinstance(summary, str) and summary.strip() and "\n" not in summary):
         problems.append("set summary to one non-empty line")
+    elif PLACEHOLDER.search(summary):
+        problems.append(f"write the summary: it is a placeholder ({summary!r})")
     module = inspect.getmodule(plugin)
-    if not ((plugin.__doc__ or "").strip() or (getattr(module, "__doc__", "") or "").strip()):
-        problems.append("write a docstring (class or module) saying what it is and its source")
+    docstrings = [(plugin.__doc__ or "").strip(), (getattr(module, "__doc__", "") or "").strip()]
+    written = [text for text in docstrings if text and not PLACEHOLDER.search(text.split("\n")[0])]
+    if not written:
+        problems.append(
+            "write a docstring (class or module) saying what it is and its source"
+            + (" (its first line is still a placeholder)" if any(docstrings) else "")
+        )
     if problems:
         report.failed("metadata", "", "; ".join(problems))
     else:

@@ -8,9 +8,21 @@ cart), over their first second, with a formalism offering a form the integrator 
 * ``convergence`` — tightening the tolerance does not make the error worse;
 * ``statistics`` — output times as requested, states shaped like the form, counts filled.
 
+Both analytic problems are autonomous, so a method evaluating its stages at wrong times
+would pass them. On the driven block x'' = -sin t, x(0) = 0, x'(0) = 1 (solution
+x = sin t, x' = cos t) over [0, 2] s:
+
+* ``time-dependence`` — the end error at the tight tolerance is at most
+  :data:`TIME_DEPENDENCE_ERROR` (an explicit midpoint evaluating its stage at t instead of
+  t + h/2 is first order there and misses it by orders of magnitude);
+* ``tolerance-response`` — tightening rtol from 1e-4 to 1e-8 changes the work done and
+  reduces the error (by 10x at least, unless it is already below 100 x the tight rtol):
+  a method that ignores rtol gives the same trajectory at both and fails.
+
 ``failure``: on y'' = y'^2 (a blow-up at t = 1 from y' = 1) integrated to t = 2, the
 integrator returns a failed trajectory with a reason and the time reached; it does not
-raise and does not claim success.
+raise and does not claim success, and it fails because of the blow-up: a method that
+stops before t = 0.5 (a ``NotImplementedError`` stub, say) fails the check.
 """
 
 from __future__ import annotations
@@ -38,6 +50,10 @@ TOLERANCES = {"accuracy": 1e-4, "convergence": 1.5}  # relative error; growth fa
 RTOLS = (1e-4, 1e-8)
 HORIZON = 1.0  # s
 FAILURE_TIME_LIMIT = 30.0  # s for the blow-up
+FAILURE_EARLIEST = 0.5  # s; y' = 1/(1 - t) is harmless up to here
+DRIVEN_HORIZON = 2.0  # s
+TIME_DEPENDENCE_ERROR = 1e-6  # |x - sin t| + |x' - cos t| at the end, at rtol 1e-8
+RESPONSE_FACTOR = 10.0  # error reduction asked of 4 decades of rtol
 
 
 def check_integrator(
@@ -72,6 +88,7 @@ def check_integrator(
         return report
     for problem in problem_instances(problems or ANALYTIC_PROBLEMS):
         _check_accuracy(report, plugin, options, problem)
+    _check_time_dependence(report, plugin, options)
     _check_failure(report, plugin, options)
     return report
 
@@ -208,6 +225,91 @@ def blow_up_equations() -> Any:
     return build_joint_space_equations("blow-up", model, k, system, ConstraintOptions(), True)
 
 
+def driven_equations() -> Any:
+    """Equations of a unit mass on a prismatic joint pushed by the force -sin(t) N:
+    x'' = -sin t; from x(0) = 0, x'(0) = 1 the solution is x = sin t, x' = cos t."""
+    model = Model("driven-block", kind="planar", gravity=(0.0, 0.0, 0.0))
+    model.add_body("block", 1.0, inertia=1.0)
+    model.add_joint("slide", "prismatic", "ground", "block", axis=(1, 0, 0))
+    k = TreeKinematics(model)
+    system = MechanicalSystem(
+        k.t, k.q, k.v, k.qdot, ca.SX.eye(1), -ca.sin(k.t), k.q_names, k.v_names
+    )
+    return build_joint_space_equations("driven-block", model, k, system, ConstraintOptions(), True)
+
+
+def _first_two(equations: Any, form: str, values: tuple[float, float]) -> np.ndarray:
+    """A state of ``form`` whose first two components (x, x') are ``values``, zeros after."""
+    n = equations.forms[form].n if form != "mechanical" else 2
+    y = np.zeros(n)
+    y[:2] = values
+    return y
+
+
+def _check_time_dependence(report: ConformanceReport, plugin: type, options: Any) -> None:
+    where = "driven block x''=-sin t"
+    equations = driven_equations()
+    integrator = plugin()
+    offered = {key: getattr(form, "index", 0) for key, form in equations.forms.items()}
+    form = integrator.select_form(offered)
+    reason = integrator.incompatibility(equations, integrator.parse_options(options))
+    if form is None or reason:
+        for check in ("time-dependence", "tolerance-response"):
+            report.skipped(check, where, reason or f"no accepted form in {offered}")
+        return
+    y0 = _first_two(equations, form, (0.0, 1.0))
+    yp0 = _first_two(equations, form, (1.0, 0.0))
+    times = np.linspace(0.0, DRIVEN_HORIZON, 21)
+    exact = np.array([np.sin(times[-1]), np.cos(times[-1])])
+    runs = []
+    for rtol in RTOLS:
+        try:
+            trajectory = integrator.solve(
+                equations, y0, yp0, times, rtol, rtol * 1e-3, options, form
+            )
+        except Exception as error:  # noqa: BLE001
+            report.failed("time-dependence", where, f"solve raised: {one_line(error)}")
+            return
+        if not trajectory.success:
+            report.failed("time-dependence", where, f"rtol {rtol:g}: {trajectory.message}")
+            return
+        error = float(np.abs(np.asarray(trajectory.y)[-1, :2] - exact).sum())
+        runs.append((rtol, error, trajectory))
+    (loose, loose_error, loose_run), (tight, tight_error, tight_run) = runs
+    report.add(
+        "time-dependence",
+        where,
+        tight_error,
+        TIME_DEPENDENCE_ERROR,
+        f"|x - sin t| + |x' - cos t| at t = {DRIVEN_HORIZON:g} s, rtol {tight:g} "
+        "(a stage evaluated at the wrong time shows here)",
+    )
+    work = [(r.stats.n_steps, r.stats.n_rhs) for r in (loose_run, tight_run)]
+    same = work[0] == work[1] and np.array_equal(loose_run.y, tight_run.y)
+    floor = 100 * tight
+    if same:
+        report.failed(
+            "tolerance-response",
+            where,
+            f"identical trajectories and work ({work[0][0]} steps, {work[0][1]} rhs) at rtol "
+            f"{loose:g} and {tight:g}: the method ignores rtol; map rtol to a step by a "
+            "documented rule, or make the step an option the user sets and say so",
+        )
+    elif tight_error > loose_error / RESPONSE_FACTOR and tight_error > floor:
+        report.failed(
+            "tolerance-response",
+            where,
+            f"error {loose_error:.2e} at rtol {loose:g} and {tight_error:.2e} at {tight:g}: "
+            f"4 decades of rtol bought less than {RESPONSE_FACTOR:g}x",
+        )
+    else:
+        report.passed(
+            "tolerance-response",
+            where,
+            f"error {loose_error:.1e} -> {tight_error:.1e}, steps {work[0][0]} -> {work[1][0]}",
+        )
+
+
 def _check_failure(report: ConformanceReport, plugin: type, options: Any) -> None:
     equations = blow_up_equations()
     integrator = plugin()
@@ -245,6 +347,11 @@ def _check_failure(report: ConformanceReport, plugin: type, options: Any) -> Non
         problems.append("no message saying why it failed")
     if not trajectory.t_reached < 2.0:
         problems.append(f"t_reached = {trajectory.t_reached}, expected < 2")
+    elif not trajectory.t_reached >= FAILURE_EARLIEST:
+        problems.append(
+            f"it stopped at t = {trajectory.t_reached:g}, before the solution grows "
+            f"(t < {FAILURE_EARLIEST:g}): it failed for another reason than the blow-up"
+        )
     if problems:
         report.failed("failure", "blow-up y''=y'^2", "; ".join(problems))
     else:

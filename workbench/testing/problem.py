@@ -22,7 +22,7 @@ from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import get_formalism
 from workbench.runs.references import given_reference
-from workbench.testing.common import check_structure, resolve_plugin
+from workbench.testing.common import PLACEHOLDER, check_structure, resolve_plugin
 from workbench.testing.report import ConformanceReport
 from workbench.testing.states import energy_scale, tight_run
 
@@ -42,7 +42,8 @@ def check_problem(problem: str | type | Problem, checks: str = "all") -> Any:
     report = ConformanceReport("problem", getattr(plugin, "name", plugin.__qualname__))
     defaults = check_structure(report, "problem", plugin, Problem)
     problems = []
-    if not getattr(plugin, "source", ""):
+    source = getattr(plugin, "source", "")
+    if not source or PLACEHOLDER.search(str(source)):
         problems.append("set source (the book section or paper it follows)")
     if not plugin.t_end > plugin.t_start:
         problems.append(f"t_end ({plugin.t_end}) must be > t_start ({plugin.t_start})")

@@ -7,18 +7,25 @@
     figures/*.png|svg|pdf   work-precision diagrams and drift / energy over time
     tables/*.csv|md|tex     the summary, the status matrix and all result rows
 
-Per problem it draws a work-precision diagram and, for every pair at the middle
-tolerance, the constraint drift and the energy error over time. The summary names, for each
-problem and target accuracy (scd >= 2, 4, 6), the cheapest pair (least wall time) that
-reached it; the status matrix counts ok / failed / timeout / skipped runs and lists the
-reasons in footnotes. A footer records library versions, the machine, the date and the
-command that made the report.
+The page opens with an overview computed from the runs (:mod:`.overview`): the pair to
+use (within 2x of the best wall time on the most problems at the highest scd reached on two
+thirds of them; runs with warnings never count), a problem x pair heat map of the cost at
+that accuracy, the Pareto fronts, and the convergence order of fixed-step methods. Per
+problem it draws a work-precision diagram (Pareto front and the reference's accuracy
+marked), the error along the trajectory, and the drift and energy error over time at the
+middle tolerance (one panel a formalism). The summary names, for each problem and target
+accuracy (scd >= 2, 4, 6, 8, 10), the cheapest pair (least wall time) that reached it; the
+status matrix counts ok / failed / timeout / skipped runs and lists each kind of reason
+once. A footer records library versions, the machine, the date and the command that made
+the report.
 
 One idea a module:
 
     analysis   what the tables say: labels, cheapest pairs, status matrix, drift at the
                middle tolerance
-    tables     CSV, Markdown and LaTeX (booktabs, through pandas' Styler) files
+    overview   which pair to use: Pareto fronts, cost at a target accuracy, recommendation
+    overview_figures  the heat map and the convergence-order plot
+    tables     CSV, Markdown and LaTeX (booktabs, captioned) files, readable headers
     figures    work-precision and drift / energy figures (matplotlib, Agg)
     pool       the worker processes that draw the figures
     page       the HTML page, rendered from templates/report.html.j2 (Jinja2): edit the

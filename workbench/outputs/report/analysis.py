@@ -8,6 +8,7 @@ pandas tables; nothing here draws or writes files.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -17,7 +18,7 @@ import pandas as pd
 from workbench.errors import ConfigError
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
-TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0)
+TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0, 8.0, 10.0)
 REQUIRED_COLUMNS: tuple[str, ...] = ("problem", "formalism", "integrator", "rtol", "status")
 NUMERIC_COLUMNS: tuple[str, ...] = (
     "atol",
@@ -29,12 +30,16 @@ NUMERIC_COLUMNS: tuple[str, ...] = (
     "n_rejected",
     "err_max",
     "err_end",
+    "err_l2",
     "scd",
     "drift_pos_max",
     "drift_vel_max",
     "drift_nh_max",
     "energy_err_max",
     "invariant_err_max",
+    "fixed_step_s",
+    "length_scale",
+    "reference_accuracy",
 )
 DRIFT_TABLE_COLUMNS: tuple[str, ...] = (
     "drift_pos_max",
@@ -42,6 +47,8 @@ DRIFT_TABLE_COLUMNS: tuple[str, ...] = (
     "drift_nh_max",
     "energy_err_max",
     "invariant_err_max",
+    "err_end",
+    "err_l2",
     "err_max",
     "scd",
 )
@@ -161,27 +168,42 @@ def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) ->
                     "pair": best["pair"],
                     "rtol": best["rtol"],
                     "scd": best["scd"],
+                    "err_l2": best["err_l2"],
+                    "err_max": best["err_max"],
                     "wall_s": best["wall_s"],
                     "n_rhs": best["n_rhs"],
                 }
             )
-    columns = ["problem", "target scd", "pair", "rtol", "scd", "wall_s", "n_rhs"]
+    columns = [
+        "problem",
+        "target scd",
+        "pair",
+        "rtol",
+        "scd",
+        "err_l2",
+        "err_max",
+        "wall_s",
+        "n_rhs",
+    ]
     return pd.DataFrame(rows, columns=columns)
 
 
 def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
-    """Problem x pair table of status counts, and the footnotes giving the reasons.
+    """Problem x pair table of status counts, and the reasons, each given once.
 
-    A cell reads e.g. ``4 ok, 1 failed [2]``: footnote 2 is the message of that failure.
-    Footnotes group runs with the same status and message.
+    A cell reads e.g. ``4 ok, 1 failed [2]``: reason 2 says why. Runs share a reason when
+    their status and the kind of their message agree (:func:`reason_key`: the message with
+    the model's and plugins' names and the numbers left out), so "formalism 'A' does not
+    support loop-closing joints (model 'B')" and the same of another formalism and model
+    are one reason, listed once with the problems it concerns.
     """
-    footnote_ids: dict[tuple[str, str], int] = {}
-    footnote_runs: dict[tuple[str, str], list[str]] = {}
+    reason_ids: dict[tuple[str, str], int] = {}
+    reason_runs: dict[tuple[str, str], list[str]] = {}
     runs = runs.assign(status=runs["status"].where(~warned(runs), OK_WARNED))
     for row in runs[runs["status"] != "ok"].itertuples():
-        key = _footnote_key(row.status, row)
-        footnote_ids.setdefault(key, len(footnote_ids) + 1)
-        footnote_runs.setdefault(key, []).append(f"{row.problem}: {row.pair}")
+        key = reason_key(row.status, row)
+        reason_ids.setdefault(key, len(reason_ids) + 1)
+        reason_runs.setdefault(key, []).append(row.problem)
     problems = list(dict.fromkeys(runs["problem"]))
     pairs = sorted(runs["pair"].unique())
     cells = pd.DataFrame("", index=pd.Index(problems, name="problem"), columns=pairs)
@@ -191,29 +213,38 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
             of_status = group[group["status"] == status]
             text = f"{len(of_status)} {status}"
             if status != "ok":
-                keys = {_footnote_key(status, row) for row in of_status.itertuples()}
-                text += " [" + ",".join(str(i) for i in sorted(footnote_ids[k] for k in keys)) + "]"
+                keys = {reason_key(status, row) for row in of_status.itertuples()}
+                text += " [" + ",".join(str(i) for i in sorted(reason_ids[k] for k in keys)) + "]"
             parts.append(text)
         cells.loc[problem, pair] = ", ".join(parts)
     cells = cells.replace("", "-")
-    footnotes = []
-    for key, number in footnote_ids.items():
-        where = list(dict.fromkeys(footnote_runs[key]))
-        shown = "; ".join(where[:5]) + (f"; ... ({len(where) - 5} more)" if len(where) > 5 else "")
-        runs_count = len(footnote_runs[key])
-        footnotes.append(f"[{number}] {key[0]}: {key[1]} ({runs_count} run(s): {shown})")
-    return cells, footnotes
+    reasons = []
+    for key, number in reason_ids.items():
+        where = list(dict.fromkeys(reason_runs[key]))
+        shown = ", ".join(where[:6]) + (f" and {len(where) - 6} more" if len(where) > 6 else "")
+        count = len(reason_runs[key])
+        reasons.append(f"[{number}] {key[0]}: {key[1]} ({count} run(s); problems: {shown})")
+    return cells, reasons
 
 
 OK_WARNED = "ok with warnings"  # an ok row whose health audit found something
 
+_MODEL_NAME = re.compile(r"\s*\(model '[^']*'\)")
+_QUOTED_NAME = re.compile(r"(formalism|integrator|problem) '[^']*'")
+_NUMBER = re.compile(r"(?<![\w.])\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?!\w)")
 
-def _footnote_key(status: str, row: Any) -> tuple[str, str]:
-    """Runs share a footnote when their status and reason agree (for warned runs: the
-    kinds of warning, whose numbers differ from run to run)."""
+
+def reason_key(status: str, row: Any) -> tuple[str, str]:
+    """The status and the kind of reason of a not-ok row: for a warned run the kinds of its
+    warnings; otherwise its message without the model's name, plugin names and numbers
+    (times reached, step sizes), which differ from run to run for one and the same reason."""
     if status == OK_WARNED:
-        return status, ", ".join(dict.fromkeys(warning_kinds(row.warnings)))
-    return status, _one_line(row.message) or "no reason recorded"
+        kinds = [_NUMBER.sub("#", kind) for kind in warning_kinds(row.warnings)]
+        return status, ", ".join(dict.fromkeys(kinds))
+    text = _one_line(row.message) or "no reason recorded"
+    text = _MODEL_NAME.sub("", text)
+    text = _QUOTED_NAME.sub(lambda m: f"the {m.group(1)}", text)
+    return status, _NUMBER.sub("#", text)
 
 
 def statuses(values: Iterable[str]) -> list[str]:

@@ -9,9 +9,10 @@ run in the figure workers (:mod:`workbench.outputs.report.pool`) with the Agg ba
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,20 +22,37 @@ import pandas as pd
 from workbench.outputs.report.analysis import drift_runs, ok_runs, warned
 
 DRIFT_QUANTITIES: tuple[tuple[str, str], ...] = (
-    ("drift_pos", "position constraint drift"),
-    ("drift_vel", "velocity constraint drift"),
-    ("drift_nh", "nonholonomic constraint drift"),
-    ("energy_err", "relative energy error"),
+    ("drift_pos", "position constraint drift [m or rad]"),
+    ("drift_vel", "velocity constraint drift [m/s or rad/s]"),
+    ("drift_nh", "nonholonomic constraint drift [m/s or rad/s]"),
+    ("energy_err", "relative energy error [-]"),
 )
+"""Series column and axis label (with units: residual components are lengths or angles,
+their rates, or a ratio) of the quantities of the drift figure."""
 FIGURE_FORMATS: tuple[str, ...] = ("png", "svg", "pdf")
 
 
 @dataclass
+class Axis:
+    """One axis of a figure that shows tick labels: its label, and whether its ticks are
+    numbers (a numeric axis must carry a unit) or names (problems, pairs)."""
+
+    label: str
+    numeric: bool
+
+
+@dataclass
 class FigureFiles:
-    """A figure written in every format; ``png`` is shown, the others linked."""
+    """A figure written in every format; ``png`` is shown, the others linked.
+
+    axes: every axis that shows tick labels (colour bars included), read from the figure
+    when it was saved; the page states them, so a reader (and a test) can see that every
+    axis says what it shows and in which unit.
+    """
 
     stem: str
     caption: str
+    axes: list[Axis] = field(default_factory=list)
 
     def link(self, fmt: str) -> str:
         """The file in format ``fmt``, relative to the page."""
@@ -46,7 +64,7 @@ class FigureFiles:
         return [fmt for fmt in FIGURE_FORMATS if fmt != "png"]
 
 
-def _save(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
+def save_figure(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
     import matplotlib.pyplot as plt
 
     # Cropped to what is drawn (the legend's column would leave a blank margin); the box is
@@ -56,8 +74,35 @@ def _save(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
         figure.savefig(
             out / "figures" / f"{stem}.{fmt}", dpi=90 if fmt == "png" else None, bbox_inches=box
         )
+    axes = labelled_axes(figure)
     plt.close(figure)
-    return FigureFiles(stem, caption)
+    return FigureFiles(stem, caption, axes)
+
+
+def labelled_axes(figure: Any) -> list[Axis]:
+    """The axes of a drawn ``figure`` that show tick labels (shared axes whose labels are
+    hidden are left out), each with its label and whether its ticks are numbers."""
+    found = []
+    for ax in figure.axes:
+        if not (ax.get_visible() and ax.axison):
+            continue
+        for axis in (ax.xaxis, ax.yaxis):
+            shown = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
+            shown += [
+                t for t in axis.get_ticklabels(minor=True) if t.get_visible() and t.get_text()
+            ]
+            if shown:
+                numeric = all(_is_number(t.get_text()) for t in shown)
+                found.append(Axis(axis.get_label_text(), numeric))
+    return found
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.replace("\N{MINUS SIGN}", "-"))
+    except ValueError:
+        return False
+    return True
 
 
 def slug(text: str) -> str:
@@ -73,7 +118,16 @@ class PairStyles:
     """
 
     MARKERS = "osD^v<>pPX*h"
-    LINES = ("-", "--", "-.", ":")
+    LINES: tuple[Any, ...] = (
+        "-",
+        "--",
+        "-.",
+        ":",
+        (0, (6, 1.5, 1, 1.5, 1, 1.5)),
+        (0, (8, 3)),
+        (0, (1, 3)),
+        (0, (3, 1, 3, 1, 1, 1)),
+    )
 
     def __init__(self, runs: pd.DataFrame) -> None:
         import matplotlib.pyplot as plt
@@ -103,8 +157,9 @@ class PairStyles:
             style["marker"] = marker
         return style
 
-    def legend(self, figure: Any, markers: bool = True) -> None:
-        """Integrators (colours) and formalisms (line styles) right of the axes."""
+    def legend(self, figure: Any, markers: bool = True, left: float = 0.71) -> None:
+        """Integrators (colours) and formalisms (line styles) right of the axes, from
+        ``left`` (a fraction of the figure's width)."""
         from matplotlib.lines import Line2D
 
         handles = [Line2D([], [], color=self.colors[name]) for name in self.integrators]
@@ -124,27 +179,55 @@ class PairStyles:
             handles,
             labels,
             loc="upper left",
-            bbox_to_anchor=(0.71, 0.92),
+            bbox_to_anchor=(left, 0.92),
             fontsize="small" if len(labels) <= 12 else "x-small",
             ncols=1 if len(labels) <= 30 else 2,
             frameon=False,
         )
 
 
-def _log_axis(ax: Any, which: str) -> None:
-    """Log scale with plain-text labels (1e-06): mathtext labels cost most of the drawing."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+def log_axis(ax: Any, which: str) -> None:
+    """Log scale with plain-text labels (1e-06; mathtext labels cost most of the drawing).
+
+    When the data span less than a decade or two, the minor ticks (2, 3, ... times a power
+    of ten) are labelled too, so an axis never shows no number at all.
+    """
+    from matplotlib.ticker import LogFormatter, LogLocator
 
     getattr(ax, f"set_{which}scale")("log")
     axis = getattr(ax, f"{which}axis")
     axis.set_major_locator(LogLocator(numticks=8))
-    axis.set_major_formatter(FuncFormatter(lambda value, _position: f"{value:g}"))
-    axis.set_minor_formatter(NullFormatter())
+    axis.set_major_formatter(LogFormatter(labelOnlyBase=False))
+    axis.set_minor_formatter(LogFormatter(labelOnlyBase=False, minor_thresholds=(1.2, 0.6)))
+
+
+def reference_digits(runs: pd.DataFrame) -> float | None:
+    """The scd the problem's reference can confirm, -log10 of its stated relative accuracy
+    (None when no row states one)."""
+    if "reference_accuracy" not in runs:
+        return None
+    accuracy = pd.to_numeric(runs["reference_accuracy"], errors="coerce")
+    accuracy = accuracy[np.isfinite(accuracy) & (accuracy > 0)]
+    return float(-np.log10(accuracy.max())) if not accuracy.empty else None
+
+
+WORK_AXES: tuple[tuple[str, str], ...] = (
+    ("wall_s", "wall time [s]"),
+    ("n_rhs", "right-hand-side evaluations [-]"),
+)
+SCD_LABEL = "scd: correct digits at the end [-]"
 
 
 def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> FigureFiles | None:
-    """scd against wall seconds and against rhs evaluations (log x), one curve a pair."""
+    """scd against wall seconds and against rhs evaluations (log x), one curve a pair.
+
+    The runs on each panel's Pareto front (:func:`~workbench.outputs.report.overview.
+    pareto_mask`) are joined by a thick grey line; a dotted line marks the digits the
+    reference can confirm; a red ring marks a run with warnings.
+    """
     import matplotlib.pyplot as plt
+
+    from workbench.outputs.report.overview import pareto_mask
 
     ok = ok_runs(runs)
     ok = ok[np.isfinite(ok["scd"])]
@@ -153,38 +236,84 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
     pairs = sorted(ok["pair"].unique())
     styles = PairStyles(ok)
     figure, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
-    figure.subplots_adjust(left=0.06, right=0.70, bottom=0.12, top=0.88, wspace=0.08)
+    figure.subplots_adjust(left=0.06, right=0.70, bottom=0.12, top=0.86, wspace=0.08)
     for pair in pairs:
         curve = ok[ok["pair"] == pair].sort_values("rtol", ascending=False)
-        for ax, cost in zip(axes, ("wall_s", "n_rhs"), strict=True):
+        for ax, (cost, _label) in zip(axes, WORK_AXES, strict=True):
             points = curve[np.isfinite(curve[cost]) & (curve[cost] > 0)]
             if not points.empty:
                 ax.plot(points[cost], points["scd"], markersize=4, linewidth=1, **styles(pair))
                 flagged = points[warned(points)]
                 ax.scatter(flagged[cost], flagged["scd"], s=70, facecolors="none",
                            edgecolors="red", linewidths=1.2, zorder=3)  # fmt: skip
-    for ax, xlabel in zip(axes, ("wall time [s]", "right-hand-side evaluations"), strict=True):
-        _log_axis(ax, "x")
+    digits = reference_digits(runs)
+    for ax, (cost, xlabel) in zip(axes, WORK_AXES, strict=True):
+        front = ok[pareto_mask(ok, cost)].sort_values(cost)
+        if not front.empty:
+            ax.step(front[cost], front["scd"], where="post", color="0.45", linewidth=5,
+                    alpha=0.35, zorder=0, solid_capstyle="round")  # fmt: skip
+        if digits is not None:
+            ax.axhline(digits, color="0.2", linestyle=":", linewidth=1)
+            ax.annotate("reference accuracy", (0.01, digits), xycoords=("axes fraction", "data"),
+                        va="bottom", fontsize="x-small", color="0.2")  # fmt: skip
+        log_axis(ax, "x")
         ax.set_xlabel(xlabel)
         ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("scd (correct digits at the end)")
-    title = f"{problem}: work-precision (one point per tolerance)"
+    axes[0].set_ylabel(SCD_LABEL)
+    title = f"{problem}: work-precision (one point per tolerance; grey band: Pareto front)"
     if warned(ok).any():
         title += "\nred ring: the run carries warnings (it may be wrong; see the status table)"
     figure.suptitle(title, x=0.38)
     styles.legend(figure)
-    return _save(
+    return save_figure(
         figure,
         out,
         f"{slug(problem)}-work-precision",
-        f"{problem}: work-precision diagrams (scd against wall time and rhs evaluations)",
+        f"{problem}: work-precision diagrams (scd against wall time and rhs evaluations; "
+        "grey band: the Pareto front, runs no other run beats on both cost and accuracy)",
     )
+
+
+def _run_series(series: Mapping[str, pd.DataFrame | None], run_id: str) -> pd.DataFrame | None:
+    run_series = series.get(run_id)
+    if run_series is None or len(run_series) == 0 or "t" not in run_series:
+        return None
+    if "run_id" in run_series:
+        run_series = run_series[run_series["run_id"].astype(str) == run_id]
+    return run_series
+
+
+def measured_quantities(
+    chosen: pd.DataFrame, series: Mapping[str, pd.DataFrame | None]
+) -> tuple[list[tuple[str, str]], dict[str, str]]:
+    """The drift quantities with a nonzero value somewhere, and why each other one is not
+    drawn: "not measured" (NaN throughout: no such constraint, or not conservative) is a
+    different thing from "exactly zero" (measured, and zero at every sample)."""
+    drawn, absent = [], {}
+    for column, label in DRIFT_QUANTITIES:
+        values = [
+            np.abs(s[column].to_numpy(dtype=float))
+            for run_id in chosen["run_id"]
+            if (s := _run_series(series, run_id)) is not None and column in s
+        ]
+        finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.array([])
+        name = label.split(" [")[0]
+        if finite.size == 0:
+            absent[column] = f"{name}: not measured (no such constraint, or not conservative)"
+        elif not np.any(finite > 0):
+            absent[column] = f"{name}: exactly zero at every sample"
+        else:
+            drawn.append((column, label))
+    return drawn, absent
 
 
 def drift_figure(
     runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path, problem: str
 ) -> tuple[FigureFiles | None, float | None]:
-    """Drift and energy error over time for every pair at the middle tolerance (log y).
+    """Drift and energy error over time at the middle tolerance (log y), as small multiples:
+    one row a measured quantity, one column a formalism, one curve an integrator (so no
+    panel overlays more curves than there are integrators). Quantities not drawn are
+    named in the caption, "not measured" apart from "exactly zero".
 
     series: run_id -> that run's time series (None or missing: not drawn).
     """
@@ -193,47 +322,108 @@ def drift_figure(
     rtol, chosen = drift_runs(runs)
     if series is None or rtol is None:
         return None, rtol
+    drawn, absent = measured_quantities(chosen, series)
+    if not drawn:
+        return None, rtol
     styles = PairStyles(chosen)
-    figure, axes = plt.subplots(2, 2, figsize=(12, 7.5), sharex=True)
-    figure.subplots_adjust(left=0.07, right=0.70, bottom=0.08, top=0.91, wspace=0.22, hspace=0.18)
-    drawn: set[str] = set()
+    formalisms = styles.formalisms
+    columns = len(formalisms)
+    figure, axes = plt.subplots(
+        len(drawn),
+        columns,
+        figsize=(min(3.2 * columns, 16) + 2.5, 2.3 * len(drawn) + 0.9),
+        sharex=True,
+        sharey="row",
+        squeeze=False,
+    )
+    legend_room = 2.5 / (min(3.2 * columns, 16) + 2.5)
+    figure.subplots_adjust(left=0.07, right=0.98 - legend_room, bottom=0.1, top=0.86,
+                           wspace=0.08, hspace=0.25)  # fmt: skip
     for row in chosen.itertuples():
-        run_series = series.get(row.run_id)
-        if run_series is None or len(run_series) == 0 or "t" not in run_series:
+        run_series = _run_series(series, row.run_id)
+        if run_series is None:
             continue
-        if "run_id" in run_series:
-            run_series = run_series[run_series["run_id"].astype(str) == row.run_id]
+        formalism, _integrator = styles.parts[row.pair]
         t = run_series["t"].to_numpy(dtype=float)
-        for ax, (column, _label) in zip(axes.flat, DRIFT_QUANTITIES, strict=True):
+        for k, (column, _label) in enumerate(drawn):
             if column not in run_series:
                 continue
             values = np.abs(run_series[column].to_numpy(dtype=float))
             keep = np.isfinite(values) & (values > 0)
             if keep.any():
+                ax = axes[k, formalisms.index(formalism)]
                 ax.plot(t[keep], values[keep], linewidth=1, **styles(row.pair, markers=False))
-                drawn.add(column)
-    if not drawn:
-        plt.close(figure)
-        return None, rtol
-    for ax, (column, label) in zip(axes.flat, DRIFT_QUANTITIES, strict=True):
-        ax.set_title(label, fontsize="medium")
-        if column in drawn:
-            _log_axis(ax, "y")
-        else:
-            ax.text(
-                0.5,
-                0.5,
-                "none (zero or not measured)",
-                ha="center",
-                va="center",
-                transform=ax.transAxes,
-                color="gray",
-            )
-            ax.set_yticks([])
-        ax.grid(True, alpha=0.3)
-    for ax in axes[1]:
-        ax.set_xlabel("time [s]")
-    figure.suptitle(f"{problem}: drift and energy error at rtol = {rtol:g}", x=0.385)
-    styles.legend(figure, markers=False)
+    for k, (_column, label) in enumerate(drawn):
+        for j, formalism in enumerate(formalisms):
+            ax = axes[k, j]
+            if ax.lines:
+                log_axis(ax, "y")
+            if k == 0:
+                ax.set_title(formalism, fontsize="small")
+            if j == 0:
+                ax.set_ylabel(label.replace(" [", "\n["), fontsize="small")
+            if k == len(drawn) - 1:
+                ax.set_xlabel("time [s]")
+            ax.grid(True, alpha=0.3)
+    figure.suptitle(
+        f"{problem}: drift and energy error at rtol = {rtol:g} (columns: formalisms)",
+        x=0.5 - legend_room / 2,
+    )
+    styles.legend(figure, markers=False, left=1.0 - legend_room)
     caption = f"{problem}: constraint drift and energy error over time at rtol = {rtol:g}"
-    return _save(figure, out, f"{slug(problem)}-drift", caption), rtol
+    if absent:
+        caption += "; not drawn: " + "; ".join(absent.values())
+    return save_figure(figure, out, f"{slug(problem)}-drift", caption), rtol
+
+
+def error_figure(
+    runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path, problem: str
+) -> FigureFiles | None:
+    """The sanity check of a problem's trajectory: the pose error against the reference at
+    every sample, for the most accurate trusted run and the run of the Pareto front's
+    cheapest end (an error that grows or jumps shows a wrong branch or a bad reference)."""
+    import matplotlib.pyplot as plt
+
+    from workbench.outputs.report.overview import pareto_mask, trusted
+
+    if series is None:
+        return None
+    candidates = trusted(runs)
+    if candidates.empty:
+        return None
+    front = candidates[pareto_mask(candidates)].sort_values("wall_s")
+    picks = [candidates.loc[candidates["scd"].idxmax()], front.iloc[0]]
+    length = float(picks[0].get("length_scale", math.nan))
+    relative = math.isfinite(length) and length > 0  # else the error in metres
+    figure, ax = plt.subplots(figsize=(8, 3.4))
+    figure.subplots_adjust(left=0.1, right=0.97, bottom=0.16, top=0.86)
+    seen = set()
+    for pick, what in zip(picks, ("most accurate", "cheapest on the Pareto front"), strict=True):
+        if pick["run_id"] in seen:
+            continue
+        seen.add(pick["run_id"])
+        run_series = _run_series(series, str(pick["run_id"]))
+        if run_series is None or "ref_err" not in run_series:
+            continue
+        t = run_series["t"].to_numpy(dtype=float)
+        error = run_series["ref_err"].to_numpy(dtype=float) / (length if relative else 1.0)
+        keep = np.isfinite(error) & (error > 0)
+        if keep.any():
+            ax.plot(t[keep], error[keep], linewidth=1,
+                    label=f"{what}: {pick['pair']} @ rtol {pick['rtol']:g}")  # fmt: skip
+    if not ax.lines:
+        plt.close(figure)
+        return None
+    log_axis(ax, "y")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("pose error / L [-]" if relative else "pose error [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="x-small", loc="best", frameon=False)
+    figure.suptitle(f"{problem}: error along the trajectory", fontsize="medium")
+    return save_figure(
+        figure,
+        out,
+        f"{slug(problem)}-error",
+        f"{problem}: pose error against the reference along the trajectory (relative to the "
+        "length scale L)",
+    )

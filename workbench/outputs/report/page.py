@@ -67,6 +67,26 @@ class ProblemSection:
     rtol: float | None
     drift: FigureFiles | None
     drift_table: PageTable | None
+    error: FigureFiles | None = None
+
+
+@dataclass
+class Overview:
+    """The top of the page: which pair to use (:mod:`workbench.outputs.report.overview`).
+
+    sentence: the recommendation; target: the scd it is made at; heat_map: cost of each
+    pair at the target relative to the best (None: no run reached it); ranking: the pairs
+    by problems within the factor of the best; pareto: every problem's Pareto front;
+    convergence: the fixed-step methods' order plot (None: no fixed-step runs).
+    """
+
+    sentence: str
+    target: float
+    heat_map: FigureFiles | None
+    ranking: PageTable
+    pareto: PageTable
+    convergence: FigureFiles | None
+    trusted_runs: int
 
 
 def environment() -> Environment:
@@ -85,6 +105,7 @@ def environment() -> Environment:
 def render_page(
     title: str,
     runs: pd.DataFrame,
+    overview: Overview,
     summary: pd.DataFrame,
     status: pd.DataFrame,
     footnotes: list[str],
@@ -94,6 +115,7 @@ def render_page(
 ) -> str:
     """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
 
+    overview: the recommendation and the figures above everything else.
     footnotes: as :func:`workbench.outputs.report.analysis.status_matrix` gives them,
     ``"[n] text"``; the page numbers them itself.
     """
@@ -106,6 +128,7 @@ def render_page(
             n_runs=len(runs),
             n_pairs=runs["pair"].nunique(),
             problems=[(problem, slug(problem)) for problem in problems],
+            overview=overview,
             summary=PageTable.of(summary, "summary"),
             status=PageTable.of(status, "status"),
             footnotes=[note.split("] ", 1)[1] for note in footnotes],

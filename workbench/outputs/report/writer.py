@@ -23,14 +23,35 @@ from workbench.outputs.report.analysis import (
     status_counts,
     status_matrix,
 )
-from workbench.outputs.report.figures import drift_figure, slug, work_precision_figure
-from workbench.outputs.report.page import PageTable, ProblemSection, render_page
+from workbench.outputs.report.figures import (
+    drift_figure,
+    error_figure,
+    slug,
+    work_precision_figure,
+)
+from workbench.outputs.report.overview import (
+    cost_at_target,
+    cost_ratio,
+    pareto_mask,
+    recommend,
+    trusted,
+)
+from workbench.outputs.report.overview_figures import convergence_figure, heat_map_figure
+from workbench.outputs.report.page import Overview, PageTable, ProblemSection, render_page
 from workbench.outputs.report.pool import figure_executor, figure_jobs
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
 from workbench.runs.progress import progress_bar
 
 SeriesLoader = Callable[[str], pd.DataFrame | None]
+SUMMARY_CAPTION = (
+    "Cheapest pair (least wall time) reaching each target scd, among the runs without "
+    "warnings; errors are pose errors over the samples (L2: root mean square)"
+)
+STATUS_CAPTION = (
+    "Runs by status, per problem and pair; the numbers in brackets refer to the reasons "
+    "listed in the report"
+)
 
 
 def write_report(
@@ -62,12 +83,13 @@ def write_report(
     problems = list(dict.fromkeys(runs["problem"]))
     summary = cheapest_pairs(runs)
     matrix, footnotes = status_matrix(runs)
-    write_table(summary, out / "tables", "summary")
-    write_table(matrix, out / "tables", "status")
+    write_table(summary, out / "tables", "summary", SUMMARY_CAPTION)
+    write_table(matrix, out / "tables", "status", STATUS_CAPTION)
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
     cards = scorecards(runs)
     for card in cards:
-        write_table(card.table, out / "tables", card.name)
+        write_table(card.table, out / "tables", card.name, card.title)
+    overview = overview_of(runs, out)
 
     jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
     show = len(problems) > 1 if progress is None else progress
@@ -85,7 +107,9 @@ def write_report(
             sections.append(future.result())
             bar.step(problem)
 
-    page = render_page(title, runs, summary, matrix, footnotes, sections, command, cards)
+    page = render_page(
+        title, runs, overview, summary, matrix, footnotes, sections, command, cards
+    )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
     return index
@@ -139,15 +163,77 @@ def report_directory(
     return write_report(frame, series_loader, target, command, progress=progress)
 
 
+def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
+    """The overview of the page: the recommendation, the heat map of cost at its target
+    (figure and table ``cost-at-target``), the Pareto fronts (table ``pareto``) and the
+    convergence of the fixed-step methods."""
+    recommendation = recommend(runs)
+    target, cost = recommendation.target, recommendation.cost
+    ratio = cost_ratio(cost_at_target(runs, target, cost))
+    heat_map = heat_map_figure(ratio, target, cost, out)
+    ratio_table = ratio.copy()
+    ratio_table.index.name = "problem"
+    write_table(
+        ratio_table,
+        out / "tables",
+        "cost-at-target",
+        f"Wall time of each pair at scd >= {target:g} divided by the least wall time on the "
+        "problem (1: the best; empty: not reached without warnings)",
+    )
+    fronts = []
+    for _problem, group in runs.groupby("problem", sort=False):
+        front = group[pareto_mask(group)].sort_values("wall_s")
+        columns = ["problem", "pair", "rtol", "scd", "err_l2", "err_max", "wall_s", "n_rhs"]
+        fronts.append(front[columns])
+    pareto = pd.concat(fronts, ignore_index=True) if fronts else pd.DataFrame()
+    write_table(
+        pareto,
+        out / "tables",
+        "pareto",
+        "Pareto front of each problem: the runs without warnings that no other run beats "
+        "on both wall time and scd",
+    )
+    factor = f"{recommendation.factor:g}x"
+    ranking = (
+        recommendation.table.head(8)
+        .reset_index()
+        .rename(
+            columns={
+                "within": f"problems within {factor} of the best",
+                "reached": f"problems reaching scd >= {target:g}",
+                "geometric mean ratio": "geometric mean of cost / best",
+            }
+        )
+    )
+    write_table(
+        ranking, out / "tables", "ranking", f"Pairs at scd >= {target:g}: {recommendation.sentence}"
+    )
+    return Overview(
+        sentence=recommendation.sentence,
+        target=target,
+        heat_map=heat_map,
+        ranking=PageTable.of(ranking, "ranking"),
+        pareto=PageTable.of(pareto, "pareto"),
+        convergence=convergence_figure(runs, out),
+        trusted_runs=len(trusted(runs)),
+    )
+
+
 def _load_series(
     runs: pd.DataFrame, series_loader: SeriesLoader | None
 ) -> dict[str, pd.DataFrame | None] | None:
-    """The time series of the runs a problem's drift figure draws (read in this process)."""
+    """The time series of the runs a problem's figures draw (read in this process): the
+    pairs at the middle tolerance and the runs of the error figure."""
     if series_loader is None:
         return None
     _rtol, chosen = drift_runs(runs)
+    wanted = list(chosen["run_id"])
+    candidates = trusted(runs)
+    if not candidates.empty:
+        front = candidates[pareto_mask(candidates)].sort_values("wall_s")
+        wanted += [candidates.loc[candidates["scd"].idxmax(), "run_id"], front["run_id"].iloc[0]]
     series: dict[str, pd.DataFrame | None] = {}
-    for run_id in chosen["run_id"]:
+    for run_id in dict.fromkeys(wanted):
         try:
             series[run_id] = series_loader(run_id)
         except (WorkbenchError, OSError, ValueError, KeyError) as error:
@@ -168,11 +254,16 @@ def problem_section(
     problem = str(runs["problem"].iloc[0])
     work_precision = work_precision_figure(runs, out, problem)
     drift, rtol = drift_figure(runs, series, out, problem)
+    error = error_figure(runs, series, out, problem)
     table = None
     if rtol is not None:
-        name = f"drift-{slug(problem)}"
+        name = f"drift-{slug(problem)}-rtol-{rtol:g}"
         frame = drift_table(runs)
-        write_table(frame, out / "tables", name)
+        caption = (
+            f"{problem}: largest constraint drift, energy and invariant errors and pose errors "
+            f"(end, L2 and maximum over the samples) of every pair at rtol = {rtol:g}"
+        )
+        write_table(frame, out / "tables", name, caption)
         table = PageTable.of(frame, name)
     return ProblemSection(
         problem=problem,
@@ -183,4 +274,5 @@ def problem_section(
         rtol=rtol,
         drift=drift,
         drift_table=table,
+        error=error,
     )

@@ -1,0 +1,98 @@
+"""The report's LaTeX tables are ready for a paper: a table float with caption and label,
+booktabs rules, readable headers with units, one number format a column, and they compile
+in a minimal document (when a TeX engine is installed; the structure is checked always)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.test_report import synthetic_results, synthetic_series
+from workbench.outputs.report import write_report
+from workbench.outputs.report.tables import column_formatter, latex_table
+
+DOCUMENT = r"""\documentclass{article}
+\usepackage[T1]{fontenc}
+\usepackage{booktabs}
+\usepackage[margin=1cm,landscape]{geometry}
+\begin{document}
+%s
+\end{document}
+"""
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("report")
+    write_report(synthetic_results(), synthetic_series, out, "cmd")
+    return out / "tables"
+
+
+def unescaped_ampersands(line: str) -> int:
+    return len(re.findall(r"(?<!\\)&", line))
+
+
+def test_tables_are_captioned_labelled_booktabs_floats(report: Path) -> None:
+    tables = sorted(report.glob("*.tex"))
+    names = {path.stem for path in tables}
+    assert {"summary", "status", "ranking", "pareto", "cost-at-target"} <= names
+    drift = [name for name in names if name.startswith("drift-")]
+    assert drift and all(name.endswith("-rtol-1e-05") for name in drift)  # names its rtol
+    for path in tables:
+        text = path.read_text(encoding="utf-8")
+        lines = text.splitlines()
+        assert lines[0] == "\\begin{table}[htbp]" and lines[-1] == "\\end{table}", path
+        assert re.search(r"\\caption\{.+\}", text) and f"\\label{{tab:{path.stem}}}" in text
+        assert text.count("\\toprule") == text.count("\\midrule") == text.count("\\bottomrule") == 1
+        (align,) = re.findall(r"\\begin\{tabular\}\{([lr]+)\}", text)
+        body = lines[lines.index("\\toprule") + 1 : lines.index("\\bottomrule")]
+        rows = [line for line in body if line != "\\midrule"]
+        assert all(unescaped_ampersands(row) == len(align) - 1 for row in rows), path
+    drift_text = (report / f"{drift[0]}.tex").read_text(encoding="utf-8")
+    assert "rtol = 1e-05" in drift_text  # the caption says which tolerance
+    assert "max position drift [m or rad]" in drift_text and "L2 error [m]" in drift_text
+    summary = (report / "summary.tex").read_text(encoding="utf-8")
+    assert "wall time [s]" in summary and "wall\\_s" not in summary
+
+
+def test_one_number_format_a_column() -> None:
+    fmt = column_formatter("wall_s", pd.Series([0.0123, 1.5, np.nan]))
+    assert [fmt(v) for v in (0.0123, 1.5, np.nan)] == ["0.012", "1.500", ""]
+    wide = column_formatter("err_max", pd.Series([1e-9, 3e-4]))
+    assert [wide(v) for v in (1e-9, 3e-4)] == ["1.00e-09", "3.00e-04"]
+    assert column_formatter("n_rhs", pd.Series([120.0, 4000.0]))(120.0) == "120"
+    assert column_formatter("rtol", pd.Series([1e-4, 1e-6]))(1e-4) == "1.00e-04"
+    lines = latex_table(pd.DataFrame({"scd": [5.25, 12.5]})).splitlines()
+    assert lines[4:6] == ["5.25 \\\\", "12.50 \\\\"]  # one format: 2 decimals
+
+
+def test_a_table_compiles_with_booktabs(report: Path, tmp_path: Path) -> None:
+    engine = shutil.which("pdflatex")
+    if engine is None:
+        pytest.skip(
+            "no TeX engine (pdflatex): apt-get install -y texlive-latex-base "
+            "texlive-latex-recommended; the structure is checked by the test above"
+        )
+    body = "\n".join(
+        (report / f"{name}.tex").read_text(encoding="utf-8")
+        for name in ("summary", "status", "ranking")
+    )
+    drift = next(report.glob("drift-*.tex")).read_text(encoding="utf-8")
+    (tmp_path / "paper.tex").write_text(DOCUMENT % (body + drift), encoding="utf-8")
+    run = subprocess.run(
+        [engine, "-interaction=nonstopmode", "-halt-on-error", "paper.tex"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stdout[-2000:]
+    assert (tmp_path / "paper.pdf").stat().st_size > 1000
+    log = (tmp_path / "paper.log").read_text(encoding="utf-8", errors="replace")
+    assert "Undefined control sequence" not in log

@@ -1,0 +1,185 @@
+"""The report's overview: Pareto fronts, cost at a fixed accuracy, the recommendation,
+and the axes of its figures (labelled, with units, numbers even on short log axes)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.test_report import synthetic_results, synthetic_series
+from workbench.outputs.report import prepare_results, write_report
+from workbench.outputs.report.figures import measured_quantities, work_precision_figure
+from workbench.outputs.report.overview import (
+    cost_at_target,
+    cost_ratio,
+    overview_target,
+    pareto_mask,
+    recommend,
+)
+
+
+def rows(
+    points: list[tuple[str, str, float, float]], warnings: tuple[int, ...] = ()
+) -> pd.DataFrame:
+    """Runs (problem, pair 'f / i', scd, wall_s), all ok; the rows in ``warnings`` warned."""
+    frame = pd.DataFrame(
+        [
+            {
+                "run_id": f"r{k}",
+                "problem": problem,
+                "formalism": pair.split(" / ")[0],
+                "integrator": pair.split(" / ")[1],
+                "rtol": 1e-6,
+                "status": "ok",
+                "scd": scd,
+                "wall_s": wall,
+                "n_rhs": 100.0,
+                "warnings": "singular passage: lost rank" if k in warnings else "",
+            }
+            for k, (problem, pair, scd, wall) in enumerate(points)
+        ]
+    )
+    return prepare_results(frame)
+
+
+def test_pareto_front_keeps_exactly_the_undominated_runs() -> None:
+    runs = rows(
+        [
+            ("p", "a / x", 4.0, 1.0),  # front: cheapest
+            ("p", "a / x", 6.0, 2.0),  # front
+            ("p", "b / y", 5.0, 3.0),  # dominated by (6, 2)
+            ("p", "b / y", 8.0, 5.0),  # front: most accurate
+            ("p", "c / z", 6.0, 2.0),  # ties (6, 2): neither dominates the other
+            ("p", "c / z", 9.0, 0.5),  # would dominate all, but carries a warning
+        ],
+        warnings=(5,),
+    )
+    assert list(pareto_mask(runs)) == [True, True, False, True, True, False]
+
+
+def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_runs() -> None:
+    points = []
+    for problem, a_wall, b_wall in (("p1", 1.0, 1.5), ("p2", 1.0, 3.0), ("p3", 4.0, 1.0)):
+        points += [(problem, "a / x", 7.0, a_wall), (problem, "b / y", 7.0, b_wall)]
+    points.append(("p2", "b / y", 7.0, 0.1))  # b's cheap run on p2 is not to be trusted
+    runs = rows(points, warnings=(len(points) - 1,))
+    costs = cost_at_target(runs, 6.0)
+    assert costs.loc["p2", "b / y"] == 3.0  # the warned 0.1 s run does not count
+    ratio = cost_ratio(costs)
+    assert np.allclose(ratio.min(axis=1), 1.0)
+    found = recommend(runs, target=6.0)
+    # a: within 2x on p1 (1), p2 (1); not p3 (4x). b: p1 (1.5), p3 (1); not p2 (3x).
+    # Both 2 of 3; a's geometric mean ratio (4^(1/3) = 1.59) beats b's (4.5^(1/3) = 1.65).
+    assert found.pair == "a / x" and found.within == 2 and found.reached == 3
+    assert found.sentence.startswith("a / x is within 2x of the best wall time on 2 of 3")
+    assert "scd >= 6" in found.sentence
+
+
+def test_target_is_the_highest_reached_on_two_thirds_of_the_problems() -> None:
+    runs = rows([("p1", "a / x", 8.5, 1.0), ("p2", "a / x", 6.5, 1.0), ("p3", "a / x", 5.0, 1.0)])
+    assert overview_target(runs) == 6.0  # 8 on one of three, 6 on two of three
+    nothing = recommend(rows([("p", "a / x", 1.0, 1.0)]), target=6.0)
+    assert nothing.pair is None and "no recommendation" in nothing.sentence
+
+
+def test_a_short_log_axis_still_has_numbers(tmp_path: Path) -> None:
+    """Wall times 2-6 ms (less than a decade) and rhs counts 300-900: each log axis must
+    show at least two numbers, and every axis a label with a unit."""
+    runs = rows([("p", "a / x", 4.0, 2e-3), ("p", "a / x", 6.0, 6e-3)])
+    runs["n_rhs"] = [300.0, 900.0]
+    (tmp_path / "figures").mkdir()
+    figure = work_precision_figure(runs, tmp_path, "p")
+    assert figure is not None
+    assert all(axis.label and "[" in axis.label and axis.numeric for axis in figure.axes)
+    assert {axis.label for axis in figure.axes} >= {
+        "wall time [s]",
+        "right-hand-side evaluations [-]",
+    }
+
+
+def test_tick_labels_of_a_short_log_axis() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    from workbench.outputs.report.figures import log_axis
+
+    figure, ax = plt.subplots()
+    ax.plot([2e-3, 6e-3], [1, 2])
+    log_axis(ax, "x")
+    figure.canvas.draw()
+    lo, hi = ax.get_xlim()
+    shown = [
+        t.get_text()
+        for t in ax.xaxis.get_ticklabels() + ax.xaxis.get_ticklabels(minor=True)
+        if t.get_text() and lo <= t.get_position()[0] <= hi
+    ]
+    plt.close(figure)
+    assert len(shown) >= 2, shown
+
+
+def test_not_measured_and_exactly_zero_are_told_apart() -> None:
+    chosen = pd.DataFrame({"run_id": ["r"]})
+    series = synthetic_series("r")
+    series["drift_vel"] = np.nan  # no velocity constraint
+    drawn, absent = measured_quantities(chosen, {"r": series})
+    assert [column for column, _label in drawn] == ["drift_pos", "energy_err"]
+    assert "not measured" in absent["drift_vel"]
+    assert "exactly zero" in absent["drift_nh"]
+    assert all("[" in label for _column, label in drawn)
+
+
+def test_overview_opens_the_page(tmp_path: Path) -> None:
+    index = write_report(synthetic_results(), synthetic_series, tmp_path, "cmd")
+    page = index.read_text(encoding="utf-8")
+    assert page.index('id="overview"') < page.index("Cheapest pair reaching each accuracy")
+    assert "within 2x of the best wall time" in page
+    assert (tmp_path / "tables" / "cost-at-target.tex").is_file()
+    assert (tmp_path / "tables" / "pareto.csv").is_file()
+
+
+def test_convergence_plot_of_fixed_step_runs_fits_the_order(tmp_path: Path) -> None:
+    """Rows with a fixed step and an end error C h^2 (a second-order method): the figure
+    is drawn and its legend states the order 2.00; adaptive rows (NaN step) are left out."""
+    from workbench.outputs.report.overview_figures import (
+        convergence_figure,
+        fixed_step_rows,
+        observed_order,
+    )
+
+    steps = np.array([1e-2, 1e-3, 1e-4])
+    points = [("p", "a / alpha", 3.0, 1.0)] * 3 + [("p", "a / dop", 8.0, 1.0)]
+    runs = rows(points)
+    runs["fixed_step_s"] = [*steps, np.nan]
+    runs["length_scale"] = 2.0
+    runs["err_end"] = [*(2.0 * 0.3 * steps**2), 1e-9]
+    chosen = fixed_step_rows(runs)
+    assert list(chosen["pair"].unique()) == ["a / alpha"]
+    assert observed_order(
+        chosen["fixed_step_s"].to_numpy(), chosen["relative_error"].to_numpy()
+    ) == (pytest.approx(2.0))
+    (tmp_path / "figures").mkdir()
+    figure = convergence_figure(runs, tmp_path)
+    assert figure is not None and (tmp_path / "figures" / "overview-convergence.png").is_file()
+    assert {axis.label for axis in figure.axes} == {"step h [s]", "end pose error / L [-]"}
+    assert convergence_figure(runs[runs["pair"] == "a / dop"], tmp_path) is None
+
+
+def test_seven_formalisms_get_seven_line_styles_and_markers() -> None:
+    """Colour by integrator; line style and marker by formalism, all distinct for 7+."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from workbench.outputs.report.figures import PairStyles
+
+    pairs = [(f"f{k}", f"i{j}") for k in range(7) for j in range(3)]
+    runs = rows([("p", f"{f} / {i}", 4.0, 1.0) for f, i in pairs])
+    styles = PairStyles(runs)
+    looks = {(str(s["linestyle"]), s["marker"], s["color"]) for s in map(styles, runs["pair"])}
+    assert len(looks) == 21  # every pair looks different
+    assert len({str(styles.marks[f][1]) for f in styles.formalisms}) == 7  # line styles
+    assert len({styles.marks[f][0] for f in styles.formalisms}) == 7  # markers

@@ -1,0 +1,82 @@
+"""`workbench results`: a summary by default, rows on request, filtered, sorted, with
+options as columns, and as CSV, Markdown or LaTeX."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from tests.test_report import synthetic_results
+from workbench.cli import app
+from workbench.errors import ConfigError
+from workbench.outputs.results_table import results_table, with_option_columns
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def results(tmp_path: Path) -> Path:
+    frame = synthetic_results()
+    frame["schema_version"] = 4
+    frame["warnings"] = ""
+    frame.loc[0, "warnings"] = "singular passage: lost rank"
+    frame.loc[frame["integrator"] == "generalized-alpha", "integrator_options"] = json.dumps(
+        {"rho_inf": 0.9, "step": None}
+    )
+    path = tmp_path / "results.parquet"
+    frame.to_parquet(path)
+    return path
+
+
+def test_default_is_one_line_a_problem_whose_counts_add_up(results: Path) -> None:
+    frame = pd.read_parquet(results)
+    table = results_table(frame)
+    assert list(table["problem"]) == ["simple-pendulum", "heavy-top"]
+    counts = table[["ok", "ok with warnings", "failed", "timeout", "skipped"]].sum(axis=1)
+    assert list(counts) == list(table["runs"]) == [12, 12]
+    assert table.loc[0, "ok with warnings"] == 1
+    # the best scd is that of a trusted run, and the pair named is the cheapest reaching it
+    trusted = frame[(frame["status"] == "ok") & (frame["warnings"] == "")]
+    best = trusted[trusted["problem"] == "heavy-top"]["scd"].max()
+    assert table.loc[1, "scd"] == best
+
+
+def test_rows_filter_sort_and_option_columns(results: Path) -> None:
+    frame = pd.read_parquet(results)
+    table = results_table(frame, by="run", where=["problem=heavy-top", "scd>=6"], sort=["-scd"])
+    assert (table["problem"] == "heavy-top").all() and (table["scd"] >= 6).all()
+    assert list(table["scd"]) == sorted(table["scd"], reverse=True)
+    assert "integrator.rho_inf" in table.columns and "integrator_options" not in table.columns
+    spread = with_option_columns(frame)
+    assert set(spread["integrator.order"].astype(str)) == {"5", ""}  # radau's only
+    with pytest.raises(ConfigError, match="no column 'nonsense'.*the columns are"):
+        results_table(frame, by="run", sort=["nonsense"])
+    with pytest.raises(ConfigError, match="COLUMN OP VALUE"):
+        results_table(frame, where=["scd"])
+    with pytest.raises(ConfigError, match="needs a number"):
+        results_table(frame, where=["scd>=many"])
+
+
+def test_formats_from_the_command_line(results: Path) -> None:
+    outcome = runner.invoke(app, ["results", str(results), "--format", "csv", "--by", "pair"])
+    assert outcome.exit_code == 0, outcome.output
+    csv = pd.read_csv(io.StringIO(outcome.output))
+    assert len(csv) == 2 * 4 and "pair" in csv.columns  # problems x pairs
+    latex = runner.invoke(app, ["results", str(results), "-f", "latex", "-c", "problem,scd,wall_s"])
+    assert latex.exit_code == 0, latex.output
+    assert "\\toprule" in latex.output and "\\caption{" in latex.output
+    assert "wall time [s]" in latex.output
+    markdown = runner.invoke(
+        app, ["results", str(results), "-f", "markdown", "-w", "status=failed", "--by", "run"]
+    )
+    assert markdown.exit_code == 0 and markdown.output.startswith("| problem |")
+    assert markdown.output.count("\n") == 2 + 1  # header, rule, the one failed run
+    bad = runner.invoke(app, ["results", str(results), "-f", "xml"])
+    assert bad.exit_code == 2 and "choose one of table, csv, markdown, latex" in bad.output
+    table = runner.invoke(app, ["results", str(results)])
+    assert table.exit_code == 0 and "2 problems of 24 runs" in table.output

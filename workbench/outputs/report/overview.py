@@ -1,0 +1,141 @@
+"""The report's overview: which pair to use, computed from the runs.
+
+Three views, all on the trustworthy runs only (status ``ok`` and no audit warning; a run
+with warnings may be wrong, so it never counts as reaching an accuracy):
+
+* the Pareto front of each problem: the runs no other run beats on both cost and scd
+  (a run is dominated when another costs no more and has no fewer correct digits, and is
+  strictly better in one of the two);
+* the cost of each pair at a fixed accuracy: its least cost among runs with scd >= target,
+  divided by the least cost of any pair on that problem (1 = the best; NaN = never reached);
+* a recommendation: the pair within ``factor`` of the best on the most problems at that
+  target (ties broken by the geometric mean of its cost ratios over the problems it reached).
+
+The target is chosen from the data (:func:`overview_target`): the highest of
+:data:`OVERVIEW_TARGETS` that trustworthy runs reach on at least two thirds of the problems
+(:data:`COVERAGE`), so the recommendation speaks for most of the catalog.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from workbench.outputs.report.analysis import ok_runs, warned
+
+OVERVIEW_TARGETS: tuple[float, ...] = (10.0, 8.0, 6.0, 4.0, 2.0)
+COST_COLUMNS: dict[str, str] = {"wall_s": "wall time [s]", "n_rhs": "rhs evaluations [-]"}
+WITHIN_FACTOR = 2.0
+COVERAGE = 2 / 3  # of the problems that must reach the overview's target
+
+
+def trusted(runs: pd.DataFrame, cost: str = "wall_s") -> pd.DataFrame:
+    """Ok runs without warnings whose scd and ``cost`` are finite (cost > 0)."""
+    ok = ok_runs(runs[~warned(runs)])
+    return ok[np.isfinite(ok["scd"]) & np.isfinite(ok[cost]) & (ok[cost] > 0)]
+
+
+def pareto_mask(runs: pd.DataFrame, cost: str = "wall_s") -> pd.Series:
+    """True for the rows of ``runs`` (one problem's) on the Pareto front of cost against scd;
+    False for every other row, including the untrusted ones (:func:`trusted`)."""
+    candidates = trusted(runs, cost)
+    mask = pd.Series(False, index=runs.index)
+    costs, digits = candidates[cost].to_numpy(), candidates["scd"].to_numpy()
+    for label, c, d in zip(candidates.index, costs, digits, strict=True):
+        no_worse = (costs <= c) & (digits >= d)
+        better = (costs < c) | (digits > d)
+        mask[label] = not np.any(no_worse & better)
+    return mask
+
+
+def cost_at_target(runs: pd.DataFrame, target: float, cost: str = "wall_s") -> pd.DataFrame:
+    """Problem x pair table of the least ``cost`` among trusted runs with scd >= ``target``
+    (NaN where a pair never reached it)."""
+    reached = trusted(runs, cost)
+    reached = reached[reached["scd"] >= target]
+    problems = list(dict.fromkeys(runs["problem"]))
+    pairs = sorted(runs["pair"].unique())
+    least = reached.groupby(["problem", "pair"])[cost].min().unstack("pair")
+    return least.reindex(index=problems, columns=pairs).rename_axis(index="problem", columns=None)
+
+
+def cost_ratio(costs: pd.DataFrame) -> pd.DataFrame:
+    """``costs`` divided by each problem's least cost (rows with no value stay NaN)."""
+    return costs.div(costs.min(axis=1), axis=0)
+
+
+def overview_target(runs: pd.DataFrame, targets: Sequence[float] = OVERVIEW_TARGETS) -> float:
+    """The highest target scd that trusted runs reach on at least :data:`COVERAGE` of the
+    problems (the lowest of ``targets`` when none is)."""
+    problems = runs["problem"].nunique()
+    reached = trusted(runs)
+    best = reached.groupby("problem")["scd"].max()
+    for target in sorted(targets, reverse=True):
+        if problems and (best >= target).sum() >= COVERAGE * problems - 1e-9:
+            return float(target)
+    return float(min(targets))
+
+
+@dataclass
+class Recommendation:
+    """The pair to use at a target accuracy, and how it compares on every problem."""
+
+    target: float
+    cost: str
+    factor: float
+    pair: str | None  # None: no trusted run reached the target anywhere
+    within: int  # problems where the pair is within factor of the best
+    reached: int  # problems where some pair reached the target
+    problems: int  # problems in the sweep
+    table: pd.DataFrame  # one row a pair: problems within, reached, geometric mean ratio
+
+    @property
+    def sentence(self) -> str:
+        """The recommendation in one sentence, with the numbers it rests on."""
+        measure = COST_COLUMNS.get(self.cost, self.cost).split(" [")[0]
+        if self.pair is None:
+            return (
+                f"No run without warnings reached scd >= {self.target:g} on any of the "
+                f"{self.problems} problems: no recommendation."
+            )
+        missing = self.problems - self.reached
+        tail = (
+            f" ({missing} problem(s) where no pair reached it without warnings)" if missing else ""
+        )
+        return (
+            f"{self.pair} is within {self.factor:g}x of the best {measure} on {self.within} "
+            f"of {self.reached} problems at scd >= {self.target:g}{tail}."
+        )
+
+
+def recommend(
+    runs: pd.DataFrame,
+    target: float | None = None,
+    cost: str = "wall_s",
+    factor: float = WITHIN_FACTOR,
+) -> Recommendation:
+    """The pair within ``factor`` of the best ``cost`` on the most problems at scd >=
+    ``target`` (default :func:`overview_target`); runs with warnings never count."""
+    target = overview_target(runs) if target is None else float(target)
+    ratio = cost_ratio(cost_at_target(runs, target, cost))
+    reached = int(ratio.notna().any(axis=1).sum())
+    with np.errstate(divide="ignore"):
+        table = pd.DataFrame(
+            {
+                "within": (ratio <= factor).sum(axis=0),
+                "reached": ratio.notna().sum(axis=0),
+                "geometric mean ratio": np.exp(np.log(ratio).mean(axis=0, skipna=True)),
+            }
+        )
+    table = table.sort_values(
+        ["within", "reached", "geometric mean ratio"], ascending=[False, False, True]
+    )
+    table.index.name = "pair"
+    pair = None if reached == 0 or table.empty else str(table.index[0])
+    within = int(table["within"].iloc[0]) if pair is not None else 0
+    return Recommendation(
+        target, cost, factor, pair, within, reached, runs["problem"].nunique(), table
+    )

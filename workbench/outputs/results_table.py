@@ -1,0 +1,178 @@
+"""What ``workbench results`` prints: a summary by default, or chosen rows and columns.
+
+The default is one line a problem (runs by status, the best scd reached without warnings,
+the pair that reached it at least wall time), not every row of a sweep; ``by="pair"``
+gives one line a problem x pair, ``by="run"`` every run. Options are readable columns
+(``formalism.index``, ``integrator.step``), not JSON strings. Rows are filtered by
+conditions such as ``problem=my-problem``, ``scd>=6`` or ``status!=skipped``; sorted by
+columns (``-scd``: descending); printed as a terminal table, CSV, Markdown or LaTeX (the
+report's writers: readable headers with units, one number format a column).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from workbench.errors import ConfigError
+from workbench.outputs.report.analysis import prepare_results, warned
+from workbench.outputs.report.tables import latex_table, markdown_table
+
+FORMATS: tuple[str, ...] = ("table", "csv", "markdown", "latex")
+ROW_COLUMNS: tuple[str, ...] = (
+    "problem", "formalism", "integrator", "rtol", "status", "scd", "err_l2", "wall_s", "n_rhs",
+)  # fmt: skip
+"""The columns of ``by="run"`` when none are named (option columns follow them)."""
+GROUPINGS: tuple[str, ...] = ("problem", "pair", "run")
+CONDITION = re.compile(r"^\s*([A-Za-z0-9_.\- ]+?)\s*(<=|>=|!=|=|<|>)\s*(.*?)\s*$")
+
+
+def with_option_columns(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with its JSON option columns spread into one column an option
+    (``formalism.index``, ``integrator.step``; empty where a plugin has no such option)."""
+    out = frame.copy()
+    for kind in ("formalism", "integrator"):
+        column = f"{kind}_options"
+        if column not in out:
+            continue
+        parsed = [_options(text) for text in out[column].fillna("").astype(str)]
+        keys = sorted({key for options in parsed for key in options})
+        for key in keys:
+            out[f"{kind}.{key}"] = [options.get(key, "") for options in parsed]
+        out = out.drop(columns=[column])
+    return out
+
+
+def _options(text: str) -> dict[str, str]:
+    if not text.strip():
+        return {}
+    try:
+        value = json.loads(text)
+    except ValueError:
+        return {"options": text}
+    if not isinstance(value, dict):
+        return {"options": str(value)}
+    return {
+        str(k): v if isinstance(v, int | float | str) else json.dumps(v) for k, v in value.items()
+    }
+
+
+def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
+    """The rows meeting every condition ``column OP value`` (OP one of = != < <= > >=;
+    numbers compare as numbers, the rest as text)."""
+    keep = pd.Series(True, index=frame.index)
+    for condition in conditions:
+        match = CONDITION.match(condition)
+        if not match:
+            raise ConfigError(
+                f"--where {condition!r}: write COLUMN OP VALUE with OP one of = != < <= > >= "
+                "(e.g. status=ok, scd>=6)"
+            )
+        column, op, value = match.groups()
+        _check_columns(frame, [column], "--where")
+        values = frame[column]
+        number = pd.to_numeric(pd.Series([value]), errors="coerce").iloc[0]
+        numeric = pd.to_numeric(values, errors="coerce")
+        if np.isfinite(number) and numeric.notna().any():
+            left, right = numeric, number
+        elif op in ("=", "!="):
+            left, right = values.astype(str), value
+        else:
+            raise ConfigError(f"--where {condition!r}: {op} needs a number, not {value!r}")
+        keep &= {
+            "=": left == right,
+            "!=": left != right,
+            "<": left < right,
+            "<=": left <= right,
+            ">": left > right,
+            ">=": left >= right,
+        }[op]
+    return frame[keep]
+
+
+def sort_rows(frame: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+    """``frame`` sorted by ``keys`` (``-name``: descending); missing values last."""
+    if not keys:
+        return frame
+    columns = [key.removeprefix("-") for key in keys]
+    _check_columns(frame, columns, "--sort")
+    ascending = [not key.startswith("-") for key in keys]
+    return frame.sort_values(columns, ascending=ascending, na_position="last", kind="stable")
+
+
+def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> None:
+    unknown = [column for column in columns if column not in frame.columns]
+    if unknown:
+        raise ConfigError(
+            f"{option}: no column {', '.join(map(repr, unknown))}; the columns are "
+            f"{', '.join(frame.columns)}"
+        )
+
+
+def summary(runs: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+    """One row a group of ``keys``: runs, how many ended in each status (ok, ok with
+    warnings, failed, timeout, skipped: they add up to the runs), the best scd of an
+    ok run without warnings, and the pair, rtol, wall time and rhs evaluations of the
+    cheapest such run reaching it."""
+    rows = []
+    for key, group in runs.groupby(list(keys), sort=False):
+        trusted = group[(group["status"] == "ok") & ~warned(group) & np.isfinite(group["scd"])]
+        best = trusted["scd"].max() if not trusted.empty else np.nan
+        reaching = trusted[trusted["scd"] >= best]
+        cheapest = reaching.loc[reaching["wall_s"].idxmin()] if not reaching.empty else None
+        row = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
+        ok = group["status"] == "ok"
+        row |= {"runs": len(group), "ok": int((ok & ~warned(group)).sum())}
+        row |= {"ok with warnings": int((ok & warned(group)).sum())}
+        for status in ("failed", "timeout", "skipped"):
+            row[status] = int((group["status"] == status).sum())
+        row["scd"] = best
+        if "pair" not in keys:
+            row["pair"] = cheapest["pair"] if cheapest is not None else ""
+        for column in ("rtol", "wall_s", "n_rhs"):
+            row[column] = cheapest[column] if cheapest is not None else np.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def results_table(
+    frame: pd.DataFrame,
+    *,
+    by: str = "problem",
+    columns: Sequence[str] = (),
+    where: Sequence[str] = (),
+    sort: Sequence[str] = (),
+) -> pd.DataFrame:
+    """The table ``workbench results`` prints, from the rows of ``load_results``:
+    ``by`` "problem" or "pair" (:func:`summary`) or "run" (the rows themselves)."""
+    if by not in GROUPINGS:
+        raise ConfigError(f"--by {by!r}: choose one of {', '.join(GROUPINGS)}")
+    runs = prepare_results(frame)
+    runs = with_option_columns(runs)
+    runs = filter_rows(runs, where)
+    if by == "run":
+        options = [c for c in runs.columns if c.startswith(("formalism.", "integrator."))]
+        chosen = list(columns) or [*ROW_COLUMNS, *options]
+        _check_columns(runs, chosen, "--columns")
+        table = runs[chosen]
+    else:
+        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"])
+        if columns:
+            _check_columns(table, columns, "--columns")
+            table = table[list(columns)]
+    return sort_rows(table, sort).reset_index(drop=True)
+
+
+def render(table: pd.DataFrame, fmt: str, caption: str) -> str:
+    """``table`` as CSV, Markdown or LaTeX (booktabs, captioned) text."""
+    if fmt == "csv":
+        return table.to_csv(index=False)
+    if fmt == "markdown":
+        return markdown_table(table)
+    if fmt == "latex":
+        return latex_table(table, caption=caption, label="tab:results")
+    raise ConfigError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
