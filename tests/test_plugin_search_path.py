@@ -14,7 +14,7 @@ from workbench.runs import store
 
 CONSOLE_SCRIPT = Path(sys.executable).parent / "workbench"
 
-LOCAL_PLUGIN = '''
+LOCAL_PLUGIN = """
 from workbench.model import Model
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import problem
@@ -36,7 +36,7 @@ class LocalPendulum(Problem):
 
     def initial_joint_coordinates(self):
         return {"pivot": -1.0}
-'''
+"""
 
 
 def spec_text(out: Path) -> str:

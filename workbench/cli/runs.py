@@ -187,6 +187,7 @@ RESULT_COLUMNS = [
     "rtol",
     "status",
     "wall_s",
+    "reference_s",  # obtaining the reference is its own stage, outside wall_s
     "n_rhs",
     "err_end",
     "scd",
