@@ -50,6 +50,7 @@ from workbench.runs import metrics as metrics_module
 from workbench.runs.environment import environment
 from workbench.runs.references import problem_reference
 from workbench.runs.store import SCHEMA_VERSION, empty_series
+from workbench.runs.worker_env import threads_in_force
 
 STATUSES = ("ok", "failed", "skipped", "timeout")
 
@@ -371,6 +372,7 @@ def execute_run(
     row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
     row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
+    row["threads"] = threads_in_force()
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
     row["message"] = one_line_text(row["message"])
     return RunResult(row, series)

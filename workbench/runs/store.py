@@ -96,6 +96,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("version_workbench", "mbs-workbench version"),
     ("machine", "platform of the machine that ran it"),
     ("cpu_count", "CPUs of that machine"),
+    ("log", "the run's captured stdout/stderr, bounded (logs/<run_id>.log; '': none)"),
+    ("threads", "BLAS/OpenMP threads the run's process allowed (WORKBENCH_THREADS, default 1)"),
     ("schema_version", "version of this schema (SCHEMA_VERSION) the row was written in"),
     ("warnings", "what the health audit found wrong ('; '-separated, one line; empty: nothing)"),
     ("jacobian_sv_ratio_min", "smallest sigma_min/sigma_max of the constraint Jacobian W"),
