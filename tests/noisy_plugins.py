@@ -2,6 +2,7 @@
 
 - ``test-nan-force``: a point mass on a spring whose applied force turns NaN at t = 0.5 s,
   so a real IDA (CasADi's IDAS) fails there and says so on the C library's stderr;
+- ``test-noisy-hang``: writes a line to file descriptor 2, then hangs;
 - ``test-noisy``: SciPy's RK45 on the ode form that first writes NOISE_BYTES: half through
   Python's ``print`` (sys.stdout), half straight to file descriptor 2 as C code does,
   between a first line FIRST_LINE and a last line LAST_LINE.
@@ -12,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import time
 
 import casadi as ca
 import numpy as np
@@ -80,3 +82,14 @@ class Noisy(Integrator):
         trajectory.stats.n_steps = max(1, (solution.nfev - 1) // 6)
         if not solution.success:
             trajectory.success, trajectory.message = False, solution.message
+
+
+@integrator
+class NoisyHang(Noisy):
+    name = "test-noisy-hang"
+    summary = "Says so on stderr, then never returns (test)"
+
+    def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
+        os.write(2, b"about to hang\n")
+        while True:
+            time.sleep(1.0)

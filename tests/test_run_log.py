@@ -3,6 +3,7 @@ row, never to the sweep's terminal (issue 18.16: 125 MB from one plugin reached 
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +11,15 @@ from pathlib import Path
 from tests.noisy_plugins import FIRST_LINE, LAST_LINE
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, normalized_spec
-from workbench.runs.run_log import KEEP_BYTES, LOG_TEXT, bounded, store_log
+from workbench.runs.run_log import (
+    KEEP_BYTES,
+    LOG_TEXT,
+    CapturedOutput,
+    bounded,
+    raw_path,
+    salvage_log,
+    store_log,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG_LIMIT = 2 * KEEP_BYTES + 200  # head, tail and the line saying what was left out
@@ -76,3 +85,58 @@ def test_bounded_keeps_short_output_whole_and_long_output_head_and_tail(tmp_path
     long.write_bytes(b"H" * 8 + b"m" * 100 + b"T" * 8)
     kept = bounded(long, keep=8)
     assert kept.startswith(b"H" * 8 + b"\n[... 100 bytes") and kept.endswith(b"]\n" + b"T" * 8)
+
+
+def test_the_raw_file_is_emptied_past_its_limit_keeping_head_and_tail(tmp_path) -> None:
+    raw = tmp_path / "raw"
+    # the test empties the file itself (no timing): a watcher that never wakes
+    capture = CapturedOutput(raw, keep=100, raw_limit=1000, interval=3600.0)
+    written = b""
+    with capture:
+        for i in range(400):
+            line = f"line {i:05d}\n".encode()
+            os.write(1 if i % 2 else 2, line)  # as C code writes, to both descriptors
+            written += line
+            if i % 150 == 149:
+                assert raw.stat().st_size == 150 * len(line)  # what came since the last
+                capture._empty()
+    kept = capture.kept()
+    omitted = len(written) - 200
+    assert (
+        kept
+        == written[:100]
+        + f"\n[... {omitted} bytes of output left out ...]\n".encode()
+        + (written[-100:])
+    )
+    assert not raw.exists()
+
+
+def test_a_killed_runs_raw_output_becomes_its_log(tmp_path) -> None:
+    raw = raw_path(tmp_path, "abc")
+    raw.parent.mkdir()
+    raw.write_bytes(b"A" * KEEP_BYTES + b"B" * 10 + b"C" * KEEP_BYTES)
+    assert salvage_log(tmp_path, "abc") == "logs/abc.log"
+    assert (tmp_path / "logs" / "abc.log").read_bytes() == (
+        b"A" * KEEP_BYTES + b"\n[... 10 bytes of output left out ...]\n" + b"C" * KEEP_BYTES
+    )
+    assert not raw.exists() and salvage_log(tmp_path, "none") == ""
+
+
+def test_a_run_killed_at_its_time_limit_keeps_what_it_printed(tmp_path) -> None:
+    out = tmp_path / "out"
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(
+        f'out = "{out.as_posix()}"\njobs = 1\ntime_limit = 10.0  # only the hung run reaches it\n'
+        'plugins = ["tests.noisy_plugins"]\nproblems = ["test-nan-force"]\n'
+        'formalisms = [{ name = "minimal-ode", options = { index = [1] } }]\n'
+        'integrators = ["test-noisy-hang"]\ntolerances = [1e-6]\n'
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "workbench", "sweep", str(spec)],
+        cwd=ROOT, capture_output=True, timeout=900,
+    )  # fmt: skip
+    assert b"about to hang" not in result.stdout + result.stderr
+    row = store.load_results(out).iloc[0]
+    assert row["status"] == "timeout"
+    assert (out / row["log"]).read_text() == "about to hang\n"
+    assert not list((out / "logs").glob(".*.raw"))

@@ -20,7 +20,14 @@ from typing import Any
 from workbench.errors import ConfigError
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, execute_run, status_row
-from workbench.runs.run_log import LOG_TEXT, CapturedOutput, raw_path, store_log, write_log
+from workbench.runs.run_log import (
+    LOG_TEXT,
+    CapturedOutput,
+    raw_path,
+    raw_text,
+    store_log,
+    write_log,
+)
 from workbench.runs.sweep_spec import import_plugin_modules
 from workbench.runs.unfinished import died_message, timeout_message
 from workbench.runs.worker_env import pin_threads, thread_environment
@@ -64,14 +71,16 @@ def run_in_subprocess(
                 env=env,
             )
         except subprocess.TimeoutExpired:
-            return status_row(spec, "timeout", timeout_message(limit)), None
+            row = status_row(spec, "timeout", timeout_message(limit))
+            return row | {LOG_TEXT: raw_text(Path(directory), spec.run_id)}, None
         row = store.read_row(store.row_path(Path(directory), spec.run_id))
         if row is None:
             tail = (completed.stderr or "").strip().splitlines()[-1:] or [""]
             message = died_message(completed.returncode)
             if tail[0]:
                 message += f": {tail[0]}"
-            return status_row(spec, "failed", message), None
+            row = status_row(spec, "failed", message)
+            return row | {LOG_TEXT: raw_text(Path(directory), spec.run_id)}, None
         if row.get("log"):  # returned with the row; store_log writes it beside the row
             row[LOG_TEXT] = (Path(directory) / row["log"]).read_text("utf-8", "replace")
         series_file = store.series_path(Path(directory), spec.run_id)

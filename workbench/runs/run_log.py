@@ -18,11 +18,13 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
 LOG_DIR = "logs"
 KEEP_BYTES = 64 * 1024  # kept from the start and from the end of a run's output
+RAW_LIMIT_BYTES = 8 * 1024 * 1024  # the raw file is emptied (head and tail kept) past this
 LOG_TEXT = "log_text"  # a row's key carrying the kept text from a child process
 
 
@@ -45,46 +47,117 @@ def bounded(data_file: Path, keep: int = KEEP_BYTES) -> bytes:
         head = source.read(keep)
         source.seek(size - keep)
         tail = source.read()
-    omitted = size - 2 * keep
+    return _joined(head, size - 2 * keep, tail)
+
+
+def _joined(head: bytes, omitted: int, tail: bytes) -> bytes:
     return head + f"\n[... {omitted} bytes of output left out ...]\n".encode() + tail
 
 
 class CapturedOutput:
     """``with CapturedOutput(raw_file): ...`` sends fds 1 and 2 (and so Python's and C's
-    stdout and stderr) to ``raw_file``; :meth:`kept` then gives the bounded bytes."""
+    stdout and stderr) to ``raw_file``; :meth:`kept` then gives the bounded bytes.
 
-    def __init__(self, raw_file: Path) -> None:
+    The raw file itself stays bounded too: a thread checks it every ``interval`` seconds
+    and, past ``raw_limit`` bytes, keeps its head (once) and its latest tail in memory
+    and empties it (it is open for appending, so writes go on at its new end)."""
+
+    def __init__(
+        self,
+        raw_file: Path,
+        keep: int = KEEP_BYTES,
+        raw_limit: int = RAW_LIMIT_BYTES,
+        interval: float = 0.5,
+    ) -> None:
         self.raw_file = Path(raw_file)
+        self.keep, self.raw_limit, self.interval = keep, raw_limit, interval
         self._saved: list[int] = []
+        self._head: bytes | None = None  # set at the first emptying
+        self._tail = b""
+        self._emptied = 0  # bytes removed from the raw file so far
+        self._stop = threading.Event()
+        self._watch: threading.Thread | None = None
 
     def __enter__(self) -> CapturedOutput:
         self.raw_file.parent.mkdir(parents=True, exist_ok=True)
         _flush()
-        target = os.open(self.raw_file, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+        target = os.open(self.raw_file, flags, 0o644)
         try:
             self._saved = [os.dup(1), os.dup(2)]
             os.dup2(target, 1)
             os.dup2(target, 2)
         finally:
             os.close(target)
+        self._watch = threading.Thread(target=self._trim_loop, daemon=True)
+        self._watch.start()
         return self
 
     def __exit__(self, *exc: Any) -> None:
         _flush()
+        self._stop.set()
+        if self._watch is not None:
+            self._watch.join()
         for fd, saved in zip((1, 2), self._saved, strict=True):
             os.dup2(saved, fd)
             os.close(saved)
         self._saved = []
 
+    def _trim_loop(self) -> None:
+        while not self._stop.wait(self.interval):
+            with contextlib.suppress(OSError):
+                if self.raw_file.stat().st_size > self.raw_limit:
+                    self._empty()
+
+    def _empty(self) -> None:
+        """Keep the head (the first time) and the tail of the raw file, then empty it;
+        what is written between the read and the truncation is lost (and counted)."""
+        with open(self.raw_file, "rb") as source:
+            if self._head is None:
+                self._head = source.read(self.keep)
+            size = os.fstat(source.fileno()).st_size
+            source.seek(max(0, size - self.keep))
+            self._tail = (self._tail + source.read())[-self.keep :]
+        size = self.raw_file.stat().st_size
+        os.truncate(self.raw_file, 0)
+        self._emptied += size
+
     def kept(self) -> bytes:
         """The bounded output, and the raw file removed."""
         try:
-            return bounded(self.raw_file)
+            if self._head is None:
+                return bounded(self.raw_file, self.keep)
+            rest = self.raw_file.read_bytes()
+            total = self._emptied + len(rest)
+            tail = (self._tail + rest)[-self.keep :]
+            return _joined(self._head, total - len(self._head) - len(tail), tail)
         except OSError:
             return b""
         finally:
             with contextlib.suppress(OSError):
                 self.raw_file.unlink()
+
+
+def raw_text(out: Path, run_id: str) -> str:
+    """What a killed run's raw file holds, bounded, as text ('' if there is none)."""
+    try:
+        return bounded(raw_path(out, run_id)).decode("utf-8", "replace")
+    except OSError:
+        return ""
+
+
+def salvage_log(out: Path, run_id: str) -> str:
+    """The log of a run whose worker was killed (timeout, crash): what its raw file
+    holds, bounded; the name for the row's ``log`` column ('' if there is none)."""
+    raw = raw_path(out, run_id)
+    try:
+        data = bounded(raw)
+    except OSError:
+        return ""
+    name = write_log(Path(out), run_id, data)
+    with contextlib.suppress(OSError):
+        raw.unlink()
+    return name
 
 
 def _flush() -> None:

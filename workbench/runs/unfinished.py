@@ -11,6 +11,7 @@ from pathlib import Path
 
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, status_row
+from workbench.runs.run_log import salvage_log
 
 
 def died_message(exit_code: int | None) -> str:
@@ -30,5 +31,6 @@ def record_unfinished(out: Path, spec: RunSpec, status: str, message: str) -> st
     existing = store.read_row(store.row_path(out, spec.run_id))
     if existing is not None:
         return existing.get("status", status)
-    store.write_run(out, status_row(spec, status, message), None)
+    log = salvage_log(out, spec.run_id)  # what the killed run printed, bounded
+    store.write_run(out, status_row(spec, status, message, log=log), None)
     return status
