@@ -15,7 +15,9 @@ from workbench.runs import store
 from workbench.runs.worker_env import LIBRARY_VARIABLES, THREADS_VARIABLE
 
 ROOT = Path(__file__).resolve().parents[1]
-RUN = ("four-bar", "absolute-dae", "scipy-radau")  # LAPACK LU in every Newton iteration
+# Radau's complex LU (LAPACK through OpenBLAS): with 1 and 2 BLAS threads this run's
+# err_max differs in the 5th digit (2.518763e-08 against 2.518683e-08, measured in-process)
+RUN = ("binary-tree", "minimal-ode", "scipy-radau")
 COMPARED = ["status", "n_rhs", "n_jac", "n_steps", "n_rejected", "err_max", "err_end"]
 
 
@@ -42,8 +44,14 @@ def test_pinned_process_limits_loaded_blas_to_one_thread() -> None:
     assert (before, after) == ("2", "1")
 
 
-@pytest.mark.parametrize("sweep_threads", ["4", None], ids=["OMP=4", "unset"])
-def test_local_pool_and_child_process_rows_agree_bit_for_bit(tmp_path, sweep_threads) -> None:
+@pytest.mark.parametrize(
+    ("sweep_threads", "child_threads"),
+    [("2", "1"), pytest.param("4", None, marks=pytest.mark.slow)],
+    ids=["sweep-2-child-1", "sweep-4-child-unset"],
+)
+def test_local_pool_and_child_process_rows_agree_bit_for_bit(
+    tmp_path, sweep_threads, child_threads
+) -> None:
     problem, formalism, integrator = RUN
     local, child = tmp_path / "local", tmp_path / "child"
     spec = tmp_path / "sweep.toml"
@@ -51,7 +59,7 @@ def test_local_pool_and_child_process_rows_agree_bit_for_bit(tmp_path, sweep_thr
         f'out = "{local.as_posix()}"\njobs = 1\ntime_limit = 300.0\n'
         f'problems = ["{problem}"]\n'
         f'formalisms = [{{ name = "{formalism}", options = {{ index = [1] }} }}]\n'
-        f'integrators = ["{integrator}"]\ntolerances = [1e-8]\n'
+        f'integrators = ["{integrator}"]\ntolerances = [1e-6]\n'
     )
     swept = subprocess.run(
         [sys.executable, "-m", "workbench", "sweep", str(spec)], cwd=ROOT,
@@ -61,8 +69,8 @@ def test_local_pool_and_child_process_rows_agree_bit_for_bit(tmp_path, sweep_thr
     # `workbench run` executes in a child process, as a Dask task does
     ran = subprocess.run(
         [sys.executable, "-m", "workbench", "run", problem, "-f", formalism, "-i", integrator,
-         "--rtol", "1e-8", "-o", "formalism.index=1", "--out", str(child)],
-        cwd=ROOT, env=environment("2" if sweep_threads is None else None),
+         "--rtol", "1e-6", "-o", "formalism.index=1", "--out", str(child)],
+        cwd=ROOT, env=environment(child_threads),
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     assert ran.returncode == 0, ran.stderr
