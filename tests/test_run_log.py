@@ -8,7 +8,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-from tests.noisy_plugins import FIRST_LINE, LAST_LINE
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, normalized_spec
 from workbench.runs.run_log import (
@@ -22,6 +21,10 @@ from workbench.runs.run_log import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
+# what tests/noisy_plugins.py's test-noisy writes first and last (not imported here:
+# importing it registers its plugins in this process's registry)
+FIRST_LINE = "noisy plugin: first line"
+LAST_LINE = "noisy plugin: last line"
 LOG_LIMIT = 2 * KEEP_BYTES + 200  # head, tail and the line saying what was left out
 
 
