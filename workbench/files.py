@@ -43,4 +43,11 @@ def atomic_write(
         raise
 
 
-__all__ = ["atomic_write"]
+def user_cache_dir() -> Path:
+    """The workbench's cache directory: ``$WORKBENCH_CACHE`` or ~/.cache/mbs-workbench
+    (compiled libraries, the verdicts of plugin import probes)."""
+    configured = os.environ.get("WORKBENCH_CACHE")
+    return Path(configured) if configured else Path.home() / ".cache" / "mbs-workbench"
+
+
+__all__ = ["atomic_write", "user_cache_dir"]

@@ -88,6 +88,7 @@ def run(
     from workbench.runs import store
     from workbench.runs.dask_pool import run_in_subprocess
     from workbench.runs.execute import RunSpec, normalized_spec
+    from workbench.runs.run_log import store_log
 
     if not (0 < time_limit < float("inf")):
         raise ConfigError(f"--time-limit must be a finite number of seconds > 0, not {time_limit}")
@@ -121,6 +122,7 @@ def run(
     plugins = sorted({plugin.__module__ for plugin in classes.values()})
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     row, series = run_in_subprocess(spec.to_dict(), time_limit, plugins, reference_dir, paths)
+    store_log(Path(out) if out else None, row)
     if out:
         store.write_run(Path(out), row, series)
     table = Table(title=f"run {spec.run_id}", title_justify="left", show_header=False)

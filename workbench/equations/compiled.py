@@ -36,7 +36,7 @@ from typing import Any
 
 import casadi as ca
 
-from workbench.files import atomic_write
+from workbench.files import atomic_write, user_cache_dir
 
 MODES = ("none", "jit")
 DEFAULT_FLAGS = "-O1"
@@ -61,8 +61,7 @@ STATS = CompileStats()
 
 def cache_dir() -> Path:
     """Where compiled libraries are kept: ``$WORKBENCH_CACHE`` or ~/.cache/mbs-workbench."""
-    configured = os.environ.get("WORKBENCH_CACHE")
-    return Path(configured) if configured else Path.home() / ".cache" / "mbs-workbench"
+    return user_cache_dir()
 
 
 def c_compiler() -> str | None:

@@ -11,6 +11,7 @@ listed as *broken* with its error; the others keep working.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import difflib
 import importlib
@@ -22,6 +23,7 @@ from importlib import metadata
 from typing import Any, Literal
 
 from workbench.errors import PluginError, one_line
+from workbench.plugin import discovery
 from workbench.plugin.options import option_fields
 
 Kind = Literal["problem", "formalism", "integrator"]
@@ -108,13 +110,16 @@ class Registry:
                 return
         self.entries[kind][name] = PluginInfo(kind, name, plugin, plugin.__module__)
 
-    def add_broken(self, kind: Kind, name: str, module: str, error: BaseException) -> None:
-        """Record a plugin module that failed to import with ``error`` (a working entry is
-        never replaced)."""
+    def add_broken(self, kind: Kind, name: str, module: str, error: BaseException | str) -> None:
+        """Record a plugin module that failed to import with ``error`` (an exception, or
+        the reason it was not imported at all); a working entry is never replaced."""
         check_kind(kind)
         if name not in self.entries[kind]:
-            text = "".join(traceback.format_exception(error))
-            self.entries[kind][name] = PluginInfo(kind, name, None, module, text, one_line(error))
+            if isinstance(error, str):
+                text, line = error, error
+            else:
+                text, line = "".join(traceback.format_exception(error)), one_line(error)
+            self.entries[kind][name] = PluginInfo(kind, name, None, module, text, line)
 
     def discover(self) -> None:
         """Import built-in plugin modules and entry points once (idempotent)."""
@@ -133,8 +138,19 @@ class Registry:
                 self._import(kind, module.name.rsplit(".", 1)[-1], module.name)
         if "problem" in self.builtin_packages:  # the core's own: a robot read from a file
             self._import("problem", "robot", "workbench.plugin.robot_problem")
-        for kind, group in self.entry_point_groups.items():
-            for entry_point in metadata.entry_points(group=group):
+        found = [
+            (kind, entry_point)
+            for kind, group in self.entry_point_groups.items()
+            for entry_point in metadata.entry_points(group=group)
+        ]
+        # one that crashes or hangs on import is known from a child process (discovery)
+        unsafe = discovery.verdicts([entry_point for _, entry_point in found])
+        with discovery.importing() if found else contextlib.nullcontext():
+            for kind, entry_point in found:
+                reason = unsafe.get(discovery.entry_point_key(entry_point))
+                if reason:
+                    self.add_broken(kind, entry_point.name, entry_point.value, reason)
+                    continue
                 try:
                     loaded = entry_point.load()
                     # an entry point may name a class, or a module whose decorators register

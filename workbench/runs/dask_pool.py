@@ -22,6 +22,14 @@ from typing import Any
 from workbench.errors import ConfigError, one_line
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, execute_run, status_row
+from workbench.runs.run_log import (
+    LOG_TEXT,
+    CapturedOutput,
+    raw_path,
+    raw_text,
+    store_log,
+    write_log,
+)
 from workbench.runs.sweep_spec import import_plugin_modules
 from workbench.runs.unfinished import (
     RETRIES,
@@ -30,6 +38,7 @@ from workbench.runs.unfinished import (
     killed_from_outside,
     timeout_message,
 )
+from workbench.runs.worker_env import pin_threads, thread_environment
 
 
 def run_in_subprocess(
@@ -57,7 +66,7 @@ def run_in_subprocess(
             "sys_path": sys_path,
             "out": directory,
         }
-        env = dict(os.environ)
+        env = dict(os.environ) | thread_environment()  # read by BLAS/OpenMP as they load
         env["PYTHONPATH"] = os.pathsep.join(
             [p for p in sys_path if p] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])
         )
@@ -71,7 +80,8 @@ def run_in_subprocess(
                 env=env,
             )
         except subprocess.TimeoutExpired:
-            return status_row(spec, "timeout", timeout_message(limit)), None
+            row = status_row(spec, "timeout", timeout_message(limit))
+            return row | {LOG_TEXT: raw_text(Path(directory), spec.run_id)}, None
         row = store.read_row(store.row_path(Path(directory), spec.run_id))
         if row is None:
             tail = (completed.stderr or "").strip().splitlines()[-1:] or [""]
@@ -80,7 +90,10 @@ def run_in_subprocess(
                 message += f": {tail[0]}"
             if killed_from_outside(completed.returncode):
                 raise InfrastructureError(f"run {spec.run_id}: {message}")
-            return status_row(spec, "failed", message), None
+            row = status_row(spec, "failed", message)
+            return row | {LOG_TEXT: raw_text(Path(directory), spec.run_id)}, None
+        if row.get("log"):  # returned with the row; store_log writes it beside the row
+            row[LOG_TEXT] = (Path(directory) / row["log"]).read_text("utf-8", "replace")
         series_file = store.series_path(Path(directory), spec.run_id)
         series = pd.read_parquet(series_file) if series_file.exists() else None
         return row, series
@@ -91,14 +104,19 @@ def _run_one_main() -> None:
     import warnings
 
     warnings.filterwarnings("ignore")
+    pin_threads()
     request = json.loads(sys.stdin.read())
     for entry in reversed(request.get("sys_path", [])):
         if entry not in sys.path:
             sys.path.append(entry)
     import_plugin_modules(request.get("plugins", []))
     spec = RunSpec.from_dict(request["spec"])
-    result = execute_run(spec, reference_dir=request.get("reference_dir"))
-    store.write_run(Path(request["out"]), result.row, result.series)
+    out = Path(request["out"])
+    capture = CapturedOutput(raw_path(out, spec.run_id))
+    with capture:  # the run's stdout/stderr (C's too) to its bounded log
+        result = execute_run(spec, reference_dir=request.get("reference_dir"))
+    result.row["log"] = write_log(out, spec.run_id, capture.kept())
+    store.write_run(out, result.row, result.series)
 
 
 def run_dask(
@@ -153,6 +171,7 @@ def run_dask(
                     unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
                     record("unfinished")
                     continue
+                store_log(out, row)
                 store.write_run(out, row, series)
                 record(row.get("status", "failed"))
     finally:

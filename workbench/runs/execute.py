@@ -52,6 +52,7 @@ from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
 from workbench.runs.store import SCHEMA_VERSION, empty_series
+from workbench.runs.worker_env import threads_in_force
 
 
 def canonical_json(value: Any) -> str:
@@ -374,6 +375,7 @@ def execute_run(
     row.update(environment())
     row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
     row["n_samples"] = len(series)
+    row["threads"] = threads_in_force()
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
     row["message"] = one_line_text(row["message"])
     return RunResult(row, series)

@@ -33,6 +33,7 @@ from workbench.errors import WorkbenchError
 from workbench.plugin import registry
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run
+from workbench.runs.run_log import CapturedOutput, raw_path, write_log
 from workbench.runs.sweep_spec import import_plugin_modules
 from workbench.runs.unfinished import (
     RETRIES,
@@ -43,12 +44,14 @@ from workbench.runs.unfinished import (
     timeout_message,
     written_status,
 )
+from workbench.runs.worker_env import pin_threads
 
 
 def _worker_main(
     conn: Any, plugins: list[str], out: str, sys_path: list[str], recorder: Any = None
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None."""
+    pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
             sys.path.insert(0, entry)
@@ -73,7 +76,10 @@ def _worker_main(
         try:
             sink = _begin_recording(recorder, sink, Path(out), spec.run_id)
             try:
-                result = execute_run(spec, sink=sink, reference_dir=reference_dir)
+                capture = CapturedOutput(raw_path(Path(out), spec.run_id))
+                with capture:  # the run's stdout/stderr (C's too) to its bounded log
+                    result = execute_run(spec, sink=sink, reference_dir=reference_dir)
+                result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
                 store.write_run(Path(out), result.row, result.series)
             finally:
                 _end_recording(sink)

@@ -275,9 +275,9 @@ def solve_poses(
         raise IntegrationError(
             f"{problem.name}: {pipeline.label()} failed at rtol {rtol:g}: {trajectory.message}"
         )
-    nq = equations.nq
-    rows = zip(times, trajectory.y, strict=True)
-    poses = np.stack([equations.observables.poses(t, row[:nq]) for t, row in rows])
+    # one mapped evaluation for all samples: a call per sample made the reference cost
+    # 24 s at 10^5 output times against 0.05 s for the integration itself
+    poses = equations.observables.poses_along(times, trajectory.y[:, : equations.nq])
     cost = {
         "rtol": rtol,
         "atol": atol,

@@ -55,6 +55,7 @@ TEXT_COLUMNS = {
     "producer_problem",
     "producer_formalism",
     "producer_integrator",
+    "log",
 }
 FLAG_COLUMNS = {"equations_cached"}
 

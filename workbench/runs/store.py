@@ -98,6 +98,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("version_workbench", "mbs-workbench version"),
     ("machine", "platform of the machine that ran it"),
     ("cpu_count", "CPUs of that machine"),
+    ("log", "the run's captured stdout/stderr, bounded (logs/<run_id>.log; '': none)"),
+    ("threads", "BLAS/OpenMP threads the run's process allowed (WORKBENCH_THREADS, default 1)"),
     ("schema_version", "version of this schema (SCHEMA_VERSION) the row was written in"),
     ("warnings", "what the health audit found wrong ('; '-separated, one line; empty: nothing)"),
     ("jacobian_sv_ratio_min", "smallest sigma_min/sigma_max of the constraint Jacobian W"),
@@ -136,8 +138,9 @@ ENVIRONMENT_FILE = "environment.json"
 #   5  adds n_samples (checked against the series on resume) and producer_problem,
 #      producer_formalism, producer_integrator (workbench.runs.producer); older rows'
 #      producer is "unknown": reported on resume, not stale
-#   6  adds err_l2 (the error over the whole trajectory beside err_max and err_end) and
-#      fixed_step_s; older rows did not measure them: NaN
+#   6  adds err_l2 (the error over the whole trajectory beside err_max and err_end),
+#      fixed_step_s, log (the run's captured output) and threads (BLAS/OpenMP threads);
+#      older rows did not record them: NaN and no log
 SCHEMA_VERSION = 6
 
 
@@ -160,7 +163,8 @@ def _migrate_4_to_5(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def _migrate_5_to_6(row: dict[str, Any]) -> dict[str, Any]:
-    return row | {"schema_version": 6, "err_l2": math.nan, "fixed_step_s": math.nan}
+    unrecorded = {"err_l2": math.nan, "fixed_step_s": math.nan, "log": "", "threads": math.nan}
+    return row | {"schema_version": 6} | unrecorded
 
 
 # version -> the function that turns a row of that version into one of the next

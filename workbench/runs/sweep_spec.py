@@ -61,6 +61,7 @@ from workbench.errors import ConfigError, PluginError, one_line
 from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.registry import Kind
+from workbench.plugin.search_path import make_importable, plugin_directories
 from workbench.runs.execute import RunSpec, problem_span
 
 DEFAULT_OUT = "reports/latest"
@@ -155,10 +156,17 @@ def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         raise ConfigError(f"cannot read the sweep specification {path}: {error}") from None
-    return parse_spec(text, str(path))
+    return parse_spec(text, str(path), path.parent)
 
 
-def import_plugin_modules(modules: Iterable[str], source: str = "plugins") -> None:
+def import_plugin_modules(
+    modules: Iterable[str], source: str = "plugins", spec_directory: str | Path | None = None
+) -> None:
+    """Import the plugin ``modules`` (ConfigError naming the one that fails); they are found
+    on the Python path, in the current directory and in ``spec_directory``."""
+    modules = list(modules)
+    if modules:
+        make_importable(plugin_directories() + ([str(spec_directory)] if spec_directory else []))
     for index, name in enumerate(modules):
         try:
             importlib.import_module(name)
@@ -169,8 +177,11 @@ def import_plugin_modules(modules: Iterable[str], source: str = "plugins") -> No
             ) from None
 
 
-def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
-    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key)."""
+def parse_spec(
+    text: str, source: str = "sweep specification", directory: str | Path | None = None
+) -> SweepSpec:
+    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key);
+    ``directory`` (the specification file's) is searched for its plugin modules too."""
     try:
         data = tomllib.loads(text)
     except RecursionError:
@@ -240,7 +251,7 @@ def parse_spec(text: str, source: str = "sweep specification") -> SweepSpec:
     plugins = data.get("plugins", [])
     if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
         raise fail("plugins", f"must be a list of module names, not {_show(plugins)}")
-    import_plugin_modules(plugins, f"{source}: plugins")
+    import_plugin_modules(plugins, f"{source}: plugins", directory)
 
     from workbench.plugin.robot_problem import robot_entries
 

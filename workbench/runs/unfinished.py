@@ -21,6 +21,7 @@ from pathlib import Path
 from workbench.errors import WorkbenchError
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, status_row
+from workbench.runs.run_log import salvage_log
 
 # signals that end a process from outside (not a crash of the code it was running)
 KILL_SIGNALS = (signal.SIGKILL, signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
@@ -77,5 +78,6 @@ def record_unfinished(
     written = written_status(out, spec.run_id, before)
     if written is not None:
         return written
-    store.write_run(out, status_row(spec, status, message), None)
+    log = salvage_log(out, spec.run_id)  # what the killed run printed, bounded
+    store.write_run(out, status_row(spec, status, message, log=log), None)
     return status

@@ -1,0 +1,194 @@
+"""A run's own output (its stdout and stderr) in a bounded per-run log file.
+
+Plugins print, and so do the C libraries under them (SUNDIALS writes
+``[IDAHandleFailure ...]`` lines straight to file descriptor 2): one noisy plugin once put
+125 MB on a sweep's terminal (issue 18.16). While a worker executes a run,
+:class:`CapturedOutput` points the process's file descriptors 1 and 2 at a file (a file,
+not a pipe: C code that writes while holding the GIL would block on a full pipe whose
+reader is a Python thread). Afterwards the first and last :data:`KEEP_BYTES` bytes are
+kept in ``<out>/logs/<run_id>.log``, which the row names in its ``log`` column ('' when
+the run printed nothing).
+
+A run executed in a child process (Dask, ``workbench run``) returns the kept text inside
+its row (:data:`LOG_TEXT`); :func:`store_log` writes it where the row is stored.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+LOG_DIR = "logs"
+KEEP_BYTES = 64 * 1024  # kept from the start and from the end of a run's output
+RAW_LIMIT_BYTES = 8 * 1024 * 1024  # the raw file is emptied (head and tail kept) past this
+LOG_TEXT = "log_text"  # a row's key carrying the kept text from a child process
+
+
+def log_path(out: Path, run_id: str) -> Path:
+    return Path(out) / LOG_DIR / f"{run_id}.log"
+
+
+def raw_path(out: Path, run_id: str) -> Path:
+    """Where a run's whole output goes while it runs (removed once the log is kept)."""
+    return Path(out) / LOG_DIR / f".{run_id}.raw"
+
+
+def bounded(data_file: Path, keep: int = KEEP_BYTES) -> bytes:
+    """The first and last ``keep`` bytes of ``data_file`` (all of it if it is shorter),
+    with a line saying how many bytes were left out between them."""
+    size = data_file.stat().st_size
+    with open(data_file, "rb") as source:
+        if size <= 2 * keep:
+            return source.read()
+        head = source.read(keep)
+        source.seek(size - keep)
+        tail = source.read()
+    return _joined(head, size - 2 * keep, tail)
+
+
+def _joined(head: bytes, omitted: int, tail: bytes) -> bytes:
+    return head + f"\n[... {omitted} bytes of output left out ...]\n".encode() + tail
+
+
+class CapturedOutput:
+    """``with CapturedOutput(raw_file): ...`` sends fds 1 and 2 (and so Python's and C's
+    stdout and stderr) to ``raw_file``; :meth:`kept` then gives the bounded bytes.
+
+    The raw file itself stays bounded too: a thread checks it every ``interval`` seconds
+    and, past ``raw_limit`` bytes, keeps its head (once) and its latest tail in memory
+    and empties it (it is open for appending, so writes go on at its new end)."""
+
+    def __init__(
+        self,
+        raw_file: Path,
+        keep: int = KEEP_BYTES,
+        raw_limit: int = RAW_LIMIT_BYTES,
+        interval: float = 0.5,
+    ) -> None:
+        self.raw_file = Path(raw_file)
+        self.keep, self.raw_limit, self.interval = keep, raw_limit, interval
+        self._saved: list[int] = []
+        self._head: bytes | None = None  # set at the first emptying
+        self._tail = b""
+        self._emptied = 0  # bytes removed from the raw file so far
+        self._stop = threading.Event()
+        self._watch: threading.Thread | None = None
+
+    def __enter__(self) -> CapturedOutput:
+        self.raw_file.parent.mkdir(parents=True, exist_ok=True)
+        _flush()
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+        target = os.open(self.raw_file, flags, 0o644)
+        try:
+            self._saved = [os.dup(1), os.dup(2)]
+            os.dup2(target, 1)
+            os.dup2(target, 2)
+        finally:
+            os.close(target)
+        self._watch = threading.Thread(target=self._trim_loop, daemon=True)
+        self._watch.start()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        _flush()
+        self._stop.set()
+        if self._watch is not None:
+            self._watch.join()
+        for fd, saved in zip((1, 2), self._saved, strict=True):
+            os.dup2(saved, fd)
+            os.close(saved)
+        self._saved = []
+
+    def _trim_loop(self) -> None:
+        while not self._stop.wait(self.interval):
+            with contextlib.suppress(OSError):
+                if self.raw_file.stat().st_size > self.raw_limit:
+                    self._empty()
+
+    def _empty(self) -> None:
+        """Keep the head (the first time) and the tail of the raw file, then empty it;
+        what is written between the read and the truncation is lost (and counted)."""
+        with open(self.raw_file, "rb") as source:
+            if self._head is None:
+                self._head = source.read(self.keep)
+            size = os.fstat(source.fileno()).st_size
+            source.seek(max(0, size - self.keep))
+            self._tail = (self._tail + source.read())[-self.keep :]
+        size = self.raw_file.stat().st_size
+        os.truncate(self.raw_file, 0)
+        self._emptied += size
+
+    def kept(self) -> bytes:
+        """The bounded output, and the raw file removed."""
+        try:
+            if self._head is None:
+                return bounded(self.raw_file, self.keep)
+            rest = self.raw_file.read_bytes()
+            total = self._emptied + len(rest)
+            tail = (self._tail + rest)[-self.keep :]
+            return _joined(self._head, total - len(self._head) - len(tail), tail)
+        except OSError:
+            return b""
+        finally:
+            with contextlib.suppress(OSError):
+                self.raw_file.unlink()
+
+
+def raw_text(out: Path, run_id: str) -> str:
+    """What a killed run's raw file holds, bounded, as text ('' if there is none)."""
+    try:
+        return bounded(raw_path(out, run_id)).decode("utf-8", "replace")
+    except OSError:
+        return ""
+
+
+def salvage_log(out: Path, run_id: str) -> str:
+    """The log of a run whose worker was killed (timeout, crash): what its raw file
+    holds, bounded; the name for the row's ``log`` column ('' if there is none)."""
+    raw = raw_path(out, run_id)
+    try:
+        data = bounded(raw)
+    except OSError:
+        return ""
+    name = write_log(Path(out), run_id, data)
+    with contextlib.suppress(OSError):
+        raw.unlink()
+    return name
+
+
+def _flush() -> None:
+    for stream in (sys.stdout, sys.stderr, sys.__stdout__, sys.__stderr__):
+        with contextlib.suppress(Exception):
+            stream.flush()
+
+
+def write_log(out: Path, run_id: str, data: bytes) -> str:
+    """Write ``data`` as the run's log under ``out``; the name for the row's ``log``
+    column (relative to ``out``), '' when there is nothing to write or it cannot be."""
+    if not data:
+        return ""
+    path = log_path(out, run_id)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    except OSError:
+        return ""
+    return path.relative_to(out).as_posix()
+
+
+def store_log(out: Path | None, row: dict[str, Any]) -> None:
+    """Write the text a child process returned in ``row`` (:data:`LOG_TEXT`) to the
+    run's log under ``out`` and name it in ``row['log']``; without ``out`` the text is
+    dropped and the row says so."""
+    text = row.pop(LOG_TEXT, "") or ""
+    if not text:
+        row.setdefault("log", "")
+        return
+    if out is None:
+        row["log"] = f"not kept ({len(text.encode())} bytes of output; give --out to keep it)"
+        return
+    row["log"] = write_log(Path(out), str(row.get("run_id", "run")), text.encode())

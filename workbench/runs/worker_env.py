@@ -1,0 +1,69 @@
+"""A fixed BLAS/OpenMP thread count in every process that executes runs.
+
+OpenBLAS (NumPy's and SciPy's), MKL and OpenMP split reductions across as many threads as
+they are allowed, and a different split rounds differently: a sweep under Dask once gave
+n_rhs 1064 where the local pool gave 1062 for the same run (issue 18.14). So a worker
+limits them all to :func:`worker_threads` (``WORKBENCH_THREADS``, default 1) before its
+first run: through the environment variables the libraries read when they load (for
+processes started after this, e.g. the child of a Dask task) and, with threadpoolctl, in
+the libraries already loaded. Each row records the count in force (``threads``).
+"""
+
+from __future__ import annotations
+
+import os
+
+THREADS_VARIABLE = "WORKBENCH_THREADS"
+DEFAULT_THREADS = 1
+# the variables BLAS and OpenMP runtimes read at load time
+LIBRARY_VARIABLES = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+)
+
+
+def worker_threads() -> int:
+    """The thread count workers use: ``WORKBENCH_THREADS`` if it is an integer >= 1, else 1."""
+    text = os.environ.get(THREADS_VARIABLE, "").strip()
+    try:
+        value = int(text)
+    except ValueError:
+        return DEFAULT_THREADS
+    return value if value >= 1 else DEFAULT_THREADS
+
+
+def thread_environment(threads: int | None = None) -> dict[str, str]:
+    """Environment variables that start a process with ``threads`` BLAS/OpenMP threads."""
+    count = str(worker_threads() if threads is None else threads)
+    return {name: count for name in (THREADS_VARIABLE, *LIBRARY_VARIABLES)}
+
+
+def pin_threads(threads: int | None = None) -> int:
+    """Limit this process (and its future children) to ``threads`` BLAS/OpenMP threads
+    (default :func:`worker_threads`); returns the count."""
+    count = worker_threads() if threads is None else threads
+    os.environ.update(thread_environment(count))
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # only the variables: right for libraries not loaded yet
+        return count
+    threadpool_limits(limits=count)
+    return count
+
+
+def threads_in_force() -> int | None:
+    """The most threads any loaded BLAS/OpenMP library may use now (threadpoolctl), else
+    what ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS`` say; None when nothing says."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+            if os.environ.get(name, "").strip().isdigit():
+                return int(os.environ[name])
+        return None
+    counts = [int(pool.get("num_threads", 0)) for pool in threadpool_info()]
+    return max(counts) if counts else None
