@@ -124,6 +124,12 @@ def run(
     for name, value in row.items():
         table.add_row(name, _cell(value))
     console().print(table)
+    if row.get("status") != "ok":  # the table says what was measured; the exit status, that
+        typer.echo(f"error: run {row.get('status')}: {row.get('message', '')}", err=True)
+        raise typer.Exit(EXIT_RUN_NOT_OK)
+
+
+EXIT_RUN_NOT_OK = 1  # the run was skipped, failed or timed out (2 stays bad input)
 
 
 def _cell(value: Any) -> str:
@@ -155,6 +161,7 @@ def sweep(
     if time_limit is not None and not time_limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
     loaded = load_spec(spec)
+    _say_on_interrupt(loaded, out)
     from workbench.outputs.recording import SweepRecorder
 
     summary = run_sweep(
@@ -177,6 +184,27 @@ def sweep(
     typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
+
+
+def _say_on_interrupt(loaded: Any, out: str | None) -> None:
+    """On Ctrl-C: how many runs of this sweep are kept in its directory, and how to resume."""
+    from pathlib import Path
+
+    from workbench.cli.app import on_interrupt
+    from workbench.runs import store
+
+    out_dir = Path(out) if out else Path(loaded.out)
+    wanted = {spec.run_id for spec in loaded.runs}
+    command = " ".join(["workbench", *sys.argv[1:]])
+
+    def describe() -> str:
+        kept = len(wanted & store.completed_run_ids(out_dir))
+        return (
+            f"{kept} of {len(wanted)} runs are kept in {out_dir}; "
+            f"run `{command}` again to resume"
+        )
+
+    on_interrupt(describe)
 
 
 RESULT_COLUMNS = [

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, one_line
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, execute_run, status_row
 from workbench.runs.sweep_spec import import_plugin_modules
@@ -106,8 +106,12 @@ def run_dask(
         raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
     try:
         client = distributed.Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError, ValueError) as error:
-        raise ConfigError(f"cannot connect to the Dask scheduler {scheduler!r}: {error}") from None
+    except Exception as error:  # noqa: BLE001 - nothing there, or a service that is not Dask
+        reason = one_line(error)[:200]  # (another service's reply can be any error)
+        raise ConfigError(
+            f"cannot connect to the Dask scheduler {scheduler!r}: {reason}; "
+            "give the address a `dask scheduler` prints (tcp://host:port)"
+        ) from None
     reference_dir = str((out / "references").resolve())
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     try:
