@@ -81,7 +81,7 @@ class ProgressLines(ProgressBar):
             self._printed_tenth = tenth
 
     def finish(self) -> None:
-        if self._completed != self._printed_count:
+        if self._completed != self._printed_count and (self.total or self._completed):
             self._print(time.monotonic())
 
     def _print(self, now: float) -> None:
