@@ -26,7 +26,8 @@ def atomic_write(
     or a library can write it like any output file). ``durable``: fsync the file before
     the rename, so that after a crash of the machine (not only of the process: a rename
     alone covers that) the file is whole if present. On any error the temporary file is
-    removed and the error raised; ``path`` is then untouched.
+    removed and the error raised (an OSError naming no file, as a full disk's, is raised
+    again naming ``path``); ``path`` is then untouched.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -37,9 +38,12 @@ def atomic_write(
             with open(temp_name, "rb+") as written:
                 os.fsync(written.fileno())
         os.replace(temp_name, path)
-    except BaseException:
+    except BaseException as error:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temp_name)
+        if isinstance(error, OSError) and error.filename is None and error.errno:
+            # a write's ENOSPC names no file: name the one that could not be written
+            raise OSError(error.errno, error.strerror, str(path)) from error
         raise
 
 

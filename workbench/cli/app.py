@@ -10,6 +10,7 @@ Tables go through :func:`console` (rich); plain messages through ``typer.echo``.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from typing import Annotated, Any
 
 import click
@@ -20,6 +21,8 @@ from workbench import __version__
 from workbench.errors import WorkbenchError, one_line, one_line_text
 
 EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command ended by Ctrl-C
+_ON_INTERRUPT: list[Callable[[], str]] = []  # the running command's: what was kept, how to resume
 
 try:  # recent typer vendors click: its parser raises typer._click's exceptions
     from typer._click import exceptions as _typer_click
@@ -42,6 +45,36 @@ def fail(error: WorkbenchError) -> typer.Exit:
     return typer.Exit(EXIT_BAD_INPUT)
 
 
+def os_error_line(error: OSError) -> str:
+    """An operating-system error (ENOSPC, EACCES, ENOTDIR, a refused connection...) as
+    one line naming the path and what to do; results already written stay as they are."""
+    reason = error.strerror or one_line(error, with_type=False)
+    where = f": {error.filename}" if error.filename else ""
+    if error.filename2:
+        where += f" -> {error.filename2}"
+    return (
+        f"{reason}{where} (check the path, its permissions and the free space; "
+        "results already written are kept and the command can be run again)"
+    )
+
+
+def on_interrupt(describe: Callable[[], str]) -> None:
+    """Register what the current command says when Ctrl-C stops it: ``describe()`` names
+    what was kept and how to resume (called then, so it can count what is on disk)."""
+    _ON_INTERRUPT[:] = [describe]
+
+
+def interrupted_line() -> str:
+    """The one line printed on Ctrl-C: the command's own (see :func:`on_interrupt`) or a
+    generic one."""
+    for describe in _ON_INTERRUPT:
+        try:
+            return one_line_text(describe())
+        except Exception:  # noqa: BLE001 - the interruption is the news, not this
+            pass
+    return "stopped by Ctrl-C; files already written are kept"
+
+
 class WorkbenchGroup(typer.core.TyperGroup):
     """The one place where a WorkbenchError becomes a one-line message and exit code 2.
 
@@ -49,10 +82,17 @@ class WorkbenchGroup(typer.core.TyperGroup):
     the command's help to turn to; ``workbench COMMAND`` alone still prints its usage."""
 
     def invoke(self, ctx: click.Context) -> Any:
+        _ON_INTERRUPT.clear()
         try:
             return super().invoke(ctx)
         except WorkbenchError as error:
             raise fail(error) from None
+        except OSError as error:  # a full or read-only disk, a path that is not a directory
+            typer.echo(f"error: {os_error_line(error)}", err=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
+        except KeyboardInterrupt:
+            typer.echo(f"interrupted: {interrupted_line()}", err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
         except NO_ARGS_IS_HELP:
             raise
         except USAGE_ERRORS as error:
@@ -112,3 +152,6 @@ def main() -> None:
         app()
     except WorkbenchError as error:  # raised outside a command (e.g. by a callback)
         sys.exit(fail(error).exit_code)
+    except KeyboardInterrupt:  # outside a command (e.g. while importing)
+        typer.echo("interrupted: stopped by Ctrl-C; files already written are kept", err=True)
+        sys.exit(EXIT_INTERRUPTED)

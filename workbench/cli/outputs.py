@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sys
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -27,8 +28,13 @@ def report(
     """Write an HTML report (figures, tables as CSV/Markdown/LaTeX) of a results directory."""
     import warnings
 
+    from workbench.cli.app import on_interrupt
     from workbench.outputs.report import report_directory
 
+    on_interrupt(
+        lambda: f"the results in {results_path} are untouched, the report is unfinished; "
+        f"run `workbench report {' '.join(sys.argv[2:]) or results_path}` again"
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         index = report_directory(results_path, out)
@@ -62,13 +68,13 @@ def view(
             f"no recording at {recording}: give a .rrd file written by RerunSink.save "
             "(e.g. the recording.rrd of a sweep's output directory)"
         )
-    executable = shutil.which("rerun")
-    viewer = [executable] if executable else [sys.executable, "-m", "rerun"]
+    viewer = rerun_command(shutil.which)
+    rerun = shlex.join(viewer)
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         typer.echo(
             f"no display (DISPLAY / WAYLAND_DISPLAY unset); to look at {recording}:\n"
-            f"  on a machine with a display:  rerun {shlex.quote(str(recording))}\n"
-            f"  in a browser:  rerun --serve-web {shlex.quote(str(recording))}  "
+            f"  on a machine with a display:  {rerun} {shlex.quote(str(recording))}\n"
+            f"  in a browser:  {rerun} --serve-web {shlex.quote(str(recording))}  "
             "(then open the printed URL; forward its ports over ssh if remote)"
         )
         return
@@ -77,6 +83,19 @@ def view(
     except OSError as error:
         raise ConfigError(
             f"cannot start the Rerun viewer ({error}); install rerun-sdk or run "
-            f"`rerun {shlex.quote(str(recording))}` yourself"
+            f"`{rerun} {shlex.quote(str(recording))}` yourself"
         ) from None
     typer.echo(f"opened {recording} in the Rerun viewer")
+
+
+def rerun_command(which: Any) -> list[str]:
+    """The command that starts the Rerun viewer of this environment: the ``rerun`` script
+    installed beside this Python (found without an activated venv), else one on PATH,
+    else ``python -m rerun`` (rerun-sdk's module entry point)."""
+    from pathlib import Path
+
+    beside = Path(sys.executable).with_name("rerun")
+    if beside.is_file() and os.access(beside, os.X_OK):
+        return [str(beside)]
+    found = which("rerun")
+    return [found] if found else [sys.executable, "-m", "rerun"]

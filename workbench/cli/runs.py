@@ -131,6 +131,12 @@ def run(
     for name, value in row.items():
         table.add_row(name, _cell(value))
     console().print(table)
+    if row.get("status") != "ok":  # the table says what was measured; the exit status, that
+        typer.echo(f"error: run {row.get('status')}: {row.get('message', '')}", err=True)
+        raise typer.Exit(EXIT_RUN_NOT_OK)
+
+
+EXIT_RUN_NOT_OK = 1  # the run was skipped, failed or timed out (2 stays bad input)
 
 
 def _cell(value: Any) -> str:
@@ -187,6 +193,7 @@ def sweep(
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
     kinds = parse_rerun(rerun)
     loaded = load_spec(spec)
+    _say_on_interrupt(loaded, out)
     from workbench.outputs.recording import SweepRecorder
 
     summary = run_sweep(
@@ -245,6 +252,27 @@ def _without_rerun(arguments: list[str]) -> list[str]:
         elif argument != "--fresh" and not argument.startswith("--rerun="):
             kept.append(argument)
     return kept
+
+
+def _say_on_interrupt(loaded: Any, out: str | None) -> None:
+    """On Ctrl-C: how many runs of this sweep are kept in its directory, and how to resume."""
+    from pathlib import Path
+
+    from workbench.cli.app import on_interrupt
+    from workbench.runs import store
+
+    out_dir = Path(out) if out else Path(loaded.out)
+    wanted = {spec.run_id for spec in loaded.runs}
+    command = " ".join(["workbench", *sys.argv[1:]])
+
+    def describe() -> str:
+        kept = len(wanted & store.completed_run_ids(out_dir))  # whole rows only
+        return (
+            f"{kept} of {len(wanted)} runs are kept in {out_dir}; "
+            f"run `{command}` again to resume"
+        )
+
+    on_interrupt(describe)
 
 
 @app.command()

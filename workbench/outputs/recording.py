@@ -5,7 +5,8 @@ calls ``sink.log_run(spec, equations, problem, trajectory, series)`` after the m
 ``sink.save(path)`` writes every logged run and a blueprint to one ``.rrd`` file. Open it
 with ``workbench view PATH`` (or ``rerun PATH``).
 
-Entity layout of one run (``<run>`` = ``runs/<problem>/<formalism>/<integrator>/rtol=<r>``)::
+Entity layout of one run (``<run>`` = ``runs/<problem>/<formalism>/<integrator>/rtol=<r>``,
+each plugin with its options if it has any: ``rk4[step=0.01]``)::
 
     <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose)
     <run>/bodies/<body>/<kind>s        its shapes (boxes, cylinders, spheres, capsules), static
@@ -62,8 +63,42 @@ def entity_path(*parts: str) -> str:
 
 
 def run_parts(spec: Any) -> tuple[str, ...]:
-    """The path parts of a run: runs, problem, formalism, integrator, rtol=<r>."""
-    return ("runs", spec.problem, spec.formalism, spec.integrator, f"rtol={float(spec.rtol):g}")
+    """The path parts of a run: runs, problem, formalism, integrator, rtol=<r>; a plugin
+    run with options carries them (``rk4[step=0.01]``), so runs that differ only in
+    options are distinct entities, also once the files of several workers are merged."""
+    return (
+        "runs",
+        with_options("problem", spec.problem, getattr(spec, "problem_options", None)),
+        with_options("formalism", spec.formalism, getattr(spec, "formalism_options", None)),
+        with_options("integrator", spec.integrator, getattr(spec, "integrator_options", None)),
+        f"rtol={float(spec.rtol):g}",
+    )
+
+
+def with_options(kind: str, name: str, options: dict[str, Any] | None) -> str:
+    """``name[key=value,...]`` with the options that differ from the plugin's defaults
+    (keys sorted, values as JSON; all of them if the plugin is not registered here), or
+    ``name`` when there are none."""
+    options = _non_default(kind, name, dict(options or {}))
+    if not options:
+        return str(name)
+    text = ",".join(
+        f"{key}={json.dumps(options[key], default=str)}" for key in sorted(options)
+    )
+    return f"{name}[{text.replace(chr(34), '')}]"
+
+
+def _non_default(kind: str, name: str, options: dict[str, Any]) -> dict[str, Any]:
+    from workbench.errors import WorkbenchError
+    from workbench.plugin import registry
+    from workbench.plugin.options import option_fields
+
+    try:
+        plugin = getattr(registry, f"get_{kind}")(name)
+        defaults = {field: default for field, _type, default in option_fields(plugin.Options)}
+    except (WorkbenchError, AttributeError, TypeError):
+        return options
+    return {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
 
 
 def quaternion_xyzw(scalar_first: np.ndarray) -> np.ndarray:
@@ -120,10 +155,10 @@ class RerunSink:
         if path in self.runs:
             parts = parts[:-1] + (f"{parts[-1]} {getattr(spec, 'run_id', len(self.runs))}",)
             path = entity_path(*parts)
-        label = f"{spec.formalism} / {spec.integrator} rtol={float(spec.rtol):g}"
-        self.runs[path] = (str(spec.problem), label)
+        label = f"{parts[2]} / {parts[3]} {parts[4]}"
+        self.runs[path] = (parts[1], label)
         model = equations.model
-        self.recording.log(entity_path("runs", spec.problem), view_coordinates(model), static=True)
+        self.recording.log(entity_path("runs", parts[1]), view_coordinates(model), static=True)
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
         self._log_geometry(path, model, f"{spec.problem} {options} {model.name}")
         self._log_poses(path, equations, trajectory)
@@ -249,17 +284,19 @@ class RerunSink:
 
         The file is written beside the target and renamed over it, so a reader never
         sees half a recording (not synced to disk: a view, made again from the runs).
+        The recording is encoded in memory (a Rerun binary stream) and written by Python:
+        Rerun's file sink blocks forever on a full disk (rerun-sdk 0.41: it logs ENOSPC and
+        its flush never returns), whereas this raises the OSError, leaving ``path`` as
+        it was and no temporary file behind.
         """
         target = Path(path)
         if target.is_dir() or target.suffix != ".rrd":
             target = target / RECORDING_FILE
-
-        def write(temporary: str) -> None:
-            self.recording.save(temporary, default_blueprint=self.blueprint())
-            self.recording.flush()
-            self.recording.disconnect()
-
-        atomic_write(target, write, durable=False)
+        stream = self.recording.binary_stream()
+        self.recording.send_blueprint(self.blueprint(), make_active=False, make_default=True)
+        data = stream.read() or b""
+        self.recording.disconnect()
+        atomic_write(target, lambda temporary: Path(temporary).write_bytes(data), durable=False)
         return target
 
     def begin_file(self, path: str | Path) -> None:

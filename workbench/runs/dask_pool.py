@@ -137,8 +137,12 @@ def run_dask(
         raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
     try:
         client = distributed.Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError, ValueError) as error:
-        raise ConfigError(f"cannot connect to the Dask scheduler {scheduler!r}: {error}") from None
+    except Exception as error:  # noqa: BLE001 - nothing there, or a service that is not Dask
+        reason = one_line(error)[:200]  # (another service's reply can be any error)
+        raise ConfigError(
+            f"cannot connect to the Dask scheduler {scheduler!r}: {reason}; "
+            "give the address a `dask scheduler` prints (tcp://host:port)"
+        ) from None
     reference_dir = str((out / "references").resolve())
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     unfinished: dict[str, str] = {}

@@ -397,7 +397,28 @@ def _pairing(
 def _form_mismatch(spec: RunSpec, integrator: Any, offered: dict[str, int]) -> str:
     accepts = ", ".join(f"{k} (index <= {v})" for k, v in integrator.accepts.items())
     offers = ", ".join(f"{k} (index {v})" for k, v in offered.items())
-    return f"accepts {{{accepts}}}; formalism {spec.formalism} offers {{{offers}}}"
+    message = f"accepts {{{accepts}}}; formalism {spec.formalism} offers {{{offers}}}"
+    return message + _index_hint(spec, integrator.accepts)
+
+
+def _index_hint(spec: RunSpec, accepts: dict[str, int]) -> str:
+    """How to pair them when the formalism has an ``index`` option (its dae form's index;
+    index 1 also gives the ode form): the highest index the integrator accepts."""
+    formalism = registry.get_formalism(spec.formalism)
+    fields = getattr(getattr(formalism, "Options", None), "__dataclass_fields__", {})
+    if "index" not in fields:
+        return ""
+    wanted = [min(int(accepts["dae"]), 3)] if accepts.get("dae", 0) >= 1 else []
+    wanted += [1] if "ode" in accepts else []
+    wanted = [i for i in wanted if i != spec.formalism_options.get("index")]
+    if not wanted:
+        return ""
+    index = max(wanted)
+    in_sweep = f'{{ name = "{spec.formalism}", options = {{ index = {index} }} }}'
+    return (
+        f"; pair them with the formalism option index={index} (workbench run: -o index={index};"
+        f" a sweep: formalisms = [{in_sweep}])"
+    )
 
 
 def _record_trajectory(row: dict[str, Any], trajectory: Any) -> None:

@@ -56,7 +56,7 @@ def _worker_main(
         if entry not in sys.path:
             sys.path.insert(0, entry)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    _exit_with_parent()
+    exit_with_parent()
     import warnings
 
     warnings.filterwarnings("ignore")
@@ -121,7 +121,7 @@ def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
     return recorder.merge(files, out)
 
 
-def _exit_with_parent() -> None:
+def exit_with_parent() -> None:
     """Exit when the process that started this one dies (no orphan keeps running a run)."""
     import threading
 

@@ -5,6 +5,9 @@
 ``<name>[: <text>]  ━━━━━  3/10  0:00:04  <note>``; a disabled bar (``show=False``) has the
 same methods and draws nothing, so callers never test whether it is shown.
 
+Where stderr is not a terminal (piped, ``nohup``, CI) the same calls print plain lines
+instead (:class:`ProgressLines`: every tenth of the total and at least every 30 s).
+
 ``threaded=False`` draws without rich's refresh thread: the bar is redrawn on each call
 (and by :meth:`ProgressBar.tick`), for callers that fork processes while it is shown.
 """
@@ -12,6 +15,8 @@ same methods and draws nothing, so callers never test whether it is shown.
 from __future__ import annotations
 
 import contextlib
+import sys
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -46,6 +51,58 @@ class ProgressBar:
             self._progress.refresh()
 
 
+class ProgressLines(ProgressBar):
+    """Progress as plain lines on stderr where no bar can be drawn (stderr not a terminal):
+    ``<name>[: <text>]  3/10 (30%)  0:00:04  <note>`` (as the bar) at every tenth of the
+    total and at least every ``every_s`` seconds while items finish, and once at the end."""
+
+    def __init__(self, name: str, total: int, every_s: float = 30.0, stream: Any = None) -> None:
+        super().__init__(name, total)
+        self.total, self.every_s = max(0, int(total)), every_s
+        self._stream = stream
+        self._completed, self._text, self._note = 0, "", ""
+        self._started = self._printed_at = time.monotonic()
+        self._printed_tenth, self._printed_count = 0, -1
+
+    def step(self, text: str | None = None, steps: int = 1) -> None:
+        self._completed += steps
+        self._text = text or ""
+        self._maybe_print()
+
+    def update(self, completed: int, note: str = "") -> None:
+        self._completed, self._note = completed, note
+        self._maybe_print()
+
+    def _maybe_print(self) -> None:
+        tenth = 10 * self._completed // self.total if self.total else 10
+        now = time.monotonic()
+        if tenth > self._printed_tenth or now - self._printed_at >= self.every_s:
+            self._print(now)
+            self._printed_tenth = tenth
+
+    def finish(self) -> None:
+        if self._completed != self._printed_count and (self.total or self._completed):
+            self._print(time.monotonic())
+
+    def _print(self, now: float) -> None:
+        percent = f" ({100 * self._completed // self.total}%)" if self.total else ""
+        elapsed = int(now - self._started)
+        clock = f"{elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}"
+        name = f"{self.name}: {self._text}" if self._text else self.name
+        note = f"  {self._note}" if self._note else ""
+        stream = self._stream or sys.stderr
+        print(f"{name}  {self._completed}/{self.total}{percent}  {clock}{note}", file=stream)
+        stream.flush()
+        self._printed_at, self._printed_count = now, self._completed
+
+
+def _is_terminal(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # replaced or closed
+        return False
+
+
 @contextlib.contextmanager
 def progress_bar(
     name: str,
@@ -62,6 +119,11 @@ def progress_bar(
     """
     if not show:
         yield ProgressBar(name, total)
+        return
+    if not _is_terminal(sys.stderr):  # piped, nohup, CI: plain lines instead of a bar
+        lines = ProgressLines(name, total)
+        yield lines
+        lines.finish()
         return
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn

@@ -119,8 +119,12 @@ def run_sweep(
     results = store.consolidate(out_dir)
     recording = None
     if recorder is not None:
-        with contextlib.suppress(Exception):  # a recording is a view, never fatal
+        try:  # a recording is a view, never fatal to the results ...
             recording = merge_run_recordings(recorder, out_dir)
+        except OSError:
+            raise  # ... but a full or read-only disk is said (the rows are kept; resume merges)
+        except Exception:  # noqa: BLE001, S110
+            pass
     return SweepSummary(
         out_dir,
         counts,

@@ -3,15 +3,21 @@
 Drawing is most of a report's time (matplotlib, three formats a figure), and problems are
 independent, so each problem's figures are one task. Workers are spawned, not forked (fork
 is unsafe with the threads of rich and rerun), and cost about a second each to start.
+They leave Ctrl-C to the parent (which says what was kept, once) and exit when it dies,
+so an interrupted or killed report leaves no process drawing for nobody.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
+
+from workbench.runs.local_pool import exit_with_parent
 
 
 def figure_jobs(n_problems: int) -> int:
@@ -25,7 +31,30 @@ def figure_executor(jobs: int) -> Executor:
     each task at once in this process."""
     if jobs <= 1:
         return InlineExecutor()
-    return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+    return FigurePool(
+        jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker
+    )
+
+
+def _start_worker() -> None:
+    """In each worker: ignore Ctrl-C (the terminal sends it to the whole process group;
+    the parent handles it) and exit when the parent dies."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with_parent()
+
+
+class FigurePool(ProcessPoolExecutor):
+    """A process pool whose ``with`` block, left by an exception (Ctrl-C, an error),
+    kills its workers at once instead of waiting for every submitted figure."""
+
+    def __exit__(self, kind: Any, error: Any, traceback: Any) -> bool:
+        if kind is None:
+            return bool(super().__exit__(kind, error, traceback))
+        for process in list((self._processes or {}).values()):
+            with contextlib.suppress(Exception):
+                process.kill()
+        self.shutdown(wait=False, cancel_futures=True)
+        return False
 
 
 class InlineExecutor(Executor):
