@@ -31,6 +31,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import socket
@@ -340,8 +341,12 @@ def tree_hashes(root: Path) -> dict[str, str]:
     }
 
 
+PROGRESS_LINE = re.compile(r"  \d+/\d+( \(\d+%\))?  \d+:\d\d:\d\d")  # runs/progress off a TTY
+
+
 def one_line(stderr: str) -> bool:
-    lines = [line for line in stderr.splitlines() if line.strip()]
+    """The error is one line (the plain progress lines printed off a terminal aside)."""
+    lines = [x for x in stderr.splitlines() if x.strip() and not PROGRESS_LINE.search(x)]
     return len(lines) == 1 and "Traceback" not in stderr
 
 
