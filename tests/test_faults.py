@@ -241,6 +241,18 @@ def test_ctrl_c_during_a_sweep_is_one_line_saying_what_was_kept(tmp_path) -> Non
     assert f"{kept} of 12 runs are kept in {out}" in last
 
 
+EARLY_KILL_SCRIPT = """
+import os, signal, sys, time
+from workbench.outputs.report.pool import figure_executor
+pool = figure_executor(2)
+for _ in range(2):  # a pool starts its workers on demand: one a waiting task
+    pool.submit(time.sleep, 3600)
+while len(pool._processes) < 2:
+    time.sleep(0.001)
+print(*pool._processes, flush=True)
+os.kill(os.getpid(), signal.SIGKILL)  # before the spawned workers have even imported
+"""
+
 POOL_SCRIPT = """
 import sys, time
 from workbench.outputs.report.pool import figure_executor
@@ -279,17 +291,35 @@ def start_pool() -> tuple[subprocess.Popen, list[int]]:
     return process, [int(pid) for pid in line.split()]
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="issue 18.11 open: under pytest the spawned report workers outlived a SIGKILLed "
-    "parent (run alone, from a script, they exit within 0.5 s); cause not found yet",
-)
 def test_report_workers_die_with_their_parent() -> None:
     process, workers = start_pool()
     assert all(alive(pid) for pid in workers)
     process.kill()  # SIGKILL: no cleanup code of the parent runs
     process.wait(timeout=HANG)
-    deadline = time.monotonic() + 60  # the workers poll their parent every 0.5 s
+    assert_no_orphans(workers)  # they poll their parent every 0.5 s
+
+
+def test_report_workers_started_after_their_parent_died_exit() -> None:
+    """A parent killed while its workers are still starting (seconds of imports on a
+    loaded machine): they must not take init, their new parent, for theirs."""
+    process = subprocess.Popen(
+        [sys.executable, "-c", EARLY_KILL_SCRIPT],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,
+    )
+    workers = [int(pid) for pid in process.stdout.readline().split()]  # the workers keep
+    process.wait(timeout=HANG)  # the pipe open while they live: no communicate()
+    assert process.returncode == -signal.SIGKILL
+    assert len(workers) == 2
+    assert_no_orphans(workers)
+
+
+def assert_no_orphans(workers: list[int]) -> None:
+    """Every pid in ``workers`` exits (polled every 0.1 s; survivors are killed)."""
+    deadline = time.monotonic() + HANG  # only a worker that never exits reaches it
     while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
     orphans = [pid for pid in workers if alive(pid)]

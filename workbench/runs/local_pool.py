@@ -48,7 +48,12 @@ from workbench.runs.worker_env import pin_threads
 
 
 def _worker_main(
-    conn: Any, plugins: list[str], out: str, sys_path: list[str], recorder: Any = None
+    conn: Any,
+    plugins: list[str],
+    out: str,
+    sys_path: list[str],
+    recorder: Any = None,
+    parent: int | None = None,
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
@@ -56,7 +61,7 @@ def _worker_main(
         if entry not in sys.path:
             sys.path.insert(0, entry)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    exit_with_parent()
+    exit_with_parent(parent)
     import warnings
 
     warnings.filterwarnings("ignore")
@@ -121,11 +126,18 @@ def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
     return recorder.merge(files, out)
 
 
-def exit_with_parent() -> None:
-    """Exit when the process that started this one dies (no orphan keeps running a run)."""
+def exit_with_parent(parent: int | None = None) -> None:
+    """Exit when the process that started this one dies (no orphan keeps running a run).
+
+    ``parent``: that process's pid, passed by it. Read here with getppid instead, a parent
+    killed while this process was still starting (imports take seconds on a loaded
+    machine) would go unnoticed: this process would already belong to init.
+    """
     import threading
 
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent
+    if os.getppid() != parent:
+        os._exit(1)
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -235,7 +247,7 @@ def run_local(
         parent_end, child_end = context.Pipe()
         process = context.Process(
             target=_worker_main,
-            args=(child_end, plugins, str(out), list(sys.path), recorder),
+            args=(child_end, plugins, str(out), list(sys.path), recorder, os.getpid()),
             daemon=True,
         )
         # a forked worker's garbage collector would visit every object it inherited and

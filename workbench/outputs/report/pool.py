@@ -32,15 +32,18 @@ def figure_executor(jobs: int) -> Executor:
     if jobs <= 1:
         return InlineExecutor()
     return FigurePool(
-        jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker
+        jobs,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_start_worker,
+        initargs=(os.getpid(),),
     )
 
 
-def _start_worker() -> None:
+def _start_worker(parent: int) -> None:
     """In each worker: ignore Ctrl-C (the terminal sends it to the whole process group;
-    the parent handles it) and exit when the parent dies."""
+    the parent handles it) and exit when ``parent`` dies, even before this ran."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    exit_with_parent()
+    exit_with_parent(parent)
 
 
 class FigurePool(ProcessPoolExecutor):
