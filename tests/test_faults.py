@@ -123,11 +123,10 @@ def small_disk(tmp_path):
 def fill(disk: Path, leave: int) -> Path:
     """Fill ``disk`` to the last byte, then free about ``leave`` bytes."""
     filler = disk / "filler"
-    with open(filler, "wb") as handle:
-        try:
+    with open(filler, "wb", buffering=0) as handle:  # unbuffered: the bytes a full disk
+        try:  # refused are not written again (and refused again) when the file closes
             while True:
                 handle.write(b"\0" * 65536)
-                handle.flush()
         except OSError as error:
             assert error.errno == errno.ENOSPC
     os.truncate(filler, max(0, filler.stat().st_size - leave))

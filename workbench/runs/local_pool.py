@@ -48,12 +48,7 @@ from workbench.runs.worker_env import pin_threads
 
 
 def _worker_main(
-    conn: Any,
-    plugins: list[str],
-    out: str,
-    sys_path: list[str],
-    recorder: Any = None,
-    parent: int | None = None,
+    conn: Any, plugins: list[str], out: str, sys_path: list[str], recorder: Any = None
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
@@ -61,7 +56,7 @@ def _worker_main(
         if entry not in sys.path:
             sys.path.insert(0, entry)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    exit_with_parent(parent)
+    exit_with_parent()
     import warnings
 
     warnings.filterwarnings("ignore")
@@ -126,23 +121,32 @@ def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
     return recorder.merge(files, out)
 
 
-def exit_with_parent(parent: int | None = None) -> None:
+def exit_with_parent() -> None:
     """Exit when the process that started this one dies (no orphan keeps running a run).
 
-    ``parent``: that process's pid, passed by it. Read here with getppid instead, a parent
-    killed while this process was still starting (imports take seconds on a loaded
-    machine) would go unnoticed: this process would already belong to init.
+    Watched through multiprocessing's parent sentinel, a pipe whose other end only the
+    parent holds: it reads as ready once the parent is gone, even if that happened while
+    this process was still importing (a pid read with getppid then would already be
+    init's), and whatever the start method (a forkserver child's parent is the
+    forkserver, but the pipe comes from the process that asked for it).
     """
     import threading
+    from multiprocessing.connection import wait
 
-    parent = os.getppid() if parent is None else parent
-    if os.getppid() != parent:
-        os._exit(1)
+    parent = multiprocessing.parent_process()
+    if parent is None:  # not started by multiprocessing: poll the parent pid
+        ppid = os.getppid()
 
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.5)
-        os._exit(1)
+        def watch() -> None:
+            while os.getppid() == ppid:
+                time.sleep(0.5)
+            os._exit(1)
+
+    else:
+
+        def watch() -> None:
+            wait([parent.sentinel])
+            os._exit(1)
 
     threading.Thread(target=watch, daemon=True).start()
 
@@ -247,7 +251,7 @@ def run_local(
         parent_end, child_end = context.Pipe()
         process = context.Process(
             target=_worker_main,
-            args=(child_end, plugins, str(out), list(sys.path), recorder, os.getpid()),
+            args=(child_end, plugins, str(out), list(sys.path), recorder),
             daemon=True,
         )
         # a forked worker's garbage collector would visit every object it inherited and

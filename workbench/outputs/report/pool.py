@@ -32,18 +32,15 @@ def figure_executor(jobs: int) -> Executor:
     if jobs <= 1:
         return InlineExecutor()
     return FigurePool(
-        jobs,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_start_worker,
-        initargs=(os.getpid(),),
+        jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_start_worker
     )
 
 
-def _start_worker(parent: int) -> None:
+def _start_worker() -> None:
     """In each worker: ignore Ctrl-C (the terminal sends it to the whole process group;
-    the parent handles it) and exit when ``parent`` dies, even before this ran."""
+    the parent handles it) and exit when the parent dies."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    exit_with_parent(parent)
+    exit_with_parent()
 
 
 class FigurePool(ProcessPoolExecutor):
