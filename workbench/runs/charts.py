@@ -10,10 +10,10 @@ the best chart (the state carried over through the full velocities). Integrators
 solve segments; their statistics add up over every segment, including the dropped tails
 (work really paid).
 
-The first segment runs to the end, so a run that never needs another chart is the same
-as without the atlas. After a switch a segment spans twice the samples the previous chart
-lasted (at least MIN_HORIZON), doubling while the chart holds, so a chart that fails
-soon again wastes little.
+A segment spans a limited number of samples, doubling while its chart holds: the first
+1/FIRST_SEGMENTS of the run, after a switch 1.5 times as many as the previous chart lasted
+(at least MIN_HORIZON). A chart that degrades early then wastes little, and a run that never
+switches pays a few restarts (log2 FIRST_SEGMENTS).
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from workbench.equations.initial import accelerations
 from workbench.plugin.integrator import SolverStats, Trajectory
 
 SWITCH_RATIO = 0.3  # leave a chart whose conditioning is below this times the best's
-MIN_HORIZON = 8  # output samples in a segment after a switch, at least
+MIN_HORIZON = 8  # output samples in a segment, at least
+FIRST_SEGMENTS = 8  # the first segment spans this fraction of the samples
 
 
 @dataclass
@@ -45,7 +46,8 @@ def integrate_on_charts(integrator: Any, equations: Any, y0: np.ndarray, yp0: np
                         form: str) -> ChartedTrajectory:  # fmt: skip
     """``integrator.solve`` segment by segment on ``equations.atlas`` (module doc)."""
     atlas = equations.atlas
-    chart, start, horizon, chart_began = atlas.home, 0, len(times), 0
+    chart, start, chart_began = atlas.home, 0, 0
+    horizon = max(len(times) // FIRST_SEGMENTS, MIN_HORIZON)
     nq, nv = equations.nq, equations.nv
     kept_t: list[np.ndarray] = []
     kept_y: list[np.ndarray] = []
@@ -78,7 +80,7 @@ def integrate_on_charts(integrator: Any, equations: Any, y0: np.ndarray, yp0: np
             target = atlas.best(t_last, y_next[:nq])
             if target == chart:  # the last good sample still prefers it: the bad one does not
                 target = atlas.best(float(seg_t[bad]), seg_y[bad, :nq])
-            horizon = max(start + last - chart_began, MIN_HORIZON)
+            horizon = max((3 * (start + last - chart_began)) // 2, MIN_HORIZON)
             y_next = atlas.transfer(chart, target, t_last, y_next)
             chart, chart_began = target, start + last
             switches.append((t_last, chart))
