@@ -38,7 +38,7 @@ chart by chart and restarts on the best one where the current chart degrades
 (:mod:`workbench.runs.charts`; the switches are in the row's ``notes``). Measured on the
 knife-edge cart turning through 10 rad: 11.5 correct digits with DOP853 at rtol 1e-12 (one
 partition: 8.7; minimal-ode with multipliers: 13, the reference's cap), 10.9 with CVODE
-Adams (9.4; 11.2) at about 1.7 times the right-hand sides of one partition.
+Adams (9.4; 11.2), at about 2.3 times the right-hand sides of one partition.
 ``repartition = false`` (or naming ``independent``) keeps one partition for the run: the
 run's audit then reports the least sigma_min(W_d) / sigma_max(W) reached
 (``Equations.partition_matrices``) and warns below
