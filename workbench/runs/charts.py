@@ -64,7 +64,9 @@ def integrate_on_charts(integrator: Any, equations: Any, y0: np.ndarray, yp0: np
         )
         segments.append(segment.stats)
         seg_t, seg_y = np.asarray(segment.times), np.atleast_2d(segment.y)
-        first = 0 if start == 0 else 1  # a restart's first sample is the last one kept
+        if seg_t.size == 0:  # failed before its first sample
+            return _joined(form, kept_t, kept_y, charts, switches, segments, segment)
+        first = 1 if charts else 0  # a restart's first sample is the last one kept
         bad = _first_degraded(atlas, chart, seg_t, seg_y[:, :nq])
         if bad == 1 and just_switched:  # no ping-pong: keep one sample at least
             bad = 2 if len(seg_t) > 2 else None
@@ -128,7 +130,10 @@ def _joined(form: str, kept_t: list[np.ndarray], kept_y: list[np.ndarray], chart
         setattr(stats, name, -1 if any(v < 0 for v in values) else int(sum(values)))
     for name in ("setup_s", "integrate_s", "cpu_s"):
         setattr(stats, name, float(sum(getattr(s, name) for s in segments)))
-    times = np.concatenate(kept_t)
+    times = np.concatenate(kept_t) if kept_t else np.zeros(0)
+    if not kept_y:
+        return ChartedTrajectory(form, times, np.atleast_2d(last.y), last.success, last.message,
+                                 last.t_reached, stats, charts, switches)  # fmt: skip
     t_reached = last.t_reached if not last.success else float(times[-1]) if times.size else math.nan
     return ChartedTrajectory(
         form, times, np.concatenate(kept_y), last.success, last.message, t_reached, stats,
