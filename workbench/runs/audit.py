@@ -16,7 +16,8 @@ Columns (:data:`AUDIT_COLUMNS`):
   its time. For a formalism whose equations keep no constraint rows but solve a fixed
   block W_d of W for dependent velocities (``Equations.partition_matrices``, a note
   beginning with PARTITION_NOTE): sigma_min(W_d) / sigma_max(W) instead, found the same
-  way. NaN without constraints.
+  way, each sample in the partition it was computed in when the run changed partition
+  (``Equations.atlas``, :mod:`workbench.runs.charts`). NaN without constraints.
 - ``dof_start``, ``dof_max``: nv - rank W at the start and the most along the output
   times (rank by :func:`workbench.numerics.linalg.independent_rows`, the algorithm every
   formalism and ``describe`` use).
