@@ -169,20 +169,21 @@ def test_closed_loop_projection_matches_minimal_ode() -> None:
 # ---- a fixed velocity partition along a knife edge's turn (Bloch 2003, book 8.4.1) --------
 
 
-def knife_edge_run(formalism: str, options: dict):
+def knife_edge_run(formalism: str, options: dict, integrator: str = "sundials-cvode-adams",
+                   rtol: float = 1e-12):  # fmt: skip
     from workbench.runs.execute import RunSpec, execute_run
 
-    spec = RunSpec("knife-edge-cart", formalism, "sundials-cvode-adams", 1e-12, 1e-14, {}, options)
+    spec = RunSpec("knife-edge-cart", formalism, integrator, rtol, rtol / 100, {}, options)
     return execute_run(spec).row
 
 
 def test_knife_edge_turning_through_90_degrees_reports_its_singular_partition() -> None:
     """Heading w t (w = 2 rad/s): the dependent velocity y' has W_d = cos(heading), zero at
-    t = pi/4 s. The projection keeps that partition (the declared limitation); the run must
-    say where it turned singular instead of losing digits silently."""
+    t = pi/4 s. With one partition kept for the run (repartition = false) the run must say
+    where it turned singular instead of losing digits silently."""
     from workbench.problems.ch8_nonholonomic import CART_YAW_RATE
 
-    row = knife_edge_run("nonholonomic-projection", {})
+    row = knife_edge_run("nonholonomic-projection", {"repartition": False})
     assert row["status"] == "ok"
     assert "singular velocity partition" in row["warnings"]
     quarter_turn = (np.pi / 2) / CART_YAW_RATE
@@ -196,3 +197,77 @@ def test_knife_edge_with_multipliers_follows_the_circle_through_the_turn() -> No
     row = knife_edge_run("minimal-ode", {"index": 1})
     assert row["status"] == "ok" and row["warnings"] == ""
     assert row["scd"] > 10
+
+
+@pytest.mark.parametrize(
+    ("integrator", "rtol", "digits"),
+    [("sundials-cvode-adams", 1e-12, 10.5), ("scipy-dop853", 1e-12, 11), ("rk4", 1e-6, 11)],
+)
+def test_knife_edge_changes_partition_through_full_turns(integrator, rtol, digits) -> None:
+    """Re-partitioning (Wehage and Haug): the run leaves the partition where W_d degrades
+    and goes on with the best one, so the knife edge turns through 10 rad (1.6 turns: W_d
+    of either partition vanishes every 90 degrees) with the digits the pipelines with
+    multipliers reach (minimal-ode index 1, same integrator; measured: cvode-adams 11.2,
+    dop853 13.0 (the reference's cap), rk4 11.5; one fixed partition: 9.4, 8.7 and 2.6).
+    Bloch's knife edge without friction: heading rate and speed constant, energy conserved,
+    the axle midpoint on the analytic circle of radius u / w, every sample measured in its
+    own partition."""
+    row = knife_edge_run("nonholonomic-projection", {}, integrator, rtol)
+    assert row["status"] == "ok" and row["warnings"] == "", row["warnings"]
+    assert "6 chart switches" in row["notes"]  # 10 rad: near 1, 2, ..., 6 times pi/2
+    assert row["scd"] > digits and row["err_max"] < 10 ** -(digits - 0.5)
+    assert row["invariant_err_max"] < 1e-9  # heading rate and speed
+    assert row["energy_err_max"] < 1e-9
+    assert row["jacobian_sv_ratio_min"] > 0.2  # the partition used never came near singular
+    assert row["drift_nh_max"] < 1e-12
+    fixed = knife_edge_run("nonholonomic-projection", {"repartition": False}, integrator, rtol)
+    assert "singular velocity partition" in fixed["warnings"]
+    assert fixed["n_rhs"] > 0 and fixed["scd"] < row["scd"]
+
+
+def test_chart_by_chart_integration_adds_up_segments() -> None:
+    """The run's solver statistics are the sums over the segments the integrator solved;
+    a sample is kept once, in the chart it was computed in, and carries over through the
+    full velocities v = F s + f at every switch (the constraint holds to round-off)."""
+    from workbench.plugin.registry import get_integrator, get_problem
+    from workbench.runs.charts import SWITCH_RATIO, integrate_on_charts
+    from workbench.runs.execute import RunSpec, cached_equations, cached_initial_state
+
+    problem = get_problem("knife-edge-cart")()
+    spec = RunSpec("knife-edge-cart", "nonholonomic-projection", "scipy-dop853", 1e-10, 1e-12)
+    equations, _ = cached_equations(spec, problem.model())
+    initial = cached_initial_state(spec, equations, problem)
+    inner = get_integrator("scipy-dop853")()
+    solved = []
+
+    class Counting:
+        def solve(self, *args):
+            trajectory = inner.solve(*args)
+            solved.append((args[0], trajectory))
+            return trajectory
+
+    times = problem.sample_times()
+    trajectory = integrate_on_charts(
+        Counting(), equations, initial.y0(equations, "ode"), initial.yp0(equations, "ode"),
+        times, 1e-10, 1e-12, inner.parse_options({}), "ode",
+    )  # fmt: skip
+    assert trajectory.success and np.array_equal(trajectory.times, times)
+    assert len(trajectory.switches) == 6 and len(solved) > 6
+    assert trajectory.stats.n_rhs == sum(t.stats.n_rhs for _, t in solved)
+    assert trajectory.stats.n_steps == sum(t.stats.n_steps for _, t in solved)
+    atlas = equations.atlas
+    assert len({id(e) for e, _ in solved}) == 2  # two partitions, each compiled once
+    for k, (t, chart) in enumerate(zip(times, trajectory.charts, strict=True)):
+        q, s = trajectory.y[k, :3], trajectory.y[k, 3:]
+        (_, _, nonholonomic) = atlas.equations(chart).observables.residuals(t, q, s)
+        assert abs(float(np.ravel(nonholonomic)[0])) < 1e-13
+        best = atlas.conditioning(atlas.best(t, q), t, q)
+        assert atlas.conditioning(chart, t, q) >= SWITCH_RATIO * best
+
+
+def test_repartition_is_off_with_named_independent_velocities() -> None:
+    """``independent`` fixes the partition: no atlas; ``repartition`` must be a boolean."""
+    model = knife_edge_sled()
+    assert build(model).atlas is not None
+    assert build(model, {"independent": ["plane.v[0]", "plane.v[2]"]}).atlas is None
+    assert build(model, {"repartition": False}).atlas is None

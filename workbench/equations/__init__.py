@@ -9,6 +9,7 @@ initial state). Import the contract from here: ``from workbench.equations import
 
 from workbench.equations.contract import (
     FORMS,
+    Atlas,
     DaeForm,
     Equations,
     MechanicalForm,
@@ -32,6 +33,7 @@ from workbench.equations.observables import (
 __all__ = [
     "FORMS",
     "SYMBOLIC_SOLVE_LIMIT",
+    "Atlas",
     "DaeForm",
     "Equations",
     "MechanicalForm",

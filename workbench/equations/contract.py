@@ -17,7 +17,7 @@ Every numeric function is a :class:`~workbench.equations.evaluate.FastFunction`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -122,6 +122,34 @@ class MechanicalForm:
     n_constraints: int
 
 
+class Atlas(Protocol):
+    """Charts of a formalism whose coordinates (q, v) hold only near part of the motion,
+    e.g. minimal velocities v_i of a velocity partition, singular where the block W_d
+    solved for the dependent ones loses rank. Every chart has the same q, the same number
+    of v and the same observables; a chart is any hashable key.
+
+    1. ``home``: the chart of the Equations that offer the atlas;
+    2. ``best(t, q)``: the best-conditioned chart at (t, q);
+    3. ``conditioning(chart, t, q)``: a measure in [0, 1] of how well ``chart`` holds at
+       (t, q), 0 where it is singular (the audit's ratio, e.g. sigma_min(W_d)/sigma_max(W));
+    4. ``equations(chart)``: the chart's Equations (built on first use);
+    5. ``transfer(source, target, t, y)``: a state y = (q, v) of ``source`` in ``target``;
+    6. ``name(chart)``: a short text naming the chart (for the row's notes).
+    """
+
+    home: Any
+
+    def best(self, t: float, q: np.ndarray) -> Any: ...
+
+    def conditioning(self, chart: Any, t: float, q: np.ndarray) -> float: ...
+
+    def equations(self, chart: Any) -> Equations: ...
+
+    def transfer(self, source: Any, target: Any, t: float, y: np.ndarray) -> np.ndarray: ...
+
+    def name(self, chart: Any) -> str: ...
+
+
 @dataclass
 class Equations:
     """What a formalism built for one model. ``forms`` maps form name -> form object."""
@@ -142,6 +170,9 @@ class Equations:
     # constraints W (m, nv) for dependent velocities (a velocity partition) offers it, so
     # the run's audit reports where sigma_min(W_d) / sigma_max(W) falls (digits are lost)
     partition_matrices: Any = None
+    # an :class:`Atlas` when these coordinates hold only near part of the motion (a velocity
+    # partition): the run then integrates chart by chart (workbench.runs.charts)
+    atlas: Any = None
     # slices of q holding Euler parameters (4 each): they stay on the unit sphere only as
     # well as the integrator keeps them there; the rotations built from them are
     # normalized, so the run's audit reads their norm here

@@ -16,7 +16,8 @@ Columns (:data:`AUDIT_COLUMNS`):
   its time. For a formalism whose equations keep no constraint rows but solve a fixed
   block W_d of W for dependent velocities (``Equations.partition_matrices``, a note
   beginning with PARTITION_NOTE): sigma_min(W_d) / sigma_max(W) instead, found the same
-  way. NaN without constraints.
+  way, each sample in the partition it was computed in when the run changed partition
+  (``Equations.atlas``, :mod:`workbench.runs.charts`). NaN without constraints.
 - ``dof_start``, ``dof_max``: nv - rank W at the start and the most along the output
   times (rank by :func:`workbench.numerics.linalg.independent_rows`, the algorithm every
   formalism and ``describe`` use).
@@ -73,11 +74,13 @@ def health_audit(
     y: np.ndarray,
     rotations: np.ndarray,
     rtol: float,
+    charts: list[Any] | None = None,
 ) -> dict[str, Any]:
     """The audit columns of a run (no warnings yet: see :func:`audit_warnings`).
 
     times (n,), y (n, >= nq + nv) in the layout [q, v, ...], rotations (n, n_bodies, 3, 3)
-    as the observables give them (not orthonormalized).
+    as the observables give them (not orthonormalized). ``charts``: each sample's chart
+    when the run changed chart (``Equations.atlas``): its partition is measured there.
     """
     nq, nv = equations.nq, equations.nv
     q, v = y[:, :nq], y[:, nq : nq + nv]
@@ -110,7 +113,13 @@ def health_audit(
     else:
         row["dof_start"] = row["dof_max"] = nv
         if getattr(equations, "partition_matrices", None) is not None:
-            row.update(_partition_audit(equations.partition_matrices, mechanical, times, q, v))
+            atlas = getattr(equations, "atlas", None)
+            in_chart = (
+                [atlas.equations(c) for c in charts[: len(times)]]
+                if charts and atlas is not None
+                else [equations] * len(times)
+            )
+            row.update(_partition_audit(in_chart, times, q, v))
             row[MEASURE] = "partition"
         return row
 
@@ -127,8 +136,8 @@ def health_audit(
     deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
     for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
         ratio, at = _refine(
-            mechanical, lambda t, q_t: _singular_value_ratio(jacobian(t, q_t), rank),
-            times, q, v, k,
+            lambda t, q_t: _singular_value_ratio(jacobian(t, q_t), rank),
+            lambda j: mechanical.qdot(times[j], q[j], v[j])[0], times, q, k,
         )  # fmt: skip
         if ratio < best:
             best, best_at = ratio, at
@@ -205,32 +214,43 @@ def _local_minima(values: np.ndarray) -> list[int]:
     return [int(i) for i in k[(values[k] <= values[k - 1]) & (values[k] <= values[k + 1])]]
 
 
-def _partition_audit(partition: Any, mechanical: Any, times: np.ndarray, q: np.ndarray,
+def _partition_audit(in_chart: list[Any], times: np.ndarray, q: np.ndarray,
                      v: np.ndarray) -> dict[str, Any]:  # fmt: skip
-    """For a formalism with a fixed velocity partition (no constraint rows left in its
+    """For a formalism with a velocity partition (no constraint rows left in its
     equations): the least sigma_min(W_d) / sigma_max(W) along the run and its time, in
-    the columns of W's own ratio (``jacobian_sv_ratio_min``, ``..._at``)."""
+    the columns of W's own ratio (``jacobian_sv_ratio_min``, ``..._at``). ``in_chart[k]``:
+    the equations (the partition) sample k was computed in."""
 
-    def ratio(t: float, q_t: np.ndarray) -> float:
-        w_d, w = (np.atleast_2d(np.asarray(x, dtype=float)) for x in partition(t, q_t))
-        scale = np.linalg.norm(w, 2)
-        return float(np.linalg.svd(w_d, compute_uv=False)[-1] / scale) if scale > 0 else 0.0
+    def ratio_in(equations: Any) -> Any:
+        def ratio(t: float, q_t: np.ndarray) -> float:
+            w_d, w = (
+                np.atleast_2d(np.asarray(x, dtype=float))
+                for x in equations.partition_matrices(t, q_t)
+            )
+            scale = np.linalg.norm(w, 2)
+            return float(np.linalg.svd(w_d, compute_uv=False)[-1] / scale) if scale > 0 else 0.0
 
-    ratios = np.array([ratio(t, q_k) for t, q_k in zip(times, q, strict=True)])
+        return ratio
+
+    def rate(j: int) -> np.ndarray:
+        return in_chart[j].forms["mechanical"].qdot(times[j], q[j], v[j])[0]
+
+    ratios = np.array([ratio_in(e)(t, q_k) for e, t, q_k in zip(in_chart, times, q, strict=True)])
     best, best_at = float(np.min(ratios)), float(times[int(np.argmin(ratios))])
     deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
     for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
-        value, at = _refine(mechanical, ratio, times, q, v, k)
+        value, at = _refine(ratio_in(in_chart[k]), rate, times, q, k)
         if value < best:
             best, best_at = value, at
     return {"jacobian_sv_ratio_min": best, "jacobian_sv_ratio_at": best_at}
 
 
-def _refine(mechanical: Any, ratio: Any, times: np.ndarray, q: np.ndarray,
-            v: np.ndarray, k: int) -> tuple[float, float]:  # fmt: skip
+def _refine(ratio: Any, rate: Any, times: np.ndarray, q: np.ndarray,
+            k: int) -> tuple[float, float]:  # fmt: skip
     """The smallest ``ratio(t, q)`` around sample k (a singular-value ratio), on the cubic
-    Hermite interpolant of q (through q and q' = H v + f at the neighbouring samples)."""
-    rates = [np.ravel(mechanical.qdot(times[j], q[j], v[j])[0]).copy() for j in (k - 1, k, k + 1)]
+    Hermite interpolant of q (through q and q' = rate(j) = H v + f at the neighbouring
+    samples j)."""
+    rates = [np.ravel(rate(j)).copy() for j in (k - 1, k, k + 1)]
 
     def q_at(t: float) -> np.ndarray:
         j = k - 1 if t <= times[k] else k

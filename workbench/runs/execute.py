@@ -16,7 +16,9 @@ a column (MuJoCo-style pipeline stages):
 2. **initial state** — :func:`~workbench.equations.initial.consistent_initial_state` (``init_s``),
    kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
    first run of a (problem, formalism) in a worker and about 0 for the others;
-3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
+3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``),
+   segment by segment on a better chart where the equations' coordinates degrade when
+   they offer an atlas (:mod:`workbench.runs.charts`; the switches in ``notes``);
    a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
    the metrics are still taken over the part that was reached;
 4. **metrics** — :mod:`workbench.runs.metrics` (``metrics_s``; obtaining the reference is
@@ -47,6 +49,7 @@ from workbench.equations import compiled
 from workbench.errors import one_line, one_line_text
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
+from workbench.runs.charts import integrate_on_charts, switch_note
 from workbench.runs.environment import environment
 from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
@@ -321,9 +324,15 @@ def execute_run(
 
                 stages.start("integrate")
                 times = problem.sample_times()
-                trajectory = integrator.solve(
-                    equations, y0, yp0, times, spec.rtol, spec.atol, integrator_options, form
-                )
+                if getattr(equations, "atlas", None) is not None:
+                    trajectory = integrate_on_charts(
+                        integrator, equations, y0, yp0, times, spec.rtol, spec.atol,
+                        integrator_options, form,
+                    )  # fmt: skip
+                else:
+                    trajectory = integrator.solve(
+                        equations, y0, yp0, times, spec.rtol, spec.atol, integrator_options, form
+                    )
                 stages.stop()
                 state["trajectory"] = trajectory
                 _record_trajectory(row, trajectory)
@@ -346,8 +355,12 @@ def execute_run(
                     trajectory.success,
                     reference,
                     spec.rtol,
+                    charts=getattr(trajectory, "charts", None),
                 )
                 row.update(metric_row)
+                atlas = getattr(equations, "atlas", None)
+                switched = switch_note(atlas, trajectory) if atlas is not None else ""
+                row["notes"] = "; ".join(filter(None, [row.get("notes", ""), switched]))
                 stages.stop()
                 stages.wall["metrics"] = max(0.0, stages.wall["metrics"] - reference.seconds)
 

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench.equations import Equations
+from workbench.equations import Equations, SampledObservables
 from workbench.numerics.geometry import length_scale, pose_error
 from workbench.runs.audit import MEASURE, audit_warnings, health_audit
 from workbench.runs.references import ReferencePoses
@@ -100,6 +100,7 @@ def trajectory_metrics(
     complete: bool,
     reference: ReferencePoses,
     rtol: float = math.nan,
+    charts: list[Any] | None = None,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
     """The metric columns of a row and the time series, from states ``y`` at ``times``.
 
@@ -107,11 +108,13 @@ def trajectory_metrics(
     time (else the end error and scd are NaN). ``reference.poses`` covers all the problem's
     output times; the first ``len(times)`` are used. ``rtol``: the run's tolerance, against
     which the health audit (:mod:`workbench.runs.audit`) judges drift and energy.
+    ``charts``: the chart of each sample when the run changed chart
+    (:mod:`workbench.runs.charts`); each sample is measured with its chart's equations.
     """
     nq, nv = equations.nq, equations.nv
     n = len(times)
     notes: list[str] = []
-    sampled = equations.observables.along(times, y[:n, :nq], y[:n, nq : nq + nv])
+    sampled = _sampled(equations, times, y[:n, :nq], y[:n, nq : nq + nv], charts)
     drift = np.full((n, 3), math.nan)
     for k, residual in enumerate(sampled.residuals[:3]):
         if residual.shape[1]:
@@ -181,7 +184,7 @@ def trajectory_metrics(
         notes.append(f"maxima over the part reached, t <= {float(times[-1]):g} s")
     row["notes"] = "; ".join(notes)
 
-    audit = health_audit(equations, times, y[:n], sampled.rotations, rtol)
+    audit = health_audit(equations, times, y[:n], sampled.rotations, rtol, charts)
     audit["reference_accuracy"] = reference.accuracy
     found = audit_warnings(audit, row, rtol, problem.conservative)
     audit.pop(MEASURE, None)
@@ -203,3 +206,29 @@ def trajectory_metrics(
         columns=SERIES_COLUMNS,
     )
     return row, series
+
+
+def _sampled(equations: Equations, times: np.ndarray, q: np.ndarray, v: np.ndarray,
+             charts: list[Any] | None) -> SampledObservables:  # fmt: skip
+    """The observables at every sample, each measured in its own chart's equations."""
+    atlas = getattr(equations, "atlas", None)
+    if not charts or atlas is None or set(charts) == {atlas.home}:
+        return equations.observables.along(times, q, v)
+    parts = {}
+    for chart in dict.fromkeys(charts):
+        rows = np.array([k for k, c in enumerate(charts) if c == chart], dtype=int)
+        parts[chart] = (rows, atlas.equations(chart).observables.along(
+            times[rows], q[rows], v[rows]))  # fmt: skip
+    first = next(iter(parts.values()))[1]
+
+    def joined(get: Any) -> np.ndarray:
+        out = np.empty((len(times), *get(first).shape[1:]))
+        for rows, part in parts.values():
+            out[rows] = get(part)
+        return out
+
+    return SampledObservables(
+        joined(lambda p: p.poses), joined(lambda p: p.twists), joined(lambda p: p.energy),
+        [joined(lambda p, i=i: p.residuals[i]) for i in range(len(first.residuals))],
+        joined(lambda p: p.rotations),
+    )  # fmt: skip

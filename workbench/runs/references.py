@@ -57,6 +57,7 @@ from workbench.numerics.geometry import length_scale, rotation_angle
 from workbench.plugin import registry
 from workbench.plugin.options import options_dict
 from workbench.plugin.problem import Reference
+from workbench.runs.charts import integrate_on_charts
 from workbench.runs.environment import environment
 from workbench.runs.store import write_json_atomic, write_parquet_atomic
 
@@ -267,7 +268,10 @@ def solve_poses(
         raise ConfigError(f"{pipeline.label()}: the integrator accepts none of the forms {offered}")
     state = consistent_initial_state(equations, problem)
     built = time.perf_counter()
-    trajectory = integrator.solve(
+    solve = integrator.solve if getattr(equations, "atlas", None) is None else functools.partial(
+        integrate_on_charts, integrator
+    )  # a formalism with charts (velocity partitions): re-partitioned like any run
+    trajectory = solve(
         equations, state.y0(equations, form), state.yp0(equations, form), times, rtol, atol,
         pipeline.integrator_options or None, form,
     )  # fmt: skip
