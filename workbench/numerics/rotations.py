@@ -20,6 +20,7 @@ angles) at the singularity. Euler parameters have no singularity.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -444,10 +445,11 @@ def quaternion_exp(theta: np.ndarray) -> np.ndarray:
 
     With body-frame angular velocity omega, p(t + h) = p(t) * quaternion_exp(h omega) for
     constant omega (:func:`quaternion_rate_matrix` with frame="body")."""
-    theta = np.asarray(theta, dtype=float)
-    angle = float(np.linalg.norm(theta))
-    # sin(angle/2)/angle = sinc(angle / (2 pi)) / 2, smooth through angle = 0
-    return np.concatenate([[np.cos(angle / 2)], 0.5 * np.sinc(angle / (2 * np.pi)) * theta])
+    x, y, z = (float(c) for c in theta)
+    angle = math.sqrt(x * x + y * y + z * z)
+    # sin(angle/2)/angle, smooth through angle = 0 (series below 1e-3 rad: exact to round-off)
+    half_sinc = 0.5 - angle * angle / 48.0 if angle < _SMALL_ANGLE else math.sin(angle / 2) / angle
+    return np.array([math.cos(angle / 2), half_sinc * x, half_sinc * y, half_sinc * z])
 
 
 def tangent_operator(theta: np.ndarray) -> np.ndarray:
@@ -457,15 +459,13 @@ def tangent_operator(theta: np.ndarray) -> np.ndarray:
 
         T = I - (1 - cos a)/a^2 skew(theta) + (a - sin a)/a^3 skew(theta)^2,  a = |theta|.
     """
-    theta = np.asarray(theta, dtype=float)
-    angle = float(np.linalg.norm(theta))
+    x, y, z = (float(c) for c in theta)
+    angle = math.sqrt(x * x + y * y + z * z)
     if angle < _SMALL_ANGLE:
         a2 = angle * angle
         first, second = 0.5 - a2 / 24.0, 1.0 / 6.0 - a2 / 120.0
     else:
-        first = (1.0 - np.cos(angle)) / angle**2
-        second = (angle - np.sin(angle)) / angle**3
-    s = np.array(
-        [[0.0, -theta[2], theta[1]], [theta[2], 0.0, -theta[0]], [-theta[1], theta[0], 0.0]]
-    )
+        first = (1.0 - math.cos(angle)) / angle**2
+        second = (angle - math.sin(angle)) / angle**3
+    s = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     return np.eye(3) - first * s + second * (s @ s)
