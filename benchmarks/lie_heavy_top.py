@@ -75,8 +75,8 @@ def plot(table: pd.DataFrame) -> None:
         right.loglog(group.cpu_s, group.rotation_defect_max.clip(lower=1e-16), marker=marker)
     left.set(xlabel="integration CPU time (s)", ylabel="max pose error (m + L rad)",
              title="heavy top, 2 s: error vs cost")  # fmt: skip
-    right.set(xlabel="integration CPU time (s)",
-              ylabel="max |p^T p - 1|, |R^T R - I|", title="distance from the rotation group")  # fmt: skip
+    right.set(xlabel="integration CPU time (s)", ylabel="max |p^T p - 1|, |R^T R - I|",
+              title="distance from the rotation group")  # fmt: skip
     left.legend(fontsize=7)
     for axis in (left, right):
         axis.grid(True, which="both", alpha=0.3)
