@@ -197,7 +197,7 @@ def build_equations(
         n_constraints=nc,
         rotation_blocks=list(system.rotation_blocks),
     )
-    check_rotation_blocks(formalism, system, forms["mechanical"].qdot)
+    check_rotation_blocks(formalism, system)
 
     # ode form: [q' ; v'] with v' from the (augmented) system
     if ode or nc == 0:
@@ -290,16 +290,20 @@ def build_equations(
     )
 
 
-def check_rotation_blocks(formalism: str, system: MechanicalSystem, qdot: FastFunction) -> None:
+def check_rotation_blocks(formalism: str, system: MechanicalSystem) -> None:
     """PluginError unless every (q slice, v slice) of ``system.rotation_blocks`` is 4
     Euler parameters p and 3 body-frame angular velocities omega with p' = 1/2 p * (0, omega),
-    checked at a random state (a wrong block would make a Lie-group update silently wrong)."""
+    checked at a random state (a wrong block would make a Lie-group update silently wrong).
+    Evaluated in CasADi's VM, so a compiled formalism compiles nothing more for it."""
+    if not system.rotation_blocks:
+        return
     nq, nv = system.q.numel(), system.v.numel()
     rng = np.random.default_rng(7)
     q, v = rng.uniform(-1.0, 1.0, nq), rng.uniform(-1.0, 1.0, nv)
     for q_slice, _ in system.rotation_blocks:
         q[q_slice] /= np.linalg.norm(q[q_slice])
-    rates = np.ravel(qdot(0.3, q, v)[0]) if system.rotation_blocks else None
+    qdot = ca.Function("qdot_check", [system.t, system.q, system.v], [system.qdot])
+    rates = np.ravel(np.asarray(qdot(0.3, q, v), dtype=float))
     for q_slice, v_slice in system.rotation_blocks:
         sizes = (len(range(nq)[q_slice]), len(range(nv)[v_slice]))
         expected = None
