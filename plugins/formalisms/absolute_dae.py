@@ -374,6 +374,11 @@ class AbsoluteDae(Formalism):
             position_constraints=g,
             velocity_constraints=velocity_rows,
             constraint_names=names,
+            rotation_blocks=[
+                (slice(q_slice.start + 3, q_slice.stop), slice(v_slice.start + 3, v_slice.stop))
+                for name, (q_slice, v_slice) in coords.slices.items()
+                if name in coords.quaternions
+            ],
         )
         return build_equations(
             self.name,
@@ -386,9 +391,4 @@ class AbsoluteDae(Formalism):
             ode=system.n_constraints == 0 or options.index == 1,
             notes=notes,
             compiler=Compiler.from_options(options),
-            quaternion_slices=[
-                slice(q_slice.start + 3, q_slice.stop)
-                for name, (q_slice, _) in coords.slices.items()
-                if name in coords.quaternions
-            ],
         )

@@ -36,8 +36,9 @@ Coordinates with q' = H v + f, H != identity (Euler parameters, nq != nv) or f !
 (rheonomic coordinates: minimal velocities on a moving plane): the position update uses
 H and f at the explicit midpoint q_mid = q_n + h/2 (H(t_n, q_n) v_n + f(t_n, q_n)), which
 keeps the update second-order accurate and explicit in the unknowns. Unit-norm conditions of Euler
-parameters are satisfied only if the formalism states them among g. A Lie-group variant
-(Bruls-Cardona) is out of scope.
+parameters are satisfied only if the formalism states them among g; the Lie-group variant
+``lie-generalized-alpha`` (:mod:`.lie_generalized_alpha`) keeps them on the unit sphere by
+overriding the position update (:meth:`GeneralizedAlpha._advance`, ``_position_tangent``).
 
 Step size: option ``step`` (s) or, by default, the step the tolerance asks of an order-2
 method (:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-2 s at rtol 1e-4,
@@ -248,25 +249,40 @@ class GeneralizedAlpha(Integrator):
         (f_mid,) = mech.kinematics_offset(t + h / 2, q_mid)
         return np.reshape(h_mid, (self.nq, self.nv)), np.ravel(f_mid).copy()
 
+    def _advance(
+        self, q: np.ndarray, h: float, increment: np.ndarray, context: tuple[np.ndarray, ...]
+    ) -> np.ndarray:
+        """q_{n+1} from q_n and the velocity-space increment (v_n + h (1/2 - beta) a_n +
+        h beta a_{n+1}): q_n + h (H_mid increment + f_mid); ``context`` = (H_mid, f_mid)."""
+        h_mid, f_mid = context
+        return q + h * (h_mid @ increment + f_mid)
+
+    def _position_tangent(
+        self, q: np.ndarray, h: float, increment: np.ndarray, context: tuple[np.ndarray, ...]
+    ) -> np.ndarray:
+        """d q_{n+1} / d increment divided by h (nq, nv): H_mid, for the iteration matrix."""
+        return context[0]
+
     def _step(self, state: _State, t: float, h: float, stats: Any) -> _State:
         """One generalized-alpha step from t to t + h; _NewtonFailure if Newton fails."""
         mech, nv, nc, m = self.mech, self.nv, self.nc, self.m
         alpha_m, alpha_f, beta, gamma = self.alpha_m, self.alpha_f, self.beta, self.gamma
         c = (1 - alpha_f) / (1 - alpha_m)
         t_new = t + h
-        h_mid, f_mid = self._mid_kinematics(t, h, state.q, state.v)
+        context = self._mid_kinematics(t, h, state.q, state.v)
         vdot, lam = state.vdot.copy(), state.lam.copy()
         q_scale = 1.0 + np.max(np.abs(state.q), initial=0.0)
         last = math.inf
         for iteration in range(1, self.max_newton + 1):
             a = (alpha_f * state.vdot + (1 - alpha_f) * vdot - alpha_m * state.a) / (1 - alpha_m)
-            step = h_mid @ (state.v + h * (0.5 - beta) * state.a + h * beta * a) + f_mid
-            q = state.q + h * step
+            increment = state.v + h * (0.5 - beta) * state.a + h * beta * a
+            q = self._advance(state.q, h, increment, context)
             v = state.v + h * (1 - gamma) * state.a + h * gamma * a
+            tangent = self._position_tangent(q, h, increment, context)
             r, r_q, r_v, mass, w_t = self.mech.dynamics(t_new, q, v, vdot, lam)
             r_q, r_v = np.reshape(r_q, (nv, self.nq)), np.reshape(r_v, (nv, nv))
             matrix = np.reshape(mass, (nv, nv)) + gamma * h * c * r_v
-            matrix += beta * h * h * c * (r_q @ h_mid)
+            matrix += beta * h * h * c * (r_q @ tangent)
             residual = np.ravel(r)
             if nc:
                 w_t = np.reshape(w_t, (nv, nc))
@@ -276,7 +292,7 @@ class GeneralizedAlpha(Integrator):
                     (g,) = mech.position_constraints(t_new, q)
                     (g_q,) = mech.position_jacobian(t_new, q)
                     constraint[:m] = np.ravel(g) / (beta * h * h)
-                    rows[:m] = c * (np.reshape(g_q, (m, self.nq)) @ h_mid)
+                    rows[:m] = c * (np.reshape(g_q, (m, self.nq)) @ tangent)
                 if nc > m:
                     (cv,) = mech.velocity_constraints(t_new, q, v)
                     constraint[m:] = np.ravel(cv)[m:] / (gamma * h)
@@ -299,21 +315,20 @@ class GeneralizedAlpha(Integrator):
             delta = scipy.linalg.lu_solve(lu, -residual, check_finite=False)
             vdot += delta[:nv]
             lam += delta[nv:]
-            increment = beta * h * h * c * np.max(np.abs(delta[:nv]), initial=0.0)
-            if not math.isfinite(increment):
+            change = beta * h * h * c * np.max(np.abs(delta[:nv]), initial=0.0)
+            if not math.isfinite(change):
                 break
-            if increment <= self.newton_tol * q_scale:
+            if change <= self.newton_tol * q_scale:
                 a = (alpha_f * state.vdot + (1 - alpha_f) * vdot - alpha_m * state.a) / (
                     1 - alpha_m
                 )
-                q = state.q + h * (
-                    h_mid @ (state.v + h * (0.5 - beta) * state.a + h * beta * a) + f_mid
-                )
+                increment = state.v + h * (0.5 - beta) * state.a + h * beta * a
+                q = self._advance(state.q, h, increment, context)
                 v = state.v + h * (1 - gamma) * state.a + h * gamma * a
                 return _State(q, v, vdot, a, lam)
-            if iteration > 3 and increment > 2 * last:
+            if iteration > 3 and change > 2 * last:
                 break  # diverging
-            last = increment
+            last = change
         raise _NewtonFailure(
             f"{self.name}: Newton did not converge at t = {t_new:.6g} with step {h:.3g} s "
             f"(last position increment {last:.3g}); reduce the step or use adaptive=True"
@@ -323,8 +338,8 @@ class GeneralizedAlpha(Integrator):
         self, old: _State, new: _State, t: float, h: float, rtol: float, atol: float
     ) -> float:
         """RMS of (q_{n+1} - Taylor predictor) weighted by atol + rtol |q|."""
-        h_mid, f_mid = self._mid_kinematics(t, h, old.q, old.v)
-        predictor = old.q + h * (h_mid @ (old.v + 0.5 * h * old.vdot) + f_mid)
+        context = self._mid_kinematics(t, h, old.q, old.v)
+        predictor = self._advance(old.q, h, old.v + 0.5 * h * old.vdot, context)
         weight = atol + rtol * np.maximum(np.abs(old.q), np.abs(new.q))
         return float(np.sqrt(np.mean(((new.q - predictor) / weight) ** 2)))
 

@@ -38,6 +38,10 @@ class MechanicalSystem:
     position_constraints (m): holonomic g(t, q). velocity_constraints (m + k): W v + w,
     linear in v, its first m rows the time derivative of g. ``acceleration``: an explicit
     v' when the formalism computes it without forming M (recursive); optional.
+    ``rotation_blocks``: (q slice of 4 Euler parameters p, v slice of the 3 body-frame
+    angular velocity components omega) pairs with p' = 1/2 p * (0, omega), one per rotating
+    frame whose coordinates are Euler parameters; a Lie-group integrator updates those p
+    multiplicatively, p <- p * exp(h omega), and every other coordinate additively.
     """
 
     t: Any
@@ -52,6 +56,7 @@ class MechanicalSystem:
     velocity_constraints: Any = None
     constraint_names: list[str] = field(default_factory=list)
     acceleration: Any = None
+    rotation_blocks: list[tuple[slice, slice]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         zero = self.q[0:0]  # empty expression of the right type
@@ -105,6 +110,8 @@ class MechanicalForm:
     velocity_matrix(t, q) -> W; velocity_constraints(t, q, v) -> W v + w;
     acceleration_rhs(t, q, v) -> gamma with W v' = gamma;
     dynamics(t, q, v, a, lam) -> (r = M a - Q + W^T lam, dr/dq (nv, nq), dr/dv, M, W^T).
+    ``rotation_blocks``: (q slice of Euler parameters, v slice of the body-frame angular
+    velocity) pairs, as :attr:`MechanicalSystem.rotation_blocks` (checked at build).
     """
 
     mass: FastFunction
@@ -120,6 +127,7 @@ class MechanicalForm:
     dynamics: FastFunction
     n_holonomic: int
     n_constraints: int
+    rotation_blocks: list[tuple[slice, slice]] = field(default_factory=list)
 
 
 class Atlas(Protocol):

@@ -38,9 +38,11 @@ from workbench.equations.contract import (
 )
 from workbench.equations.evaluate import FastFunction, dense_function, lazy_dense_function
 from workbench.equations.observables import build_observables
-from workbench.mechanics.kinematics import BodyState, quaternion_slices
+from workbench.errors import PluginError
+from workbench.mechanics.kinematics import BodyState, quaternion_slices, rotation_blocks
 from workbench.mechanics.topology import independent_rows_at, rank_configurations
 from workbench.model import Model
+from workbench.numerics.rotations import quaternion_rate_matrix
 
 # ---- building -------------------------------------------------------------------------
 
@@ -141,7 +143,9 @@ def build_equations(
     ``joint_coordinates``: q of each joint with a spring (for the potential energy);
     recovered from the poses when not given. ``compiler``: how the functions of the forms
     (evaluated in integrators' hot loops) run; observables stay in the CasADi VM.
-    ``quaternion_slices``: the slices of q that hold Euler parameters (for the audit).
+    ``quaternion_slices``: the slices of q that hold Euler parameters (for the audit);
+    by default the q slices of ``system.rotation_blocks``, which are checked here
+    (:func:`check_rotation_blocks`) and handed on in the mechanical form.
     """
     compiler = compiler if compiler is not None else Compiler()
 
@@ -191,7 +195,9 @@ def build_equations(
         ),
         n_holonomic=m,
         n_constraints=nc,
+        rotation_blocks=list(system.rotation_blocks),
     )
+    check_rotation_blocks(formalism, system)
 
     # ode form: [q' ; v'] with v' from the (augmented) system
     if ode or nc == 0:
@@ -276,8 +282,40 @@ def build_equations(
         joint_space_map=dense_function("joint_space_map", map_inputs, map_outputs),
         notes=list(notes or []),
         compile_warnings=compiler.warnings,
-        quaternion_slices=list(quaternion_slices or []),
+        quaternion_slices=list(
+            quaternion_slices
+            if quaternion_slices is not None
+            else [q_slice for q_slice, _ in system.rotation_blocks]
+        ),
     )
+
+
+def check_rotation_blocks(formalism: str, system: MechanicalSystem) -> None:
+    """PluginError unless every (q slice, v slice) of ``system.rotation_blocks`` is 4
+    Euler parameters p and 3 body-frame angular velocities omega with p' = 1/2 p * (0, omega),
+    checked at a random state (a wrong block would make a Lie-group update silently wrong).
+    Evaluated in CasADi's VM, so a compiled formalism compiles nothing more for it."""
+    if not system.rotation_blocks:
+        return
+    nq, nv = system.q.numel(), system.v.numel()
+    rng = np.random.default_rng(7)
+    q, v = rng.uniform(-1.0, 1.0, nq), rng.uniform(-1.0, 1.0, nv)
+    for q_slice, _ in system.rotation_blocks:
+        q[q_slice] /= np.linalg.norm(q[q_slice])
+    qdot = ca.Function("qdot_check", [system.t, system.q, system.v], [system.qdot])
+    rates = np.ravel(np.asarray(qdot(0.3, q, v), dtype=float))
+    for q_slice, v_slice in system.rotation_blocks:
+        sizes = (len(range(nq)[q_slice]), len(range(nv)[v_slice]))
+        expected = None
+        if sizes == (4, 3):
+            expected = np.asarray(quaternion_rate_matrix(q[q_slice], "body")) @ v[v_slice]
+        if expected is None or not np.allclose(rates[q_slice], expected, rtol=1e-9, atol=1e-12):
+            raise PluginError(
+                f"formalism {formalism!r}: rotation block (q[{q_slice.start}:{q_slice.stop}], "
+                f"v[{v_slice.start}:{v_slice.stop}]) is not 4 Euler parameters driven by "
+                "the body-frame angular velocity (p' = 1/2 p * (0, omega)); fix "
+                "MechanicalSystem.rotation_blocks"
+            )
 
 
 def joint_space_system(
@@ -305,6 +343,7 @@ def joint_space_system(
         velocity_constraints=k.velocity_constraints,
         constraint_names=k.velocity_constraint_names,
         acceleration=acceleration,
+        rotation_blocks=rotation_blocks(k),
     )
 
 
@@ -361,6 +400,7 @@ def without_redundant_rows(
         velocity_constraints=c[kept] if kept else None,
         constraint_names=[names[i] for i in kept] if names else [],
         acceleration=system.acceleration,
+        rotation_blocks=list(system.rotation_blocks),
     )
     removed = [names[i] if names else f"c[{i}]" for i in range(system.n_constraints)]
     return reduced, [removed[i] for i in range(len(removed)) if i not in kept]

@@ -263,14 +263,22 @@ def initial_joint_values(model: Model, kinematics: TreeKinematics, values: dict[
     return out
 
 
+def rotation_blocks(kinematics: TreeKinematics) -> list[tuple[slice, slice]]:
+    """(q slice of the Euler parameters, v slice of the angular velocity of C in C) of
+    every free spherical and free joint: p' = 1/2 p * (0, omega), omega body-fixed."""
+    blocks = []
+    for joint in kinematics.free_joints:
+        q_slice, v_slice = kinematics.joint_slices[joint.name]
+        if joint.type in ("spherical", "free"):
+            blocks.append(
+                (slice(q_slice.stop - 4, q_slice.stop), slice(v_slice.stop - 3, v_slice.stop))
+            )
+    return blocks
+
+
 def quaternion_slices(kinematics: TreeKinematics) -> list[slice]:
     """Slices of q holding the Euler parameters of spherical and free joints (4 each)."""
-    slices = []
-    for joint in kinematics.free_joints:
-        q_slice, _ = kinematics.joint_slices[joint.name]
-        if joint.type in ("spherical", "free"):
-            slices.append(slice(q_slice.stop - 4, q_slice.stop))
-    return slices
+    return [q_slice for q_slice, _ in rotation_blocks(kinematics)]
 
 
 def normalize_quaternions(kinematics: TreeKinematics, q: np.ndarray) -> None:

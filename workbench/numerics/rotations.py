@@ -20,6 +20,7 @@ angles) at the singularity. Euler parameters have no singularity.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -430,3 +431,41 @@ def quaternion_angular_velocity(p: Any, pdot: Any, frame: str = "body") -> Any:
     The component of p' along p (a change of |p|) does not contribute.
     """
     return matmul(quaternion_angular_velocity_matrix(p, frame), pdot)
+
+
+# --- the exponential map on SO(3) (Lie-group integrators) --------------------------------
+# NumPy only: these serve integrators' hot loops, not symbolic graphs.
+
+_SMALL_ANGLE = 1e-3  # rad; below it the Taylor series of T are exact to round-off
+
+
+def quaternion_exp(theta: np.ndarray) -> np.ndarray:
+    """Euler parameters (4,) of the rotation by the rotation vector ``theta`` (3,), rad:
+    exp(theta) = (cos(|theta|/2), sin(|theta|/2) theta/|theta|), unit to round-off.
+
+    With body-frame angular velocity omega, p(t + h) = p(t) * quaternion_exp(h omega) for
+    constant omega (:func:`quaternion_rate_matrix` with frame="body")."""
+    x, y, z = (float(c) for c in theta)
+    angle = math.sqrt(x * x + y * y + z * z)
+    # sin(angle/2)/angle, smooth through angle = 0 (series below 1e-3 rad: exact to round-off)
+    half_sinc = 0.5 - angle * angle / 48.0 if angle < _SMALL_ANGLE else math.sin(angle / 2) / angle
+    return np.array([math.cos(angle / 2), half_sinc * x, half_sinc * y, half_sinc * z])
+
+
+def tangent_operator(theta: np.ndarray) -> np.ndarray:
+    """T(theta) (3x3), the tangent operator of the exponential map on SO(3) (right
+    trivialization, Bruls-Cardona-Arnold 2012): d/de exp(theta + e d) at e = 0 is
+    exp(theta) * skew(T(theta) d), i.e.
+
+        T = I - (1 - cos a)/a^2 skew(theta) + (a - sin a)/a^3 skew(theta)^2,  a = |theta|.
+    """
+    x, y, z = (float(c) for c in theta)
+    angle = math.sqrt(x * x + y * y + z * z)
+    if angle < _SMALL_ANGLE:
+        a2 = angle * angle
+        first, second = 0.5 - a2 / 24.0, 1.0 / 6.0 - a2 / 120.0
+    else:
+        first = (1.0 - math.cos(angle)) / angle**2
+        second = (angle - math.sin(angle)) / angle**3
+    s = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) - first * s + second * (s @ s)
