@@ -87,17 +87,60 @@ def _sx(value: Any) -> Any:
     return value if isinstance(value, ca.SX) else ca.SX(ca.DM(np.asarray(value, dtype=float)))
 
 
-# ---- joint model (Featherstone's jcalc through the one dispatch of joints.py) ----------
+# ---- joint frames and the joint model (Featherstone's jcalc) ----------------------------
+
+
+def _snap(matrix: Any) -> np.ndarray:
+    """A numeric matrix with round-off zeros (|x| < 1e-14) made exact, so that products
+    with symbols skip them (CasADi drops x * 0 and x * 1 when it builds a graph)."""
+    matrix = np.array(matrix, dtype=float)
+    matrix[np.abs(matrix) < 1e-14] = 0.0
+    return matrix
+
+
+def axis_frame(axis: Any) -> np.ndarray:
+    """A rotation A (3, 3) whose z column is the unit ``axis``: exact (a signed permutation)
+    for a coordinate axis, so aligned joints keep their structural zeros."""
+    z = jk.unit(axis)
+    k = int(np.argmax(np.abs(z)))
+    if np.count_nonzero(z) == 1:
+        x = np.eye(3)[(k + 1) % 3]
+    else:
+        x = np.cross(np.eye(3)[int(np.argmin(np.abs(z)))], z)
+        x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+_AXIAL = ("revolute", "prismatic", "cylindrical")
+
+
+def joint_frame(joint: Joint) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation (3, 3), origin (3)) of joint i's computational frame J_i in its child
+    body's coordinates: the child frame C, turned for revolute, prismatic and cylindrical
+    joints so that the axis is z. The recursions work in J_i, where the joint is simple:
+    S_i is constant and sparse, and X_i is a constant placement times a rotation about z."""
+    rotation = joint.child_frame.rotation
+    if joint.type in _AXIAL:
+        rotation = rotation @ axis_frame(joint.axis)
+    return _snap(rotation), np.asarray(joint.child_frame.position, dtype=float)
+
+
+def _unit_columns(rows: list[int]) -> Any:
+    """S (6, len(rows)) with a structural 1 at (rows[k], k) and no other entries."""
+    S = ca.SX(6, len(rows))
+    for column, row in enumerate(rows):
+        S[row, column] = 1
+    return S
 
 
 class JointMotion(NamedTuple):
-    """What a tree joint contributes to the recursions, in child body coordinates.
+    """What a tree joint contributes to the recursions, in joint-frame coordinates.
 
-    E (3, 3), r (3): X_i, as rotation from the parent body's to the child body's
-    coordinates and the child body's origin in parent body coordinates. S (6, n): motion
-    subspace, n the joint's unknown velocities (0 for fixed and driven joints). v_J (6):
-    the child's twist relative to the parent body, S v (the drive's for a driven joint).
-    c_J (6): S' v, the rate of v_J at fixed v (plus S v_drive' for a driven joint).
+    E (3, 3), r (3): X_i, as rotation from the parent's joint frame J_lambda(i) to J_i
+    coordinates and J_i's origin in J_lambda(i) coordinates. S (6, n): motion subspace, n
+    the joint's unknown velocities (0 for fixed and driven joints). v_J (6): J_i's twist
+    relative to the parent body, S v (the drive's for a driven joint). c_J (6): S' v, the
+    rate of v_J at fixed v (plus S v_drive' for a driven joint).
     """
 
     E: Any
@@ -107,40 +150,77 @@ class JointMotion(NamedTuple):
     c_J: Any
 
 
-def joint_model(joint: Joint, q: Any, v: Any, t: Any) -> JointMotion:
+def joint_model(
+    joint: Joint, q: Any, v: Any, t: Any, parent: tuple[np.ndarray, np.ndarray] | None = None
+) -> JointMotion:
     """X_i, S_i, v_J,i, c_J,i of a tree joint at its coordinates q (nq), velocities v (nv)
-    and time t, for every joint type.
+    and time t, for every joint type, in the joint frames of :func:`joint_frame`.
 
-    The relative pose and twist of the joint come from :func:`jk.relative_transform` and
-    :func:`jk.relative_twist` (the one joint dispatch), moved into the body frames by the
-    constant joint frames; S is the Jacobian of the twist in v and c_J its derivative
-    along q' = H(q) v.
+    ``parent``: J_lambda(i) in the parent body's coordinates (None: the ground, whose
+    frame is the world). The pose of J_i in J_lambda(i) is L M(q) A with L = J_lambda(i)^-1
+    P constant (folded numerically here), M(q) the joint's relative pose of
+    :func:`jk.relative_transform` and A = C^-1 J_i constant. For revolute, prismatic,
+    cylindrical and spherical joints S_i is constant (e_z, or [1; 0] for a spherical joint,
+    whose velocities are the angular velocity in C) and c_J,i = 0; the other types take S
+    as the Jacobian of their twist in v and c_J as its derivative along q' = H(q) v.
     """
     nq, nv = jk.dimensions(joint)
-    R_P = ca.DM(joint.parent_frame.rotation)
-    p_P = ca.DM(joint.parent_frame.position)
-    R_Cf = ca.DM(joint.child_frame.rotation)
-    c_pos = ca.DM(joint.child_frame.position)
-    if nv == 0:
-        R = ca.mtimes([R_P, R_Cf.T])
-        E = _sx(R.T)
-        r = _sx(p_P - ca.mtimes(R, c_pos))
-        return JointMotion(E, r, ca.SX(6, 0), ZERO6, ZERO6)
+    J_R, J_p = parent if parent is not None else (np.eye(3), np.zeros(3))
+    L_R = _snap(J_R.T @ joint.parent_frame.rotation)
+    L_r = _snap(J_R.T @ (joint.parent_frame.position - J_p))
+    kind = joint.type
+    A = axis_frame(joint.axis) if kind in _AXIAL else np.eye(3)
+    if nv == 0:  # fixed
+        return JointMotion(_sx((L_R @ A).T), _sx(L_r), ca.SX(6, 0), ZERO6, ZERO6)
+    q, v = _sx(q), _sx(v)
+    axis = _snap(L_R @ A[:, 2]) if kind in ("prismatic", "cylindrical") else None
+    if kind == "revolute":
+        E = ca.mtimes(_rotation_z(q[0]).T, _sx((L_R @ A).T))
+        r, S = _sx(L_r), _unit_columns([2])
+    elif kind == "prismatic":
+        E, r, S = _sx((L_R @ A).T), _sx(L_r) + _sx(axis) * q[0], _unit_columns([5])
+    elif kind == "cylindrical":
+        E = ca.mtimes(_rotation_z(q[1]).T, _sx((L_R @ A).T))
+        r, S = _sx(L_r) + _sx(axis) * q[0], _unit_columns([5, 2])
+    elif kind == "spherical":
+        _, R_rel = jk.relative_transform(joint, q)
+        E, r, S = ca.mtimes(_sx(R_rel).T, _sx(L_R.T)), _sx(L_r), _unit_columns([0, 1, 2])
+    else:
+        return _general_joint_model(joint, q, v, t, L_R, L_r)
+    v_J = ca.mtimes(S, v)
+    if joint.drive is not None:
+        # prescribed motion: its acceleration is known, so it moves into c_J
+        _, _, a_drive = jk.drive_values(joint, t)
+        return JointMotion(E, r, ca.SX(6, 0), v_J, ca.mtimes(S, _sx(a_drive)))
+    return JointMotion(E, r, S, v_J, ZERO6)
+
+
+def _rotation_z(angle: Any) -> Any:
+    """R_z(angle) (3, 3): 4 trigonometric entries, a structural 1, no other entries."""
+    c, s = ca.cos(angle), ca.sin(angle)
+    R = ca.SX(3, 3)
+    R[0, 0], R[0, 1], R[1, 0], R[1, 1], R[2, 2] = c, -s, s, c, 1
+    return R
+
+
+def _general_joint_model(
+    joint: Joint, q: Any, v: Any, t: Any, L_R: np.ndarray, L_r: np.ndarray
+) -> JointMotion:
+    """The joint model from the one joint dispatch, J_i = C (universal, planar, free): the
+    twist of C relative to P in C coordinates, S its Jacobian in v, c_J its rate."""
+    nq, nv = jk.dimensions(joint)
     qs, u = ca.SX.sym("qs", nq), ca.SX.sym("u", nv)
     r_rel, R_rel = jk.relative_transform(joint, qs)
     v_rel, w_rel = jk.relative_twist(joint, qs, u)
-    R = ca.mtimes([R_P, _sx(R_rel), R_Cf.T])
-    E = R.T
-    r = p_P + ca.mtimes(R_P, _sx(r_rel)) - ca.mtimes(R, c_pos)
-    w_b = ca.mtimes([E, R_P, _sx(w_rel)])
-    v_b = ca.mtimes([E, R_P, _sx(v_rel)]) - ca.cross(w_b, _sx(c_pos))
-    xi = ca.vertcat(w_b, v_b)
+    R_rel = _sx(R_rel)
+    E = ca.mtimes(R_rel.T, _sx(L_R.T))
+    r = _sx(L_r) + ca.mtimes(_sx(L_R), _sx(r_rel))
+    xi = ca.vertcat(ca.mtimes(R_rel.T, _sx(w_rel)), ca.mtimes(R_rel.T, _sx(v_rel)))
     S = ca.jacobian(xi, u)
     c_J = ca.mtimes(ca.jacobian(xi, qs), _sx(jk.coordinate_rates(joint, qs, u)))
     E, r, S, c_J = ca.substitute([E, r, S, c_J], [qs, u], [_sx(q), _sx(v)])
     v_J = ca.mtimes(S, _sx(v))
     if joint.drive is not None:
-        # prescribed motion: its acceleration is known, so it moves into c_J
         _, _, a_drive = jk.drive_values(joint, t)
         return JointMotion(E, r, ca.SX(6, 0), v_J, c_J + ca.mtimes(S, _sx(a_drive)))
     return JointMotion(E, r, S, v_J, c_J)
@@ -191,15 +271,21 @@ class SpatialTree:
         self.base_acceleration = ca.vertcat(ca.SX.zeros(3), -_sx(model.gravity))
         joint_forces = fm.joint_generalized_forces(model, k.t, joint_coordinates)
         index: dict[str, int] = {}
+        frames: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # J_i in body coordinates
         self.links: list[Link] = []
         for joint in k.order:
             q_j, v_j = joint_coordinates[joint.name]
-            X = joint_model(joint, q_j, v_j, k.t)
+            X = joint_model(joint, q_j, v_j, k.t, frames.get(joint.parent))
+            frames[joint.child] = J_R, J_p = joint_frame(joint)
             v_slice = k.joint_slices[joint.name][1] if X.S.size2() else None
             body = model.bodies[joint.child]
+            com = J_R.T @ (np.asarray(body.com, dtype=float) - J_p)
+            inertia = spatial_inertia(body.mass, com, J_R.T @ body.inertia @ J_R)
             rotation = k.bodies[joint.child].rotation
             force, torque = wrenches[joint.child]
-            f_ext = ca.vertcat(ca.mtimes(rotation.T, torque), ca.mtimes(rotation.T, force))
+            force = ca.mtimes(rotation.T, force)
+            torque = ca.mtimes(rotation.T, torque) - ca.cross(_sx(J_p), force)
+            f_ext = ca.vertcat(ca.mtimes(_sx(J_R.T), torque), ca.mtimes(_sx(J_R.T), force))
             tau = joint_forces.get(joint.name, 0) if v_slice is not None else 0
             tau = _sx(tau) if not isinstance(tau, int) else ca.SX.zeros(X.S.size2())
             self.links.append(
@@ -212,7 +298,7 @@ class SpatialTree:
                     S=X.S,
                     v_J=X.v_J,
                     c_J=X.c_J,
-                    inertia=_sx(spatial_inertia(body.mass, body.com, body.inertia)),
+                    inertia=_sx(_snap(inertia)),
                     f_ext=f_ext,
                     tau=tau,
                     v_slice=v_slice,
