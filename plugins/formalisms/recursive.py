@@ -74,6 +74,7 @@ from workbench.numerics.spatial import (
     force_cross,
     motion_cross,
     spatial_inertia,
+    symmetric,
     transform_force_back,
     transform_motion,
 )
@@ -318,6 +319,27 @@ class SpatialTree:
 # ---- articulated-body algorithm (forward dynamics) -------------------------------------
 
 
+def _solve_symmetric(D: Any, B: Any) -> Any:
+    """D^-1 B for a symmetric positive definite D (n, n): by cofactors for n <= 3 (a
+    spherical joint's 3 x 3 articulated block: no symbolic linear solve), else CasADi's
+    solve."""
+    n = D.size1()
+    if n == 2:
+        det = D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1]
+        inverse = ca.vertcat(ca.horzcat(D[1, 1], -D[0, 1]), ca.horzcat(-D[0, 1], D[0, 0]))
+        return ca.mtimes(inverse / det, B)
+    if n == 3:
+        cofactor = symmetric(
+            lambda i, j: (
+                D[(i + 1) % 3, (j + 1) % 3] * D[(i + 2) % 3, (j + 2) % 3]
+                - D[(i + 1) % 3, (j + 2) % 3] * D[(i + 2) % 3, (j + 1) % 3]
+            ),
+            3,
+        )
+        return ca.mtimes(cofactor / ca.dot(D[0, :].T, cofactor[:, 0]), B)
+    return ca.solve(D, B)
+
+
 def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
     """v' (nv) by the articulated-body algorithm for joint forces ``tau`` (nv), O(n).
 
@@ -347,7 +369,7 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
             if link.nv == 1:  # a division, no linear-solve node
                 D_inv_U[i], D_inv_u[i] = U[i].T / D, u / D
             else:
-                D_inv = ca.solve(D, ca.horzcat(U[i].T, u))
+                D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
                 D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
             I_a = articulated_update(I_A[i], U[i], D_inv_U[i])
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
