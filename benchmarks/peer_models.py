@@ -26,7 +26,6 @@ from scipy.spatial.transform import Rotation
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Frame, Model
 
-
 GENERAL = ("revolute", "prismatic", "spherical", "free")
 
 
