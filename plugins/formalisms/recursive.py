@@ -320,14 +320,15 @@ class SpatialTree:
 
 
 def _solve_symmetric(D: Any, B: Any) -> Any:
-    """D^-1 B for a symmetric positive definite D (n, n): by cofactors for n <= 3 (a
-    spherical joint's 3 x 3 articulated block: no symbolic linear solve), else CasADi's
-    solve."""
+    """D^-1 B for a symmetric positive definite D (n, n) without a linear-solve node: a
+    division for n = 1, cofactors for n = 2, 3 (a spherical joint's 3 x 3 articulated
+    block), else D = L diag(d) L^T eliminated entry by entry (a free joint's 6 x 6)."""
     n = D.size1()
+    if n == 1:
+        return B / D
     if n == 2:
-        det = D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1]
         inverse = ca.vertcat(ca.horzcat(D[1, 1], -D[0, 1]), ca.horzcat(-D[0, 1], D[0, 0]))
-        return ca.mtimes(inverse / det, B)
+        return ca.mtimes(inverse / (D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1]), B)
     if n == 3:
         cofactor = symmetric(
             lambda i, j: (
@@ -337,7 +338,19 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
             3,
         )
         return ca.mtimes(cofactor / ca.dot(D[0, :].T, cofactor[:, 0]), B)
-    return ca.solve(D, B)
+    L, d = [[None] * n for _ in range(n)], [None] * n
+    for j in range(n):
+        d[j] = D[j, j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
+        for i in range(j + 1, n):
+            L[i][j] = (D[i, j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))) / d[j]
+    x = [B[j, :] for j in range(n)]
+    for j in range(n):  # L y = B
+        x[j] = x[j] - sum((L[j][k] * x[k] for k in range(j)), ca.SX.zeros(1, B.size2()))
+    for j in reversed(range(n)):  # diag(d) L^T x = y
+        x[j] = x[j] / d[j] - sum(
+            (L[k][j] * x[k] for k in range(j + 1, n)), ca.SX.zeros(1, B.size2())
+        )
+    return ca.vertcat(*x)
 
 
 def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
@@ -358,19 +371,21 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         I_A[i] = link.inertia
         p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
 
-    # 2. inward: articulated inertias and bias forces, each handed to the parent
+    # 2. inward: articulated inertias and bias forces, each handed to the parent (a root
+    # hands nothing on: its D_i and u_i are kept for pass 3, I^a_i is not formed)
     U, D_inv_U, D_inv_u = [None] * n, [None] * n, [None] * n
+    root_D, root_u = {}, {}
     for i in reversed(range(n)):
         link, S = links[i], links[i].S
         if link.nv:
             U[i] = ca.mtimes(I_A[i], S)
             D = ca.mtimes(S.T, U[i])
             u = tau[link.v_slice] - ca.mtimes(S.T, p_A[i])
-            if link.nv == 1:  # a division, no linear-solve node
-                D_inv_U[i], D_inv_u[i] = U[i].T / D, u / D
-            else:
-                D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
-                D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
+            if link.parent < 0:
+                root_D[i], root_u[i] = D, u
+                continue
+            D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
+            D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
             I_a = articulated_update(I_A[i], U[i], D_inv_U[i])
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
@@ -386,7 +401,10 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         a_parent = tree.base_acceleration if link.parent < 0 else a[link.parent]
         a_prime = transform_motion(link.E, link.r, a_parent) + c[i]
         if link.nv:
-            vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
+            if i in root_D:
+                vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
+            else:
+                vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
             vdot[link.v_slice] = vdot_i
             a[i] = a_prime + ca.mtimes(link.S, vdot_i)
         else:
