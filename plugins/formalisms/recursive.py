@@ -319,6 +319,17 @@ class SpatialTree:
 # ---- articulated-body algorithm (forward dynamics) -------------------------------------
 
 
+def _unit_rows(S: Any) -> tuple[int, ...]:
+    """k of every column e_k of S (6, n) if all of its columns are unit vectors, else ()."""
+    rows = []
+    for column in range(S.size2()):
+        entries = S[:, column]
+        if entries.nnz() != 1 or not entries.nonzeros()[0].is_one():
+            return ()
+        rows.append(entries.sparsity().row()[0])
+    return tuple(rows)
+
+
 def _solve_symmetric(D: Any, B: Any) -> Any:
     """D^-1 B for a symmetric positive definite D (n, n) without a linear-solve node: a
     division for n = 1, cofactors for n = 2, 3 (a spherical joint's 3 x 3 articulated
@@ -386,8 +397,11 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
                 continue
             D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
             D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
-            I_a = articulated_update(I_A[i], U[i], D_inv_U[i])
+            rows = _unit_rows(S)
+            I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows)
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
+            for column, row in enumerate(rows):  # S^T p^a = tau exactly
+                p_a[row] = tau[link.v_slice][column]
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
