@@ -272,7 +272,10 @@ def interleaved(ours, peer, repeats: int) -> tuple[np.ndarray, np.ndarray]:
         number, _ = timeit.Timer(function).autorange()  # >= 0.2 s
         sizes.append(max(1, number // 10))
     times = np.array(
-        [[cpu_per_call(f, k) for f, k in zip((ours, peer), sizes, strict=True)] for _ in range(repeats)]
+        [
+            [cpu_per_call(f, k) for f, k in zip((ours, peer), sizes, strict=True)]
+            for _ in range(repeats)
+        ]
     )
     return times[:, 0] * 1e6, times[:, 1] * 1e6
 
