@@ -11,8 +11,18 @@ transform from lambda(i)'s coordinates to i's; S_i (6, n_i) the motion subspace 
 i, v_i (n_i) its velocities, v_J,i = S_i v_i the joint twist and c_J,i its
 velocity-product term; I_i the spatial inertia of body i, f^x_i the applied forces on it,
 tau_i the joint forces. Spatial vectors are motion [angular; linear] and force
-[moment; force], in each body's coordinates about its origin
-(:mod:`workbench.numerics.spatial`).
+[moment; force] (:mod:`workbench.numerics.spatial`), each body's in the coordinates of its
+joint frame J_i about J_i's origin (:func:`joint_frame`).
+
+Computational frames. J_i is fixed to body i and chosen numerically at build time, before
+any symbol exists: the joint's child frame C_i, turned for a revolute, prismatic or
+cylindrical joint so that its axis is z. Then S_i is a constant unit column (e_z; [1; 0]
+for a spherical joint, whose velocities are its angular velocity in C_i) and c_J,i = 0,
+X_i is a constant placement (the parent's J, the joint frame P, the axis turn, folded into
+numbers) times a rotation about z (4 trigonometric products), and the inertias are
+turned into J_i numerically. Geometry then costs what Pinocchio's does, a fixed price a
+link: 53,978 -> 26,075 CasADi instructions on a random 30-body tree of every joint type
+(2026-11-24); the benchmark chains, whose axes are already coordinate axes, keep theirs.
 
 Articulated-body algorithm (forward dynamics, v' for given tau):
 
