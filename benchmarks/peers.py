@@ -345,6 +345,7 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     if missing:
         print(f"not installed: {', '.join(missing)} (pip install -e '.[bench]'); skipped")
     rows, general = [], []
+    RESULTS.mkdir(exist_ok=True)
     for family in args.families:
         if family in GENERAL:
             names = [str(n) for n in args.random_sizes] if family == "random" else args.robots
@@ -353,22 +354,18 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
                 continue
             for name in names:
                 general.append(measure_general(family, name, args.flags, args.repeats))
+                pd.DataFrame(general).to_csv(RESULTS / "peers_general.csv", index=False)
                 print(f"{family} {name}: done", flush=True)
             continue
         for n in args.sizes:
             rows.append(measure(family, n, args.flags))
+            pd.DataFrame(rows).to_csv(RESULTS / "peers.csv", index=False)
             print(f"{family} N={n}: done", flush=True)
-    RESULTS.mkdir(exist_ok=True)
-    tables = []
-    for found, file in ((rows, "peers.csv"), (general, "peers_general.csv")):
-        if not found:
-            continue
-        table = pd.DataFrame(found)
-        table.to_csv(RESULTS / file, index=False)
+    tables = [pd.DataFrame(found) for found in (rows, general) if found]
+    for table in tables:
         shown = [c for c in table.columns if c not in ("build_s", "max_rel_diff", "types")]
         with pd.option_context("display.width", 200, "display.max_rows", 500):
             print(table[shown].to_string(index=False, float_format=lambda x: f"{x:.3g}"))
-        tables.append(table)
     return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
 
 

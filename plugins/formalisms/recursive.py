@@ -125,15 +125,37 @@ def axis_frame(axis: Any) -> np.ndarray:
 _AXIAL = ("revolute", "prismatic", "cylindrical")
 
 
-def joint_frame(joint: Joint) -> tuple[np.ndarray, np.ndarray]:
+Placement = tuple[np.ndarray, np.ndarray]  # (rotation (3, 3), origin (3)) of a frame
+
+
+def _placement(joint: Joint, parent: Placement | None) -> tuple[Any, Any, Any, float]:
+    """(L_R, L_r, A, d), all numeric: the joint frame P in the parent's joint frame
+    (rotation L_R, origin L_r), the turn A (C to J, axis to z) and the slide d of J along
+    a revolute axis that makes one coordinate of L_r zero (fewer products in X_i)."""
+    J_R, J_p = parent if parent is not None else (np.eye(3), np.zeros(3))
+    L_R = _snap(J_R.T @ joint.parent_frame.rotation)
+    L_r = J_R.T @ (joint.parent_frame.position - J_p)
+    A = axis_frame(joint.axis) if joint.type in _AXIAL else np.eye(3)
+    d = 0.0
+    if joint.type == "revolute":
+        axis = L_R @ A[:, 2]
+        k = int(np.argmax(np.abs(axis)))
+        d = -L_r[k] / axis[k]
+        L_r = L_r + d * axis
+        L_r[k] = 0.0
+    return L_R, _snap(L_r), A, d
+
+
+def joint_frame(joint: Joint, parent: Placement | None = None) -> Placement:
     """(rotation (3, 3), origin (3)) of joint i's computational frame J_i in its child
-    body's coordinates: the child frame C, turned for revolute, prismatic and cylindrical
-    joints so that the axis is z. The recursions work in J_i, where the joint is simple:
-    S_i is constant and sparse, and X_i is a constant placement times a rotation about z."""
-    rotation = joint.child_frame.rotation
-    if joint.type in _AXIAL:
-        rotation = rotation @ axis_frame(joint.axis)
-    return _snap(rotation), np.asarray(joint.child_frame.position, dtype=float)
+    body's coordinates (``parent``: the parent's, None for the ground): the child frame C,
+    turned for revolute, prismatic and cylindrical joints so that the axis is z, and slid
+    along a revolute axis (:func:`_placement`). The recursions work in J_i, where the joint
+    is simple: S_i is constant and sparse, X_i a constant placement times a rotation
+    about z."""
+    _, _, A, d = _placement(joint, parent)
+    rotation, origin = joint.child_frame.rotation, joint.child_frame.position
+    return _snap(rotation @ A), origin + d * (rotation @ A[:, 2])
 
 
 def _unit_columns(rows: list[int]) -> Any:
@@ -162,7 +184,7 @@ class JointMotion(NamedTuple):
 
 
 def joint_model(
-    joint: Joint, q: Any, v: Any, t: Any, parent: tuple[np.ndarray, np.ndarray] | None = None
+    joint: Joint, q: Any, v: Any, t: Any, parent: Placement | None = None
 ) -> JointMotion:
     """X_i, S_i, v_J,i, c_J,i of a tree joint at its coordinates q (nq), velocities v (nv)
     and time t, for every joint type, in the joint frames of :func:`joint_frame`.
@@ -176,11 +198,8 @@ def joint_model(
     as the Jacobian of their twist in v and c_J as its derivative along q' = H(q) v.
     """
     nq, nv = jk.dimensions(joint)
-    J_R, J_p = parent if parent is not None else (np.eye(3), np.zeros(3))
-    L_R = _snap(J_R.T @ joint.parent_frame.rotation)
-    L_r = _snap(J_R.T @ (joint.parent_frame.position - J_p))
+    L_R, L_r, A, _ = _placement(joint, parent)
     kind = joint.type
-    A = axis_frame(joint.axis) if kind in _AXIAL else np.eye(3)
     if nv == 0:  # fixed
         return JointMotion(_sx((L_R @ A).T), _sx(L_r), ca.SX(6, 0), ZERO6, ZERO6)
     q, v = _sx(q), _sx(v)
@@ -252,8 +271,8 @@ class Link:
     S: Any  # (6, n_i); n_i = 0 for driven and fixed joints
     v_J: Any  # (6,)
     c_J: Any  # (6,)
-    inertia: Any  # I_i (6, 6): spatial inertia about the body origin, body coordinates
-    f_ext: Any  # f^x_i (6,): applied force on the body, body coordinates
+    inertia: Any  # I_i (6, 6): spatial inertia about J_i's origin, J_i coordinates
+    f_ext: Any  # f^x_i (6,): applied force on the body, J_i coordinates
     tau: Any  # (n_i,) the model's joint forces
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
 
@@ -282,12 +301,12 @@ class SpatialTree:
         self.base_acceleration = ca.vertcat(ca.SX.zeros(3), -_sx(model.gravity))
         joint_forces = fm.joint_generalized_forces(model, k.t, joint_coordinates)
         index: dict[str, int] = {}
-        frames: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # J_i in body coordinates
+        frames: dict[str, Placement] = {}  # J_i in body coordinates
         self.links: list[Link] = []
         for joint in k.order:
             q_j, v_j = joint_coordinates[joint.name]
             X = joint_model(joint, q_j, v_j, k.t, frames.get(joint.parent))
-            frames[joint.child] = J_R, J_p = joint_frame(joint)
+            frames[joint.child] = J_R, J_p = joint_frame(joint, frames.get(joint.parent))
             v_slice = k.joint_slices[joint.name][1] if X.S.size2() else None
             body = model.bodies[joint.child]
             com = J_R.T @ (np.asarray(body.com, dtype=float) - J_p)
