@@ -365,10 +365,10 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
     block), else D = L diag(d) L^T eliminated entry by entry (a free joint's 6 x 6)."""
     n = D.size1()
     if n == 1:
-        return B / D
+        return B * (1 / D)  # one division, then products (a division costs several)
     if n == 2:
         inverse = ca.vertcat(ca.horzcat(D[1, 1], -D[0, 1]), ca.horzcat(-D[0, 1], D[0, 0]))
-        return ca.mtimes(inverse / (D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1]), B)
+        return ca.mtimes(inverse * (1 / (D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1])), B)
     if n == 3:
         cofactor = symmetric(
             lambda i, j: (
@@ -377,7 +377,7 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
             ),
             3,
         )
-        return ca.mtimes(cofactor / ca.dot(D[0, :].T, cofactor[:, 0]), B)
+        return ca.mtimes(cofactor * (1 / ca.dot(D[0, :].T, cofactor[:, 0])), B)
     L, d = [[None] * n for _ in range(n)], [None] * n
     for j in range(n):
         d[j] = D[j, j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
