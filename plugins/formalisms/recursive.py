@@ -21,8 +21,8 @@ for a spherical joint, whose velocities are its angular velocity in C_i) and c_J
 X_i is a constant placement (the parent's J, the joint frame P, the axis turn, folded into
 numbers) times a rotation about z (4 trigonometric products), and the inertias are
 turned into J_i numerically. Geometry then costs what Pinocchio's does, a fixed price a
-link: 53,978 -> 26,075 CasADi instructions on a random 30-body tree of every joint type
-(2026-11-24); the benchmark chains, whose axes are already coordinate axes, keep theirs.
+link: 53,978 -> 25,909 CasADi instructions on a random 30-body tree of every joint type
+(2026-11-24; docs/performance.md).
 
 Articulated-body algorithm (forward dynamics, v' for given tau):
 
