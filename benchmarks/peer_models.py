@@ -1,12 +1,14 @@
 """The same mechanism for the peers: a Pinocchio ``pin.Model`` and MuJoCo MJCF from ours.
 
-Only trees of revolute joints (the scalable problems). Our joint sits at frame P on the
-parent body, rotates about ``axis`` (P coordinates) and carries the child body whose
-frame is C^-1 from the rotated joint frame: X_child = X_parent P R(axis, q) C^-1.
+Trees of revolute joints (the scalable problems); for Pinocchio with ``general=True`` also
+prismatic and spherical joints and a free root joint (:func:`random_tree`, issue 21), with
+:class:`PinocchioState` mapping states and accelerations. Our joint sits at frame P on the
+parent body, moves by M(q) (about or along ``axis``, P coordinates) and carries the child
+body whose frame is C^-1 from the moved joint frame: X_child = X_parent P M(q) C^-1.
 
 * Pinocchio: one joint frame per body, equal to our rotated P; its placement in the
   parent's joint frame is C_parent^-1 P, and the body (mass, centre of mass, inertia about
-  it) is appended at C^-1. Axes along +x, +y, +z use the specialised RX, RY, RZ joints.
+  it) is appended at C^-1. Axes along +x, +y, +z use the specialised R*, P* joints.
   Joints are added depth first: Pinocchio's CRBA assumes every subtree's velocities are
   contiguous (a breadth-first tree gives a wrong ``crba`` although ``aba`` is right).
 * MuJoCo: nested bodies whose frames are ours; at q = 0 a child sits at P C^-1 in its
