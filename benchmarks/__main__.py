@@ -43,6 +43,16 @@ def summary() -> None:
         print("spatial chain, vm / pin.aba, worst N:", verdict(spatial["vm/pin"].max(), 5))
     if 50 in spatial.index:
         print("compile time at N = 50 (s):", verdict(spatial.loc[50, "compile_s"], 2))
+        if "compile_cpu_s" in spatial:
+            print("compile CPU time at N = 50 (s):", verdict(spatial.loc[50, "compile_cpu_s"], 2))
+    general = RESULTS / "peers_general.csv"
+    if general.exists():
+        frame = pd.read_csv(general)
+        print("general trees and robots, jit / pin.aba (CPU a call; median, 10-90 %):")
+        for _, row in frame.iterrows():
+            target = 0.8 if row["family"] == "random" and row["N"] >= 200 else 0.5
+            spread = f"[{row['jit/pin_lo']:.2f}, {row['jit/pin_hi']:.2f}]"
+            print(f"  {row['family']} {row['name']}:", verdict(row["jit/pin"], target), spread)
     sim = RESULTS / "simulation.csv"
     if sim.exists():
         runs = pd.read_csv(sim).dropna(subset=["end_error"])

@@ -80,3 +80,49 @@ def test_peer_models_refuse_what_they_cannot_represent():
     model = get_problem("slider-crank")().model()
     with pytest.raises(ValueError, match="trees of free revolute joints only"):
         pinocchio_model(model)
+
+
+@pytest.mark.parametrize("n, seed", [(6, 1), (12, 2)])
+def test_recursive_equals_pinocchio_on_random_trees(n: int, seed: int) -> None:
+    """Revolute, prismatic and spherical joints on a free base, rotated joint frames,
+    unaligned axes and full inertias: our ABA (in joint frames chosen at build time), RNEA
+    and CRBA equal pin.aba and pin.crba, and FD(ID(a)) = a."""
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    from benchmarks.peer_models import random_tree
+    from workbench.mechanics.kinematics import TreeKinematics
+    from workbench.plugins.formalisms import recursive
+
+    model = random_tree(n, seed)
+    kinematics = TreeKinematics(model)
+    assert {j.type for j in model.tree_joints} == {"free", "revolute", "prismatic", "spherical"}
+    pin_model, peer = pinocchio_model(model, general=True)
+    data = pin_model.createData()
+    equations = get_formalism("recursive")().build(model)
+    mass = equations.forms["mechanical"].mass
+    rng = np.random.default_rng(seed)
+    for _ in range(3):
+        q = rng.uniform(-1, 1, kinematics.nq)
+        for joint in kinematics.free_joints:
+            if joint.type in ("free", "spherical"):
+                q_slice, _ = kinematics.joint_slices[joint.name]
+                p = q[q_slice.stop - 4 : q_slice.stop]
+                q[q_slice.stop - 4 : q_slice.stop] = p / np.linalg.norm(p)
+        v = rng.uniform(-2, 2, kinematics.nv)
+        (f,) = equations.forms["ode"].rhs(0.0, np.concatenate([q, v]))
+        q_pin, v_pin = peer.state(q, v)
+        a_pin = pin.aba(pin_model, data, q_pin, v_pin, np.zeros(kinematics.nv))
+        expected = peer.accelerations(a_pin, q, v)
+        scale = np.abs(expected).max()
+        assert scale > 1.0
+        np.testing.assert_allclose(f[kinematics.nq :], expected, rtol=0, atol=1e-9 * scale)
+        # M: ours by CRBA in joint frames; Pinocchio's maps as M_pin = T M T^T
+        (ours,) = mass(0.0, q)
+        t_matrix = np.column_stack([peer.state(q, e)[1] for e in np.eye(kinematics.nv)])
+        upper = pin.crba(pin_model, data, q_pin)
+        theirs = np.triu(upper) + np.triu(upper, 1).T
+        expected_mass = t_matrix @ np.asarray(ours) @ t_matrix.T
+        np.testing.assert_allclose(theirs, expected_mass, atol=1e-10 * np.abs(theirs).max())
+        # inverse then forward dynamics
+        a = rng.uniform(-2, 2, kinematics.nv)
+        tau = recursive.inverse_dynamics(model, q, v, a)
+        np.testing.assert_allclose(recursive.forward_dynamics(model, q, v, tau), a, atol=1e-9)

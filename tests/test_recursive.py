@@ -223,6 +223,17 @@ def test_aba_graph_grows_linearly() -> None:
     assert per_body_20_40 == pytest.approx(per_body_10_20, rel=0.02), counts
 
 
+def test_joint_frames_fold_the_geometry_into_numbers() -> None:
+    """Joint frames chosen at build time keep rotated frames and unaligned axes out of the
+    symbolic graph: the 30-body random tree had 53,978 instructions with body frames,
+    25,909 in joint frames; a revolute joint's S is the constant e_z."""
+    model = random_tree(30, 7, forces=False)
+    assert rec.ode_function(model).n_instructions() < 30_000
+    tree = rec.SpatialTree(model, TreeKinematics(model))
+    revolute = [link for link in tree.links if link.joint.type == "revolute" and link.nv]
+    assert revolute and all(rec._unit_rows(link.S) == (2,) for link in revolute)
+
+
 @pytest.mark.parametrize("n, seed", [(4, 11), (12, 12)])
 def test_inverse_then_forward_dynamics_round_trip(n: int, seed: int) -> None:
     model = random_tree(n, seed)

@@ -11,8 +11,18 @@ transform from lambda(i)'s coordinates to i's; S_i (6, n_i) the motion subspace 
 i, v_i (n_i) its velocities, v_J,i = S_i v_i the joint twist and c_J,i its
 velocity-product term; I_i the spatial inertia of body i, f^x_i the applied forces on it,
 tau_i the joint forces. Spatial vectors are motion [angular; linear] and force
-[moment; force], in each body's coordinates about its origin
-(:mod:`workbench.numerics.spatial`).
+[moment; force] (:mod:`workbench.numerics.spatial`), each body's in the coordinates of its
+joint frame J_i about J_i's origin (:func:`joint_frame`).
+
+Computational frames. J_i is fixed to body i and chosen numerically at build time, before
+any symbol exists: the joint's child frame C_i, turned for a revolute, prismatic or
+cylindrical joint so that its axis is z. Then S_i is a constant unit column (e_z; [1; 0]
+for a spherical joint, whose velocities are its angular velocity in C_i) and c_J,i = 0,
+X_i is a constant placement (the parent's J, the joint frame P, the axis turn, folded into
+numbers) times a rotation about z (4 trigonometric products), and the inertias are
+turned into J_i numerically. Geometry then costs what Pinocchio's does, a fixed price a
+link: 53,978 -> 25,909 CasADi instructions on a random 30-body tree of every joint type
+(2026-11-24; docs/performance.md).
 
 Articulated-body algorithm (forward dynamics, v' for given tau):
 
@@ -74,6 +84,7 @@ from workbench.numerics.spatial import (
     force_cross,
     motion_cross,
     spatial_inertia,
+    symmetric,
     transform_force_back,
     transform_motion,
 )
@@ -87,17 +98,82 @@ def _sx(value: Any) -> Any:
     return value if isinstance(value, ca.SX) else ca.SX(ca.DM(np.asarray(value, dtype=float)))
 
 
-# ---- joint model (Featherstone's jcalc through the one dispatch of joints.py) ----------
+# ---- joint frames and the joint model (Featherstone's jcalc) ----------------------------
+
+
+def _snap(matrix: Any) -> np.ndarray:
+    """A numeric matrix with round-off zeros (|x| < 1e-14) made exact, so that products
+    with symbols skip them (CasADi drops x * 0 and x * 1 when it builds a graph)."""
+    matrix = np.array(matrix, dtype=float)
+    matrix[np.abs(matrix) < 1e-14] = 0.0
+    return matrix
+
+
+def axis_frame(axis: Any) -> np.ndarray:
+    """A rotation A (3, 3) whose z column is the unit ``axis``: exact (a signed permutation)
+    for a coordinate axis, so aligned joints keep their structural zeros."""
+    z = jk.unit(axis)
+    k = int(np.argmax(np.abs(z)))
+    if np.count_nonzero(z) == 1:
+        x = np.eye(3)[(k + 1) % 3]
+    else:
+        x = np.cross(np.eye(3)[int(np.argmin(np.abs(z)))], z)
+        x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+_AXIAL = ("revolute", "prismatic", "cylindrical")
+
+
+Placement = tuple[np.ndarray, np.ndarray]  # (rotation (3, 3), origin (3)) of a frame
+
+
+def _placement(joint: Joint, parent: Placement | None) -> tuple[Any, Any, Any, float]:
+    """(L_R, L_r, A, d), all numeric: the joint frame P in the parent's joint frame
+    (rotation L_R, origin L_r), the turn A (C to J, axis to z) and the slide d of J along
+    a revolute axis that makes one coordinate of L_r zero (fewer products in X_i)."""
+    J_R, J_p = parent if parent is not None else (np.eye(3), np.zeros(3))
+    L_R = _snap(J_R.T @ joint.parent_frame.rotation)
+    L_r = J_R.T @ (joint.parent_frame.position - J_p)
+    A = axis_frame(joint.axis) if joint.type in _AXIAL else np.eye(3)
+    d = 0.0
+    if joint.type == "revolute":
+        axis = L_R @ A[:, 2]
+        k = int(np.argmax(np.abs(axis)))
+        d = -L_r[k] / axis[k]
+        L_r = L_r + d * axis
+        L_r[k] = 0.0
+    return L_R, _snap(L_r), A, d
+
+
+def joint_frame(joint: Joint, parent: Placement | None = None) -> Placement:
+    """(rotation (3, 3), origin (3)) of joint i's computational frame J_i in its child
+    body's coordinates (``parent``: the parent's, None for the ground): the child frame C,
+    turned for revolute, prismatic and cylindrical joints so that the axis is z, and slid
+    along a revolute axis (:func:`_placement`). The recursions work in J_i, where the joint
+    is simple: S_i is constant and sparse, X_i a constant placement times a rotation
+    about z."""
+    _, _, A, d = _placement(joint, parent)
+    rotation, origin = joint.child_frame.rotation, joint.child_frame.position
+    return _snap(rotation @ A), origin + d * (rotation @ A[:, 2])
+
+
+def _unit_columns(rows: list[int]) -> Any:
+    """S (6, len(rows)) with a structural 1 at (rows[k], k) and no other entries."""
+    S = ca.SX(6, len(rows))
+    for column, row in enumerate(rows):
+        S[row, column] = 1
+    return S
 
 
 class JointMotion(NamedTuple):
-    """What a tree joint contributes to the recursions, in child body coordinates.
+    """What a tree joint contributes to the recursions, in joint-frame coordinates.
 
-    E (3, 3), r (3): X_i, as rotation from the parent body's to the child body's
-    coordinates and the child body's origin in parent body coordinates. S (6, n): motion
-    subspace, n the joint's unknown velocities (0 for fixed and driven joints). v_J (6):
-    the child's twist relative to the parent body, S v (the drive's for a driven joint).
-    c_J (6): S' v, the rate of v_J at fixed v (plus S v_drive' for a driven joint).
+    E (3, 3), r (3): X_i, as rotation from the parent's joint frame J_lambda(i) to J_i
+    coordinates and J_i's origin in J_lambda(i) coordinates. S (6, n): motion subspace, n
+    the joint's unknown velocities (0 for fixed and driven joints). v_J (6): J_i's twist
+    relative to the parent body, S v (the drive's for a driven joint). c_J (6): S' v, the
+    rate of v_J at fixed v (plus S v_drive' for a driven joint).
     """
 
     E: Any
@@ -107,40 +183,74 @@ class JointMotion(NamedTuple):
     c_J: Any
 
 
-def joint_model(joint: Joint, q: Any, v: Any, t: Any) -> JointMotion:
+def joint_model(
+    joint: Joint, q: Any, v: Any, t: Any, parent: Placement | None = None
+) -> JointMotion:
     """X_i, S_i, v_J,i, c_J,i of a tree joint at its coordinates q (nq), velocities v (nv)
-    and time t, for every joint type.
+    and time t, for every joint type, in the joint frames of :func:`joint_frame`.
 
-    The relative pose and twist of the joint come from :func:`jk.relative_transform` and
-    :func:`jk.relative_twist` (the one joint dispatch), moved into the body frames by the
-    constant joint frames; S is the Jacobian of the twist in v and c_J its derivative
-    along q' = H(q) v.
+    ``parent``: J_lambda(i) in the parent body's coordinates (None: the ground, whose
+    frame is the world). The pose of J_i in J_lambda(i) is L M(q) A with L = J_lambda(i)^-1
+    P constant (folded numerically here), M(q) the joint's relative pose of
+    :func:`jk.relative_transform` and A = C^-1 J_i constant. For revolute, prismatic,
+    cylindrical and spherical joints S_i is constant (e_z, or [1; 0] for a spherical joint,
+    whose velocities are the angular velocity in C) and c_J,i = 0; the other types take S
+    as the Jacobian of their twist in v and c_J as its derivative along q' = H(q) v.
     """
     nq, nv = jk.dimensions(joint)
-    R_P = ca.DM(joint.parent_frame.rotation)
-    p_P = ca.DM(joint.parent_frame.position)
-    R_Cf = ca.DM(joint.child_frame.rotation)
-    c_pos = ca.DM(joint.child_frame.position)
-    if nv == 0:
-        R = ca.mtimes([R_P, R_Cf.T])
-        E = _sx(R.T)
-        r = _sx(p_P - ca.mtimes(R, c_pos))
-        return JointMotion(E, r, ca.SX(6, 0), ZERO6, ZERO6)
+    L_R, L_r, A, _ = _placement(joint, parent)
+    kind = joint.type
+    if nv == 0:  # fixed
+        return JointMotion(_sx((L_R @ A).T), _sx(L_r), ca.SX(6, 0), ZERO6, ZERO6)
+    q, v = _sx(q), _sx(v)
+    axis = _snap(L_R @ A[:, 2]) if kind in ("prismatic", "cylindrical") else None
+    if kind == "revolute":
+        E = ca.mtimes(_rotation_z(q[0]).T, _sx((L_R @ A).T))
+        r, S = _sx(L_r), _unit_columns([2])
+    elif kind == "prismatic":
+        E, r, S = _sx((L_R @ A).T), _sx(L_r) + _sx(axis) * q[0], _unit_columns([5])
+    elif kind == "cylindrical":
+        E = ca.mtimes(_rotation_z(q[1]).T, _sx((L_R @ A).T))
+        r, S = _sx(L_r) + _sx(axis) * q[0], _unit_columns([5, 2])
+    elif kind == "spherical":
+        _, R_rel = jk.relative_transform(joint, q)
+        E, r, S = ca.mtimes(_sx(R_rel).T, _sx(L_R.T)), _sx(L_r), _unit_columns([0, 1, 2])
+    else:
+        return _general_joint_model(joint, q, v, t, L_R, L_r)
+    v_J = ca.mtimes(S, v)
+    if joint.drive is not None:
+        # prescribed motion: its acceleration is known, so it moves into c_J
+        _, _, a_drive = jk.drive_values(joint, t)
+        return JointMotion(E, r, ca.SX(6, 0), v_J, ca.mtimes(S, _sx(a_drive)))
+    return JointMotion(E, r, S, v_J, ZERO6)
+
+
+def _rotation_z(angle: Any) -> Any:
+    """R_z(angle) (3, 3): 4 trigonometric entries, a structural 1, no other entries."""
+    c, s = ca.cos(angle), ca.sin(angle)
+    R = ca.SX(3, 3)
+    R[0, 0], R[0, 1], R[1, 0], R[1, 1], R[2, 2] = c, -s, s, c, 1
+    return R
+
+
+def _general_joint_model(
+    joint: Joint, q: Any, v: Any, t: Any, L_R: np.ndarray, L_r: np.ndarray
+) -> JointMotion:
+    """The joint model from the one joint dispatch, J_i = C (universal, planar, free): the
+    twist of C relative to P in C coordinates, S its Jacobian in v, c_J its rate."""
+    nq, nv = jk.dimensions(joint)
     qs, u = ca.SX.sym("qs", nq), ca.SX.sym("u", nv)
     r_rel, R_rel = jk.relative_transform(joint, qs)
     v_rel, w_rel = jk.relative_twist(joint, qs, u)
-    R = ca.mtimes([R_P, _sx(R_rel), R_Cf.T])
-    E = R.T
-    r = p_P + ca.mtimes(R_P, _sx(r_rel)) - ca.mtimes(R, c_pos)
-    w_b = ca.mtimes([E, R_P, _sx(w_rel)])
-    v_b = ca.mtimes([E, R_P, _sx(v_rel)]) - ca.cross(w_b, _sx(c_pos))
-    xi = ca.vertcat(w_b, v_b)
+    R_rel = _sx(R_rel)
+    E = ca.mtimes(R_rel.T, _sx(L_R.T))
+    r = _sx(L_r) + ca.mtimes(_sx(L_R), _sx(r_rel))
+    xi = ca.vertcat(ca.mtimes(R_rel.T, _sx(w_rel)), ca.mtimes(R_rel.T, _sx(v_rel)))
     S = ca.jacobian(xi, u)
     c_J = ca.mtimes(ca.jacobian(xi, qs), _sx(jk.coordinate_rates(joint, qs, u)))
     E, r, S, c_J = ca.substitute([E, r, S, c_J], [qs, u], [_sx(q), _sx(v)])
     v_J = ca.mtimes(S, _sx(v))
     if joint.drive is not None:
-        # prescribed motion: its acceleration is known, so it moves into c_J
         _, _, a_drive = jk.drive_values(joint, t)
         return JointMotion(E, r, ca.SX(6, 0), v_J, c_J + ca.mtimes(S, _sx(a_drive)))
     return JointMotion(E, r, S, v_J, c_J)
@@ -161,8 +271,8 @@ class Link:
     S: Any  # (6, n_i); n_i = 0 for driven and fixed joints
     v_J: Any  # (6,)
     c_J: Any  # (6,)
-    inertia: Any  # I_i (6, 6): spatial inertia about the body origin, body coordinates
-    f_ext: Any  # f^x_i (6,): applied force on the body, body coordinates
+    inertia: Any  # I_i (6, 6): spatial inertia about J_i's origin, J_i coordinates
+    f_ext: Any  # f^x_i (6,): applied force on the body, J_i coordinates
     tau: Any  # (n_i,) the model's joint forces
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
 
@@ -191,15 +301,21 @@ class SpatialTree:
         self.base_acceleration = ca.vertcat(ca.SX.zeros(3), -_sx(model.gravity))
         joint_forces = fm.joint_generalized_forces(model, k.t, joint_coordinates)
         index: dict[str, int] = {}
+        frames: dict[str, Placement] = {}  # J_i in body coordinates
         self.links: list[Link] = []
         for joint in k.order:
             q_j, v_j = joint_coordinates[joint.name]
-            X = joint_model(joint, q_j, v_j, k.t)
+            X = joint_model(joint, q_j, v_j, k.t, frames.get(joint.parent))
+            frames[joint.child] = J_R, J_p = joint_frame(joint, frames.get(joint.parent))
             v_slice = k.joint_slices[joint.name][1] if X.S.size2() else None
             body = model.bodies[joint.child]
+            com = J_R.T @ (np.asarray(body.com, dtype=float) - J_p)
+            inertia = spatial_inertia(body.mass, com, J_R.T @ body.inertia @ J_R)
             rotation = k.bodies[joint.child].rotation
             force, torque = wrenches[joint.child]
-            f_ext = ca.vertcat(ca.mtimes(rotation.T, torque), ca.mtimes(rotation.T, force))
+            force = ca.mtimes(rotation.T, force)
+            torque = ca.mtimes(rotation.T, torque) - ca.cross(_sx(J_p), force)
+            f_ext = ca.vertcat(ca.mtimes(_sx(J_R.T), torque), ca.mtimes(_sx(J_R.T), force))
             tau = joint_forces.get(joint.name, 0) if v_slice is not None else 0
             tau = _sx(tau) if not isinstance(tau, int) else ca.SX.zeros(X.S.size2())
             self.links.append(
@@ -212,7 +328,7 @@ class SpatialTree:
                     S=X.S,
                     v_J=X.v_J,
                     c_J=X.c_J,
-                    inertia=_sx(spatial_inertia(body.mass, body.com, body.inertia)),
+                    inertia=_sx(_snap(inertia)),
                     f_ext=f_ext,
                     tau=tau,
                     v_slice=v_slice,
@@ -230,6 +346,51 @@ class SpatialTree:
 
 
 # ---- articulated-body algorithm (forward dynamics) -------------------------------------
+
+
+def _unit_rows(S: Any) -> tuple[int, ...]:
+    """k of every column e_k of S (6, n) if all of its columns are unit vectors, else ()."""
+    rows = []
+    for column in range(S.size2()):
+        entries = S[:, column]
+        if entries.nnz() != 1 or not entries.nonzeros()[0].is_one():
+            return ()
+        rows.append(entries.sparsity().row()[0])
+    return tuple(rows)
+
+
+def _solve_symmetric(D: Any, B: Any) -> Any:
+    """D^-1 B for a symmetric positive definite D (n, n) without a linear-solve node: a
+    division for n = 1, cofactors for n = 2, 3 (a spherical joint's 3 x 3 articulated
+    block), else D = L diag(d) L^T eliminated entry by entry (a free joint's 6 x 6)."""
+    n = D.size1()
+    if n == 1:
+        return B * (1 / D)  # one division, then products (a division costs several)
+    if n == 2:
+        inverse = ca.vertcat(ca.horzcat(D[1, 1], -D[0, 1]), ca.horzcat(-D[0, 1], D[0, 0]))
+        return ca.mtimes(inverse * (1 / (D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1])), B)
+    if n == 3:
+        cofactor = symmetric(
+            lambda i, j: (
+                D[(i + 1) % 3, (j + 1) % 3] * D[(i + 2) % 3, (j + 2) % 3]
+                - D[(i + 1) % 3, (j + 2) % 3] * D[(i + 2) % 3, (j + 1) % 3]
+            ),
+            3,
+        )
+        return ca.mtimes(cofactor * (1 / ca.dot(D[0, :].T, cofactor[:, 0])), B)
+    L, d = [[None] * n for _ in range(n)], [None] * n
+    for j in range(n):
+        d[j] = D[j, j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
+        for i in range(j + 1, n):
+            L[i][j] = (D[i, j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))) / d[j]
+    x = [B[j, :] for j in range(n)]
+    for j in range(n):  # L y = B
+        x[j] = x[j] - sum((L[j][k] * x[k] for k in range(j)), ca.SX.zeros(1, B.size2()))
+    for j in reversed(range(n)):  # diag(d) L^T x = y
+        x[j] = x[j] / d[j] - sum(
+            (L[k][j] * x[k] for k in range(j + 1, n)), ca.SX.zeros(1, B.size2())
+        )
+    return ca.vertcat(*x)
 
 
 def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
@@ -250,21 +411,26 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         I_A[i] = link.inertia
         p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
 
-    # 2. inward: articulated inertias and bias forces, each handed to the parent
+    # 2. inward: articulated inertias and bias forces, each handed to the parent (a root
+    # hands nothing on: its D_i and u_i are kept for pass 3, I^a_i is not formed)
     U, D_inv_U, D_inv_u = [None] * n, [None] * n, [None] * n
+    root_D, root_u = {}, {}
     for i in reversed(range(n)):
         link, S = links[i], links[i].S
         if link.nv:
             U[i] = ca.mtimes(I_A[i], S)
             D = ca.mtimes(S.T, U[i])
             u = tau[link.v_slice] - ca.mtimes(S.T, p_A[i])
-            if link.nv == 1:  # a division, no linear-solve node
-                D_inv_U[i], D_inv_u[i] = U[i].T / D, u / D
-            else:
-                D_inv = ca.solve(D, ca.horzcat(U[i].T, u))
-                D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
-            I_a = articulated_update(I_A[i], U[i], D_inv_U[i])
+            if link.parent < 0:
+                root_D[i], root_u[i] = D, u
+                continue
+            D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
+            D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
+            rows = _unit_rows(S)
+            I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows)
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
+            for column, row in enumerate(rows):  # S^T p^a = tau exactly
+                p_a[row] = tau[link.v_slice][column]
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
@@ -278,7 +444,10 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         a_parent = tree.base_acceleration if link.parent < 0 else a[link.parent]
         a_prime = transform_motion(link.E, link.r, a_parent) + c[i]
         if link.nv:
-            vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
+            if i in root_D:
+                vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
+            else:
+                vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
             vdot[link.v_slice] = vdot_i
             a[i] = a_prime + ca.mtimes(link.S, vdot_i)
         else:

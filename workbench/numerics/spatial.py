@@ -175,11 +175,20 @@ def congruence(E: Any, r: Any, inertia: Any) -> Any:
     return _blocks([[top, P], [P.T, C1]])
 
 
-def articulated_update(I_A: Any, U: Any, D_inv_U: Any) -> Any:
+def articulated_update(I_A: Any, U: Any, D_inv_U: Any, zero: tuple[int, ...] = ()) -> Any:
     """I^a = I^A - U D^-1 U^T (6, 6): an articulated inertia I^A (6, 6) seen through a
     joint with motion subspace S (6, n): U = I^A S (6, n), D = S^T U (n, n), and
-    ``D_inv_U`` = D^-1 U^T (n, 6). Symmetric: 21 entries formed, not 36."""
-    return symmetric(lambda i, j: I_A[i, j] - _dot(U[i, :].T, D_inv_U[:, j]), 6)
+    ``D_inv_U`` = D^-1 U^T (n, 6). Symmetric: 21 entries formed, not 36.
+
+    I^a S = 0; ``zero``: rows k with S's columns unit vectors e_k (a joint in its own
+    frame), whose rows and columns of I^a are exactly 0 and are not formed."""
+
+    def entry(i: int, j: int) -> Any:
+        if i in zero or j in zero:
+            return 0 * I_A[i, j]
+        return I_A[i, j] - _dot(U[i, :].T, D_inv_U[:, j])
+
+    return symmetric(entry, 6)
 
 
 def spatial_inertia(mass: Any, com: Any, inertia: Any) -> Any:
