@@ -69,7 +69,9 @@ def interval(ratios: np.ndarray) -> tuple[float, float, float]:
     median = float(np.median(ratios))
     if ratios.size < 3 or np.ptp(ratios) == 0:
         return median, float(ratios.min()), float(ratios.max())
-    result = bootstrap((ratios,), np.median, confidence_level=0.95, method="percentile", random_state=0)
+    result = bootstrap(
+        (ratios,), np.median, confidence_level=0.95, method="percentile", random_state=0
+    )
     return median, float(result.confidence_interval.low), float(result.confidence_interval.high)
 
 
@@ -185,7 +187,11 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
         "ours", ours_dop853, TARGET_RTOL, error(ours_dop853(TARGET_RTOL)[0]),
     )  # fmt: skip
     candidates = {
-        f"recursive jit + {k}" + (" (adams, functional)" if o else ""): ("ours", pipelines.ours(k, o), LADDER)
+        f"recursive jit + {k}" + (" (adams, functional)" if o else ""): (
+            "ours",
+            pipelines.ours(k, o),
+            LADDER,
+        )
         for k, o in OURS.items()
     }
     candidates |= {
@@ -215,7 +221,10 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
     ]  # fmt: skip
     table = pd.DataFrame(rows)
     matched = table[(table.end_error <= SLACK * target) & ~table.pipeline.str.contains("same rtol")]
-    best = {side: matched[matched.side == side].sort_values("wall_s").iloc[0].pipeline for side in ("ours", "peer")}
+    best = {
+        side: matched[matched.side == side].sort_values("wall_s").iloc[0].pipeline
+        for side in ("ours", "peer")
+    }
     pairs = {
         "a": ("recursive jit + scipy-dop853 (same rtol)", "scipy DOP853 + pin.aba"),
         "b": (best["ours"], best["peer"]),

@@ -51,7 +51,10 @@ def random_revolute_tree(n: int = 30, seed: int = 0) -> Model:
         moments = mass / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
         rotation = Rotation.random(random_state=rng).as_matrix()
         model.add_body(
-            f"b{i}", mass, com=rng.uniform(-0.2, 0.2, 3), inertia=rotation @ np.diag(moments) @ rotation.T
+            f"b{i}",
+            mass,
+            com=rng.uniform(-0.2, 0.2, 3),
+            inertia=rotation @ np.diag(moments) @ rotation.T,
         )
         parent = "ground" if i == 0 else f"b{rng.integers(i)}"
         model.add_joint(
@@ -68,17 +71,23 @@ def random_revolute_tree(n: int = 30, seed: int = 0) -> Model:
 
 @dataclass
 class Case:
-    """A mechanism, its initial state y0 = [q, v] (ours), span and peers.
+    """A mechanism, its span and peers, and its initial state y0 = [q, v] (ours): the
+    problem's consistent initial state, or ``start`` where there is no problem.
 
     ``pin`` and ``mujoco`` are (model, order): order[i] is our velocity index of the peer's
     coordinate i (all joints are revolute, so q and v share it)."""
 
     name: str
     model: Model
-    y0: np.ndarray
     t_end: float
     pin: tuple[Any, np.ndarray]
     mujoco: tuple[Any, np.ndarray]
+    problem: Any = None
+    start: np.ndarray | None = None
+
+    @functools.cached_property
+    def y0(self) -> np.ndarray:
+        return self.start if self.problem is None else _problem_y0(self.problem)
 
 
 def _problem_y0(problem: Any) -> np.ndarray:
@@ -95,10 +104,14 @@ def _urdf_pinocchio(model: Model, urdf: str) -> tuple[Any, np.ndarray]:
     built = pin.buildModelFromUrdf(urdf)
     kinematics = TreeKinematics(model)
     if built.nv != kinematics.nv or built.nq != built.nv:
-        raise ValueError(f"{urdf}: Pinocchio's model has nq={built.nq}, nv={built.nv}; ours nv={kinematics.nv}")
+        raise ValueError(
+            f"{urdf}: Pinocchio's model has nq={built.nq}, nv={built.nv}; ours nv={kinematics.nv}"
+        )
     order = np.zeros(built.nv, dtype=int)
     for joint in kinematics.order:
-        order[built.joints[built.getJointId(joint.name)].idx_v] = kinematics.joint_slices[joint.name][1].start
+        order[built.joints[built.getJointId(joint.name)].idx_v] = kinematics.joint_slices[
+            joint.name
+        ][1].start
     return built, order
 
 
@@ -108,19 +121,19 @@ def case(name: str) -> Case:
     if name == "chain":
         problem = get_problem("spatial-chain")({"n_links": 7})
         model = problem.model()
-        return Case(name, model, _problem_y0(problem), 2.0, pinocchio_model(model), mujoco_model(model))
+        return Case(name, model, 2.0, pinocchio_model(model), mujoco_model(model), problem)
     if name == "tree":
         model = random_revolute_tree(30, seed=0)
         rng = np.random.default_rng(1)
-        y0 = np.concatenate([rng.uniform(-1.0, 1.0, 30), rng.uniform(-1.0, 1.0, 30)])
-        return Case(name, model, y0, 2.0, pinocchio_model(model), mujoco_model(model))
+        start = np.concatenate([rng.uniform(-1.0, 1.0, 30), rng.uniform(-1.0, 1.0, 30)])
+        return Case(name, model, 2.0, pinocchio_model(model), mujoco_model(model), start=start)
     if name == "ur5":
         from workbench.problems.robots import example_robot_file
 
         problem = get_problem("ur5")({})
         model = problem.model()
         urdf = str(example_robot_file(problem.file))
-        return Case(name, model, _problem_y0(problem), 1.0, _urdf_pinocchio(model, urdf), mujoco_model(model))
+        return Case(name, model, 1.0, _urdf_pinocchio(model, urdf), mujoco_model(model), problem)
     raise ValueError(f"unknown case {name!r}: use one of {', '.join(CASES)}")
 
 
