@@ -156,15 +156,19 @@ class Pipelines:
 
 
 def match(run, ladder, error, target: float) -> tuple[object, float]:
-    """The first setting of ``ladder`` whose end error is <= SLACK x target (else the last)."""
+    """(setting, end error): the first setting of ``ladder`` whose end error is <= SLACK x
+    target, else the last that ran (its error then shows the miss); RuntimeError if none ran."""
+    last = None
     for setting in ladder:
         try:
-            err = error(run(setting)[0])
+            last = (setting, error(run(setting)[0]))
         except RuntimeError:
             continue
-        if err <= SLACK * target:
-            return setting, err
-    return setting, err
+        if last[1] <= SLACK * target:
+            break
+    if last is None:
+        raise RuntimeError(f"no setting of {ladder} integrated to the end")
+    return last
 
 
 def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict], list[dict]]:
