@@ -1,6 +1,6 @@
 """Whole simulations against Pinocchio and MuJoCo at the same end accuracy (issue 21, target 2).
 
-Run: ``python -m benchmarks.simulation [--repeat 7] [--cases chain tree ur5]``. The cases are
+Run: ``python -m benchmarks.simulation [--repeat 21] [--cases chain tree ur5]``. The cases are
 those of :mod:`benchmarks.simulation_models` (7-link spatial chain over 2 s, a random
 30-body revolute tree over 2 s, the UR5 from its URDF over 1 s); before any timing,
 Pinocchio's and MuJoCo's accelerations are checked equal to ours (1e-9 relative).
@@ -262,7 +262,7 @@ def verdict(row: pd.Series) -> str:
 
 def main(argv: list[str] | None = None) -> pd.DataFrame:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.simulation", description=__doc__)
-    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--repeat", type=int, default=21)
     parser.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES))
     args = parser.parse_args(argv)
     warnings.filterwarnings("ignore")
