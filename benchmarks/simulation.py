@@ -1,145 +1,291 @@
-"""A whole simulation against SciPy's DOP853 driving ``pinocchio.aba``.
+"""Whole simulations against Pinocchio and MuJoCo at the same end accuracy (issue 21, target 2).
 
-Run: ``python -m benchmarks.simulation [--repeat 3]``. The ``spatial-chain`` problem with
-7 links (axes z, y, x, ...) from its initial state over t in [0, 5] s, 51 output times,
-rtol 1e-8 and atol 1e-10 for everyone:
+Run: ``python -m benchmarks.simulation [--repeat 21] [--cases chain tree ur5]``. The cases are
+those of :mod:`benchmarks.simulation_models` (7-link spatial chain over 2 s, a random
+30-body revolute tree over 2 s, the UR5 from its URDF over 1 s); before any timing,
+Pinocchio's and MuJoCo's accelerations are checked equal to ours (1e-9 relative).
 
-- the peer: ``scipy.integrate.solve_ivp(method="DOP853")`` whose right-hand side calls
-  ``pin.aba`` on a ``pin.Model`` built from ours (:mod:`benchmarks.peer_models`);
-- ours: the ``recursive`` formalism compiled to C (``compile = "jit"``) and in the CasADi
-  VM, through our integrator plugins (``scipy-dop853``, ``sundials-cvode-adams``,
-  ``casadi-cvodes`` with Adams and fixed-point iteration), exactly as a run calls them
-  (``Integrator.solve``).
+Pipelines (all integrate from the same y0 to t_end; 51 output times where they offer them):
 
-``end_error`` is the largest difference of the final state (q, v) from a reference
-(DOP853 at rtol = atol = 1e-13 on our compiled right-hand side). The chain is chaotic, so
-errors at t = 5 s are large and not monotonic in the tolerance: for the same final
-accuracy each of ours is run at the largest rtol of 1e-8, 1e-9, 1e-10, 1e-11 (atol =
-rtol / 100) whose end error is at most the peer's (``rtol`` column). ``wall_s`` is the
-best of ``--repeat`` integrations (the build and the compilation are excluded and
-reported apart). ``ratio`` is wall_s over the peer's. Prints a table and writes
-``benchmarks/results/simulation.csv``.
+- ours: the ``recursive`` formalism compiled to C (``compile = "jit"``), through our
+  integrator plugins exactly as a run calls them (``Integrator.solve``): ``scipy-dop853``,
+  ``sundials-cvode-adams``, ``casadi-cvodes`` (Adams, fixed-point iteration) and
+  ``heyoka-taylor`` (its LLVM compilation, done again by every solve, is excluded like
+  our C compilation: wall minus ``setup_s``);
+- peers: SciPy DOP853 calling ``pin.aba``; SUNDIALS CVODE (Adams and BDF, scikit-sundae)
+  calling ``pin.aba``; MuJoCo's RK4 in C (``opt.integrator = RK4``, fixed step, stepped by
+  ``mujoco.rollout`` so no Python runs between steps).
+
+Accuracy: ``end_error`` is the largest difference of the final (q, v) from a reference
+(DOP853 at rtol = atol = 1e-13 on our compiled right-hand side). The target accuracy is
+that of DOP853 + ``pin.aba`` at rtol 1e-8, atol 1e-10. Pair (a) runs both DOP853 sides at
+that tolerance. For pair (b) every pipeline is run at the loosest setting of its ladder
+(rtol 1e-6 ... 1e-12 with atol = rtol / 100; MuJoCo: steps 2^k x 256) whose end error is at
+most 1.5 x the target (the ``setting`` column).
+
+Timing: ``--repeat`` rounds; each round runs every pipeline once, in a shuffled order
+(interleaved, so a change of the machine's load falls on all of them). ``wall_s`` is the
+median over rounds; a ratio is computed round by round (ours / peer in the same round)
+and reported as its median and a 95 % bootstrap interval of that median. Pair (a): ours
+DOP853 / DOP853 + pin.aba (target <= 0.8); pair (b): the best of ours / the best peer,
+each side's best chosen by median wall (target <= 0.5). ``best_ratio``, the ratio of
+the two pipelines' fastest rounds, is given beside it: on a loaded machine the fastest
+round is the one least disturbed. Prints the table and the verdicts,
+writes ``benchmarks/results/simulation.csv`` (every pipeline) and
+``benchmarks/results/simulation_targets.csv`` (the two ratios per case, with machine load).
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import os
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.integrate import solve_ivp
+from scipy.stats import bootstrap
 
-from benchmarks.peer_models import pinocchio_model
-from workbench.equations.initial import consistent_initial_state
-from workbench.plugin.registry import get_formalism, get_integrator, get_problem
+from benchmarks.simulation_models import CASES, Case, Peers, case, check_equal
+from workbench.plugin.registry import get_formalism, get_integrator
 
 RESULTS = Path(__file__).parent / "results"
-T_END, RTOL, ATOL = 5.0, 1e-8, 1e-10
+TARGET_RTOL, TARGET_ATOL = 1e-8, 1e-10
+SLACK = 1.5  # a pipeline matches when its end error is <= SLACK x the target's
+LADDER = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
+MUJOCO_STEPS = tuple(256 * 2**k for k in range(13))
 OURS = {
     "scipy-dop853": None,
     "sundials-cvode-adams": None,
     "casadi-cvodes": {"method": "adams", "iteration": "functional"},
+    "heyoka-taylor": None,
 }
-LADDER = (1e-8, 1e-9, 1e-10, 1e-11)
+TARGETS = {"a": 0.8, "b": 0.5}
 
 
-def best_wall(run, repeat: int) -> tuple[float, np.ndarray]:
-    best, final = np.inf, None
-    for _ in range(repeat):
+def interval(ratios: np.ndarray) -> tuple[float, float, float]:
+    """(median, low, high): the median of the per-round ratios and its 95 % bootstrap interval."""
+    median = float(np.median(ratios))
+    if ratios.size < 3 or np.ptp(ratios) == 0:
+        return median, float(ratios.min()), float(ratios.max())
+    result = bootstrap(
+        (ratios,), np.median, confidence_level=0.95, method="percentile", random_state=0
+    )
+    return median, float(result.confidence_interval.low), float(result.confidence_interval.high)
+
+
+class Pipelines:
+    """The pipelines of one case: each ``run(setting)`` integrates and returns (final y,
+    seconds to subtract from the wall time)."""
+
+    def __init__(self, bench: Case) -> None:
+        self.case = bench
+        self.equations = get_formalism("recursive")().build(bench.model, {"compile": "jit"})
         start = time.perf_counter()
-        final = run()
-        best = min(best, time.perf_counter() - start)
-    return best, final
+        self.equations.forms["ode"].rhs.compile()
+        self.compile_s = time.perf_counter() - start
+        self.n = bench.y0.size // 2
+        self.times = np.linspace(0.0, bench.t_end, 51)
+        self.peers = Peers(bench)
+        rhs = self.equations.forms["ode"].rhs
+        self.max_rel_diff = check_equal(
+            lambda q, v: rhs(0.0, np.concatenate([q, v]))[0][self.n :], self.peers, self.n
+        )
+
+    def ours(self, name: str, options: dict | None) -> Callable[[float], tuple[np.ndarray, float]]:
+        integrator = get_integrator(name)()
+
+        def run(rtol: float) -> tuple[np.ndarray, float]:
+            trajectory = integrator.solve(
+                self.equations, self.case.y0, None, self.times, rtol, rtol / 100, options, "ode"
+            )
+            if not trajectory.success:
+                raise RuntimeError(f"{name}: {trajectory.message}")
+            setup = trajectory.stats.setup_s if name == "heyoka-taylor" else 0.0
+            return np.asarray(trajectory.y)[-1], float(setup or 0.0)
+
+        return run
+
+    def pin_rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([y[self.n :], self.peers.aba(y[: self.n], y[self.n :])])
+
+    def pin_dop853(self, rtol: float) -> tuple[np.ndarray, float]:
+        solution = solve_ivp(
+            self.pin_rhs, (0.0, self.case.t_end), self.case.y0, method="DOP853",
+            t_eval=self.times, rtol=rtol, atol=rtol / 100,
+        )  # fmt: skip
+        return solution.y[:, -1], 0.0
+
+    def pin_cvode(self, method: str) -> Callable[[float], tuple[np.ndarray, float]]:
+        from sksundae.cvode import CVODE
+
+        n = self.n
+
+        def rhsfn(t: float, y: np.ndarray, yp: np.ndarray) -> None:
+            yp[:n] = y[n:]
+            yp[n:] = self.peers.aba(y[:n], y[n:])
+
+        def run(rtol: float) -> tuple[np.ndarray, float]:
+            solver = CVODE(rhsfn, method=method, rtol=rtol, atol=rtol / 100, max_num_steps=100000)
+            result = solver.solve(self.times, self.case.y0)
+            if not result.success:
+                raise RuntimeError(f"CVODE {method} + pin.aba: {result.message}")
+            return np.asarray(result.y)[-1], 0.0
+
+        return run
+
+    def mujoco_rk4(self, steps: int) -> tuple[np.ndarray, float]:
+        import mujoco
+        from mujoco import rollout
+
+        model, order = self.case.mujoco
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+        model.opt.timestep = self.case.t_end / steps
+        data = mujoco.MjData(model)
+        data.qpos[:], data.qvel[:] = self.case.y0[: self.n][order], self.case.y0[self.n :][order]
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state = np.empty(mujoco.mj_stateSize(model, spec))
+        mujoco.mj_getState(model, data, state, spec)
+        trajectory, _ = rollout.rollout(model, data, state[None, :], nstep=steps)
+        final = trajectory[0, -1]
+        back, nq = np.argsort(order), model.nq
+        return np.concatenate([final[1 : 1 + nq][back], final[1 + nq : 1 + 2 * nq][back]]), 0.0
 
 
-def main(argv: list[str] | None = None) -> pd.DataFrame:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.simulation", description=__doc__)
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--links", type=int, default=7)
-    args = parser.parse_args(argv)
-    warnings.filterwarnings("ignore")
-    problem = get_problem("spatial-chain")({"n_links": args.links})
-    model = problem.model()
-    times = np.linspace(0.0, T_END, 51)
-    rows = []
-    equations = {}
-    for mode in ("jit", "none"):
-        start = time.perf_counter()
-        equations[mode] = get_formalism("recursive")().build(model, {"compile": mode})
-        build_s = time.perf_counter() - start
-        start = time.perf_counter()
-        equations[mode].forms["ode"].rhs.compile()
-        compile_s = time.perf_counter() - start
-        rows.append({"pipeline": f"(build recursive, compile={mode})", "wall_s": build_s})
-        if mode == "jit":
-            rows.append({"pipeline": "(compile ode rhs, cached or cold)", "wall_s": compile_s})
-    y0 = consistent_initial_state(equations["jit"], problem).y0(equations["jit"], "ode")
-    n = y0.size // 2
-    rhs = equations["jit"].forms["ode"].rhs
+def match(run, ladder, error, target: float) -> tuple[object, float]:
+    """(setting, end error): the first setting of ``ladder`` whose end error is <= SLACK x
+    target, else the last that ran (its error then shows the miss); RuntimeError if none ran."""
+    last = None
+    for setting in ladder:
+        try:
+            last = (setting, error(run(setting)[0]))
+        except RuntimeError:
+            continue
+        if last[1] <= SLACK * target:
+            break
+    if last is None:
+        raise RuntimeError(f"no setting of {ladder} integrated to the end")
+    return last
+
+
+def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict], list[dict]]:
+    bench = case(name)
+    pipelines = Pipelines(bench)
+    rhs = pipelines.equations.forms["ode"].rhs
     reference = solve_ivp(
-        lambda t, y: rhs(t, y)[0], (0.0, T_END), y0, method="DOP853", rtol=1e-13, atol=1e-13
-    ).y[:, -1]
+        lambda t, y: rhs(t, y)[0], (0.0, bench.t_end), bench.y0, method="DOP853",
+        rtol=1e-13, atol=1e-13,
+    ).y[:, -1]  # fmt: skip
 
     def error(final: np.ndarray) -> float:
         return float(np.abs(final - reference).max())
 
-    peer_wall = np.nan
-    if importlib.util.find_spec("pinocchio"):
-        import pinocchio as pin
-
-        pin_model, order = pinocchio_model(model)
-        data, tau, back = pin_model.createData(), np.zeros(n), np.argsort(order)
-
-        def pin_rhs(t: float, y: np.ndarray) -> np.ndarray:
-            a = pin.aba(pin_model, data, y[:n][order], y[n:][order], tau)
-            return np.concatenate([y[n:], a[back]])
-
-        def peer() -> np.ndarray:
-            solution = solve_ivp(
-                pin_rhs, (0.0, T_END), y0, method="DOP853", t_eval=times, rtol=RTOL, atol=ATOL
-            )
-            return solution.y[:, -1]
-
-        peer_wall, final = best_wall(peer, args.repeat)
-        peer_error = error(final)
-        rows.append(
-            {"pipeline": "scipy DOP853 + pin.aba", "rtol": RTOL, "wall_s": peer_wall}
-            | {"end_error": peer_error}
+    target = error(pipelines.pin_dop853(TARGET_RTOL)[0])
+    # label: (side, run, setting)
+    chosen: dict[str, tuple[str, Callable, object, float]] = {
+        "scipy DOP853 + pin.aba": ("peer", pipelines.pin_dop853, TARGET_RTOL, target),
+    }
+    ours_dop853 = pipelines.ours("scipy-dop853", None)
+    chosen["recursive jit + scipy-dop853 (same rtol)"] = (
+        "ours", ours_dop853, TARGET_RTOL, error(ours_dop853(TARGET_RTOL)[0]),
+    )  # fmt: skip
+    candidates = {
+        f"recursive jit + {k}" + (" (adams, functional)" if o else ""): (
+            "ours",
+            pipelines.ours(k, o),
+            LADDER,
         )
-    else:
-        peer_error = np.inf
-        print("not installed: pinocchio (pip install -e '.[bench]'); the peer is skipped")
-    for mode in ("jit", "none"):
-        for name, options in OURS.items():
-            integrator = get_integrator(name)()
-            for rtol in LADDER:
-
-                def ours(integrator=integrator, mode=mode, rtol=rtol, options=options):
-                    trajectory = integrator.solve(
-                        equations[mode], y0, None, times, rtol, rtol / 100, options, "ode"
-                    )
-                    if not trajectory.success:
-                        raise RuntimeError(f"{integrator.name}: {trajectory.message}")
-                    return np.asarray(trajectory.y)[-1]
-
-                if error(ours()) <= peer_error or rtol == LADDER[-1]:
-                    break
-            wall, final = best_wall(ours, args.repeat)
-            label = name + (" (adams, functional)" if options else "")
-            rows.append(
-                {"pipeline": f"recursive {mode} + {label}", "rtol": rtol, "wall_s": wall}
-                | {"end_error": error(final)}
-            )
+        for k, o in OURS.items()
+    }
+    candidates |= {
+        "CVODE Adams + pin.aba": ("peer", pipelines.pin_cvode("Adams"), LADDER),
+        "CVODE BDF + pin.aba": ("peer", pipelines.pin_cvode("BDF"), LADDER),
+        "MuJoCo RK4 (C, rollout)": ("peer", pipelines.mujoco_rk4, MUJOCO_STEPS),
+        "scipy DOP853 + pin.aba (matched)": ("peer", pipelines.pin_dop853, LADDER),
+    }
+    for label, (side, run, ladder) in candidates.items():
+        setting, err = match(run, ladder, error, target)
+        chosen[label] = (side, run, setting, err)
+    walls: dict[str, list[float]] = {label: [] for label in chosen}
+    labels = list(chosen)
+    for _ in range(repeat):
+        for label in rng.permutation(labels):
+            _, run, setting, _ = chosen[label]
+            start = time.perf_counter()
+            _, excluded = run(setting)
+            walls[label].append(time.perf_counter() - start - excluded)
+    rows = [
+        {
+            "case": name, "side": side, "pipeline": label, "setting": setting, "end_error": err,
+            "target_error": target, "wall_s": float(np.median(walls[label])),
+            "wall_min_s": float(np.min(walls[label])),
+        }
+        for label, (side, _, setting, err) in chosen.items()
+    ]  # fmt: skip
     table = pd.DataFrame(rows)
-    table["ratio"] = table["wall_s"] / peer_wall
+    matched = table[(table.end_error <= SLACK * target) & ~table.pipeline.str.contains("same rtol")]
+    best = {
+        side: matched[matched.side == side].sort_values("wall_s").iloc[0].pipeline
+        for side in ("ours", "peer")
+    }
+    pairs = {
+        "a": ("recursive jit + scipy-dop853 (same rtol)", "scipy DOP853 + pin.aba"),
+        "b": (best["ours"], best["peer"]),
+    }
+    targets = []
+    load = os.getloadavg()[0]
+    for pair, (ours, peer) in pairs.items():
+        ratios = np.array(walls[ours]) / np.array(walls[peer])
+        median, low, high = interval(ratios)
+        best_ratio = min(walls[ours]) / min(walls[peer])
+        targets.append({
+            "case": name, "pair": pair, "ours": ours, "peer": peer, "ratio": median,
+            "low": low, "high": high, "best_ratio": best_ratio, "target": TARGETS[pair],
+            "met": high <= TARGETS[pair],
+            "repeats": repeat, "load_1min": load, "cpu_count": os.cpu_count(),
+            "compile_s": pipelines.compile_s, "max_rel_diff": pipelines.max_rel_diff,
+        })  # fmt: skip
+    return rows, targets
+
+
+def verdict(row: pd.Series) -> str:
+    """'met' when the whole interval is under the target, 'missed' (by how much) otherwise."""
+    if row.high <= row.target:
+        return "met"
+    if row.ratio <= row.target:
+        return f"met at the median, not over its interval (up to {row.high:.2f})"
+    return f"missed by {row.ratio / row.target:.2f}x"
+
+
+def main(argv: list[str] | None = None) -> pd.DataFrame:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.simulation", description=__doc__)
+    parser.add_argument("--repeat", type=int, default=21)
+    parser.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES))
+    args = parser.parse_args(argv)
+    warnings.filterwarnings("ignore")
+    rng = np.random.default_rng(0)
+    rows, targets = [], []
+    for name in args.cases:
+        case_rows, case_targets = measure(name, args.repeat, rng)
+        rows += case_rows
+        targets += case_targets
+        print(f"{name}: done", flush=True)
+    table, summary = pd.DataFrame(rows), pd.DataFrame(targets)
+    summary["verdict"] = summary.apply(verdict, axis=1)
     RESULTS.mkdir(exist_ok=True)
     table.to_csv(RESULTS / "simulation.csv", index=False)
-    print(table.to_string(index=False, float_format=lambda x: f"{x:.3g}"))
-    return table
+    summary.to_csv(RESULTS / "simulation_targets.csv", index=False)
+    with pd.option_context("display.width", 200, "display.max_colwidth", 60):
+        print(table.to_string(index=False, float_format=lambda x: f"{x:.3g}"))
+        print()
+        shown = ["case", "pair", "ours", "peer", "ratio", "low", "high", "best_ratio"]
+        shown += ["target", "verdict"]
+        print(summary[shown].to_string(index=False, float_format=lambda x: f"{x:.2f}"))
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    return summary
 
 
 if __name__ == "__main__":
