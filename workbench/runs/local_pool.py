@@ -54,8 +54,12 @@ def _worker_main(
     sys_path: list[str],
     recorder: Any = None,
     parent: int | None = None,
+    reference_dir: str | None = None,
 ) -> None:
-    """A pool worker: ready, then run specs received on ``conn`` until None."""
+    """A pool worker: ready, then run specs received on ``conn`` until None.
+
+    ``reference_dir``: where references are cached (default ``<out>/references``); also
+    the worker loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
@@ -71,7 +75,7 @@ def _worker_main(
         with contextlib.suppress(Exception):  # loaded here, not within a run's time limit
             recorder.prepare()
     conn.send(("ready", os.getpid()))
-    reference_dir = Path(out) / "references"
+    references = Path(reference_dir) if reference_dir else Path(out) / "references"
     sink = None  # one recording sink for all of this worker's runs, a file a run
     while True:
         message = conn.recv()
@@ -83,7 +87,7 @@ def _worker_main(
             try:
                 capture = CapturedOutput(raw_path(Path(out), spec.run_id))
                 with capture:  # the run's stdout/stderr (C's too) to its bounded log
-                    result = execute_run(spec, sink=sink, reference_dir=reference_dir)
+                    result = execute_run(spec, sink=sink, reference_dir=references)
                 result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
                 store.write_run(Path(out), result.row, result.series)
             finally:
@@ -243,11 +247,14 @@ def run_local(
     lost: Counter[str] = Counter()  # run id -> attempts whose worker was killed from outside
     unfinished: dict[str, str] = {}
 
+    # a forkserver's child is the forkserver's, not ours (it exits when we do): watched so
+    parent = os.getpid() if context.get_start_method() != "forkserver" else None
+
     def start() -> _Worker:
         parent_end, child_end = context.Pipe()
         process = context.Process(
             target=_worker_main,
-            args=(child_end, plugins, str(out), list(sys.path), recorder, os.getpid()),
+            args=(child_end, plugins, str(out), list(sys.path), recorder, parent),
             daemon=True,
         )
         # a forked worker's garbage collector would visit every object it inherited and
