@@ -56,9 +56,7 @@ def submit(client, spec, limit: float, worker: str):
 def children(client, worker: str) -> list[int]:
     """Pids of the workbench children of a Dask worker."""
     pid = client.run(os.getpid, workers=[worker])[worker]
-    return [
-        p.pid for p in psutil.Process(pid).children() if "--serve" in " ".join(p.cmdline())
-    ]
+    return [p.pid for p in psutil.Process(pid).children() if "--serve" in " ".join(p.cmdline())]
 
 
 def runs_of(tmp_path, integrators: str):
@@ -129,9 +127,7 @@ def test_a_small_sweep_gives_the_local_pools_rows(
         frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
     assert len(rows[0]) == 6 and set(rows[0]["status"]) == {"ok", "failed"}
     assert list(rows[0].index) == list(rows[1].index)
-    columns = [
-        c for c in rows[0].columns if not c.endswith("_s") and c not in {"equations_cached"}
-    ]
+    columns = [c for c in rows[0].columns if not c.endswith("_s") and c not in {"equations_cached"}]
     different = [
         c
         for c in columns

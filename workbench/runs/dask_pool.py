@@ -25,14 +25,15 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError, one_line
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, execute_run, status_row
+from workbench.runs.execute import RunSpec, equations_key, execute_run, status_row
+from workbench.runs.local_pool import Keyed, _take_next
 from workbench.runs.run_log import (
     LOG_TEXT,
     CapturedOutput,
@@ -133,6 +134,7 @@ def _run_one_main() -> None:
 
 # ---- a long-lived child per Dask worker -----------------------------------------------
 
+DEPTH = 2  # runs handed to a Dask worker thread at a time: the next waits there, not here
 START_LIMIT = 600.0  # s for a child to import and discover its plugins (not a run's limit)
 
 
@@ -362,39 +364,66 @@ def run_dask(
         ) from None
     reference_dir = str((out / "references").resolve())
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+    queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
+    futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}
+    pairs: dict[str | None, tuple[str, ...] | None] = {}  # worker -> equations of its last run
+    executors: dict[str | None, Any] = {}
     unfinished: dict[str, str] = {}
     failures: Counter[str] = Counter()
+
+    def give_up(spec: RunSpec, reason: str) -> None:
+        unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
+        record("unfinished")
+
+    def submit(spec: RunSpec, worker: str | None) -> None:
+        if worker not in executors:  # a preference: a lost worker's tasks go to the others
+            where = {} if worker is None else {"workers": [worker], "allow_other_workers": True}
+            executors[worker] = client.get_executor(pure=False, **where)
+        future = executors[worker].submit(
+            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths
+        )
+        futures[future] = (spec, worker)
+
+    def fill() -> None:
+        """Give each worker thread up to DEPTH runs, chosen as the local pool chooses
+        (:func:`workbench.runs.local_pool._take_next`): a worker's child keeps the
+        equations of its last runs, so each model is built by about one worker."""
+        try:
+            threads: dict[str | None, int] = dict(client.nthreads())
+        except Exception:  # noqa: BLE001 - a lost scheduler: the submits below say it
+            threads = {}
+        for worker, count in (threads or {None: 1}).items():  # None: whichever comes
+            while queue and sum(w == worker for _, w in futures.values()) < DEPTH * count:
+                others = {p for w, p in pairs.items() if w != worker}
+                pairs[worker], spec = _take_next(queue, pairs.get(worker), others)
+                try:
+                    submit(spec, worker)
+                except Exception as error:  # noqa: BLE001 - a lost client: left unfinished
+                    failures[spec.run_id] += 1
+                    give_up(spec, _lost_message(error))
+
     try:
-        executor = client.get_executor(pure=False)
-
-        def submit(spec: RunSpec) -> concurrent.futures.Future:
-            return executor.submit(
-                run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths
-            )
-
-        futures = {submit(spec): spec for spec in todo}
+        fill()
         while futures:
             finished, _ = concurrent.futures.wait(
                 futures, return_when=concurrent.futures.FIRST_COMPLETED
             )
             for future in finished:
-                spec = futures.pop(future)
+                spec, _worker = futures.pop(future)
                 try:
                     row, series = future.result()
                 except Exception as error:  # noqa: BLE001 - lost worker, scheduler, child
                     # not a result of the run: once more, then left without a row
                     failures[spec.run_id] += 1
-                    reason = _lost_message(error)
                     if failures[spec.run_id] <= RETRIES:
-                        with contextlib.suppress(Exception):  # a lost client: unfinished
-                            futures[submit(spec)] = spec
-                            continue
-                    unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
-                    record("unfinished")
+                        queue.appendleft((equations_key(spec), spec))
+                    else:
+                        give_up(spec, _lost_message(error))
                     continue
                 store_log(out, row)
                 store.write_run(out, row, series)
                 record(row.get("status", "failed"))
+            fill()
     finally:
         client.close()
     return unfinished
@@ -413,7 +442,4 @@ if __name__ == "__main__":
     elif sys.argv[1:2] == ["--serve"] and len(sys.argv) == 3:
         _serve_main(int(sys.argv[2]))
     else:
-        sys.exit(
-            "usage: python -m workbench.runs.dask_pool --run-one < request.json"
-            " | --serve FD"
-        )
+        sys.exit("usage: python -m workbench.runs.dask_pool --run-one < request.json | --serve FD")
