@@ -9,7 +9,10 @@ limit by killing the child (row ``timeout``; the next task starts a fresh one) a
 returns the row and series to the client, which writes them, so the cluster needs no
 shared file system. A child killed from outside, or a lost Dask worker, is no result
 (:class:`~workbench.runs.unfinished.InfrastructureError`): the client retries the run
-once. ``workbench run`` runs its one run in a fresh child (:func:`run_in_subprocess`).
+once. Runs are handed out as the local pool hands them (a worker's own equations first,
+two in flight a worker thread, each pinned loosely to its worker: a lost worker's go to
+the others), so each model is built by about one child. ``workbench run`` runs its one
+run in a fresh child (:func:`run_in_subprocess`).
 """
 
 from __future__ import annotations
@@ -209,6 +212,7 @@ class _Child:
 
         self.conn.send(spec.to_dict())
         message = self._receive(limit)
+        reason = "the worker loop wrote no row for the run"  # (not seen: a bug if it is)
         try:
             if message is None or message[0] == "died":
                 reason = self._stopped() if message else timeout_message(limit)
