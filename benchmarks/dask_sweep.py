@@ -60,7 +60,11 @@ def differences(local: pd.DataFrame, dask: pd.DataFrame) -> list[str]:
         left, right = a[column], b[column].reindex(a.index)
         same = (left == right) | (left.isna() & right.isna())
         if not same.all():
-            found.append(f"{column}: {int((~same).sum())} rows")
+            shown = [f"{i} {left[i]!r} / {right[i]!r}" for i in a.index[~same][:3]]
+            found.append(
+                f"{column}: {int((~same).sum())} rows"
+                + (f" ({'; '.join(shown)})" if column == "status" else "")
+            )
     return found
 
 
