@@ -84,7 +84,7 @@ def dask_sweep(sweep) -> tuple[float, pd.DataFrame]:
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=None,
+        dashboard_address="127.0.0.1:0",
     ) as cluster:
         return one_sweep(sweep, cluster.scheduler_address)
 

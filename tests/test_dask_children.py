@@ -32,7 +32,7 @@ def cluster():
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=None,
+        dashboard_address="127.0.0.1:0",
     ) as local:
         with distributed.Client(local.scheduler_address) as client:
             yield local, client
