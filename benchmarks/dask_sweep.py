@@ -3,8 +3,9 @@
 Run: ``python -m benchmarks.dask_sweep [N_RUNS] [REPEATS]`` (defaults: the whole default
 sweep, 1,080 runs, and 2 repeats). N_RUNS takes the first N runs of the default sweep, in
 its order. Each repeat runs the sweep (``run_sweep``, into a fresh directory, no
-recording) on the local pool with 2 workers, then through a fresh ``LocalCluster``
-(scheduler and 2 single-threaded worker processes on 127.0.0.1; its start-up is not
+recording, each in a fresh process, so the local pool forks its workers as
+``workbench sweep`` does) on the local pool with 2 workers, then through a fresh
+``LocalCluster`` (scheduler and 2 single-threaded worker processes on 127.0.0.1; its start-up is not
 timed, the start of each Dask worker's child is), interleaved so that a change of the
 machine's load hits both. Issue target: Dask within 1.3x of the local pool.
 
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -68,15 +70,27 @@ def differences(local: pd.DataFrame, dask: pd.DataFrame) -> list[str]:
     return found
 
 
-def one_sweep(sweep, scheduler: str | None) -> tuple[float, pd.DataFrame]:
+def one_sweep(n_runs: int, scheduler: str | None) -> tuple[float, pd.DataFrame]:
+    """Wall time and rows of the first ``n_runs`` runs, swept in a fresh process: one that
+    has loaded Dask (with its threads) starts local workers by forkserver, not fork."""
     with tempfile.TemporaryDirectory() as out:
-        started = time.perf_counter()
-        run_sweep(sweep, jobs=2, out=out, scheduler=scheduler, show_progress=False)
-        wall = time.perf_counter() - started
-        return wall, load_results(out)
+        command = [sys.executable, "-m", "benchmarks.dask_sweep", "--one", str(n_runs), out]
+        done = subprocess.run([*command, scheduler or ""], capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"the sweep failed: {done.stderr.strip()[-2000:]}")
+        return float(done.stdout.split()[-1]), load_results(out)
 
 
-def dask_sweep(sweep) -> tuple[float, pd.DataFrame]:
+def sweep_once(n_runs: int, out: str, scheduler: str) -> None:
+    """``--one N OUT SCHEDULER``: run the sweep, print its wall time."""
+    sweep = load_spec()
+    sweep = dataclasses.replace(sweep, runs=sweep.runs[:n_runs])
+    started = time.perf_counter()
+    run_sweep(sweep, jobs=2, out=out, scheduler=scheduler or None, show_progress=False)
+    print(time.perf_counter() - started)
+
+
+def dask_sweep(n_runs: int) -> tuple[float, pd.DataFrame]:
     import distributed
 
     with distributed.LocalCluster(
@@ -86,7 +100,7 @@ def dask_sweep(sweep) -> tuple[float, pd.DataFrame]:
         host="127.0.0.1",
         dashboard_address="127.0.0.1:0",
     ) as cluster:
-        return one_sweep(sweep, cluster.scheduler_address)
+        return one_sweep(n_runs, cluster.scheduler_address)
 
 
 def main(argv: list[str]) -> pd.DataFrame:
@@ -99,8 +113,8 @@ def main(argv: list[str]) -> pd.DataFrame:
     trials = []
     for repeat in range(repeats):
         load = os.getloadavg()[0]
-        local_s, local_rows = one_sweep(sweep, None)
-        dask_s, dask_rows = dask_sweep(sweep)
+        local_s, local_rows = one_sweep(len(sweep.runs), None)
+        dask_s, dask_rows = dask_sweep(len(sweep.runs))
         found = differences(local_rows, dask_rows)
         trials.append(
             {
@@ -116,7 +130,10 @@ def main(argv: list[str]) -> pd.DataFrame:
                 "load_1min": load,
             }
         )
-        print(pd.DataFrame(trials[-1:]).to_string(index=False, float_format="{:.3g}".format))
+        print(
+            pd.DataFrame(trials[-1:]).to_string(index=False, float_format="{:.3g}".format),
+            flush=True,
+        )
     table = pd.DataFrame(trials)
     RESULTS.mkdir(exist_ok=True)
     table.to_csv(RESULTS / "dask_sweep.csv", index=False)
@@ -131,4 +148,7 @@ def main(argv: list[str]) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    if sys.argv[1:2] == ["--one"]:
+        sweep_once(int(sys.argv[2]), sys.argv[3], sys.argv[4])
+    else:
+        main(sys.argv[1:])
