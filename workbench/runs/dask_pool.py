@@ -1,30 +1,46 @@
 """Running a sweep's runs on a Dask cluster (``workbench sweep --scheduler ADDRESS``).
 
-Runs are submitted through ``distributed.Client(address).get_executor()``; each task runs
-its run in a child process (``python -m workbench.runs.dask_pool --run-one``) under the
-time limit and returns the row and series to the client, which writes them, so the
-cluster needs no shared file system.
+Runs are submitted through ``distributed.Client(address).get_executor()``, one task a
+run. A task hands its run to a long-lived child process of its Dask worker
+(:class:`_Child`: the local pool's worker loop, :func:`workbench.runs.local_pool._worker_main`,
+started at the worker's first task and kept between tasks), so imports and the
+equations' build are paid once per worker, not once per run. The task enforces the time
+limit by killing the child (row ``timeout``; the next task starts a fresh one) and
+returns the row and series to the client, which writes them, so the cluster needs no
+shared file system. A child killed from outside, or a lost Dask worker, is no result
+(:class:`~workbench.runs.unfinished.InfrastructureError`): the client retries the run
+once. Runs are handed out as the local pool hands them (a worker's own equations first,
+two in flight a worker thread, each pinned loosely to its worker: a lost worker's go to
+the others), so each model is built by about one child. ``workbench run`` runs its one
+run in a fresh child (:func:`run_in_subprocess`).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import json
+import multiprocessing.connection
 import os
+import shutil
+import socket
 import subprocess
 import sys
 import tempfile
-from collections import Counter
+import threading
+from collections import Counter, deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError, one_line
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, execute_run, status_row
+from workbench.runs.execute import RunSpec, equations_key, execute_run, status_row
+from workbench.runs.local_pool import Keyed, _take_next
 from workbench.runs.run_log import (
     LOG_TEXT,
     CapturedOutput,
+    log_path,
     raw_path,
     raw_text,
     store_log,
@@ -119,6 +135,213 @@ def _run_one_main() -> None:
     store.write_run(out, result.row, result.series)
 
 
+# ---- a long-lived child per Dask worker -----------------------------------------------
+
+DEPTH = 2  # runs handed to a Dask worker thread at a time: the next waits there, not here
+START_LIMIT = 600.0  # s for a child to import and discover its plugins (not a run's limit)
+
+
+class _Child:
+    """A child process of this Dask worker running the local pool's worker loop on a socket
+    pair, with its own scratch directory where it writes each run's files (read back and
+    removed by :meth:`run`). ``setting``: (plugins, sys_path, reference_dir) it was made
+    for; a task of another sweep starts its own."""
+
+    def __init__(self, setting: tuple) -> None:
+        plugins, sys_path, reference_dir = setting
+        self.setting = setting
+        self.out = Path(tempfile.mkdtemp(prefix="workbench-dask-"))
+        ours, theirs = socket.socketpair()
+        env = dict(os.environ) | thread_environment()  # read by BLAS/OpenMP as they load
+        env["PYTHONPATH"] = os.pathsep.join(
+            [p for p in sys_path if p] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])
+        )
+        with open(self.out / "child.stderr", "wb") as stderr:
+            self.process = subprocess.Popen(
+                [sys.executable, "-m", "workbench.runs.dask_pool", "--serve", str(theirs.fileno())],
+                pass_fds=(theirs.fileno(),),
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=stderr,
+                env=env,
+            )
+        theirs.close()
+        self.conn = multiprocessing.connection.Connection(ours.detach())
+        self.conn.send(
+            {
+                "plugins": list(plugins),
+                "out": str(self.out),
+                "sys_path": list(sys_path),
+                "parent": os.getpid(),
+                "reference_dir": reference_dir,
+            }
+        )
+        message = self._receive(START_LIMIT)
+        if message is None or message[0] != "ready":  # too slow, or died importing
+            self._kill()
+            reason = self._stopped()
+            self.close()
+            raise InfrastructureError(f"the Dask worker's child process did not start: {reason}")
+
+    def _receive(self, seconds: float) -> Any:
+        """The child's next message; ``("died",)`` if it closed its end (it died), None if
+        it sent nothing for ``seconds``."""
+        try:
+            if not self.conn.poll(seconds):
+                return None
+            return self.conn.recv()
+        except (EOFError, OSError):
+            return ("died",)
+
+    def _stopped(self) -> str:
+        """Why the child stopped (its exit code and last line on stderr), once it has."""
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(timeout=10)
+        message = died_message(self.process.returncode)
+        with contextlib.suppress(OSError):
+            lines = (self.out / "child.stderr").read_text("utf-8", "replace").strip()
+            if lines:
+                message += f": {lines.splitlines()[-1]}"
+        return message
+
+    def run(self, spec: RunSpec, limit: float) -> tuple[dict[str, Any], Any]:
+        """(row, series or None) of one run within ``limit`` seconds; on a timeout or a
+        crash the child is gone (:attr:`alive` False) and the row says so;
+        InfrastructureError if it was killed from outside."""
+        import pandas as pd
+
+        self.conn.send(spec.to_dict())
+        message = self._receive(limit)
+        reason = "the worker loop wrote no row for the run"  # (not seen: a bug if it is)
+        try:
+            if message is None or message[0] == "died":
+                reason = self._stopped() if message else timeout_message(limit)
+                self._kill()  # a row it wrote before dying or running out of time stands
+            row = store.read_row(store.row_path(self.out, spec.run_id))
+            if row is None and message is None:
+                row = status_row(spec, "timeout", reason)
+                return row | {LOG_TEXT: raw_text(self.out, spec.run_id)}, None
+            if row is None and message[0] == "error":
+                row = status_row(spec, "failed", message[2])
+                return row | {LOG_TEXT: raw_text(self.out, spec.run_id)}, None
+            if row is None:  # it died without writing the run's row
+                if killed_from_outside(self.process.returncode):
+                    raise InfrastructureError(f"run {spec.run_id}: {reason}")
+                row = status_row(spec, "failed", reason)
+                return row | {LOG_TEXT: raw_text(self.out, spec.run_id)}, None
+            if row.get("log"):  # returned with the row; store_log writes it beside the row
+                row[LOG_TEXT] = (self.out / row["log"]).read_text("utf-8", "replace")
+            series_file = store.series_path(self.out, spec.run_id)
+            series = pd.read_parquet(series_file) if series_file.exists() else None
+            return row, series
+        finally:
+            for path in (
+                store.row_path(self.out, spec.run_id),
+                store.series_path(self.out, spec.run_id),
+                log_path(self.out, spec.run_id),
+                raw_path(self.out, spec.run_id),
+            ):
+                path.unlink(missing_ok=True)
+            if not self.alive:
+                self.close()
+
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def _kill(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.wait()
+        self.conn.close()
+
+    def close(self) -> None:
+        """Kill the child and remove its directory (its built equations go with it)."""
+        self._kill()
+        shutil.rmtree(self.out, ignore_errors=True)
+
+
+_IDLE: list[_Child] = []  # this Dask worker's children waiting for a task
+_IDLE_LOCK = threading.Lock()  # a worker with several threads runs tasks side by side
+_PLUGINS_IMPORTED: set[tuple] = set()  # settings whose plugins this Dask worker imported
+
+
+def _import_plugins(plugins: tuple, sys_path: tuple) -> None:
+    """Import the sweep's plugin modules here too, once: a row this process writes (timeout,
+    crash) names their producers as the local pool's parent does."""
+    with _IDLE_LOCK:
+        if (plugins, sys_path) in _PLUGINS_IMPORTED:
+            return
+        for entry in sys_path:
+            if entry and entry not in sys.path:
+                sys.path.append(entry)
+        import_plugin_modules(list(plugins))
+        _PLUGINS_IMPORTED.add((plugins, sys_path))
+
+
+def _close_idle() -> None:
+    with _IDLE_LOCK:
+        while _IDLE:
+            with contextlib.suppress(Exception):
+                _IDLE.pop().close()
+
+
+atexit.register(_close_idle)
+
+
+def run_on_worker_child(
+    spec_data: dict[str, Any],
+    limit: float,
+    plugins: list[str],
+    reference_dir: str,
+    sys_path: list[str],
+) -> tuple[dict[str, Any], Any]:
+    """A Dask task: run one spec in a long-lived child of this worker: (row, series or None).
+
+    Takes an idle child made for the same plugins and paths (or starts one), and gives it
+    back after the run unless the run killed it (timeout, crash). The child's start-up is
+    outside the run's time limit, as in the local pool."""
+    setting = (
+        tuple(plugins),
+        tuple(sys_path),
+        reference_dir if os.path.isdir(reference_dir) else None,
+    )
+    _import_plugins(setting[0], setting[1])
+    with _IDLE_LOCK:
+        child = next((c for c in _IDLE if c.setting == setting and c.alive), None)
+        if child is not None:
+            _IDLE.remove(child)
+    if child is None:
+        child = _Child(setting)
+    try:
+        result = child.run(RunSpec.from_dict(spec_data), limit)
+    except BaseException:
+        child.close()
+        raise
+    if child.alive:
+        with _IDLE_LOCK:
+            _IDLE.append(child)
+    return result
+
+
+def _serve_main(fd: int) -> None:
+    """``python -m workbench.runs.dask_pool --serve FD``: the local pool's worker loop on
+    the socket ``FD``, set up by the first message (see :class:`_Child`)."""
+    from workbench.runs.local_pool import _worker_main
+
+    conn = multiprocessing.connection.Connection(fd)
+    setting = conn.recv()
+    _worker_main(
+        conn,
+        setting["plugins"],
+        setting["out"],
+        setting["sys_path"],
+        None,
+        setting["parent"],
+        setting["reference_dir"],
+    )
+
+
 def run_dask(
     todo: list[RunSpec],
     out: Path,
@@ -145,39 +368,66 @@ def run_dask(
         ) from None
     reference_dir = str((out / "references").resolve())
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+    queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
+    futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}
+    pairs: dict[str | None, tuple[str, ...] | None] = {}  # worker -> equations of its last run
+    executors: dict[str | None, Any] = {}
     unfinished: dict[str, str] = {}
     failures: Counter[str] = Counter()
+
+    def give_up(spec: RunSpec, reason: str) -> None:
+        unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
+        record("unfinished")
+
+    def submit(spec: RunSpec, worker: str | None) -> None:
+        if worker not in executors:  # a preference: a lost worker's tasks go to the others
+            where = {} if worker is None else {"workers": [worker], "allow_other_workers": True}
+            executors[worker] = client.get_executor(pure=False, **where)
+        future = executors[worker].submit(
+            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths
+        )
+        futures[future] = (spec, worker)
+
+    def fill() -> None:
+        """Give each worker thread up to DEPTH runs, chosen as the local pool chooses
+        (:func:`workbench.runs.local_pool._take_next`): a worker's child keeps the
+        equations of its last runs, so each model is built by about one worker."""
+        try:
+            threads: dict[str | None, int] = dict(client.nthreads())
+        except Exception:  # noqa: BLE001 - a lost scheduler: the submits below say it
+            threads = {}
+        for worker, count in (threads or {None: 1}).items():  # None: whichever comes
+            while queue and sum(w == worker for _, w in futures.values()) < DEPTH * count:
+                others = {p for w, p in pairs.items() if w != worker}
+                pairs[worker], spec = _take_next(queue, pairs.get(worker), others)
+                try:
+                    submit(spec, worker)
+                except Exception as error:  # noqa: BLE001 - a lost client: left unfinished
+                    failures[spec.run_id] += 1
+                    give_up(spec, _lost_message(error))
+
     try:
-        executor = client.get_executor(pure=False)
-
-        def submit(spec: RunSpec) -> concurrent.futures.Future:
-            return executor.submit(
-                run_in_subprocess, spec.to_dict(), limit, plugins, reference_dir, paths
-            )
-
-        futures = {submit(spec): spec for spec in todo}
+        fill()
         while futures:
             finished, _ = concurrent.futures.wait(
                 futures, return_when=concurrent.futures.FIRST_COMPLETED
             )
             for future in finished:
-                spec = futures.pop(future)
+                spec, _worker = futures.pop(future)
                 try:
                     row, series = future.result()
                 except Exception as error:  # noqa: BLE001 - lost worker, scheduler, child
                     # not a result of the run: once more, then left without a row
                     failures[spec.run_id] += 1
-                    reason = _lost_message(error)
                     if failures[spec.run_id] <= RETRIES:
-                        with contextlib.suppress(Exception):  # a lost client: unfinished
-                            futures[submit(spec)] = spec
-                            continue
-                    unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
-                    record("unfinished")
+                        queue.appendleft((equations_key(spec), spec))
+                    else:
+                        give_up(spec, _lost_message(error))
                     continue
                 store_log(out, row)
                 store.write_run(out, row, series)
                 record(row.get("status", "failed"))
+            fill()
     finally:
         client.close()
     return unfinished
@@ -193,5 +443,7 @@ def _lost_message(error: BaseException) -> str:
 if __name__ == "__main__":
     if sys.argv[1:] == ["--run-one"]:
         _run_one_main()
+    elif sys.argv[1:2] == ["--serve"] and len(sys.argv) == 3:
+        _serve_main(int(sys.argv[2]))
     else:
-        sys.exit("usage: python -m workbench.runs.dask_pool --run-one < request.json")
+        sys.exit("usage: python -m workbench.runs.dask_pool --run-one < request.json | --serve FD")

@@ -48,15 +48,25 @@ from workbench.runs.worker_env import pin_threads
 
 
 def _worker_main(
-    conn: Any, plugins: list[str], out: str, sys_path: list[str], recorder: Any = None
+    conn: Any,
+    plugins: list[str],
+    out: str,
+    sys_path: list[str],
+    recorder: Any = None,
+    parent: int | None = None,
+    reference_dir: str | None = None,
 ) -> None:
-    """A pool worker: ready, then run specs received on ``conn`` until None."""
+    """A pool worker: ready, then run specs received on ``conn`` until None.
+
+    ``parent``: the pid of a parent that is not multiprocessing's (:func:`exit_with_parent`);
+    ``reference_dir``: where references are cached (default ``<out>/references``); also
+    the worker loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
             sys.path.insert(0, entry)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    exit_with_parent()
+    exit_with_parent(parent)
     import warnings
 
     warnings.filterwarnings("ignore")
@@ -66,7 +76,7 @@ def _worker_main(
         with contextlib.suppress(Exception):  # loaded here, not within a run's time limit
             recorder.prepare()
     conn.send(("ready", os.getpid()))
-    reference_dir = Path(out) / "references"
+    references = Path(reference_dir) if reference_dir else Path(out) / "references"
     sink = None  # one recording sink for all of this worker's runs, a file a run
     while True:
         message = conn.recv()
@@ -78,7 +88,7 @@ def _worker_main(
             try:
                 capture = CapturedOutput(raw_path(Path(out), spec.run_id))
                 with capture:  # the run's stdout/stderr (C's too) to its bounded log
-                    result = execute_run(spec, sink=sink, reference_dir=reference_dir)
+                    result = execute_run(spec, sink=sink, reference_dir=references)
                 result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
                 store.write_run(Path(out), result.row, result.series)
             finally:
@@ -121,21 +131,23 @@ def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
     return recorder.merge(files, out)
 
 
-def exit_with_parent() -> None:
+def exit_with_parent(parent_pid: int | None = None) -> None:
     """Exit when the process that started this one dies (no orphan keeps running a run).
 
     Watched through multiprocessing's parent sentinel, a pipe whose other end only the
     parent holds: it reads as ready once the parent is gone, even if that happened while
     this process was still importing (a pid read with getppid then would already be
     init's), and whatever the start method (a forkserver child's parent is the
-    forkserver, but the pipe comes from the process that asked for it).
+    forkserver, but the pipe comes from the process that asked for it). A process not
+    started by multiprocessing (a Dask worker's child) polls its parent's pid instead:
+    ``parent_pid`` as its parent passed it, or getppid.
     """
     import threading
     from multiprocessing.connection import wait
 
     parent = multiprocessing.parent_process()
     if parent is None:  # not started by multiprocessing: poll the parent pid
-        ppid = os.getppid()
+        ppid = os.getppid() if parent_pid is None else parent_pid
 
         def watch() -> None:
             while os.getppid() == ppid:
@@ -246,6 +258,8 @@ def run_local(
     start_failures = 0
     lost: Counter[str] = Counter()  # run id -> attempts whose worker was killed from outside
     unfinished: dict[str, str] = {}
+
+    # a forkserver's child is the forkserver's, not ours (it exits when we do): watched so
 
     def start() -> _Worker:
         parent_end, child_end = context.Pipe()

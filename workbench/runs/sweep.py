@@ -8,8 +8,9 @@ run's files itself; the parent enforces each run's time limit by killing the wor
 ``timeout``) and starting a fresh one, and a worker that dies mid-run (segfault, SIGKILL)
 gives a ``failed`` row "worker process died (exit code ...)". With a Dask scheduler
 address, runs are submitted through ``distributed.Client(address).get_executor()``; each
-task runs its run in a child process (``python -m workbench.runs.dask_pool --run-one``) under the
-time limit and returns the row and series to the client, which writes them. At the start
+task hands its run to a long-lived child of its Dask worker (the local pool's worker loop,
+killed and restarted on a time limit) and returns the row and series to the client, which
+writes them (:mod:`workbench.runs.dask_pool`). At the start
 the full environment is written to ``<out>/environment.json``; at the end the rows are
 consolidated into ``<out>/results.parquet``.
 """

@@ -1,0 +1,136 @@
+"""Dask runs in a long-lived child per Dask worker (workbench.runs.dask_pool), on a local
+cluster bound to 127.0.0.1: the child keeps its built equations between tasks, a run over
+its time limit is a timeout row and the worker's next run gets a fresh child, a child
+killed from outside is an infrastructure failure (no row), and a small sweep gives the
+local pool's rows."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+import pytest
+
+from tests.test_sweep import fake_plugins, spec_text  # noqa: F401 - fixture
+from workbench.runs import store
+from workbench.runs.dask_pool import run_on_worker_child
+from workbench.runs.sweep import parse_spec, run_sweep
+from workbench.runs.unfinished import InfrastructureError
+
+distributed = pytest.importorskip("distributed")
+psutil = pytest.importorskip("psutil")
+
+HUNG = 600  # s: only a hung cluster reaches it
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as local:
+        with distributed.Client(local.scheduler_address) as client:
+            yield local, client
+
+
+def submit(client, spec, limit: float, worker: str):
+    """One run as a task on ``worker`` (the task run_dask submits)."""
+    paths = [os.getcwd(), *sys.path]
+    return client.submit(
+        run_on_worker_child,
+        spec.to_dict(),
+        limit,
+        ["tests.fake_plugins"],
+        "",
+        paths,
+        workers=[worker],
+        pure=False,
+    )
+
+
+def children(client, worker: str) -> list[int]:
+    """Pids of the workbench children of a Dask worker."""
+    pid = client.run(os.getpid, workers=[worker])[worker]
+    return [p.pid for p in psutil.Process(pid).children() if "--serve" in " ".join(p.cmdline())]
+
+
+def runs_of(tmp_path, integrators: str):
+    return parse_spec(spec_text(tmp_path, integrators)).runs
+
+
+def test_a_worker_child_keeps_its_equations_and_survives_a_timeout(
+    fake_plugins,  # noqa: F811
+    cluster,
+    tmp_path,
+) -> None:
+    _, client = cluster
+    worker = sorted(client.scheduler_info()["workers"])[0]
+    first, second = runs_of(tmp_path, '["test-rk45"]')  # same equations, two tolerances
+    (hung, _) = runs_of(tmp_path, '["test-hang"]')
+    row, series = submit(client, first, HUNG, worker).result(timeout=HUNG)
+    assert row["status"] == "ok" and series is not None and len(series) > 0
+    (child,) = children(client, worker)
+    row, _ = submit(client, second, HUNG, worker).result(timeout=HUNG)
+    assert row["status"] == "ok"
+    assert row["equations_cached"]  # built by the first task: a fresh process per run is not
+    assert children(client, worker) == [child]
+    # a hung run is killed at its limit (2 s; a loaded machine is slow, not hung forever)
+    row, series = submit(client, hung, 2.0, worker).result(timeout=HUNG)
+    assert row["status"] == "timeout" and "time limit of 2 s" in row["message"]
+    assert series is None and not psutil.pid_exists(child)
+    row, _ = submit(client, first, HUNG, worker).result(timeout=HUNG)
+    assert row["status"] == "ok" and not row["equations_cached"]  # a fresh child
+    assert len(children(client, worker)) == 1
+
+
+def test_a_child_killed_from_outside_is_no_row_and_the_next_run_works(
+    fake_plugins,  # noqa: F811
+    cluster,
+    tmp_path,
+) -> None:
+    _, client = cluster
+    worker = sorted(client.scheduler_info()["workers"])[1]
+    (hung, _) = runs_of(tmp_path, '["test-hang"]')
+    future = submit(client, hung, HUNG, worker)
+    deadline = time.monotonic() + HUNG
+    while not children(client, worker) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    (child,) = children(client, worker)
+    os.kill(child, signal.SIGKILL)  # as an operator or the OOM killer would
+    with pytest.raises(InfrastructureError, match="SIGKILL"):
+        future.result(timeout=HUNG)
+    ok, _ = runs_of(tmp_path, '["test-rk45"]')
+    row, _ = submit(client, ok, HUNG, worker).result(timeout=HUNG)
+    assert row["status"] == "ok"
+
+
+def test_a_small_sweep_gives_the_local_pools_rows(
+    fake_plugins,  # noqa: F811
+    cluster,
+    tmp_path,
+) -> None:
+    local, _ = cluster
+    text = spec_text(tmp_path / "local", '["test-rk45", "test-rk4", "test-die"]')
+    run_sweep(parse_spec(text), show_progress=False)
+    text = spec_text(tmp_path / "dask", '["test-rk45", "test-rk4", "test-die"]')
+    run_sweep(parse_spec(text), scheduler=local.scheduler_address, show_progress=False)
+    rows = [
+        store.load_results(tmp_path / name).set_index("run_id").sort_index()
+        for name in ("local", "dask")
+    ]
+    for frame in rows:  # whichever worker came first computed the reference, others read it
+        frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
+    assert len(rows[0]) == 6 and set(rows[0]["status"]) == {"ok", "failed"}
+    assert list(rows[0].index) == list(rows[1].index)
+    columns = [c for c in rows[0].columns if not c.endswith("_s") and c not in {"equations_cached"}]
+    different = [
+        c
+        for c in columns
+        if not ((rows[0][c] == rows[1][c]) | (rows[0][c].isna() & rows[1][c].isna())).all()
+    ]
+    assert different == [], rows[0][different].compare(rows[1][different]).to_string()
