@@ -16,6 +16,7 @@ import sys
 import tempfile
 from collections import Counter
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,7 @@ from workbench.runs.run_log import (
     write_log,
 )
 from workbench.runs.sweep_spec import import_plugin_modules
+from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
     InfrastructureError,
@@ -47,6 +49,7 @@ def run_in_subprocess(
     plugins: list[str],
     reference_dir: str,
     sys_path: list[str],
+    timing: dict[str, Any] | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """Run one spec in a child process under ``limit`` seconds: (row, series or None).
 
@@ -65,6 +68,7 @@ def run_in_subprocess(
             "reference_dir": reference_dir if os.path.isdir(reference_dir) else None,
             "sys_path": sys_path,
             "out": directory,
+            "timing": timing or {},
         }
         env = dict(os.environ) | thread_environment()  # read by BLAS/OpenMP as they load
         env["PYTHONPATH"] = os.pathsep.join(
@@ -114,7 +118,8 @@ def _run_one_main() -> None:
     out = Path(request["out"])
     capture = CapturedOutput(raw_path(out, spec.run_id))
     with capture:  # the run's stdout/stderr (C's too) to its bounded log
-        result = execute_run(spec, reference_dir=request.get("reference_dir"))
+        timing = Timing.from_dict(request.get("timing"))
+        result = execute_run(spec, reference_dir=request.get("reference_dir"), timing=timing)
     result.row["log"] = write_log(out, spec.run_id, capture.kept())
     store.write_run(out, result.row, result.series)
 
@@ -126,9 +131,11 @@ def run_dask(
     plugins: list[str],
     scheduler: str,
     record: Callable[[str], None],
+    timing: Timing | None = None,
 ) -> dict[str, str]:
-    """Run ``todo`` on the cluster; return the runs left without a row (run id -> why):
-    those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
+    """Run ``todo`` on the cluster (timed as ``timing`` says; its ``workers`` become the
+    cluster's worker threads, over all its machines); return the runs left without a row
+    (run id -> why): those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
     import concurrent.futures
 
     try:
@@ -149,10 +156,12 @@ def run_dask(
     failures: Counter[str] = Counter()
     try:
         executor = client.get_executor(pure=False)
+        threads = sum(client.nthreads().values()) or 1
+        timed = replace(timing or Timing(), workers=threads).to_dict()
 
         def submit(spec: RunSpec) -> concurrent.futures.Future:
             return executor.submit(
-                run_in_subprocess, spec.to_dict(), limit, plugins, reference_dir, paths
+                run_in_subprocess, spec.to_dict(), limit, plugins, reference_dir, paths, timed
             )
 
         futures = {submit(spec): spec for spec in todo}

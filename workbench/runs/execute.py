@@ -16,9 +16,12 @@ a column (MuJoCo-style pipeline stages):
 2. **initial state** — :func:`~workbench.equations.initial.consistent_initial_state` (``init_s``),
    kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
    first run of a (problem, formalism) in a worker and about 0 for the others;
-3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``);
-   a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
-   the metrics are still taken over the part that was reached;
+3. **integrate** — ``Integrator.solve`` at the problem's output times, repeated as the
+   :class:`~workbench.runs.timing.Timing` allows (``integrate_s``: the median sample;
+   min, max, CPU median, load and workers beside it, see :mod:`workbench.runs.timing`;
+   ``wall_s`` and ``cpu_s`` count the median once); a failed trajectory makes the row
+   ``failed`` with its message and ``t_reached``, and the metrics are still taken over
+   the part that was reached;
 4. **metrics** — :mod:`workbench.runs.metrics` (``metrics_s``; obtaining the reference is
    timed apart as ``reference_s``);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
@@ -52,6 +55,7 @@ from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
 from workbench.runs.store import SCHEMA_VERSION, empty_series
+from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
 from workbench.runs.worker_env import threads_in_force
 
 
@@ -226,6 +230,20 @@ class _Stages:
         self._wall, self._cpu = time.perf_counter(), time.process_time()
         self._compile = compiled.STATS.seconds
 
+    def timed(self, solve: Any) -> tuple[Any, float, float]:
+        """(solve(), wall s, CPU s) of one sample of the integrate stage, C compilation
+        taken out (into ``compile``)."""
+        sample = _Stages()
+        sample.start("integrate")
+        try:
+            result = solve()
+        finally:  # an integrator that raises: its time is still the stage's
+            sample.stop()
+            for name in ("integrate", "compile"):
+                self.wall[name] = self.wall.get(name, 0.0) + sample.wall.get(name, 0.0)
+                self.cpu[name] = self.cpu.get(name, 0.0) + sample.cpu.get(name, 0.0)
+        return result, sample.wall["integrate"], sample.cpu["integrate"]
+
     def stop(self) -> None:
         if not self.running:
             return
@@ -269,13 +287,19 @@ def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[s
 
 
 def execute_run(
-    spec: RunSpec, sink: Any = None, reference_dir: Path | str | None = None
+    spec: RunSpec,
+    sink: Any = None,
+    reference_dir: Path | str | None = None,
+    timing: Timing | None = None,
 ) -> RunResult:
     """Run ``spec`` through the stages of the module docstring; never raises for a plugin.
 
     ``reference_dir``: where computed references are cached on disk (usually
-    ``<out>/references``); None keeps them in memory only.
+    ``<out>/references``); None keeps them in memory only. ``timing``: how often the
+    integration is timed (:class:`~workbench.runs.timing.Timing`; default its defaults).
     """
+    timing = timing or Timing()
+    load_avg = machine_load()
     stages = _Stages()
     row = base_row(spec)
     row.update(
@@ -319,12 +343,16 @@ def execute_run(
                 y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
                 stages.stop()
 
-                stages.start("integrate")
+                stages.current = "integrate"
                 times = problem.sample_times()
-                trajectory = integrator.solve(
-                    equations, y0, yp0, times, spec.rtol, spec.atol, integrator_options, form
-                )
-                stages.stop()
+
+                def solve() -> Any:
+                    return integrator.solve(
+                        equations, y0, yp0, times, spec.rtol, spec.atol, integrator_options, form
+                    )
+
+                trajectory, samples = integrate_repeated(solve, timing, stages.timed)
+                state["samples"] = samples
                 state["trajectory"] = trajectory
                 _record_trajectory(row, trajectory)
 
@@ -348,6 +376,9 @@ def execute_run(
                     spec.rtol,
                 )
                 row.update(metric_row)
+                if samples.difference:  # the samples did not time the same work
+                    found = "; ".join(filter(None, [row.get("warnings", ""), samples.difference]))
+                    row["warnings"] = one_line_text(f"not reproducible: {found}")
                 stages.stop()
                 stages.wall["metrics"] = max(0.0, stages.wall["metrics"] - reference.seconds)
 
@@ -366,12 +397,18 @@ def execute_run(
     row["build_s"] = stages.wall.get("build", 0.0)
     row["compile_s"] = stages.wall.get("compile", 0.0)
     row["init_s"] = stages.wall.get("initial state", 0.0)
-    row["integrate_s"] = stages.wall.get("integrate", 0.0)
+    if "samples" not in state and "integrate" in stages.wall:  # the integrator raised
+        state["samples"] = Samples([stages.wall["integrate"]], [stages.cpu["integrate"]])
+    row.update(state.get("samples", Samples([], [])).columns())
+    row["load_avg"], row["workers"] = load_avg, timing.workers
     row["metrics_s"] = stages.wall.get("metrics", 0.0)
     row["log_s"] = stages.wall.get("log", 0.0)
     main_stages = ("pairing", "build", "compile", "initial state", "integrate", "metrics")
-    row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
-    row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
+    wall, cpu = dict(stages.wall), dict(stages.cpu)
+    if math.isfinite(row["integrate_s"]):  # one integration (the median), not every repeat
+        wall["integrate"], cpu["integrate"] = row["integrate_s"], row["integrate_cpu_s"]
+    row["wall_s"] = sum(wall.get(s, 0.0) for s in main_stages)
+    row["cpu_s"] = sum(cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
     row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
     row["n_samples"] = len(series)
