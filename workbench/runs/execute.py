@@ -39,7 +39,7 @@ import json
 import math
 import time
 from collections import OrderedDict
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -172,8 +172,30 @@ class _Cached:
 _EQUATIONS: OrderedDict[tuple[str, str, str, str], _Cached] = OrderedDict()
 
 
+# What depends on the problem and its options only, not on formalism or integrator: its
+# model (checked at every run's pairing; a URDF problem parses its file to make it) and
+# its reference (the stored one is checked against a fingerprint of the model). The runs
+# of a problem follow one another in a sweep, so a few entries keep the hits.
+_PROBLEMS: OrderedDict[tuple[str, str], dict[str, Any]] = OrderedDict()
+
+
 def clear_cache() -> None:
     _EQUATIONS.clear()
+    _PROBLEMS.clear()
+
+
+def cached_problem_part(spec: RunSpec, part: str, make: Any) -> tuple[Any, bool]:
+    """(``make()``, reused?) for ``part`` of the spec's problem (+ options), made once a
+    worker process."""
+    key = (spec.problem, canonical_json(spec.problem_options))
+    entry = _PROBLEMS.setdefault(key, {})
+    _PROBLEMS.move_to_end(key)
+    while len(_PROBLEMS) > EQUATIONS_CACHE_SIZE:
+        _PROBLEMS.popitem(last=False)  # the least recently used
+    if part in entry:
+        return entry[part], True
+    entry[part] = value = make()
+    return value, False
 
 
 def equations_key(spec: RunSpec) -> tuple[str, str, str, str]:
@@ -314,7 +336,7 @@ def execute_run(
         integrator = registry.get_integrator(spec.integrator)()
         formalism_options = formalism_class.parse_options(spec.formalism_options)
         integrator_options = integrator.parse_options(spec.integrator_options)
-        model = problem.model()
+        model, _ = cached_problem_part(spec, "model", problem.model)
         skip = _pairing(spec, model, formalism_class, formalism_options, integrator)
         stages.stop()
         if skip:
@@ -357,13 +379,7 @@ def execute_run(
                 _record_trajectory(row, trajectory)
 
                 stages.start("metrics")
-                reference = problem_reference(
-                    problem,
-                    spec.problem,
-                    spec.problem_options,
-                    times,
-                    Path(reference_dir) if reference_dir is not None else None,
-                )
+                reference = _reference(spec, problem, times, reference_dir)
                 row["reference_s"] = reference.seconds
                 metric_row, series = metrics_module.trajectory_metrics(
                     spec.run_id,
@@ -416,6 +432,21 @@ def execute_run(
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
     row["message"] = one_line_text(row["message"])
     return RunResult(row, series)
+
+
+def _reference(spec: RunSpec, problem: Any, times: Any, reference_dir: Any) -> Any:
+    """The problem's reference poses at ``times``, obtained once a worker per problem,
+    options and reference directory (``reference_s`` 0 when reused); a missing one
+    ('none') is asked for again at the next run."""
+    directory = Path(reference_dir) if reference_dir is not None else None
+    key, part = (spec.problem, canonical_json(spec.problem_options)), f"reference in {directory}"
+    cached = _PROBLEMS.get(key, {}).get(part)
+    if cached is not None and len(cached.poses) == len(times):
+        return replace(cached, seconds=0.0)
+    reference = problem_reference(problem, spec.problem, spec.problem_options, times, directory)
+    if reference.kind != "none" and reference.poses is not None:
+        _PROBLEMS.setdefault(key, {})[part] = reference
+    return reference
 
 
 def _pairing(
