@@ -43,7 +43,7 @@ import psutil
 RESULTS = Path(__file__).parent / "results"
 STAGES = ("build_s", "compile_s", "init_s", "integrate_s", "metrics_s", "reference_s", "log_s")
 NOT_IN_WALL = ("reference_s", "log_s")
-REPEAT_COLUMNS = ("repeats", "integrate_s_min", "integrate_s_max", "load_avg")
+REPEAT_COLUMNS = ("repeats", "integrate_s_min", "integrate_s_max", "integrate_cpu_s", "load_avg")
 GIB = 1024**3
 
 
@@ -96,7 +96,7 @@ def time_shares(out: Path, jobs: int, runs_phase: float) -> tuple[dict, pd.DataF
 
     rows = load_results(out)
     ran = rows[rows.status != "skipped"].copy()
-    for column in (*STAGES, "wall_s", *REPEAT_COLUMNS):
+    for column in (*STAGES, "wall_s", "cpu_s", *REPEAT_COLUMNS):
         ran[column] = pd.to_numeric(ran.get(column, 0.0), errors="coerce").fillna(0.0)
     ran["repeat_s"] = repeat_seconds(ran)
     # wall_s = pairing + build + compile + init + integrate + metrics (pairing: model,
@@ -114,6 +114,9 @@ def time_shares(out: Path, jobs: int, runs_phase: float) -> tuple[dict, pd.DataF
         "integrate_s": integrate,
         "outside_share_of_stages": 1 - integrate / in_runs,
         "outside_share_of_worker_time": 1 - integrate / (jobs * runs_phase - repeats),
+        # the same in CPU time (stages pairing .. metrics: reference and log have no CPU
+        # column), steadier than wall time on a busy machine
+        "outside_share_of_cpu": 1 - float(ran.integrate_cpu_s.sum()) / float(ran.cpu_s.sum()),
         # why the share is what it is: many short runs, each with a fixed cost around it
         "median_integrate_s": float(ran.integrate_s.median()),
         # the integration's extra timed samples (workbench.runs.timing): the integrator
@@ -168,7 +171,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     print(f"peak memory (PSS, all processes): {row['peak_pss_gib']:.2f} GiB (target < 1)")
     print(f"time outside integrators: {row['outside_share_of_stages']:.0%} of the runs' "
           f"stages, {row['outside_share_of_worker_time']:.0%} of the workers' time "
-          "(target < 10 %)")  # fmt: skip
+          f"(target < 10 %); of the runs' CPU time {row['outside_share_of_cpu']:.0%} "
+          f"(load average {row['load_avg_median']:.1f}, {row['cpu_count']} CPUs)")  # fmt: skip
     print(f"  median integration {1e3 * row['median_integrate_s']:.0f} ms, "
           f"{row['outside_per_run_ms']:.1f} ms a run outside it; runs integrating >= 0.1 s: "
           f"{row['outside_share_runs_over_100ms']:.0%} outside")  # fmt: skip
