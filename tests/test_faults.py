@@ -123,7 +123,9 @@ def small_disk(tmp_path):
 def fill(disk: Path, leave: int) -> Path:
     """Fill ``disk`` to the last byte, then free about ``leave`` bytes."""
     filler = disk / "filler"
-    with open(filler, "wb") as handle:
+    # unbuffered: a buffered file keeps the bytes that did not fit and fails again when
+    # closed, outside the try (whether it does depends on the free space modulo 64 KiB)
+    with open(filler, "wb", buffering=0) as handle:
         try:
             while True:
                 handle.write(b"\0" * 65536)
