@@ -91,7 +91,7 @@ def test_a_short_log_axis_still_has_numbers(tmp_path: Path) -> None:
     runs = rows([("p", "a / x", 4.0, 2e-3), ("p", "a / x", 6.0, 6e-3)])
     runs["n_rhs"] = [300.0, 900.0]
     (tmp_path / "figures").mkdir()
-    figure = work_precision_figure(runs, tmp_path, "p")
+    figure = work_precision_figure(runs, tmp_path, "p", "wall_s")
     assert figure is not None
     assert all(axis.label and "[" in axis.label and axis.numeric for axis in figure.axes)
     assert {axis.label for axis in figure.axes} >= {

@@ -24,12 +24,23 @@ def report(
         str | None,
         typer.Option("-o", "--out", help="Report directory (default: RESULTS/report)."),
     ] = None,
+    cost: Annotated[
+        str | None,
+        typer.Option(
+            "--cost",
+            help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
+            "(default), integrate_wall or n_rhs.",
+        ),
+    ] = None,
 ) -> None:
     """Write an HTML report (figures, tables as CSV/Markdown/LaTeX) of a results directory."""
     import warnings
 
     from workbench.cli.app import on_interrupt
     from workbench.outputs.report import report_directory
+    from workbench.outputs.report.cost import check_cost
+
+    check_cost(cost)  # before anything is read
 
     on_interrupt(
         lambda: f"the results in {results_path} are untouched, the report is unfinished; "
@@ -37,7 +48,7 @@ def report(
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        index = report_directory(results_path, out)
+        index = report_directory(results_path, out, cost=cost)
     for warning in caught:
         typer.echo(f"warning: {warning.message}", err=True)
     typer.echo(f"report: {index}")

@@ -11,6 +11,13 @@ from rich.table import Table
 from workbench.cli.app import app, console, option_value
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields
+from workbench.runs.timing import (
+    DEFAULT_REPEAT_BUDGET,
+    DEFAULT_REPEATS,
+    Timing,
+    check_budget,
+    check_repeats,
+)
 
 
 def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
@@ -75,6 +82,16 @@ def run(
         float,
         typer.Option("--time-limit", help="Seconds before the run is killed (a timeout row)."),
     ] = 120.0,
+    repeats: Annotated[
+        int,
+        typer.Option("--repeats", help="Most timed samples of the integration (median kept)."),
+    ] = DEFAULT_REPEATS,
+    repeat_budget: Annotated[
+        float,
+        typer.Option(
+            "--repeat-budget", help="Seconds of integration the samples may take together."
+        ),
+    ] = DEFAULT_REPEAT_BUDGET,
 ) -> None:
     """Run one problem with one formalism and integrator and print its metrics.
 
@@ -92,6 +109,9 @@ def run(
 
     if not (0 < time_limit < float("inf")):
         raise ConfigError(f"--time-limit must be a finite number of seconds > 0, not {time_limit}")
+    timing = Timing(
+        check_repeats(repeats, "--repeats"), check_budget(repeat_budget, "--repeat-budget")
+    )
     from workbench.plugin.robot_problem import robot_file_problem
 
     problem, option = robot_file_problem(problem, option or [])
@@ -121,7 +141,9 @@ def run(
     # the child imports the modules that registered these plugins (built-in or not)
     plugins = sorted({plugin.__module__ for plugin in classes.values()})
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
-    row, series = run_in_subprocess(spec.to_dict(), time_limit, plugins, reference_dir, paths)
+    row, series = run_in_subprocess(
+        spec.to_dict(), time_limit, plugins, reference_dir, paths, timing.to_dict()
+    )
     store_log(Path(out) if out else None, row)
     if out:
         store.write_run(Path(out), row, series)
@@ -176,6 +198,16 @@ def sweep(
             "--fresh", help="Redo every run (a row is replaced only when its run finishes)."
         ),
     ] = False,
+    repeats: Annotated[
+        int | None,
+        typer.Option("--repeats", help="Most timed samples of each integration (median kept)."),
+    ] = None,
+    repeat_budget: Annotated[
+        float | None,
+        typer.Option(
+            "--repeat-budget", help="Seconds of integration a run's samples may take together."
+        ),
+    ] = None,
 ) -> None:
     """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
 
@@ -206,6 +238,8 @@ def sweep(
         rerun=kinds,
         fresh=fresh,
         say=typer.echo,
+        repeats=repeats,
+        repeat_budget=repeat_budget,
     )
     shown = ("ok", "failed", "skipped", "timeout") + (("unfinished",) if summary.unfinished else ())
     counts = ", ".join(f"{summary.counts[s]} {s}" for s in shown)

@@ -30,6 +30,7 @@ import tempfile
 import threading
 from collections import Counter, deque
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +48,7 @@ from workbench.runs.run_log import (
     write_log,
 )
 from workbench.runs.sweep_spec import import_plugin_modules
+from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
     InfrastructureError,
@@ -63,6 +65,7 @@ def run_in_subprocess(
     plugins: list[str],
     reference_dir: str,
     sys_path: list[str],
+    timing: dict[str, Any] | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """Run one spec in a child process under ``limit`` seconds: (row, series or None).
 
@@ -81,6 +84,7 @@ def run_in_subprocess(
             "reference_dir": reference_dir if os.path.isdir(reference_dir) else None,
             "sys_path": sys_path,
             "out": directory,
+            "timing": timing or {},
         }
         env = dict(os.environ) | thread_environment()  # read by BLAS/OpenMP as they load
         env["PYTHONPATH"] = os.pathsep.join(
@@ -130,7 +134,8 @@ def _run_one_main() -> None:
     out = Path(request["out"])
     capture = CapturedOutput(raw_path(out, spec.run_id))
     with capture:  # the run's stdout/stderr (C's too) to its bounded log
-        result = execute_run(spec, reference_dir=request.get("reference_dir"))
+        timing = Timing.from_dict(request.get("timing"))
+        result = execute_run(spec, reference_dir=request.get("reference_dir"), timing=timing)
     result.row["log"] = write_log(out, spec.run_id, capture.kept())
     store.write_run(out, result.row, result.series)
 
@@ -144,11 +149,11 @@ START_LIMIT = 600.0  # s for a child to import and discover its plugins (not a r
 class _Child:
     """A child process of this Dask worker running the local pool's worker loop on a socket
     pair, with its own scratch directory where it writes each run's files (read back and
-    removed by :meth:`run`). ``setting``: (plugins, sys_path, reference_dir) it was made
-    for; a task of another sweep starts its own."""
+    removed by :meth:`run`). ``setting``: (plugins, sys_path, reference_dir, timing items)
+    it was made for; a task of another sweep starts its own."""
 
     def __init__(self, setting: tuple) -> None:
-        plugins, sys_path, reference_dir = setting
+        plugins, sys_path, reference_dir, timing = setting
         self.setting = setting
         self.out = Path(tempfile.mkdtemp(prefix="workbench-dask-"))
         ours, theirs = socket.socketpair()
@@ -174,6 +179,7 @@ class _Child:
                 "sys_path": list(sys_path),
                 "parent": os.getpid(),
                 "reference_dir": reference_dir,
+                "timing": dict(timing),
             }
         )
         message = self._receive(START_LIMIT)
@@ -295,6 +301,7 @@ def run_on_worker_child(
     plugins: list[str],
     reference_dir: str,
     sys_path: list[str],
+    timing: dict[str, Any] | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """A Dask task: run one spec in a long-lived child of this worker: (row, series or None).
 
@@ -305,6 +312,7 @@ def run_on_worker_child(
         tuple(plugins),
         tuple(sys_path),
         reference_dir if os.path.isdir(reference_dir) else None,
+        tuple(sorted((timing or {}).items())),
     )
     _import_plugins(setting[0], setting[1])
     with _IDLE_LOCK:
@@ -339,6 +347,7 @@ def _serve_main(fd: int) -> None:
         None,
         setting["parent"],
         setting["reference_dir"],
+        setting["timing"],
     )
 
 
@@ -349,9 +358,11 @@ def run_dask(
     plugins: list[str],
     scheduler: str,
     record: Callable[[str], None],
+    timing: Timing | None = None,
 ) -> dict[str, str]:
-    """Run ``todo`` on the cluster; return the runs left without a row (run id -> why):
-    those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
+    """Run ``todo`` on the cluster (timed as ``timing`` says; its ``workers`` become the
+    cluster's worker threads, over all its machines); return the runs left without a row
+    (run id -> why): those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
     import concurrent.futures
 
     try:
@@ -384,7 +395,7 @@ def run_dask(
             where = {} if worker is None else {"workers": [worker], "allow_other_workers": True}
             executors[worker] = client.get_executor(pure=False, **where)
         future = executors[worker].submit(
-            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths
+            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths, timed
         )
         futures[future] = (spec, worker)
 
@@ -407,6 +418,8 @@ def run_dask(
                     give_up(spec, _lost_message(error))
 
     try:
+        threads = sum(client.nthreads().values()) or 1
+        timed = replace(timing or Timing(), workers=threads).to_dict()  # read by submit
         fill()
         while futures:
             finished, _ = concurrent.futures.wait(

@@ -16,11 +16,14 @@ a column (MuJoCo-style pipeline stages):
 2. **initial state** — :func:`~workbench.equations.initial.consistent_initial_state` (``init_s``),
    kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
    first run of a (problem, formalism) in a worker and about 0 for the others;
-3. **integrate** — ``Integrator.solve`` at the problem's output times (``integrate_s``),
-   segment by segment on a better chart where the equations' coordinates degrade when
-   they offer an atlas (:mod:`workbench.runs.charts`; the switches in ``notes``);
-   a failed trajectory makes the row ``failed`` with its message and ``t_reached``, and
-   the metrics are still taken over the part that was reached;
+3. **integrate** — ``Integrator.solve`` at the problem's output times, segment by
+   segment on a better chart where the equations' coordinates degrade when they offer an
+   atlas (:mod:`workbench.runs.charts`; the switches in ``notes``), repeated as the
+   :class:`~workbench.runs.timing.Timing` allows (``integrate_s``: the median sample;
+   min, max, CPU median, load and workers beside it, see :mod:`workbench.runs.timing`;
+   ``wall_s`` and ``cpu_s`` count the median once); a failed trajectory makes the row
+   ``failed`` with its message and ``t_reached``, and the metrics are still taken over
+   the part that was reached;
 4. **metrics** — :mod:`workbench.runs.metrics` (``metrics_s``; obtaining the reference is
    timed apart as ``reference_s``);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
@@ -38,7 +41,7 @@ import json
 import math
 import time
 from collections import OrderedDict
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +58,7 @@ from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
 from workbench.runs.store import SCHEMA_VERSION, empty_series
+from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
 from workbench.runs.worker_env import threads_in_force
 
 
@@ -171,8 +175,30 @@ class _Cached:
 _EQUATIONS: OrderedDict[tuple[str, str, str, str], _Cached] = OrderedDict()
 
 
+# What depends on the problem and its options only, not on formalism or integrator: its
+# model (checked at every run's pairing; a URDF problem parses its file to make it) and
+# its reference (the stored one is checked against a fingerprint of the model). The runs
+# of a problem follow one another in a sweep, so a few entries keep the hits.
+_PROBLEMS: OrderedDict[tuple[str, str], dict[str, Any]] = OrderedDict()
+
+
 def clear_cache() -> None:
     _EQUATIONS.clear()
+    _PROBLEMS.clear()
+
+
+def cached_problem_part(spec: RunSpec, part: str, make: Any) -> tuple[Any, bool]:
+    """(``make()``, reused?) for ``part`` of the spec's problem (+ options), made once a
+    worker process."""
+    key = (spec.problem, canonical_json(spec.problem_options))
+    entry = _PROBLEMS.setdefault(key, {})
+    _PROBLEMS.move_to_end(key)
+    while len(_PROBLEMS) > EQUATIONS_CACHE_SIZE:
+        _PROBLEMS.popitem(last=False)  # the least recently used
+    if part in entry:
+        return entry[part], True
+    entry[part] = value = make()
+    return value, False
 
 
 def equations_key(spec: RunSpec) -> tuple[str, str, str, str]:
@@ -229,6 +255,20 @@ class _Stages:
         self._wall, self._cpu = time.perf_counter(), time.process_time()
         self._compile = compiled.STATS.seconds
 
+    def timed(self, solve: Any) -> tuple[Any, float, float]:
+        """(solve(), wall s, CPU s) of one sample of the integrate stage, C compilation
+        taken out (into ``compile``)."""
+        sample = _Stages()
+        sample.start("integrate")
+        try:
+            result = solve()
+        finally:  # an integrator that raises: its time is still the stage's
+            sample.stop()
+            for name in ("integrate", "compile"):
+                self.wall[name] = self.wall.get(name, 0.0) + sample.wall.get(name, 0.0)
+                self.cpu[name] = self.cpu.get(name, 0.0) + sample.cpu.get(name, 0.0)
+        return result, sample.wall["integrate"], sample.cpu["integrate"]
+
     def stop(self) -> None:
         if not self.running:
             return
@@ -272,13 +312,19 @@ def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[s
 
 
 def execute_run(
-    spec: RunSpec, sink: Any = None, reference_dir: Path | str | None = None
+    spec: RunSpec,
+    sink: Any = None,
+    reference_dir: Path | str | None = None,
+    timing: Timing | None = None,
 ) -> RunResult:
     """Run ``spec`` through the stages of the module docstring; never raises for a plugin.
 
     ``reference_dir``: where computed references are cached on disk (usually
-    ``<out>/references``); None keeps them in memory only.
+    ``<out>/references``); None keeps them in memory only. ``timing``: how often the
+    integration is timed (:class:`~workbench.runs.timing.Timing`; default its defaults).
     """
+    timing = timing or Timing()
+    load_avg = machine_load()
     stages = _Stages()
     row = base_row(spec)
     row.update(
@@ -293,7 +339,7 @@ def execute_run(
         integrator = registry.get_integrator(spec.integrator)()
         formalism_options = formalism_class.parse_options(spec.formalism_options)
         integrator_options = integrator.parse_options(spec.integrator_options)
-        model = problem.model()
+        model, _ = cached_problem_part(spec, "model", problem.model)
         skip = _pairing(spec, model, formalism_class, formalism_options, integrator)
         stages.stop()
         if skip:
@@ -322,29 +368,26 @@ def execute_run(
                 y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
                 stages.stop()
 
-                stages.start("integrate")
+                stages.current = "integrate"
                 times = problem.sample_times()
-                if getattr(equations, "atlas", None) is not None:
-                    trajectory = integrate_on_charts(
-                        integrator, equations, y0, yp0, times, spec.rtol, spec.atol,
-                        integrator_options, form,
-                    )  # fmt: skip
-                else:
-                    trajectory = integrator.solve(
+
+                def solve() -> Any:
+                    if getattr(equations, "atlas", None) is not None:
+                        return integrate_on_charts(
+                            integrator, equations, y0, yp0, times, spec.rtol, spec.atol,
+                            integrator_options, form,
+                        )  # fmt: skip
+                    return integrator.solve(
                         equations, y0, yp0, times, spec.rtol, spec.atol, integrator_options, form
                     )
-                stages.stop()
+
+                trajectory, samples = integrate_repeated(solve, timing, stages.timed)
+                state["samples"] = samples
                 state["trajectory"] = trajectory
                 _record_trajectory(row, trajectory)
 
                 stages.start("metrics")
-                reference = problem_reference(
-                    problem,
-                    spec.problem,
-                    spec.problem_options,
-                    times,
-                    Path(reference_dir) if reference_dir is not None else None,
-                )
+                reference = _reference(spec, problem, times, reference_dir)
                 row["reference_s"] = reference.seconds
                 metric_row, series = metrics_module.trajectory_metrics(
                     spec.run_id,
@@ -361,6 +404,9 @@ def execute_run(
                 atlas = getattr(equations, "atlas", None)
                 switched = switch_note(atlas, trajectory) if atlas is not None else ""
                 row["notes"] = "; ".join(filter(None, [row.get("notes", ""), switched]))
+                if samples.difference:  # the samples did not time the same work
+                    found = "; ".join(filter(None, [row.get("warnings", ""), samples.difference]))
+                    row["warnings"] = one_line_text(f"not reproducible: {found}")
                 stages.stop()
                 stages.wall["metrics"] = max(0.0, stages.wall["metrics"] - reference.seconds)
 
@@ -379,12 +425,18 @@ def execute_run(
     row["build_s"] = stages.wall.get("build", 0.0)
     row["compile_s"] = stages.wall.get("compile", 0.0)
     row["init_s"] = stages.wall.get("initial state", 0.0)
-    row["integrate_s"] = stages.wall.get("integrate", 0.0)
+    if "samples" not in state and "integrate" in stages.wall:  # the integrator raised
+        state["samples"] = Samples([stages.wall["integrate"]], [stages.cpu["integrate"]])
+    row.update(state.get("samples", Samples([], [])).columns())
+    row["load_avg"], row["workers"] = load_avg, timing.workers
     row["metrics_s"] = stages.wall.get("metrics", 0.0)
     row["log_s"] = stages.wall.get("log", 0.0)
     main_stages = ("pairing", "build", "compile", "initial state", "integrate", "metrics")
-    row["wall_s"] = sum(stages.wall.get(s, 0.0) for s in main_stages)
-    row["cpu_s"] = sum(stages.cpu.get(s, 0.0) for s in main_stages)
+    wall, cpu = dict(stages.wall), dict(stages.cpu)
+    if math.isfinite(row["integrate_s"]):  # one integration (the median), not every repeat
+        wall["integrate"], cpu["integrate"] = row["integrate_s"], row["integrate_cpu_s"]
+    row["wall_s"] = sum(wall.get(s, 0.0) for s in main_stages)
+    row["cpu_s"] = sum(cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
     row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
     row["n_samples"] = len(series)
@@ -392,6 +444,21 @@ def execute_run(
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
     row["message"] = one_line_text(row["message"])
     return RunResult(row, series)
+
+
+def _reference(spec: RunSpec, problem: Any, times: Any, reference_dir: Any) -> Any:
+    """The problem's reference poses at ``times``, obtained once a worker per problem,
+    options and reference directory (``reference_s`` 0 when reused); a missing one
+    ('none') is asked for again at the next run."""
+    directory = Path(reference_dir) if reference_dir is not None else None
+    key, part = (spec.problem, canonical_json(spec.problem_options)), f"reference in {directory}"
+    cached = _PROBLEMS.get(key, {}).get(part)
+    if cached is not None and len(cached.poses) == len(times):
+        return replace(cached, seconds=0.0)
+    reference = problem_reference(problem, spec.problem, spec.problem_options, times, directory)
+    if reference.kind != "none" and reference.poses is not None:
+        _PROBLEMS.setdefault(key, {})[part] = reference
+    return reference
 
 
 def _pairing(

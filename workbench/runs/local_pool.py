@@ -35,6 +35,7 @@ from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run
 from workbench.runs.run_log import CapturedOutput, raw_path, write_log
 from workbench.runs.sweep_spec import import_plugin_modules
+from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
     died_message,
@@ -55,12 +56,14 @@ def _worker_main(
     recorder: Any = None,
     parent: int | None = None,
     reference_dir: str | None = None,
+    timing: dict[str, Any] | None = None,
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None.
 
     ``parent``: the pid of a parent that is not multiprocessing's (:func:`exit_with_parent`);
-    ``reference_dir``: where references are cached (default ``<out>/references``); also
-    the worker loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
+    ``reference_dir``: where references are cached (default ``<out>/references``);
+    ``timing``: how each integration is timed (:meth:`Timing.to_dict`). Also the worker
+    loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
@@ -88,7 +91,9 @@ def _worker_main(
             try:
                 capture = CapturedOutput(raw_path(Path(out), spec.run_id))
                 with capture:  # the run's stdout/stderr (C's too) to its bounded log
-                    result = execute_run(spec, sink=sink, reference_dir=references)
+                    result = execute_run(
+                        spec, sink=sink, reference_dir=references, timing=Timing.from_dict(timing)
+                    )
                 result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
                 store.write_run(Path(out), result.row, result.series)
             finally:
@@ -249,10 +254,13 @@ def run_local(
     record: Callable[[str], None],
     tick: Callable[[], None] = lambda: None,
     recorder: Any = None,
+    timing: Timing | None = None,
 ) -> dict[str, str]:
-    """Run ``todo``; return the runs left without a row (run id -> why): those whose
+    """Run ``todo`` (timed as ``timing`` says, default :class:`Timing` with ``jobs``
+    workers); return the runs left without a row (run id -> why): those whose
     worker was killed from outside twice (:mod:`workbench.runs.unfinished`)."""
     context = _context()
+    timed = (timing or Timing(workers=jobs)).to_dict()
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     workers: list[_Worker] = []
     start_failures = 0
@@ -266,6 +274,7 @@ def run_local(
         process = context.Process(
             target=_worker_main,
             args=(child_end, plugins, str(out), list(sys.path), recorder),
+            kwargs={"timing": timed},
             daemon=True,
         )
         # a forked worker's garbage collector would visit every object it inherited and

@@ -5,9 +5,10 @@ time series :func:`series_defect`; :func:`workbench.runs.store.load_results` lea
 (with a warning naming the file) a row that does not, so one bad file never breaks a
 report. Both answer in words (what is wrong), never by raising.
 
-What is checked: the key columns every row has (``REQUIRED``) with their types; every
-other schema column present has its type (text, number or flag; missing values are
-``null``/NaN); the run id is the file's name. The series file (Parquet) must have a
+What is checked: the key columns every row has (``REQUIRED``) with their types; every other
+schema column present has its type (text, number or flag; missing values are ``null``/NaN);
+the run id is the file's name; the repeated timing (schema 7) is whole (``repeats`` >= 1,
+the median ``integrate_s`` within its min and max). The series file (Parquet) must have a
 readable footer with the series columns, and as many samples as the row's ``n_samples``
 (rows of schema 4 on); an ``ok`` row of an older schema must have a readable series.
 """
@@ -97,6 +98,24 @@ def row_defects(row: dict[str, Any], schema_columns: list[str], name: str = "") 
         kind = "text" if column in TEXT_COLUMNS else "flag" if column in FLAG_COLUMNS else "number"
         if not _kind_ok(value, kind):
             defects.append(f"{column} {value!r} is not a {kind}")
+    if not defects:
+        defects += _timing_defects(row)
+    return defects
+
+
+def _timing_defects(row: dict[str, Any]) -> list[str]:
+    """The repeated timing (schema 7): a whole number of samples >= 1 whose median lies
+    between their least and greatest."""
+    defects = []
+    repeats = row.get("repeats")
+    if not _is_missing(repeats) and not (repeats >= 1 and float(repeats).is_integer()):
+        defects.append(f"repeats {repeats!r} is not a whole number >= 1")
+    low, median, high = (row.get(c) for c in ("integrate_s_min", "integrate_s", "integrate_s_max"))
+    if not any(_is_missing(v) for v in (low, median, high)) and not low <= median <= high:
+        defects.append(
+            f"integrate_s {median!r} is not within [integrate_s_min, integrate_s_max] "
+            f"= [{low!r}, {high!r}]"
+        )
     return defects
 
 

@@ -63,7 +63,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("build_s", "wall time to build the equations (0 when reused from the worker's cache)"),
     ("compile_s", "wall time to generate, compile and load C (compile=jit; 0 otherwise)"),
     ("init_s", "wall time of the consistent initial state"),
-    ("integrate_s", "wall time of the integration"),
+    ("integrate_s", "wall time of the integration: the median of its timed samples (repeats)"),
     ("metrics_s", "wall time of the metrics (without computing the reference)"),
     ("reference_s", "wall time to obtain the reference (0 when cached)"),
     ("equations_cached", "the equations were reused from the worker's cache"),
@@ -115,6 +115,12 @@ SCHEMA: list[tuple[str, str]] = [
     ("producer_integrator", "the integrator plugin's source hash or distribution version"),
     ("err_l2", "root mean square over output times of the pose error (m): its L2 norm"),
     ("fixed_step_s", "the step of a fixed-step method (s); NaN for an adaptive one"),
+    ("integrate_s_min", "least wall time of the integration's timed samples (s)"),
+    ("integrate_s_max", "greatest wall time of the integration's timed samples (s)"),
+    ("integrate_cpu_s", "CPU time of the integration: the median of its timed samples (s)"),
+    ("repeats", "timed samples of the integration (workbench.runs.timing; NaN: not timed)"),
+    ("load_avg", "1-minute load average of the machine when the run started"),
+    ("workers", "worker processes of the sweep running runs at the same time"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -141,7 +147,11 @@ ENVIRONMENT_FILE = "environment.json"
 #   6  adds err_l2 (the error over the whole trajectory beside err_max and err_end),
 #      fixed_step_s, log (the run's captured output) and threads (BLAS/OpenMP threads);
 #      older rows did not record them: NaN and no log
-SCHEMA_VERSION = 6
+#   7  adds the repeated timing of the integration (workbench.runs.timing): integrate_s is
+#      the median of the samples, integrate_s_min, integrate_s_max, integrate_cpu_s,
+#      repeats, and the machine's load_avg and the sweep's workers; older rows timed one
+#      sample: its wall time stays integrate_s, the new columns are NaN (not measured)
+SCHEMA_VERSION = 7
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -167,6 +177,11 @@ def _migrate_5_to_6(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 6} | unrecorded
 
 
+def _migrate_6_to_7(row: dict[str, Any]) -> dict[str, Any]:
+    columns = ("integrate_s_min", "integrate_s_max", "integrate_cpu_s", "repeats", "load_avg")
+    return row | {"schema_version": 7, "workers": math.nan} | dict.fromkeys(columns, math.nan)
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
@@ -174,6 +189,7 @@ MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     3: _migrate_3_to_4,
     4: _migrate_4_to_5,
     5: _migrate_5_to_6,
+    6: _migrate_6_to_7,
 }
 
 

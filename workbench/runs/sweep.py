@@ -35,6 +35,7 @@ from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.progress import progress_bar
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
+from workbench.runs.timing import Timing, check_budget, check_repeats
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
 
@@ -71,6 +72,8 @@ def run_sweep(
     rerun: frozenset[str] | set[str] = frozenset(),
     fresh: bool = False,
     say: Callable[[str], None] | None = None,
+    repeats: int | None = None,
+    repeat_budget: float | None = None,
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
@@ -82,7 +85,8 @@ def run_sweep(
 
     ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
     runs (:func:`workbench.runs.resume.plan_resume`); ``say`` receives the one-line
-    findings of the resume (default: printed on stderr)."""
+    findings of the resume (default: printed on stderr). ``repeats`` and ``repeat_budget``
+    override the specification's timing of each integration (:mod:`workbench.runs.timing`)."""
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
     jobs = int(jobs or sweep.jobs)
@@ -91,6 +95,13 @@ def run_sweep(
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if not limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {limit}")
+    timing = Timing(
+        check_repeats(sweep.repeats if repeats is None else repeats, "--repeats"),
+        check_budget(
+            sweep.repeat_budget if repeat_budget is None else repeat_budget, "--repeat-budget"
+        ),
+        jobs,
+    )
     store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
     plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
     for line in plan.lines():
@@ -111,11 +122,11 @@ def run_sweep(
             advance(counts)
 
         if scheduler:
-            unfinished = run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record)
+            unfinished = run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record, timing)
         else:
             tick = lambda: advance(None)  # noqa: E731
             unfinished = run_local(
-                todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder
+                todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing
             )
     results = store.consolidate(out_dir)
     recording = None

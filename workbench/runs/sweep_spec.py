@@ -7,6 +7,8 @@ benchmark problems; :func:`suite_names` lists them)::
     out = "reports/latest"         # output directory (``--out`` overrides)
     jobs = 2                       # local worker processes (``--jobs`` overrides)
     time_limit = 120.0             # seconds per run; a run over it is killed (``--time-limit``)
+    repeats = 3                    # most timed samples of each integration (``--repeats``)
+    repeat_budget = 0.05           # s of integration a run may spend on them (``--repeat-budget``)
     tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
@@ -63,6 +65,12 @@ from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.registry import Kind
 from workbench.plugin.search_path import make_importable, plugin_directories
 from workbench.runs.execute import RunSpec, problem_span
+from workbench.runs.timing import (
+    DEFAULT_REPEAT_BUDGET,
+    DEFAULT_REPEATS,
+    budget_problem,
+    repeats_problem,
+)
 
 DEFAULT_OUT = "reports/latest"
 
@@ -91,6 +99,8 @@ TOP_LEVEL_KEYS = {
     "out": "output directory (string)",
     "jobs": "number of local worker processes (integer >= 1)",
     "time_limit": "seconds per run (number > 0)",
+    "repeats": "most timed samples of each run's integration (integer >= 1)",
+    "repeat_budget": "seconds of integration a run may spend on repeated samples (number >= 0)",
     "tolerances": "list of rtol values (numbers > 0)",
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
@@ -115,6 +125,8 @@ class SweepSpec:
     plugins: list[str] = field(default_factory=list)
     source: str = ""
     text: str = ""
+    repeats: int = DEFAULT_REPEATS
+    repeat_budget: float = DEFAULT_REPEAT_BUDGET
 
 
 SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
@@ -225,6 +237,14 @@ def parse_spec(
         raise fail("jobs", f"must be an integer from 1 to {MAX_JOBS}, not {_show(jobs)}")
     time_limit = _positive(data.get("time_limit", DEFAULT_TIME_LIMIT), "time_limit", fail)
     atol_factor = _positive(data.get("atol_factor", DEFAULT_ATOL_FACTOR), "atol_factor", fail)
+    repeats = data.get("repeats", DEFAULT_REPEATS)
+    repeat_budget = data.get("repeat_budget", DEFAULT_REPEAT_BUDGET)
+    for key, problem in (
+        ("repeats", repeats_problem(repeats)),
+        ("repeat_budget", budget_problem(repeat_budget)),
+    ):
+        if problem:
+            raise fail(key, problem)
     missing = data.get("missing_plugins", "error")
     if missing not in ("error", "skip"):
         raise fail("missing_plugins", f'must be "error" or "skip", not {_show(missing)}')
@@ -296,7 +316,17 @@ def parse_spec(
     ]
     if not runs:
         raise ConfigError(f"{source}: the sweep has no runs")
-    return SweepSpec(runs, Path(out), int(jobs), time_limit, list(plugins), source, text)
+    return SweepSpec(
+        runs,
+        Path(out),
+        int(jobs),
+        time_limit,
+        list(plugins),
+        source,
+        text,
+        repeats,
+        float(repeat_budget),
+    )
 
 
 def _key_line(text: str, key: str) -> int | None:

@@ -7,17 +7,17 @@
     figures/*.png|svg|pdf   work-precision diagrams and drift / energy over time
     tables/*.csv|md|tex     the summary, the status matrix and all result rows
 
-The page opens with an overview computed from the runs (:mod:`.overview`): the pair to
-use (within 2x of the best wall time on the most problems at the highest scd reached on two
-thirds of them; runs with warnings never count), a problem x pair heat map of the cost at
-that accuracy, the Pareto fronts, and the convergence order of fixed-step methods. Per
-problem it draws a work-precision diagram (Pareto front and the reference's accuracy
-marked), the error along the trajectory, and the drift and energy error over time at the
-middle tolerance (one panel a formalism). The summary names, for each problem and target
-accuracy (scd >= 2, 4, 6, 8, 10), the cheapest pair (least wall time) that reached it; the
-status matrix counts ok / failed / timeout / skipped runs and lists each kind of reason
-once. A footer records library versions, the machine, the date and the command that made
-the report.
+The page opens with an overview computed from the runs (:mod:`.overview`): the pair to use
+(within 2x of the best cost on the most problems at the highest scd reached on two thirds
+of them; runs with warnings never count), a problem x pair heat map of the cost at that
+accuracy, the Pareto fronts, and the convergence order of fixed-step methods. Per problem
+it draws a work-precision diagram (Pareto front and the reference's accuracy marked), the
+error along the trajectory, and the drift and energy error over time at the middle
+tolerance (one panel a formalism). The summary names, for each problem and target accuracy
+(scd >= 2, 4, 6, 8, 10), the cheapest pair (least cost: the measure of
+workbench.outputs.report.cost, stated on the page) that reached it; the status matrix
+counts ok / failed / timeout / skipped runs and lists each kind of reason once. A footer
+records library versions, the machine, the date and the command that made the report.
 
 One idea a module:
 

@@ -24,6 +24,13 @@ NUMERIC_COLUMNS: tuple[str, ...] = (
     "atol",
     "wall_s",
     "cpu_s",
+    "integrate_s",
+    "integrate_s_min",
+    "integrate_s_max",
+    "integrate_cpu_s",
+    "repeats",
+    "load_avg",
+    "workers",
     "n_rhs",
     "n_jac",
     "n_steps",
@@ -144,8 +151,11 @@ def warning_kinds(text: str) -> list[str]:
     return [w.split(":", 1)[0].strip() for w in str(text or "").split("; ") if w.strip()]
 
 
-def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) -> pd.DataFrame:
-    """For each problem and target scd: the ok run of least wall time with scd >= target.
+def cheapest_pairs(
+    runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD, cost: str = "wall_s"
+) -> pd.DataFrame:
+    """For each problem and target scd: the ok run of least ``cost`` (a column, see
+    :mod:`workbench.outputs.report.cost`) with scd >= target.
 
     One row per (problem, target); problems where no run reached a target say so.
     A run with warnings (:func:`warned`) is never chosen: it may be wrong.
@@ -154,13 +164,13 @@ def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) ->
     rows = []
     for problem, group in runs.groupby("problem", sort=False):
         ok = ok_runs(group[~warned(group)])
-        ok = ok[np.isfinite(ok["scd"]) & np.isfinite(ok["wall_s"])]
+        ok = ok[np.isfinite(ok["scd"]) & np.isfinite(ok[cost])]
         for target in targets:
             reached = ok[ok["scd"] >= target]
             if reached.empty:
                 rows.append({"problem": problem, "target scd": target, "pair": "none reached"})
                 continue
-            best = reached.loc[reached["wall_s"].idxmin()]
+            best = reached.loc[reached[cost].idxmin()]
             rows.append(
                 {
                     "problem": problem,
@@ -170,7 +180,7 @@ def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) ->
                     "scd": best["scd"],
                     "err_l2": best["err_l2"],
                     "err_max": best["err_max"],
-                    "wall_s": best["wall_s"],
+                    cost: best[cost],
                     "n_rhs": best["n_rhs"],
                 }
             )
@@ -182,8 +192,7 @@ def cheapest_pairs(runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD) ->
         "scd",
         "err_l2",
         "err_max",
-        "wall_s",
-        "n_rhs",
+        *dict.fromkeys([cost, "n_rhs"]),
     ]
     return pd.DataFrame(rows, columns=columns)
 
@@ -300,3 +309,26 @@ def run_environment(runs: pd.DataFrame) -> list[str]:
             name = column.removeprefix("version_")
             lines.append(f"{name}: {', '.join(sorted(values)[:5])}")
     return lines
+
+
+def oversubscription_warning(runs: pd.DataFrame) -> str:
+    """A warning for the top of the page when runs were timed with more workers than the
+    machine had idle cores (:func:`workbench.runs.timing.oversubscribed`: from each row's
+    load average, workers and CPUs), so their times include waiting for a core; '' if
+    none was (or nothing was recorded)."""
+    from workbench.runs.timing import oversubscribed
+
+    columns = ("load_avg", "workers", "cpu_count")
+    if runs.empty or not all(c in runs for c in columns):
+        return ""
+    values = runs[list(columns)].apply(pd.to_numeric, errors="coerce")
+    flagged = values[[oversubscribed(*row) for row in values.itertuples(index=False)]]
+    if flagged.empty:
+        return ""
+    return (
+        f"{len(flagged)} of {len(runs)} runs were timed with more workers than idle cores "
+        f"(up to {flagged['workers'].max():g} workers on {flagged['cpu_count'].min():g} CPUs "
+        f"at a load average up to {flagged['load_avg'].max():.2f}): their times include "
+        "waiting for a core; compare costs with care, or sweep again with fewer --jobs on "
+        "a quieter machine"
+    )

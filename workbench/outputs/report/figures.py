@@ -1,6 +1,6 @@
 """The report's figures, each written as PNG (shown), SVG and PDF (linked).
 
-Per problem: a work-precision diagram (scd against wall seconds and against right-hand-side
+Per problem: a work-precision diagram (scd against the cost measure and against right-hand-side
 evaluations, log x; one curve per formalism x integrator, one point per tolerance) and the
 position, velocity and nonholonomic constraint drift and the energy error over time (log y)
 of every pair at the middle tolerance. Matplotlib is imported inside the functions, which
@@ -211,15 +211,16 @@ def reference_digits(runs: pd.DataFrame) -> float | None:
     return float(-np.log10(accuracy.max())) if not accuracy.empty else None
 
 
-WORK_AXES: tuple[tuple[str, str], ...] = (
-    ("wall_s", "wall time [s]"),
-    ("n_rhs", "right-hand-side evaluations [-]"),
-)
+RHS_AXIS = ("n_rhs", "right-hand-side evaluations [-]")
 SCD_LABEL = "scd: correct digits at the end [-]"
 
 
-def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> FigureFiles | None:
-    """scd against wall seconds and against rhs evaluations (log x), one curve a pair.
+def work_precision_figure(
+    runs: pd.DataFrame, out: Path, problem: str, cost: str = "integrate_s"
+) -> FigureFiles | None:
+    """scd against the ``cost`` column (the report's cost measure,
+    :mod:`workbench.outputs.report.cost`; the integration's wall time when that is rhs
+    evaluations) and against rhs evaluations (log x), one curve a pair.
 
     The runs on each panel's Pareto front (:func:`~workbench.outputs.report.overview.
     pareto_mask`) are joined by a thick grey line; a dotted line marks the digits the
@@ -227,8 +228,11 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
     """
     import matplotlib.pyplot as plt
 
+    from workbench.outputs.report.cost import COST_LABELS
     from workbench.outputs.report.overview import pareto_mask
 
+    time_axis = cost if cost != RHS_AXIS[0] else "integrate_s"
+    work_axes = ((time_axis, COST_LABELS.get(time_axis, time_axis)), RHS_AXIS)
     ok = ok_runs(runs)
     ok = ok[np.isfinite(ok["scd"])]
     if ok.empty:
@@ -239,16 +243,18 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
     figure.subplots_adjust(left=0.06, right=0.70, bottom=0.12, top=0.86, wspace=0.08)
     for pair in pairs:
         curve = ok[ok["pair"] == pair].sort_values("rtol", ascending=False)
-        for ax, (cost, _label) in zip(axes, WORK_AXES, strict=True):
-            points = curve[np.isfinite(curve[cost]) & (curve[cost] > 0)]
+        for ax, (axis, _label) in zip(axes, work_axes, strict=True):
+            if axis not in curve:
+                continue
+            points = curve[np.isfinite(curve[axis]) & (curve[axis] > 0)]
             if not points.empty:
-                ax.plot(points[cost], points["scd"], markersize=4, linewidth=1, **styles(pair))
+                ax.plot(points[axis], points["scd"], markersize=4, linewidth=1, **styles(pair))
                 flagged = points[warned(points)]
-                ax.scatter(flagged[cost], flagged["scd"], s=70, facecolors="none",
+                ax.scatter(flagged[axis], flagged["scd"], s=70, facecolors="none",
                            edgecolors="red", linewidths=1.2, zorder=3)  # fmt: skip
     digits = reference_digits(runs)
-    for ax, (cost, xlabel) in zip(axes, WORK_AXES, strict=True):
-        front = ok[pareto_mask(ok, cost)].sort_values(cost)
+    for ax, (axis, xlabel) in zip(axes, work_axes, strict=True):
+        front = ok[pareto_mask(ok, axis)].sort_values(axis) if axis in ok else ok.iloc[:0]
         if not front.empty:
             ax.step(front[cost], front["scd"], where="post", color="0.45", linewidth=5,
                     alpha=0.35, zorder=0, solid_capstyle="round")  # fmt: skip
@@ -260,7 +266,11 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
         ax.set_xlabel(xlabel)
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel(SCD_LABEL)
-    title = f"{problem}: work-precision (one point per tolerance; grey band: Pareto front)"
+    measure = COST_LABELS.get(cost, cost).split(" [")[0]
+    title = (
+        f"{problem}: work-precision (one point per tolerance; grey band: Pareto front; "
+        f"cost measure: {measure})"
+    )
     if warned(ok).any():
         title += "\nred ring: the run carries warnings (it may be wrong; see the status table)"
     figure.suptitle(title, x=0.38)
@@ -269,8 +279,10 @@ def work_precision_figure(runs: pd.DataFrame, out: Path, problem: str) -> Figure
         figure,
         out,
         f"{slug(problem)}-work-precision",
-        f"{problem}: work-precision diagrams (scd against wall time and rhs evaluations; "
-        "grey band: the Pareto front, runs no other run beats on both cost and accuracy)",
+        f"{problem}: work-precision diagrams (scd against {work_axes[0][1].split(' [')[0]} "
+        "and rhs evaluations, one-off costs such as building and compiling excluded; grey "
+        "band: the Pareto front, runs no other run beats on both cost and accuracy; the "
+        f"report's cost measure: {measure})",
     )
 
 
@@ -377,7 +389,11 @@ def drift_figure(
 
 
 def error_figure(
-    runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path, problem: str
+    runs: pd.DataFrame,
+    series: Mapping[str, pd.DataFrame | None] | None,
+    out: Path,
+    problem: str,
+    cost: str = "integrate_s",
 ) -> FigureFiles | None:
     """The sanity check of a problem's trajectory: the pose error against the reference at
     every sample, for the most accurate trusted run and the run of the Pareto front's
@@ -388,10 +404,10 @@ def error_figure(
 
     if series is None:
         return None
-    candidates = trusted(runs)
+    candidates = trusted(runs, cost)
     if candidates.empty:
         return None
-    front = candidates[pareto_mask(candidates)].sort_values("wall_s")
+    front = candidates[pareto_mask(candidates, cost)].sort_values(cost)
     picks = [candidates.loc[candidates["scd"].idxmax()], front.iloc[0]]
     length = float(picks[0].get("length_scale", math.nan))
     relative = math.isfinite(length) and length > 0  # else the error in metres

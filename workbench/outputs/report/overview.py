@@ -25,9 +25,10 @@ import numpy as np
 import pandas as pd
 
 from workbench.outputs.report.analysis import ok_runs, warned
+from workbench.outputs.report.cost import COST_LABELS
 
 OVERVIEW_TARGETS: tuple[float, ...] = (10.0, 8.0, 6.0, 4.0, 2.0)
-COST_COLUMNS: dict[str, str] = {"wall_s": "wall time [s]", "n_rhs": "rhs evaluations [-]"}
+COST_COLUMNS: dict[str, str] = COST_LABELS  # cost column -> label (report.cost)
 WITHIN_FACTOR = 2.0
 COVERAGE = 2 / 3  # of the problems that must reach the overview's target
 

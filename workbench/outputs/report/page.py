@@ -18,6 +18,7 @@ import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
 
 from workbench.outputs.report.analysis import run_environment
+from workbench.outputs.report.cost import Cost, resolve_cost
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.scorecards import Scorecard
 from workbench.outputs.report.tables import shows_index, table_cells
@@ -112,13 +113,17 @@ def render_page(
     sections: list[ProblemSection],
     command: str,
     scorecards: Sequence[Scorecard] = (),
+    cost: Cost | None = None,
+    timing_warning: str = "",
 ) -> str:
     """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
 
     overview: the recommendation and the figures above everything else.
     footnotes: as :func:`workbench.outputs.report.analysis.status_matrix` gives them,
-    ``"[n] text"``; the page numbers them itself.
+    ``"[n] text"``; the page numbers them itself. cost: the cost measure in force (stated
+    on the page); timing_warning: shown at the top when not empty.
     """
+    cost = cost or resolve_cost(runs)
     problems = list(dict.fromkeys(runs["problem"]))
     return (
         environment()
@@ -135,6 +140,9 @@ def render_page(
             sections=sections,
             scorecards=[(c.title, c.note, PageTable.of(c.table, c.name)) for c in scorecards],
             command=command,
+            cost_name=cost.name,
+            cost_statement=cost.statement(),
+            timing_warning=timing_warning,
             run_environment="; ".join(run_environment(runs)),
             versions=", ".join(f"{name} {version}" for name, version in library_versions().items()),
             machine=machine_description(),

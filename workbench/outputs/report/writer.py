@@ -19,10 +19,12 @@ from workbench.outputs.report.analysis import (
     cheapest_pairs,
     drift_runs,
     drift_table,
+    oversubscription_warning,
     prepare_results,
     status_counts,
     status_matrix,
 )
+from workbench.outputs.report.cost import Cost, resolve_cost
 from workbench.outputs.report.figures import (
     drift_figure,
     error_figure,
@@ -45,8 +47,8 @@ from workbench.runs.progress import progress_bar
 
 SeriesLoader = Callable[[str], pd.DataFrame | None]
 SUMMARY_CAPTION = (
-    "Cheapest pair (least wall time) reaching each target scd, among the runs without "
-    "warnings; errors are pose errors over the samples (L2: root mean square)"
+    "Cheapest pair (least {cost}) reaching each target scd, among the runs without "
+    "warnings; errors are pose errors over the samples (L2: root mean square); {statement}"
 )
 STATUS_CAPTION = (
     "Runs by status, per problem and pair; the numbers in brackets refer to the reasons "
@@ -63,6 +65,7 @@ def write_report(
     title: str = "mbs-workbench report",
     progress: bool | None = None,
     jobs: int | None = None,
+    cost: str | None = None,
 ) -> Path:
     """Write the report of ``results`` into ``out_dir``; return the path of ``index.html``.
 
@@ -74,22 +77,26 @@ def write_report(
     command: the exact command line that produced the report (printed in the footer).
     progress: show a rich progress bar on stderr; default: when there are several problems.
     jobs: processes drawing figures; default: one per CPU when there are 4 problems or more.
+    cost: the cost measure of the diagrams, tables and recommendation, a key of
+        :data:`~workbench.outputs.report.cost.COST_MEASURES` (default: see that module).
     """
     runs = prepare_results(results)
+    measure = resolve_cost(runs, cost)
     out = Path(out_dir)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "tables").mkdir(parents=True, exist_ok=True)
 
     problems = list(dict.fromkeys(runs["problem"]))
-    summary = cheapest_pairs(runs)
+    summary = cheapest_pairs(runs, cost=measure.column)
     matrix, footnotes = status_matrix(runs)
-    write_table(summary, out / "tables", "summary", SUMMARY_CAPTION)
+    caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
+    write_table(summary, out / "tables", "summary", caption)
     write_table(matrix, out / "tables", "status", STATUS_CAPTION)
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
     cards = scorecards(runs)
     for card in cards:
         write_table(card.table, out / "tables", card.name, card.title)
-    overview = overview_of(runs, out)
+    overview = overview_of(runs, out, measure)
 
     jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
     show = len(problems) > 1 if progress is None else progress
@@ -100,15 +107,27 @@ def write_report(
         pending = []
         for problem in problems:
             of_problem = runs[runs["problem"] == problem]
-            series = _load_series(of_problem, series_loader)
-            pending.append(executor.submit(problem_section, of_problem, series, out))
+            series = _load_series(of_problem, series_loader, measure.column)
+            pending.append(
+                executor.submit(problem_section, of_problem, series, out, measure.column)
+            )
         sections = []
         for problem, future in zip(problems, pending, strict=True):
             sections.append(future.result())
             bar.step(problem)
 
     page = render_page(
-        title, runs, overview, summary, matrix, footnotes, sections, command, cards
+        title,
+        runs,
+        overview,
+        summary,
+        matrix,
+        footnotes,
+        sections,
+        command,
+        cards,
+        cost=measure,
+        timing_warning=oversubscription_warning(runs),
     )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
@@ -122,6 +141,7 @@ def report_directory(
     *,
     progress: bool | None = None,
     stale: Mapping[str, str] | None = None,
+    cost: str | None = None,
 ) -> Path:
     """The report of a results directory written by :mod:`workbench.runs.store` (or of a
     results.parquet); return the path of its ``index.html``.
@@ -134,6 +154,7 @@ def report_directory(
     equivalent ``workbench report`` command line. Time series are read from the directory's
     ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
     results. Warnings of :func:`workbench.runs.store.load_results` (unreadable rows) pass through.
+    cost: the report's cost measure (:func:`write_report`).
     """
     import shlex
 
@@ -160,14 +181,16 @@ def report_directory(
 
     if command is None:
         command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
-    return write_report(frame, series_loader, target, command, progress=progress)
+    return write_report(frame, series_loader, target, command, progress=progress, cost=cost)
 
 
-def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
+def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> Overview:
     """The overview of the page: the recommendation, the heat map of cost at its target
     (figure and table ``cost-at-target``), the Pareto fronts (table ``pareto``) and the
-    convergence of the fixed-step methods."""
-    recommendation = recommend(runs)
+    convergence of the fixed-step methods, all in the cost ``measure`` (default: the
+    default of :mod:`workbench.outputs.report.cost`)."""
+    measure = measure or resolve_cost(runs)
+    recommendation = recommend(runs, cost=measure.column)
     target, cost = recommendation.target, recommendation.cost
     ratio = cost_ratio(cost_at_target(runs, target, cost))
     heat_map = heat_map_figure(ratio, target, cost, out)
@@ -177,13 +200,15 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
         ratio_table,
         out / "tables",
         "cost-at-target",
-        f"Wall time of each pair at scd >= {target:g} divided by the least wall time on the "
-        "problem (1: the best; empty: not reached without warnings)",
+        f"{measure.name.capitalize()} of each pair at scd >= {target:g} divided by the least "
+        f"on the problem (1: the best; empty: not reached without warnings); "
+        f"{measure.statement()}",
     )
     fronts = []
     for _problem, group in runs.groupby("problem", sort=False):
-        front = group[pareto_mask(group)].sort_values("wall_s")
-        columns = ["problem", "pair", "rtol", "scd", "err_l2", "err_max", "wall_s", "n_rhs"]
+        front = group[pareto_mask(group, measure.column)].sort_values(measure.column)
+        costs = list(dict.fromkeys([measure.column, "n_rhs"]))
+        columns = ["problem", "pair", "rtol", "scd", "err_l2", "err_max", *costs]
         fronts.append(front[columns])
     pareto = pd.concat(fronts, ignore_index=True) if fronts else pd.DataFrame()
     write_table(
@@ -191,7 +216,7 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
         out / "tables",
         "pareto",
         "Pareto front of each problem: the runs without warnings that no other run beats "
-        "on both wall time and scd",
+        f"on both {measure.name} and scd; {measure.statement()}",
     )
     factor = f"{recommendation.factor:g}x"
     ranking = (
@@ -206,7 +231,10 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
         )
     )
     write_table(
-        ranking, out / "tables", "ranking", f"Pairs at scd >= {target:g}: {recommendation.sentence}"
+        ranking,
+        out / "tables",
+        "ranking",
+        f"Pairs at scd >= {target:g}: {recommendation.sentence} ({measure.statement()})",
     )
     return Overview(
         sentence=recommendation.sentence,
@@ -220,7 +248,7 @@ def overview_of(runs: pd.DataFrame, out: Path) -> Overview:
 
 
 def _load_series(
-    runs: pd.DataFrame, series_loader: SeriesLoader | None
+    runs: pd.DataFrame, series_loader: SeriesLoader | None, cost: str = "integrate_s"
 ) -> dict[str, pd.DataFrame | None] | None:
     """The time series of the runs a problem's figures draw (read in this process): the
     pairs at the middle tolerance and the runs of the error figure."""
@@ -228,9 +256,9 @@ def _load_series(
         return None
     _rtol, chosen = drift_runs(runs)
     wanted = list(chosen["run_id"])
-    candidates = trusted(runs)
+    candidates = trusted(runs, cost)
     if not candidates.empty:
-        front = candidates[pareto_mask(candidates)].sort_values("wall_s")
+        front = candidates[pareto_mask(candidates, cost)].sort_values(cost)
         wanted += [candidates.loc[candidates["scd"].idxmax(), "run_id"], front["run_id"].iloc[0]]
     series: dict[str, pd.DataFrame | None] = {}
     for run_id in dict.fromkeys(wanted):
@@ -244,7 +272,10 @@ def _load_series(
 
 
 def problem_section(
-    runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path
+    runs: pd.DataFrame,
+    series: Mapping[str, pd.DataFrame | None] | None,
+    out: Path,
+    cost: str = "integrate_s",
 ) -> ProblemSection:
     """One problem's part of the report (a figure worker's task): draws its figures into
     ``out``/figures, writes its drift table into ``out``/tables."""
@@ -252,9 +283,9 @@ def problem_section(
 
     matplotlib.use("Agg", force=True)
     problem = str(runs["problem"].iloc[0])
-    work_precision = work_precision_figure(runs, out, problem)
+    work_precision = work_precision_figure(runs, out, problem, cost)
     drift, rtol = drift_figure(runs, series, out, problem)
-    error = error_figure(runs, series, out, problem)
+    error = error_figure(runs, series, out, problem, cost)
     table = None
     if rtol is not None:
         name = f"drift-{slug(problem)}-rtol-{rtol:g}"
