@@ -30,6 +30,7 @@ import pandas as pd
 
 from workbench.runs.store import load_results
 from workbench.runs.sweep import load_spec, run_sweep
+from workbench.runs.timing import TIMING_COLUMNS
 
 RESULTS = Path(__file__).parent / "results"
 # columns that say where or when a run executed, not what it computed
@@ -41,7 +42,11 @@ def computed(frame: pd.DataFrame) -> pd.DataFrame:
     columns = [
         c
         for c in frame.columns
-        if not (c.endswith("_s") or c in {"equations_cached", "log"} or c in PLACE_COLUMNS)
+        if not (
+            c.endswith("_s")
+            or c in {"equations_cached", "log", *TIMING_COLUMNS}
+            or c in PLACE_COLUMNS
+        )
     ]
     frame = frame[columns].set_index("run_id").sort_index()
     if "reference" in frame:  # whichever worker came first computed it, the others read it

@@ -113,7 +113,9 @@ def kill_tree(pid: int) -> None:
 
 
 def timing_column(name: str) -> bool:
-    return name.endswith("_s") or name in {"equations_cached", "log_s"}
+    from workbench.runs.timing import TIMING_COLUMNS
+
+    return name.endswith("_s") or name in {"equations_cached", "log_s", *TIMING_COLUMNS}
 
 
 def comparable(out: Path) -> pd.DataFrame:

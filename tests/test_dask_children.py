@@ -17,6 +17,7 @@ from tests.test_sweep import fake_plugins, spec_text  # noqa: F401 - fixture
 from workbench.runs import store
 from workbench.runs.dask_pool import run_on_worker_child
 from workbench.runs.sweep import parse_spec, run_sweep
+from workbench.runs.timing import TIMING_COLUMNS
 from workbench.runs.unfinished import InfrastructureError
 
 distributed = pytest.importorskip("distributed")
@@ -127,7 +128,8 @@ def test_a_small_sweep_gives_the_local_pools_rows(
         frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
     assert len(rows[0]) == 6 and set(rows[0]["status"]) == {"ok", "failed"}
     assert list(rows[0].index) == list(rows[1].index)
-    columns = [c for c in rows[0].columns if not c.endswith("_s") and c not in {"equations_cached"}]
+    timings = {"equations_cached", *TIMING_COLUMNS}
+    columns = [c for c in rows[0].columns if not c.endswith("_s") and c not in timings]
     different = [
         c
         for c in columns
