@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from tests.test_sweep import fake_plugins, spec_text  # noqa: F401 - fixture
+from tests.test_sweep import spec_text
 from workbench.runs import store
 from workbench.runs.dask_pool import run_on_worker_child
 from workbench.runs.sweep import parse_spec, run_sweep
@@ -65,7 +65,7 @@ def runs_of(tmp_path, integrators: str):
 
 
 def test_a_worker_child_keeps_its_equations_and_survives_a_timeout(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     cluster,
     tmp_path,
 ) -> None:
@@ -90,7 +90,7 @@ def test_a_worker_child_keeps_its_equations_and_survives_a_timeout(
 
 
 def test_a_child_killed_from_outside_is_no_row_and_the_next_run_works(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     cluster,
     tmp_path,
 ) -> None:
@@ -111,7 +111,7 @@ def test_a_child_killed_from_outside_is_no_row_and_the_next_run_works(
 
 
 def test_a_small_sweep_gives_the_local_pools_rows(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     cluster,
     tmp_path,
 ) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from tests.test_sweep import fake_plugins, spec_text  # noqa: F401 - the fixture
+from tests.test_sweep import spec_text
 from workbench.runs import store
 from workbench.runs.sweep import parse_spec, run_sweep
 
@@ -35,7 +35,7 @@ def sweep_lines(text: str, **options) -> tuple[object, list[str]]:
     return summary, lines
 
 
-def test_broken_rows_and_series_are_named_and_redone(fake_plugins, tmp_path) -> None:  # noqa: F811
+def test_broken_rows_and_series_are_named_and_redone(fake_plugins, tmp_path) -> None:
     text = spec_text(tmp_path, '["test-rk45"]', problems=FALLING)
     first, _ = sweep_lines(text)
     assert first.counts["ok"] == 2
@@ -109,7 +109,7 @@ def plant(directory: Path, factor: str) -> None:
 
 
 def test_a_fixed_plugin_makes_its_rows_stale_and_rerun_stale_redoes_them(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     tmp_path,
     monkeypatch,
 ) -> None:
@@ -153,7 +153,7 @@ def test_a_fixed_plugin_makes_its_rows_stale_and_rerun_stale_redoes_them(
 
 
 def test_rows_of_an_older_schema_have_an_unknown_producer_not_stale(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     tmp_path,
 ) -> None:
     text = spec_text(tmp_path, '["test-rk45"]', problems=FALLING)
@@ -174,7 +174,7 @@ def test_rows_of_an_older_schema_have_an_unknown_producer_not_stale(
 
 
 def test_rerun_redoes_timeouts_and_failures_and_fresh_redoes_all(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     tmp_path,
     monkeypatch,
 ) -> None:
@@ -206,7 +206,7 @@ def test_rerun_redoes_timeouts_and_failures_and_fresh_redoes_all(
     assert before.keys() == after.keys() and all(before[k] != after[k] for k in before)
 
 
-def test_a_rerun_that_times_out_replaces_the_old_row(fake_plugins, tmp_path, monkeypatch) -> None:  # noqa: F811
+def test_a_rerun_that_times_out_replaces_the_old_row(fake_plugins, tmp_path, monkeypatch) -> None:
     """The old row of a re-run is not mistaken for one its attempt wrote."""
     from tests.fake_plugins import FLAKY
 
@@ -231,7 +231,7 @@ def test_rerun_kinds_are_checked() -> None:
 # ---- infrastructure failures are not results --------------------------------------------
 
 
-def test_a_worker_killed_from_outside_is_retried_once(fake_plugins, tmp_path, monkeypatch) -> None:  # noqa: F811
+def test_a_worker_killed_from_outside_is_retried_once(fake_plugins, tmp_path, monkeypatch) -> None:
     from tests.fake_plugins import FLAKY, FLAKY_MARKER
 
     text = spec_text(tmp_path, '["test-flaky"]', problems=FALLING).replace(
@@ -246,7 +246,7 @@ def test_a_worker_killed_from_outside_is_retried_once(fake_plugins, tmp_path, mo
 
 
 def test_a_run_whose_worker_is_killed_twice_has_no_row_and_resume_redoes_it(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     tmp_path,
     monkeypatch,
 ) -> None:
@@ -272,7 +272,7 @@ def test_a_run_whose_worker_is_killed_twice_has_no_row_and_resume_redoes_it(
 
 @pytest.mark.slow
 def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
-    fake_plugins,  # noqa: F811
+    fake_plugins,
     tmp_path,
     monkeypatch,
 ) -> None:

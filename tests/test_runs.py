@@ -2,29 +2,14 @@
 
 from __future__ import annotations
 
-import importlib
 import math
-import sys
 
 import numpy as np
 import pytest
 
 from workbench.numerics import geometry
-from workbench.plugin.registry import REGISTRY
-from workbench.runs import store
+from workbench.runs import references, store
 from workbench.runs.execute import RunSpec, execute_run, normalized_spec
-
-
-@pytest.fixture
-def fake_plugins():
-    """Register tests/fake_plugins.py for one test, then restore the registry."""
-    REGISTRY.discover()
-    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
-    sys.modules.pop("tests.fake_plugins", None)
-    yield importlib.import_module("tests.fake_plugins")
-    for kind, entries in saved.items():
-        REGISTRY.entries[kind] = entries
-    sys.modules.pop("tests.fake_plugins", None)
 
 
 def spec(
@@ -63,7 +48,9 @@ def test_normalized_spec_fills_defaults(fake_plugins) -> None:
     assert short.problem_options == {"initial_angle": 1.0}
 
 
-def test_conservative_run_errors_shrink_with_tolerance(fake_plugins, tmp_path) -> None:
+def test_conservative_run_errors_shrink_with_tolerance(fake_plugins, tmp_path, monkeypatch) -> None:
+    # a reference an earlier test computed in this process would be served from memory
+    monkeypatch.setattr(references, "_REFERENCE_MEMORY", {})
     rows = [execute_run(spec(rtol=rtol), reference_dir=tmp_path).row for rtol in (1e-3, 1e-6, 1e-9)]
     assert [r["status"] for r in rows] == ["ok"] * 3
     assert all(r["reference_kind"] == "computed" for r in rows)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import json
 import os
 import signal
@@ -23,18 +22,6 @@ from workbench.runs import store
 from workbench.runs.sweep import load_spec, parse_spec, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture
-def fake_plugins():
-    """Register tests/fake_plugins.py for one test, then restore the registry."""
-    REGISTRY.discover()
-    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
-    sys.modules.pop("tests.fake_plugins", None)
-    yield importlib.import_module("tests.fake_plugins")
-    for kind, entries in saved.items():
-        REGISTRY.entries[kind] = entries
-    sys.modules.pop("tests.fake_plugins", None)
 
 
 def spec_text(

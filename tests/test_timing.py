@@ -3,9 +3,7 @@ and its warning about a crowded machine (workbench.runs.timing, outputs.report.c
 
 from __future__ import annotations
 
-import importlib
 import math
-import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,24 +20,11 @@ from workbench.outputs.report.analysis import (
     prepare_results,
 )
 from workbench.outputs.report.cost import resolve_cost
-from workbench.plugin.registry import REGISTRY
 from workbench.runs.execute import RunSpec, execute_run
 from workbench.runs.row_check import row_defects
 from workbench.runs.store import SCHEMA_COLUMNS
 from workbench.runs.sweep_spec import parse_spec
 from workbench.runs.timing import Samples, Timing, integrate_repeated, oversubscribed
-
-
-@pytest.fixture
-def fake_plugins():
-    """Register tests/fake_plugins.py for one test, then restore the registry."""
-    REGISTRY.discover()
-    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
-    sys.modules.pop("tests.fake_plugins", None)
-    yield importlib.import_module("tests.fake_plugins")
-    for kind, entries in saved.items():
-        REGISTRY.entries[kind] = entries
-    sys.modules.pop("tests.fake_plugins", None)
 
 
 def pendulum(rtol: float = 1e-6) -> RunSpec:

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.runs.timing import TIMING_COLUMNS
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
 TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0, 8.0, 10.0)
@@ -24,13 +25,7 @@ NUMERIC_COLUMNS: tuple[str, ...] = (
     "atol",
     "wall_s",
     "cpu_s",
-    "integrate_s",
-    "integrate_s_min",
-    "integrate_s_max",
-    "integrate_cpu_s",
-    "repeats",
-    "load_avg",
-    "workers",
+    *TIMING_COLUMNS,
     "n_rhs",
     "n_jac",
     "n_steps",
