@@ -360,7 +360,7 @@ def test_fuzzed_run_command_lines_give_one_line_or_a_row(monkeypatch) -> None:
     import workbench.runs.dask_pool as dask_pool
     from workbench.runs.execute import RunSpec, status_row
 
-    def quick(spec_data, limit, plugins, reference_dir, sys_path):
+    def quick(spec_data, limit, plugins, reference_dir, sys_path, timing=None):
         assert 0 < limit < float("inf")
         return status_row(RunSpec.from_dict(spec_data), "ok", "validated, not run"), None
 
