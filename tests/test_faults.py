@@ -276,15 +276,20 @@ def alive(pid: int) -> bool:
         return False
 
 
-def start_pool() -> tuple[subprocess.Popen, list[int]]:
-    process = subprocess.Popen(
-        [sys.executable, "-c", POOL_SCRIPT],
+def launch(script: str) -> subprocess.Popen:
+    """``python -c script`` in its own session, its stdout and stderr piped."""
+    return subprocess.Popen(
+        [sys.executable, "-c", script],
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
     )
+
+
+def start_pool() -> tuple[subprocess.Popen, list[int]]:
+    process = launch(POOL_SCRIPT)
     line = process.stdout.readline()
     assert line.strip(), process.communicate(timeout=HANG)
     return process, [int(pid) for pid in line.split()]
@@ -295,20 +300,13 @@ def test_report_workers_die_with_their_parent() -> None:
     assert all(alive(pid) for pid in workers)
     process.kill()  # SIGKILL: no cleanup code of the parent runs
     process.wait(timeout=HANG)
-    assert_no_orphans(workers)  # they poll their parent every 0.5 s
+    assert_no_orphans(workers)  # they wait on their parent's sentinel pipe
 
 
 def test_report_workers_started_after_their_parent_died_exit() -> None:
     """A parent killed while its workers are still starting (seconds of imports on a
     loaded machine): they must not take init, their new parent, for theirs."""
-    process = subprocess.Popen(
-        [sys.executable, "-c", EARLY_KILL_SCRIPT],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-        start_new_session=True,
-    )
+    process = launch(EARLY_KILL_SCRIPT)
     workers = [int(pid) for pid in process.stdout.readline().split()]  # the workers keep
     process.wait(timeout=HANG)  # the pipe open while they live: no communicate()
     assert process.returncode == -signal.SIGKILL

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from benchmarks.peer_models import mujoco_model, pinocchio_model
+from benchmarks.peers import random_states
 from workbench.plugin.registry import get_formalism, get_problem
 
 CASES = [("spatial-chain", {"n_links": 5}), ("planar-chain", {"n_links": 4}), ("binary-tree", {})]
@@ -99,15 +100,8 @@ def test_recursive_equals_pinocchio_on_random_trees(n: int, seed: int) -> None:
     data = pin_model.createData()
     equations = get_formalism("recursive")().build(model)
     mass = equations.forms["mechanical"].mass
-    rng = np.random.default_rng(seed)
-    for _ in range(3):
-        q = rng.uniform(-1, 1, kinematics.nq)
-        for joint in kinematics.free_joints:
-            if joint.type in ("free", "spherical"):
-                q_slice, _ = kinematics.joint_slices[joint.name]
-                p = q[q_slice.stop - 4 : q_slice.stop]
-                q[q_slice.stop - 4 : q_slice.stop] = p / np.linalg.norm(p)
-        v = rng.uniform(-2, 2, kinematics.nv)
+    rng = np.random.default_rng(seed + 1)  # the accelerations of the round trip
+    for q, v in random_states(kinematics, 3, seed):
         (f,) = equations.forms["ode"].rhs(0.0, np.concatenate([q, v]))
         q_pin, v_pin = peer.state(q, v)
         a_pin = pin.aba(pin_model, data, q_pin, v_pin, np.zeros(kinematics.nv))
