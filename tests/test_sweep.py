@@ -58,6 +58,39 @@ def test_spec_expands_grids_and_normalizes_options(fake_plugins, tmp_path) -> No
     assert len({r.run_id for r in sweep.runs}) == 6
 
 
+def test_an_integrator_entry_runs_at_its_own_tolerances(fake_plugins, tmp_path) -> None:
+    sweep = parse_spec(
+        spec_text(
+            tmp_path,
+            '["test-rk45", {name = "test-rk4", options = {steps_per_sample = [2, 4]},'
+            " tolerances = [1e-3]}]",
+        )
+    )
+    # rk45 at the sweep's two tolerances, each rk4 grid point at its own one
+    pairs = sorted((r.integrator, r.integrator_options.get("steps_per_sample"), r.rtol)
+                   for r in sweep.runs)  # fmt: skip
+    assert pairs == [
+        ("test-rk4", 2, 1e-3),
+        ("test-rk4", 4, 1e-3),
+        ("test-rk45", None, 1e-6),
+        ("test-rk45", None, 1e-4),
+    ]
+    assert all(r.atol == pytest.approx(r.rtol * 1e-3) for r in sweep.runs)
+
+
+def test_an_all_entry_gives_its_tolerances_to_the_integrators_not_named() -> None:
+    sweep = parse_spec(
+        'problems = ["slider-crank"]\nformalisms = ["minimal-ode"]\n'
+        'integrators = [{ name = "all", tolerances = [1e-3] }, "scipy-dop853"]\n'
+        "tolerances = [1e-5, 1e-6]"
+    )
+    rtols: dict[str, set] = {}
+    for run in sweep.runs:
+        rtols.setdefault(run.integrator, set()).add(run.rtol)
+    assert rtols.pop("scipy-dop853") == {1e-5, 1e-6}
+    assert rtols and all(values == {1e-3} for values in rtols.values())
+
+
 def test_default_spec_is_valid() -> None:
     sweep = load_spec(None)
     assert sweep.runs and str(sweep.out) == "reports/latest"
@@ -200,6 +233,23 @@ runner = CliRunner()
             'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
             'integrators = ["test-rk45"]\ntolerances = [1e-6]\nspeed = 3',
             "speed: unknown key",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
+            'integrators = [{name = "test-rk45", tolerances = [1e-6, 0.0]}]\ntolerances = [1e-6]',
+            "line 5: integrators[0].tolerances[1]",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = ["minimal-ode"]\n'
+            'integrators = [{name = "test-rk45", tolerances = [1e-6, 1e-6]}]\n'
+            "tolerances = [1e-6]",
+            "integrators[0].tolerances[1]: 1e-06 is listed twice",
+        ),
+        (
+            'problems = ["test-pendulum"]\nformalisms = [{name = "minimal-ode", '
+            'tolerances = [1e-6]}]\nintegrators = ["test-rk45"]\ntolerances = [1e-6]',
+            "formalisms[0].tolerances: unknown key; a table has name and options; only "
+            "integrator entries take their own tolerances",
         ),
         ('problems = ["test-pendulum"\nformalisms = 1', "line 4"),
     ],

@@ -16,7 +16,8 @@ benchmark problems; :func:`suite_names` lists them)::
 
     problems = ["my-problem", { name = "my-top", options = { spin = [50.0, 100.0] } }]
     formalisms = ["all", { name = "my-formalism", options = { index = [1, 3] } }]
-    integrators = ["my-implicit", { name = "my-fixed-step", options = { step = 1e-3 } }]
+    integrators = ["my-implicit", { name = "my-fixed-step", options = { step = 1e-3 } },
+                   { name = "my-slow-one", tolerances = [1e-4] }]  # its own rtol values
 
 Each of ``problems``, ``formalisms``, ``integrators`` is a list of names, of tables
 ``{name, options}``, or ``"all"`` (every registered, working plugin of that kind with its
@@ -28,6 +29,9 @@ New plugins so join a sweep without editing it. In an options table a
 list is a grid: the runs take the cartesian product of all listed values (to pass a list
 as one value, wrap it in another list). The runs are every problem x formalism x
 integrator x tolerance; pairs that cannot work are recorded as ``skipped`` with the reason.
+An integrator entry (a table, ``"all"`` included) may list its own ``tolerances``, which
+replace the sweep's for it: so a costly integrator can join a sweep at the tolerances
+where it is affordable.
 
 ``plugins`` is a feature for plugin authors: modules (importable from the current
 directory or the Python path) whose registration decorators add plugins for this sweep
@@ -248,26 +252,7 @@ def parse_spec(
     missing = data.get("missing_plugins", "error")
     if missing not in ("error", "skip"):
         raise fail("missing_plugins", f'must be "error" or "skip", not {_show(missing)}')
-    tolerances = data["tolerances"]
-    if not isinstance(tolerances, list) or not tolerances:
-        raise fail(
-            "tolerances", f"must be a non-empty list of numbers > 0, not {_show(tolerances)}"
-        )
-    for index, rtol in enumerate(tolerances):  # the checks `workbench run` makes too
-        problem = tolerance_problem("rtol", rtol)
-        if problem:
-            raise fail(f"tolerances[{index}]", problem)
-        problem = tolerance_problem("atol", float(rtol) * atol_factor)
-        if problem:
-            raise fail("atol_factor", f"atol = {rtol!r} * atol_factor {problem}")
-    rtols = [float(t) for t in tolerances]
-    for index, rtol in enumerate(rtols):
-        if rtol in rtols[:index]:
-            raise fail(
-                f"tolerances[{index}]",
-                f"{rtol!r} is listed twice (also tolerances[{rtols.index(rtol)}]); "
-                "give every tolerance once",
-            )
+    rtols = _tolerance_list(data["tolerances"], "tolerances", atol_factor, fail)
     plugins = data.get("plugins", [])
     if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
         raise fail("plugins", f"must be a list of module names, not {_show(plugins)}")
@@ -279,29 +264,29 @@ def parse_spec(
     data["problems"] = robot_entries(data["problems"], base, fail)  # { urdf = PATH } entries
     # every list is resolved and its grids counted before any grid is expanded
     plans = {
-        key: _plan(data[key], kind, key, missing, fail)
+        key: _plan(data[key], kind, key, missing, fail, (atol_factor, rtols))
         for kind, key in (
             ("problem", "problems"),
             ("formalism", "formalisms"),
             ("integrator", "integrators"),
         )
     }
-    sizes = {key: sum(size for *_, size in plan) for key, plan in plans.items()}
-    sizes["tolerances"] = len(rtols)
+    sizes = {
+        key: sum(size * len(tols) for _, _, _, size, tols in plan) for key, plan in plans.items()
+    }
     count = math.prod(sizes.values())
     if count > MAX_RUNS:
         raise fail(
             max(sizes, key=lambda key: sizes[key]),
             f"the sweep would have {count} runs ({sizes['problems']} problems x "
-            f"{sizes['formalisms']} formalisms x {sizes['integrators']} integrators x "
-            f"{len(rtols)} tolerances); at most {MAX_RUNS}: make the grids smaller or "
-            "split the sweep",
+            f"{sizes['formalisms']} formalisms x {sizes['integrators']} integrator and "
+            f"tolerance pairs); at most {MAX_RUNS}: make the grids smaller or split the sweep",
         )
     problems = _expand(plans["problems"], "problem", "problems", fail)
     formalisms = _expand(plans["formalisms"], "formalism", "formalisms", fail)
     integrators = _expand(plans["integrators"], "integrator", "integrators", fail)
-    span = max(problem_span(instance) for *_, instance in problems)
-    for name, _, item_key, parsed in integrators:
+    span = max(problem_span(instance) for _, _, _, instance, _ in problems)
+    for name, _, item_key, parsed, _ in integrators:
         try:
             registry.get_integrator(name).check_step_count(parsed, span)
         except ConfigError as error:
@@ -310,9 +295,10 @@ def parse_spec(
     # entries and tolerances are free of repeats, so every run is distinct (no ids to hash)
     runs = [
         RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
-        for (p_name, p_opts, *_), (f_name, f_opts, *_), (i_name, i_opts, *_), rtol in (
-            itertools.product(problems, formalisms, integrators, rtols)
+        for (p_name, p_opts, *_), (f_name, f_opts, *_), (i_name, i_opts, _, _, i_rtols) in (
+            itertools.product(problems, formalisms, integrators)
         )
+        for rtol in i_rtols
     ]
     if not runs:
         raise ConfigError(f"{source}: the sweep has no runs")
@@ -378,10 +364,60 @@ def _positive(value: Any, key: str, fail: Callable[[str, str], ConfigError]) -> 
     return float(value)
 
 
+def _tolerance_list(
+    value: Any, key: str, atol_factor: float, fail: Callable[[str, str], ConfigError]
+) -> list[float]:
+    """The rtol values of ``tolerances`` (or an integrator entry's own), checked as
+    `workbench run` checks them: numbers > 0 whose atol is one too, none repeated."""
+    if not isinstance(value, list) or not value:
+        raise fail(key, f"must be a non-empty list of numbers > 0, not {_show(value)}")
+    for index, rtol in enumerate(value):
+        problem = tolerance_problem("rtol", rtol)
+        if problem:
+            raise fail(f"{key}[{index}]", problem)
+        problem = tolerance_problem("atol", float(rtol) * atol_factor)
+        if problem:
+            raise fail("atol_factor", f"atol = {rtol!r} * atol_factor {problem}")
+    rtols = [float(t) for t in value]
+    for index, rtol in enumerate(rtols):
+        if rtol in rtols[:index]:
+            raise fail(
+                f"{key}[{index}]",
+                f"{rtol!r} is listed twice (also {key}[{rtols.index(rtol)}]); "
+                "give every tolerance once",
+            )
+    return rtols
+
+
 def _plan(
-    value: Any, kind: Kind, key: str, missing: str, fail: Callable[[str, str], ConfigError]
-) -> list[tuple[str, dict[str, Any], str, int]]:
-    """(name, option grid, key, grid size) of every plugin a list names (grids unexpanded)."""
+    value: Any,
+    kind: Kind,
+    key: str,
+    missing: str,
+    fail: Callable[[str, str], ConfigError],
+    tolerances: tuple[float, list[float]],
+) -> list[tuple[str, dict[str, Any], str, int, list[float]]]:
+    """(name, option grid, key, grid size, rtols) of every plugin a list names (grids
+    unexpanded). ``tolerances`` is (atol_factor, the sweep's rtols): an integrator entry may
+    list its own ``tolerances`` instead; other entries run once (rtols ``[nan]`` is never
+    read, the integrators' count)."""
+    atol_factor, sweep_rtols = tolerances
+    table_keys = {"name", "options", "tolerances"} if kind == "integrator" else {"name", "options"}
+
+    def own_tolerances(item: dict[str, Any], item_key: str) -> list[float] | None:
+        extra = sorted(set(item) - table_keys)
+        if extra:
+            hint = (
+                "; only integrator entries take their own tolerances"
+                if extra[0] == "tolerances"
+                else ""
+            )
+            keys = " and ".join(sorted(table_keys))
+            raise fail(f"{item_key}.{extra[0]}", f"unknown key; a table has {keys}{hint}")
+        if "tolerances" not in item:
+            return None
+        return _tolerance_list(item["tolerances"], f"{item_key}.tolerances", atol_factor, fail)
+
     if value == "all":
         value = ["all"]
     if not isinstance(value, list) or not value:
@@ -390,8 +426,8 @@ def _plan(
             f'must be a non-empty list of names or {{name, options}} tables, or "all"'
             f", not {_show(value)}",
         )
-    named: list[tuple[str, Any, str]] = []
-    wants_all, all_options, all_key = False, {}, f"{key}[all]"
+    named: list[tuple[str, Any, str, list[float] | None]] = []
+    wants_all, all_options, all_key, all_rtols = False, {}, f"{key}[all]", None
     for index, item in enumerate(value):
         item_key = f"{key}[{index}]"
         if item == "all":
@@ -399,27 +435,23 @@ def _plan(
         elif isinstance(item, dict) and item.get("name") == "all":
             wants_all, all_key = True, item_key
             all_options = item.get("options", {})
-            extra = sorted(set(item) - {"name", "options"})
-            if extra:
-                raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
+            all_rtols = own_tolerances(item, item_key)
             if not isinstance(all_options, dict):
                 raise fail(f"{item_key}.options", f"must be a table, not {_show(all_options)}")
         elif isinstance(item, str):
-            named.append((item, {}, item_key))
+            named.append((item, {}, item_key, None))
         elif isinstance(item, dict):
-            extra = sorted(set(item) - {"name", "options"})
-            if extra:
-                raise fail(f"{item_key}.{extra[0]}", "unknown key; a table has name and options")
+            rtols = own_tolerances(item, item_key)
             name = item.get("name")
             if not isinstance(name, str) or not name:
                 raise fail(f"{item_key}.name", f"must be a plugin name (string), not {_show(name)}")
             options = item.get("options", {})
             if not isinstance(options, dict):
                 raise fail(f"{item_key}.options", f"must be a table, not {_show(options)}")
-            named.append((name, options, item_key))
+            named.append((name, options, item_key, rtols))
         else:
             raise fail(item_key, f"must be a name or a {{name, options}} table, not {_show(item)}")
-    explicit = {name for name, _, _ in named}
+    explicit = {name for name, *_ in named}
     if wants_all:
         declared: set[str] = set()
         for info in registry.list_plugins(kind):
@@ -428,36 +460,39 @@ def _plan(
                 declared |= fields
                 if info.name not in explicit:
                     mine = {k: v for k, v in all_options.items() if k in fields}
-                    named.append((info.name, mine, all_key))
+                    named.append((info.name, mine, all_key, all_rtols))
         unknown = sorted(set(all_options) - declared)
         if unknown:
             raise fail(f"{all_key}.options.{unknown[0]}", f"no registered {kind} has this option")
     resolved = []
-    for name, options, item_key in named:
+    for name, options, item_key, rtols in named:
+        if kind != "integrator":
+            rtols = [math.nan]
         try:
             registry.REGISTRY.get(kind, name)
         except PluginError as error:
             if missing == "skip" and name not in registry.REGISTRY.entries[kind]:
                 continue
             raise fail(item_key, str(error)) from None
-        resolved.append((name, options, item_key, _grid_size(options, f"{item_key}.options", fail)))
+        size = _grid_size(options, f"{item_key}.options", fail)
+        resolved.append((name, options, item_key, size, rtols or sweep_rtols))
     if not resolved:
         raise fail(key, f"no registered {kind} left to run (empty grid)")
     return resolved
 
 
 def _expand(
-    plan: list[tuple[str, dict[str, Any], str, int]],
+    plan: list[tuple[str, dict[str, Any], str, int, list[float]]],
     kind: Kind,
     key: str,
     fail: Callable[[str, str], ConfigError],
-) -> list[tuple[str, dict[str, Any], str, Any]]:
-    """(name, normalized options, key, parsed) of every plugin x option combination; no
-    repeats. ``parsed``: the problem instance, or the options instance of a formalism or
+) -> list[tuple[str, dict[str, Any], str, Any, list[float]]]:
+    """(name, normalized options, key, parsed, rtols) of every plugin x option combination;
+    no repeats. ``parsed``: the problem instance, or the options instance of a formalism or
     integrator."""
     entries = []
     seen: dict[str, str] = {}
-    for name, options, item_key, _ in plan:
+    for name, options, item_key, _, rtols in plan:
         for combination in _grid(options, f"{item_key}.options", fail):
             normalized, parsed = _normalized_options(kind, name, combination, item_key, fail)
             identity = json.dumps([name, normalized], sort_keys=True)
@@ -468,7 +503,7 @@ def _expand(
                     f"(also {seen[identity]}); list every {kind} and option value once",
                 )
             seen[identity] = item_key
-            entries.append((name, normalized, item_key, parsed))
+            entries.append((name, normalized, item_key, parsed, rtols))
     return entries
 
 
