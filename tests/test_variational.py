@@ -132,3 +132,32 @@ def test_energy_error_stays_bounded_over_ten_thousand_periods() -> None:
             break
     explicit_error = np.abs(np.array(explicit) - e[0]) / np.abs(e[0])
     assert not explicit_error[-1] <= 100 * error.max(), explicit_error
+
+
+def test_a_mass_matrix_singular_off_the_constraints_is_integrated_at_order_two() -> None:
+    """Point masses in absolute coordinates: M has zero rotational inertia (singular), but
+    [M G^T; G 0] is regular. The masses' positions converge at order 2 to those of a tight
+    solution in joint angles (another formalism); this raised LinAlgError before."""
+    from workbench.plugin.registry import get_problem
+
+    problem = get_problem("double-point-pendulum")({})
+    model, t_end = problem.model(), 0.5
+    eq_abs = get_formalism("absolute-dae")().build(model, {"index": 3})
+    mech = eq_abs.forms["mechanical"]
+    (mass,) = mech.mass(0.0, consistent_initial_state(eq_abs, problem).q)
+    assert np.linalg.matrix_rank(np.reshape(mass, (eq_abs.nq, eq_abs.nq))) < eq_abs.nq
+    eq3, eq1, state = setup(problem)
+    rhs = eq1.forms["ode"].rhs
+    tight = solve_ivp(lambda t, y: rhs(t, y)[0], (0.0, t_end), np.r_[state.q, state.v],
+                      method="DOP853", rtol=1e-13, atol=1e-13).y[: eq3.nq, -1]  # fmt: skip
+    expected = eq3.observables.frames(t_end, tight)[0]
+    start = consistent_initial_state(eq_abs, problem)
+    steps, errors = [4e-3, 2e-3], []
+    for step in steps:
+        result = get_integrator(METHOD)().solve(
+            eq_abs, start.y0(eq_abs, "mechanical"), None, [0.0, t_end], 1e-6, 1e-6, {"step": step}
+        )
+        assert result.success, result.message
+        positions = eq_abs.observables.frames(t_end, result.y[-1, : eq_abs.nq])[0]
+        errors.append(np.abs(np.asarray(positions) - np.asarray(expected)).max())
+    assert errors[-1] < 1e-4 and 3.0 < errors[0] / errors[1] < 5.0, errors

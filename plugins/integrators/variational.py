@@ -14,8 +14,9 @@ D1 L_d = h/2 L_q - M(q_m) v_m and D2 L_d = h/2 L_q + M(q_m) v_m, and one step fr
     p_k + D1 L_d(q_k, q_{k+1}) - h/2 G(q_k)^T lambda = 0,   g(t_{k+1}, q_{k+1}) = 0
     p_{k+1} = D2 L_d(q_k, q_{k+1}) - h/2 G(q_{k+1})^T mu,   G(q_{k+1}) v_{k+1} + w = 0
 
-with v_{k+1} = M(q_{k+1})^-1 p_{k+1}: q_{k+1} and lambda by Newton's method, mu by one
-linear solve. L_q = Q + (d(M v)/dq) v is read from the mechanical form's ``dynamics``
+with M(q_{k+1}) v_{k+1} = p_{k+1}: q_{k+1} and lambda by Newton's method, v_{k+1} and mu
+by one linear solve of [M, h/2 G^T; G, 0] (so M itself may be singular where the constraints
+make that matrix regular, as for point masses in absolute coordinates). L_q = Q + (d(M v)/dq) v is read from the mechanical form's ``dynamics``
 (its dr/dq at a = v minus at a = 0 is d(M v)/dq), so every force in Q enters as the
 midpoint discrete Lagrange-d'Alembert force: conservative systems are integrated
 symplectically (energy error bounded over long runs, no drift; momentum maps kept),
@@ -84,11 +85,11 @@ class VariationalMidpoint(Integrator):
         self.mech, self.options, self.stats = mech, task.options, trajectory.stats
         self.n, self.nc = eq.nq, mech.n_constraints
         self.stats.n_lu, self.stats.n_newton = 0, 0
-        self._last_velocity = None
         t = float(times[0])
         q, v = task.y0[: self.n].copy(), task.y0[self.n : 2 * self.n].copy()
         _, lam, _ = accelerations(eq, t, q, v)
         p = self._mass(t, q) @ v
+        self._last_velocity = v
         rows, reached = [np.concatenate([q, v, lam])], [t]
         step = default_step(times, task.options.step, task.rtol)
         self.stats.fixed_step = step
@@ -99,10 +100,9 @@ class VariationalMidpoint(Integrator):
                 h = (t_out - t) / n_steps
                 t_start = t
                 for k in range(n_steps):
-                    q, p, lam_position = self._step(t_start + k * h, h, q, p, lam_position)
+                    q, p, v, lam_position = self._step(t_start + k * h, h, q, p, lam_position)
                     self.stats.n_steps += 1
                 t = float(t_out)
-                v = np.linalg.solve(self._mass(t, q), p)
                 _, lam_out, _ = accelerations(eq, t, q, v)
                 rows.append(np.concatenate([q, v, lam_out]))
                 reached.append(t)
@@ -114,6 +114,31 @@ class VariationalMidpoint(Integrator):
     def _mass(self, t: float, q: np.ndarray) -> np.ndarray:
         (mass,) = self.mech.mass(t, q)
         return np.reshape(mass, (self.n, self.n))
+
+    def _velocity(self, t: float, q: np.ndarray, p: np.ndarray, h: float):
+        """(v, mu) with M v = p - h/2 G^T mu and G v + w = 0 at (t, q): one solve of
+        [M, h/2 G^T; G, 0], regular also for a singular M that the constraints complete."""
+        mass = self._mass(t, q)
+        self.stats.n_lu += 1
+        if not self.nc:
+            try:
+                return np.linalg.solve(mass, p), np.zeros(0)
+            except np.linalg.LinAlgError:
+                raise IntegrationError(
+                    f"{self.name}: the mass matrix is singular at t = {t:.6g} (p = M v has no "
+                    "unique v); use a formalism whose coordinates all carry inertia"
+                ) from None
+        g = self._jacobian(t, q)
+        (w,) = self.mech.velocity_constraints(t, q, np.zeros(self.n))
+        matrix = np.block([[mass, 0.5 * h * g.T], [g, np.zeros((self.nc, self.nc))]])
+        try:
+            solution = np.linalg.solve(matrix, np.concatenate([p, -np.ravel(w)]))
+        except np.linalg.LinAlgError:
+            raise IntegrationError(
+                f"{self.name}: [M, G^T; G, 0] is singular at t = {t:.6g}: the mass matrix is "
+                "singular on the constraints' tangent space, or the constraints are redundant"
+            ) from None
+        return solution[: self.n], solution[self.n :]
 
     def _jacobian(self, t: float, q: np.ndarray) -> np.ndarray:
         if not self.nc:
@@ -140,16 +165,14 @@ class VariationalMidpoint(Integrator):
 
     def _step(
         self, t: float, h: float, q0: np.ndarray, p0: np.ndarray, lam: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One step from (t, q0, p0); lam: the previous position multipliers (a guess)."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(q1, p1, v1, lambda) one step on from (t, q0, p0); lam: the last position
+        multipliers (a guess)."""
         n, nc, options = self.n, self.nc, self.options
         t_mid, t_new = t + 0.5 * h, t + h
         g0 = self._jacobian(t, q0)
-        # predictor: the last step's midpoint velocity (an O(h^2) guess), else M^-1 p0
-        guess = self._last_velocity
-        if guess is None:
-            guess = np.linalg.solve(self._mass(t, q0), p0)
-        q1 = q0 + h * guess
+        # predictor: the last step's midpoint velocity (an O(h^2) guess), at first v0
+        q1 = q0 + h * self._last_velocity
         scale = 1.0 + np.max(np.abs(q0))
         increment = math.inf
         for iteration in range(options.max_newton + 1):
@@ -185,13 +208,7 @@ class VariationalMidpoint(Integrator):
                 raise IntegrationError(f"{self.name}: the positions became NaN at t = {t_new:.6g}")
         self._last_velocity = v_m
         p1 = 0.5 * h * l_q + mass @ v_m
+        v1, mu = self._velocity(t_new, q1, p1, h)  # velocity multipliers mu: G v1 + w = 0
         if nc:
-            # velocity multipliers: G M^-1 (p1 - h/2 G^T mu) + w = 0, linear in mu
-            g1 = self._jacobian(t_new, q1)
-            mass1 = self._mass(t_new, q1)
-            m_inv_gt = np.linalg.solve(mass1, g1.T)
-            (residual,) = self.mech.velocity_constraints(t_new, q1, np.linalg.solve(mass1, p1))
-            mu = np.linalg.solve(0.5 * h * g1 @ m_inv_gt, np.ravel(residual))
-            self.stats.n_lu += 2
-            p1 = p1 - 0.5 * h * g1.T @ mu
-        return q1, p1, lam
+            p1 = p1 - 0.5 * h * self._jacobian(t_new, q1).T @ mu
+        return q1, p1, v1, lam
