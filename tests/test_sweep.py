@@ -20,6 +20,7 @@ from workbench.errors import ConfigError
 from workbench.plugin.registry import REGISTRY
 from workbench.runs import store
 from workbench.runs.sweep import load_spec, parse_spec, run_sweep
+from workbench.runs.worker_env import worker_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -135,6 +136,8 @@ def test_misbehaving_plugins_give_rows_and_the_sweep_completes(fake_plugins, tmp
     environment = json.loads((tmp_path / store.ENVIRONMENT_FILE).read_text())
     assert environment["distributions"]["mbs-workbench"] == frame["version_workbench"].iloc[0]
     assert set(frame["schema_version"]) == {store.SCHEMA_VERSION}
+    # the rows the parent wrote (timeout, died) name the workers' threads, not its own
+    assert set(frame["threads"]) == {worker_threads()}
     # every ok row has its series
     for run_id in frame.loc[frame["status"] == "ok", "run_id"]:
         assert store.series_path(tmp_path, run_id).is_file()

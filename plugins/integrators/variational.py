@@ -16,8 +16,9 @@ D1 L_d = h/2 L_q - M(q_m) v_m and D2 L_d = h/2 L_q + M(q_m) v_m, and one step fr
 
 with M(q_{k+1}) v_{k+1} = p_{k+1}: q_{k+1} and lambda by Newton's method, v_{k+1} and mu
 by one linear solve of [M, h/2 G^T; G, 0] (so M itself may be singular where the constraints
-make that matrix regular, as for point masses in absolute coordinates). L_q = Q + (d(M v)/dq) v is read from the mechanical form's ``dynamics``
-(its dr/dq at a = v minus at a = 0 is d(M v)/dq), so every force in Q enters as the
+make that matrix regular, as for point masses in absolute coordinates).
+L_q = Q + (d(M v)/dq) v is read from the mechanical form's ``dynamics`` (its dr/dq at
+a = v minus at a = 0 is d(M v)/dq), so every force in Q enters as the
 midpoint discrete Lagrange-d'Alembert force: conservative systems are integrated
 symplectically (energy error bounded over long runs, no drift; momentum maps kept),
 others at second order. Newton uses the iteration matrix without the second derivatives of

@@ -59,7 +59,7 @@ from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
 from workbench.runs.store import SCHEMA_VERSION, empty_series
 from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
-from workbench.runs.worker_env import threads_in_force
+from workbench.runs.worker_env import threads_in_force, worker_threads
 
 
 def canonical_json(value: Any) -> str:
@@ -303,10 +303,12 @@ def base_row(spec: RunSpec) -> dict[str, Any]:
 
 
 def status_row(spec: RunSpec, status: str, message: str, **extra: Any) -> dict[str, Any]:
-    """A row without metrics (skipped, timeout, a worker that died)."""
+    """A row without metrics (skipped, timeout, a worker that died). Its ``threads`` is the
+    count every worker is pinned to (``worker_threads``), not the writing process's."""
     row = base_row(spec) | {"status": status, "message": one_line_text(message), "n_samples": 0}
-    row.update(extra)
     row.update(environment())
+    row["threads"] = worker_threads()
+    row.update(extra)
     row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
     return row
 
