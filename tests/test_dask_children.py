@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from tests.test_sweep import spec_text
 from workbench.runs import store
 from workbench.runs.dask_pool import run_on_worker_child
+from workbench.runs.run_log import raw_path
 from workbench.runs.sweep import parse_spec, run_sweep
 from workbench.runs.timing import TIMING_COLUMNS
 from workbench.runs.unfinished import InfrastructureError
@@ -136,3 +139,45 @@ def test_a_small_sweep_gives_the_local_pools_rows(
         if not ((rows[0][c] == rows[1][c]) | (rows[0][c].isna() & rows[1][c].isna())).all()
     ]
     assert different == [], rows[0][different].compare(rows[1][different]).to_string()
+
+
+PARENT = """
+import json, sys, time
+from workbench.runs.dask_pool import _Child
+child = _Child((("tests.fake_plugins",), tuple(sys.path), None, ()))
+if sys.argv[1:]:
+    child.conn.send(json.loads(sys.argv[1]))  # a run: the child is busy when we die
+print(child.process.pid, child.out, flush=True)
+time.sleep(600)
+"""
+
+
+@pytest.mark.parametrize("busy", [False, True], ids=["idle", "mid-run"])
+def test_a_child_whose_dask_worker_was_killed_exits_and_removes_its_directory(
+    fake_plugins, tmp_path, busy
+) -> None:
+    """The worker (here a script holding one child) is SIGKILLed, so it cleans nothing up:
+    the child notices (its socket closes, or its parent's pid changes while it runs a
+    hung run), removes its scratch directory and exits."""
+    import json
+
+    (hung, _) = runs_of(tmp_path, '["test-hang"]')
+    argv = [json.dumps(hung.to_dict())] if busy else []
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT, *argv], stdout=subprocess.PIPE, text=True, cwd=os.getcwd()
+    )
+    try:
+        pid, out = parent.stdout.readline().split()
+        child = psutil.Process(int(pid))
+        if busy:  # the hung run has started: its raw output file exists
+            deadline = time.monotonic() + HUNG
+            while not raw_path(Path(out), hung.run_id).exists() and time.monotonic() < deadline:
+                time.sleep(0.1)
+        assert os.path.isdir(out)
+        parent.kill()
+        parent.wait()
+        child.wait(timeout=HUNG)  # psutil: the child is not ours, it is reaped by init
+        assert not os.path.exists(out)
+    finally:
+        parent.kill()
+        parent.wait()

@@ -339,16 +339,20 @@ def _serve_main(fd: int) -> None:
 
     conn = multiprocessing.connection.Connection(fd)
     setting = conn.recv()
-    _worker_main(
-        conn,
-        setting["plugins"],
-        setting["out"],
-        setting["sys_path"],
-        None,
-        setting["parent"],
-        setting["reference_dir"],
-        setting["timing"],
-    )
+    try:
+        _worker_main(
+            conn,
+            setting["plugins"],
+            setting["out"],
+            setting["sys_path"],
+            None,
+            setting["parent"],
+            setting["reference_dir"],
+            setting["timing"],
+            scratch=True,  # its directory goes with it if the Dask worker dies mid-run
+        )
+    finally:  # the socket closed (the Dask worker is gone) or it said stop
+        shutil.rmtree(setting["out"], ignore_errors=True)
 
 
 def run_dask(

@@ -57,10 +57,12 @@ def _worker_main(
     parent: int | None = None,
     reference_dir: str | None = None,
     timing: dict[str, Any] | None = None,
+    scratch: bool = False,
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None.
 
     ``parent``: the pid of a parent that is not multiprocessing's (:func:`exit_with_parent`);
+    ``scratch``: ``out`` is this worker's own directory, removed if the parent dies;
     ``reference_dir``: where references are cached (default ``<out>/references``);
     ``timing``: how each integration is timed (:meth:`Timing.to_dict`). Also the worker
     loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
@@ -69,7 +71,7 @@ def _worker_main(
         if entry not in sys.path:
             sys.path.insert(0, entry)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    exit_with_parent(parent)
+    exit_with_parent(parent, Path(out) if scratch else None)
     import warnings
 
     warnings.filterwarnings("ignore")
@@ -136,8 +138,9 @@ def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
     return recorder.merge(files, out)
 
 
-def exit_with_parent(parent_pid: int | None = None) -> None:
-    """Exit when the process that started this one dies (no orphan keeps running a run).
+def exit_with_parent(parent_pid: int | None = None, scratch: Path | None = None) -> None:
+    """Exit when the process that started this one dies (no orphan keeps running a run),
+    removing ``scratch``, a directory of this process's own, first.
 
     Watched through multiprocessing's parent sentinel, a pipe whose other end only the
     parent holds: it reads as ready once the parent is gone, even if that happened while
@@ -147,8 +150,14 @@ def exit_with_parent(parent_pid: int | None = None) -> None:
     started by multiprocessing (a Dask worker's child) polls its parent's pid instead:
     ``parent_pid`` as its parent passed it, or getppid.
     """
+    import shutil
     import threading
     from multiprocessing.connection import wait
+
+    def leave() -> None:
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
+        os._exit(1)
 
     parent = multiprocessing.parent_process()
     if parent is None:  # not started by multiprocessing: poll the parent pid
@@ -157,13 +166,13 @@ def exit_with_parent(parent_pid: int | None = None) -> None:
         def watch() -> None:
             while os.getppid() == ppid:
                 time.sleep(0.5)
-            os._exit(1)
+            leave()
 
     else:
 
         def watch() -> None:
             wait([parent.sentinel])
-            os._exit(1)
+            leave()
 
     threading.Thread(target=watch, daemon=True).start()
 
