@@ -134,3 +134,11 @@ def test_spectral_radius_at_infinity(name, options, rho) -> None:
 def test_bad_parameters_are_refused(name, options, fragment) -> None:
     with pytest.raises(ConfigError, match=fragment.replace("(", r"\(").replace("[", r"\[")):
         get_integrator(name).parse_options(options)
+
+
+@pytest.mark.slow  # 6 s CPU each
+@pytest.mark.parametrize("name", ["hht-alpha", "newmark"])
+def test_passes_the_integrator_conformance_checks(name) -> None:
+    from workbench.testing import check_integrator
+
+    check_integrator(name).raise_if_failed()

@@ -161,3 +161,15 @@ def test_a_mass_matrix_singular_off_the_constraints_is_integrated_at_order_two()
         positions = eq_abs.observables.frames(t_end, result.y[-1, : eq_abs.nq])[0]
         errors.append(np.abs(np.asarray(positions) - np.asarray(expected)).max())
     assert errors[-1] < 1e-4 and 3.0 < errors[0] / errors[1] < 5.0, errors
+
+
+@pytest.mark.slow  # 5 s CPU
+def test_passes_the_integrator_conformance_checks() -> None:
+    """The kit's analytic problems are a quaternion gyro and a nonholonomic cart, both
+    refused with their reason (skipped); the IFToMM A01 pendulum, exact elliptic-function
+    reference, is one it takes."""
+    from workbench.testing import check_integrator
+    from workbench.testing.integrator import ANALYTIC_PROBLEMS
+
+    report = check_integrator(METHOD, [*ANALYTIC_PROBLEMS, "iftomm-a01"]).raise_if_failed()
+    assert [r.status for r in report.results if r.check == "accuracy"] == ["skip", "skip", "pass"]
