@@ -13,7 +13,9 @@ them in the test both methods stop at t = 0 ("required step size is less than sp
 between numbers") at every tolerance tried. The positions alone then control the step.
 
 Statistics: right-hand-side and Jacobian evaluations are counted by the base class;
-``n_lu`` is the package's ``nlu``; steps are not reported (-1).
+``n_lu`` is the package's ``nlu``; accepted steps are counted through an event function
+that never crosses zero (the package calls it once at t0 and once a step); rejected
+steps are not reported (-1).
 """
 
 from __future__ import annotations
@@ -66,6 +68,12 @@ class ScipyDae(Integrator):
                 nq = task.equations.nq
                 suppressed[nq : nq + task.equations.nv] = True
             atol = np.where(suppressed, ALGEBRAIC_ATOL, task.atol)
+        calls = [0]
+
+        def count_step(t: float, y: np.ndarray, yp: np.ndarray) -> float:
+            calls[0] += 1
+            return 1.0  # never zero: no event, only a call per accepted step
+
         solution = solve_dae(
             residual,
             (task.times[0], task.times[-1]),
@@ -77,10 +85,11 @@ class ScipyDae(Integrator):
             atol=atol,
             jac=jacobian,
             max_step=options.max_step,
+            events=count_step,
         )
         trajectory.times = np.asarray(solution.t)
         trajectory.y = np.asarray(solution.y).T.reshape(len(solution.t), task.y0.size)
-        trajectory.stats.n_steps = -1
+        trajectory.stats.n_steps = max(calls[0] - 1, 0)
         trajectory.stats.n_rejected = -1
         trajectory.stats.n_lu = int(getattr(solution, "nlu", -1))
         if solution.status < 0:
