@@ -62,8 +62,8 @@ shared and the ABA graph has O(n) instructions.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
 import casadi as ca
