@@ -24,8 +24,11 @@ General trees and imported robots (issue 21, target 1) against ``pin.aba``:
 
 - ``random``: :func:`benchmarks.peer_models.random_tree` (a free base; revolute, prismatic
   and spherical joints; rotated joint frames, unaligned axes, full inertias), N bodies
-  (``--random-sizes``, default 7 20 50 200; at 500 bodies, 741 DOF, Pinocchio's
-  ``createData`` alone needs more than 8 GB of memory, growing as about DOF^2.8);
+  (``--random-sizes``, default 7 20 50 200 500). Pinocchio's ``createData`` allocates
+  about 62 nv^3 bytes (Pinocchio 4.1, measured: 30 MB, 249 MB, 1.7 GB, 6.0 GB at
+  nv = 75, 157, 301, 459), so at 500 bodies (741 DOF) about 25 GB: a size whose estimate
+  exceeds 80 % of the available memory gets a row with ``note`` saying so and no
+  timing (:func:`pin_data_too_large`);
 - ``robots``: UR5, Panda and Solo12 (free base) of example-robot-data, imported by our URDF
   importer, Pinocchio built from the same file.
 
@@ -72,7 +75,8 @@ RESULTS = Path(__file__).parent / "results"
 SIZES = (2, 7, 20, 50, 100, 200)
 FAMILIES = ("planar", "spatial", "tree")
 GENERAL = ("random", "robots")
-RANDOM_SIZES = (7, 20, 50, 200)  # 500: pin's createData needs > 8 GB (741 DOF)
+RANDOM_SIZES = (7, 20, 50, 200, 500)
+PIN_DATA_BYTES_PER_NV3 = 62  # pin.Model.createData(), Pinocchio 4.1: see the docstring
 ROBOTS = {
     # name: (file in example-robot-data, import options)
     "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),
@@ -266,6 +270,21 @@ def random_states(kinematics: TreeKinematics, count: int, seed: int):
         yield q, rng.uniform(-2, 2, kinematics.nv)
 
 
+def pin_data_too_large(nv: int) -> str | None:
+    """Why ``pin.Model.createData()`` cannot be made for ``nv`` velocities here (its
+    estimate, PIN_DATA_BYTES_PER_NV3 nv^3, over 80 % of the available memory), or None."""
+    import psutil
+
+    need, available = PIN_DATA_BYTES_PER_NV3 * nv**3, psutil.virtual_memory().available
+    if need <= 0.8 * available:
+        return None
+    return (
+        f"Pinocchio's createData would need about {need / 2**30:.0f} GiB "
+        f"(~{PIN_DATA_BYTES_PER_NV3} nv^3 bytes at nv = {nv}), {available / 2**30:.0f} GiB "
+        "available"
+    )
+
+
 def cpu_per_call(function, number: int) -> float:
     """CPU seconds a call over ``number`` calls."""
     start = time.process_time()
@@ -306,6 +325,12 @@ def measure_general(family: str, name: str, flags: str, repeats: int) -> dict:
     row: dict = {"family": family, "name": name, "N": len(kinematics.order)}
     row["nv"] = kinematics.nv
     row["types"] = " ".join(sorted({j.type for j in kinematics.order}))
+    row["load1"] = os.getloadavg()[0]
+    reason = pin_data_too_large(pin_model.nv)
+    if reason:
+        row["jit/pin"] = row["jit/pin_lo"] = row["jit/pin_hi"] = float("nan")
+        row["note"] = reason
+        return row
     start = time.perf_counter()
     function = ode_function(model)
     row["build_s"] = time.perf_counter() - start
@@ -373,9 +398,12 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
             print(f"{family} N={n}: done", flush=True)
     tables = [pd.DataFrame(found) for found in (rows, general) if found]
     for table in tables:
-        shown = [c for c in table.columns if c not in ("build_s", "max_rel_diff", "types")]
+        hidden = ("build_s", "max_rel_diff", "types", "note")
+        shown = [c for c in table.columns if c not in hidden]
         with pd.option_context("display.width", 200, "display.max_rows", 500):
             print(table[shown].to_string(index=False, float_format=lambda x: f"{x:.3g}"))
+        for row in table[table.get("note", pd.Series(dtype=str)).notna()].itertuples():
+            print(f"{getattr(row, 'family', '')} {getattr(row, 'name', row.N)}: {row.note}")
     return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
 
 
