@@ -402,8 +402,9 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
         shown = [c for c in table.columns if c not in hidden]
         with pd.option_context("display.width", 200, "display.max_rows", 500):
             print(table[shown].to_string(index=False, float_format=lambda x: f"{x:.3g}"))
-        for row in table[table.get("note", pd.Series(dtype=str)).notna()].itertuples():
-            print(f"{getattr(row, 'family', '')} {getattr(row, 'name', row.N)}: {row.note}")
+        notes = table[table["note"].notna()] if "note" in table else table.iloc[:0]
+        for row in notes.to_dict("records"):
+            print(f"{row['family']} {row.get('name', row['N'])}: {row['note']}")
     return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
 
 
