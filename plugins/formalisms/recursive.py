@@ -22,7 +22,9 @@ X_i is a constant placement (the parent's J, the joint frame P, the axis turn, f
 numbers) times a rotation about z (4 trigonometric products), and the inertias are
 turned into J_i numerically. Geometry then costs what Pinocchio's does, a fixed price a
 link: 53,978 -> 25,909 CasADi instructions on a random 30-body tree of every joint type
-(2026-11-24; docs/performance.md).
+(2026-11-24; docs/performance.md). A free joint (J_i = C) has S and c_J written out, and
+the articulated-body algorithm takes it in Pinocchio's free-flyer velocities
+[R^T p'; omega], in which S is constant (:class:`LocalVelocities`).
 
 Articulated-body algorithm (forward dynamics, v' for given tau):
 
