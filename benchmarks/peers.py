@@ -238,6 +238,7 @@ def measure(family: str, n: int, flags: str) -> dict:
             short = peer.split("_")[0]
             row[f"jit/{short}"] = row["jit_us"] / row[peer]
             row[f"vm/{short}"] = row["vm_us"] / row[peer]
+    row["load1"] = os.getloadavg()[0]  # the compile's wall time grows with it
     return row
 
 
