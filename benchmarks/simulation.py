@@ -30,9 +30,17 @@ and reported as its median and a 95 % bootstrap interval of that median. Pair (a
 DOP853 / DOP853 + pin.aba (target <= 0.8); pair (b): the best of ours / the best peer,
 each side's best chosen by median wall (target <= 0.5). ``best_ratio``, the ratio of
 the two pipelines' fastest rounds, is given beside it: on a loaded machine the fastest
-round is the one least disturbed. Prints the table and the verdicts,
-writes ``benchmarks/results/simulation.csv`` (every pipeline) and
-``benchmarks/results/simulation_targets.csv`` (the two ratios per case, with machine load).
+round is the one least disturbed.
+
+Why pair (a) is what it is (:func:`rhs_split`): after the rounds, 9 more DOP853 solves a
+side with the right-hand side timed inside ``solve_ivp`` (:class:`RhsClock`) give SciPy's
+own seconds and the right-hand side's, ours and the peer's; ``floor`` = (own + rhs ours) /
+(own + rhs peer) is the ratio when only the right-hand sides differ, and
+``ratio_if_rhs_free`` = own / (own + rhs peer) the least ratio any right-hand side of ours
+could give under SciPy. Prints the table and the verdicts, writes
+``benchmarks/results/simulation.csv`` (every pipeline) and
+``benchmarks/results/simulation_targets.csv`` (the two ratios per case, with machine load,
+and the split of pair (a); NaN for pair (b), where it is not measured).
 """
 
 from __future__ import annotations
