@@ -24,8 +24,11 @@ General trees and imported robots (issue 21, target 1) against ``pin.aba``:
 
 - ``random``: :func:`benchmarks.peer_models.random_tree` (a free base; revolute, prismatic
   and spherical joints; rotated joint frames, unaligned axes, full inertias), N bodies
-  (``--random-sizes``, default 7 20 50 200; at 500 bodies, 741 DOF, Pinocchio's
-  ``createData`` alone needs more than 8 GB of memory, growing as about DOF^2.8);
+  (``--random-sizes``, default 7 20 50 200 500). Pinocchio's ``createData`` allocates
+  about 62 nv^3 bytes (Pinocchio 4.1, measured: 30 MB, 249 MB, 1.7 GB, 6.0 GB at
+  nv = 75, 157, 301, 459), so at 500 bodies (741 DOF) about 25 GB: a size whose estimate
+  exceeds 80 % of the available memory gets a row with ``note`` saying so and no
+  timing (:func:`pin_data_too_large`);
 - ``robots``: UR5, Panda and Solo12 (free base) of example-robot-data, imported by our URDF
   importer, Pinocchio built from the same file.
 
@@ -72,7 +75,8 @@ RESULTS = Path(__file__).parent / "results"
 SIZES = (2, 7, 20, 50, 100, 200)
 FAMILIES = ("planar", "spatial", "tree")
 GENERAL = ("random", "robots")
-RANDOM_SIZES = (7, 20, 50, 200)  # 500: pin's createData needs > 8 GB (741 DOF)
+RANDOM_SIZES = (7, 20, 50, 200, 500)
+PIN_DATA_BYTES_PER_NV3 = 62  # pin.Model.createData(), Pinocchio 4.1: see the docstring
 ROBOTS = {
     # name: (file in example-robot-data, import options)
     "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),
@@ -234,6 +238,7 @@ def measure(family: str, n: int, flags: str) -> dict:
             short = peer.split("_")[0]
             row[f"jit/{short}"] = row["jit_us"] / row[peer]
             row[f"vm/{short}"] = row["vm_us"] / row[peer]
+    row["load1"] = os.getloadavg()[0]  # the compile's wall time grows with it
     return row
 
 
@@ -264,6 +269,21 @@ def random_states(kinematics: TreeKinematics, count: int, seed: int):
                 p = q[q_slice.stop - 4 : q_slice.stop]
                 q[q_slice.stop - 4 : q_slice.stop] = p / np.linalg.norm(p)
         yield q, rng.uniform(-2, 2, kinematics.nv)
+
+
+def pin_data_too_large(nv: int) -> str | None:
+    """Why ``pin.Model.createData()`` cannot be made for ``nv`` velocities here (its
+    estimate, PIN_DATA_BYTES_PER_NV3 nv^3, over 80 % of the available memory), or None."""
+    import psutil
+
+    need, available = PIN_DATA_BYTES_PER_NV3 * nv**3, psutil.virtual_memory().available
+    if need <= 0.8 * available:
+        return None
+    return (
+        f"Pinocchio's createData would need about {need / 2**30:.0f} GiB "
+        f"(~{PIN_DATA_BYTES_PER_NV3} nv^3 bytes at nv = {nv}), {available / 2**30:.0f} GiB "
+        "available"
+    )
 
 
 def cpu_per_call(function, number: int) -> float:
@@ -306,6 +326,12 @@ def measure_general(family: str, name: str, flags: str, repeats: int) -> dict:
     row: dict = {"family": family, "name": name, "N": len(kinematics.order)}
     row["nv"] = kinematics.nv
     row["types"] = " ".join(sorted({j.type for j in kinematics.order}))
+    row["load1"] = os.getloadavg()[0]
+    reason = pin_data_too_large(pin_model.nv)
+    if reason:
+        row["jit/pin"] = row["jit/pin_lo"] = row["jit/pin_hi"] = float("nan")
+        row["note"] = reason
+        return row
     start = time.perf_counter()
     function = ode_function(model)
     row["build_s"] = time.perf_counter() - start
@@ -373,9 +399,13 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
             print(f"{family} N={n}: done", flush=True)
     tables = [pd.DataFrame(found) for found in (rows, general) if found]
     for table in tables:
-        shown = [c for c in table.columns if c not in ("build_s", "max_rel_diff", "types")]
+        hidden = ("build_s", "max_rel_diff", "types", "note")
+        shown = [c for c in table.columns if c not in hidden]
         with pd.option_context("display.width", 200, "display.max_rows", 500):
             print(table[shown].to_string(index=False, float_format=lambda x: f"{x:.3g}"))
+        notes = table[table["note"].notna()] if "note" in table else table.iloc[:0]
+        for row in notes.to_dict("records"):
+            print(f"{row['family']} {row.get('name', row['N'])}: {row['note']}")
     return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
 
 

@@ -30,9 +30,17 @@ and reported as its median and a 95 % bootstrap interval of that median. Pair (a
 DOP853 / DOP853 + pin.aba (target <= 0.8); pair (b): the best of ours / the best peer,
 each side's best chosen by median wall (target <= 0.5). ``best_ratio``, the ratio of
 the two pipelines' fastest rounds, is given beside it: on a loaded machine the fastest
-round is the one least disturbed. Prints the table and the verdicts,
-writes ``benchmarks/results/simulation.csv`` (every pipeline) and
-``benchmarks/results/simulation_targets.csv`` (the two ratios per case, with machine load).
+round is the one least disturbed.
+
+Why pair (a) is what it is (:func:`rhs_split`): after the rounds, 9 more DOP853 solves a
+side with the right-hand side timed inside ``solve_ivp`` (:class:`RhsClock`) give SciPy's
+own seconds and the right-hand side's, ours and the peer's; ``floor`` = (own + rhs ours) /
+(own + rhs peer) is the ratio when only the right-hand sides differ, and
+``ratio_if_rhs_free`` = own / (own + rhs peer) the least ratio any right-hand side of ours
+could give under SciPy. Prints the table and the verdicts, writes
+``benchmarks/results/simulation.csv`` (every pipeline) and
+``benchmarks/results/simulation_targets.csv`` (the two ratios per case, with machine load,
+and the split of pair (a); NaN for pair (b), where it is not measured).
 """
 
 from __future__ import annotations
@@ -43,6 +51,7 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pandas as pd
@@ -51,6 +60,7 @@ from scipy.stats import bootstrap
 
 from benchmarks.simulation_models import CASES, Case, Peers, case, check_equal
 from workbench.plugin.registry import get_formalism, get_integrator
+from workbench.plugins.integrators import scipy_ivp
 
 RESULTS = Path(__file__).parent / "results"
 TARGET_RTOL, TARGET_ATOL = 1e-8, 1e-10
@@ -64,6 +74,7 @@ OURS = {
     "heyoka-taylor": None,
 }
 TARGETS = {"a": 0.8, "b": 0.5}
+SPLIT_ROUNDS = 9  # instrumented DOP853 runs a side for the split of pair (a)
 
 
 def interval(ratios: np.ndarray) -> tuple[float, float, float]:
@@ -112,8 +123,8 @@ class Pipelines:
     def pin_rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         return np.concatenate([y[self.n :], self.peers.aba(y[: self.n], y[self.n :])])
 
-    def pin_dop853(self, rtol: float) -> tuple[np.ndarray, float]:
-        solution = solve_ivp(
+    def pin_dop853(self, rtol: float, solver: Callable = solve_ivp) -> tuple[np.ndarray, float]:
+        solution = solver(
             self.pin_rhs, (0.0, self.case.t_end), self.case.y0, method="DOP853",
             t_eval=self.times, rtol=rtol, atol=rtol / 100,
         )  # fmt: skip
@@ -153,6 +164,94 @@ class Pipelines:
         final = trajectory[0, -1]
         back, nq = np.argsort(order), model.nq
         return np.concatenate([final[1 : 1 + nq][back], final[1 + nq : 1 + 2 * nq][back]]), 0.0
+
+
+class RhsClock:
+    """``solve_ivp`` with its right-hand side timed, to split a DOP853 solve into the time
+    inside the right-hand side and SciPy's own (per-step Python and NumPy) work.
+
+    ``calls``, ``inside`` (s in the rhs) and ``total`` (s in the solves) are summed;
+    :meth:`split` removes the clock's own cost a call, ``cost`` = (s counted inside,
+    s added outside) as :func:`clock_cost` measures it on an empty function."""
+
+    def __init__(self, cost: tuple[float, float] = (0.0, 0.0)) -> None:
+        self.calls, self.inside, self.total = 0, 0.0, 0.0
+        self.cost = cost
+
+    def wrap(self, fun: Callable) -> Callable:
+        clock = time.perf_counter
+
+        def timed(t: float, y: np.ndarray) -> np.ndarray:
+            start = clock()
+            value = fun(t, y)
+            self.inside += clock() - start
+            self.calls += 1
+            return value
+
+        return timed
+
+    def solve_ivp(self, fun: Callable, *args, **kwargs):  # noqa: ANN201 - SciPy's result
+        start = time.perf_counter()
+        try:
+            return solve_ivp(self.wrap(fun), *args, **kwargs)
+        finally:
+            self.total += time.perf_counter() - start
+
+    def split(self) -> tuple[float, float, int]:
+        """(SciPy's own s, rhs s, rhs calls) summed over the solves, clock cost removed."""
+        cost_in, cost_out = self.cost
+        inside = self.inside - self.calls * cost_in
+        own = self.total - self.inside - self.calls * cost_out
+        return own, inside, self.calls
+
+
+def clock_cost(n: int = 50_000) -> tuple[float, float]:
+    """(s a call that :class:`RhsClock` counts inside the rhs, s a call it adds outside),
+    from an empty function: the best of 5."""
+    y, bare = np.zeros(2), lambda t, y: y
+    results = []
+    for _ in range(5):
+        probe = RhsClock()
+        timed = probe.wrap(bare)
+        start = time.perf_counter()
+        for _ in range(n):
+            bare(0.0, y)
+        plain = time.perf_counter() - start
+        start = time.perf_counter()
+        for _ in range(n):
+            timed(0.0, y)
+        wrapped = time.perf_counter() - start
+        cost_in = probe.inside / n
+        results.append((cost_in, max(0.0, (wrapped - plain) / n - cost_in)))
+    return min(results, key=sum)
+
+
+def rhs_split(pipelines: Pipelines, ours: Callable, rounds: int) -> dict[str, float]:
+    """Pair (a) taken apart: medians over ``rounds`` instrumented solves a side
+    (interleaved, apart from the timed rounds) of SciPy's own seconds and the right-hand
+    side's, ours (the scipy-dop853 plugin's rhs, its wrapper included) and DOP853 +
+    pin.aba. ``floor`` = (own + rhs ours) / (own + rhs peer), ``own`` the mean of the two
+    sides' own time: the ratio when only the right-hand sides differ.
+    ``ratio_if_rhs_free`` = own / (own + rhs peer): the least ratio a right-hand side of
+    ours costing nothing could give under SciPy's DOP853."""
+    cost = clock_cost()
+    parts: dict[str, list[tuple[float, float, int]]] = {"ours": [], "peer": []}
+    for _ in range(rounds):
+        clock = RhsClock(cost)
+        with mock.patch.object(scipy_ivp, "solve_ivp", clock.solve_ivp):
+            ours(TARGET_RTOL)
+        parts["ours"].append(clock.split())
+        clock = RhsClock(cost)
+        pipelines.pin_dop853(TARGET_RTOL, solver=clock.solve_ivp)
+        parts["peer"].append(clock.split())
+    out: dict[str, float] = {}
+    for side, values in parts.items():
+        own, rhs, calls = (float(np.median([v[k] for v in values])) for k in range(3))
+        out[f"scipy_own_{side}_s"], out[f"rhs_{side}_s"], out[f"rhs_calls_{side}"] = own, rhs, calls
+    own = (out["scipy_own_ours_s"] + out["scipy_own_peer_s"]) / 2
+    out["floor"] = (own + out["rhs_ours_s"]) / (own + out["rhs_peer_s"])
+    out["ratio_if_rhs_free"] = own / (own + out["rhs_peer_s"])
+    return out
 
 
 def match(run, ladder, error, target: float) -> tuple[object, float]:
@@ -235,6 +334,7 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
         "a": ("recursive jit + scipy-dop853 (same rtol)", "scipy DOP853 + pin.aba"),
         "b": (best["ours"], best["peer"]),
     }
+    split = rhs_split(pipelines, ours_dop853, SPLIT_ROUNDS)
     targets = []
     load = os.getloadavg()[0]
     for pair, (ours, peer) in pairs.items():
@@ -248,6 +348,8 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
             "repeats": repeat, "load_1min": load, "cpu_count": os.cpu_count(),
             "compile_s": pipelines.compile_s, "max_rel_diff": pipelines.max_rel_diff,
         })  # fmt: skip
+        # the split is of pair (a) only: not measured for (b), so NaN there
+        targets[-1] |= {k: (v if pair == "a" else float("nan")) for k, v in split.items()}
     return rows, targets
 
 
@@ -281,8 +383,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     with pd.option_context("display.width", 200, "display.max_colwidth", 60):
         print(table.to_string(index=False, float_format=lambda x: f"{x:.3g}"))
         print()
-        shown = ["case", "pair", "ours", "peer", "ratio", "low", "high", "best_ratio"]
-        shown += ["target", "verdict"]
+        shown = ["case", "pair", "ours", "peer", "ratio", "low", "high", "best_ratio", "floor"]
+        shown += ["ratio_if_rhs_free", "target", "verdict"]
         print(summary[shown].to_string(index=False, float_format=lambda x: f"{x:.2f}"))
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     return summary

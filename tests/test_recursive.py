@@ -197,6 +197,35 @@ def test_thirty_body_tree_matches_minimal_ode() -> None:
         assert_close(rhs, minimal_accelerations(minimal, t, y[: k.nq], y[k.nq :]))
 
 
+def test_free_joints_below_the_root_match_minimal_ode() -> None:
+    """The articulated-body algorithm takes a free joint in its local velocities
+    [R^T p'; omega] (``LocalVelocities``): a free body hanging from a moving body (not
+    the root: its articulated inertia is handed on) and one carrying a child, with joint
+    forces on both, against minimal-ode."""
+    rng = np.random.default_rng(41)
+    model = Model("free-below-root", kind="spatial")
+    for name in ("base", "arm", "floating", "tip"):
+        random_body(model, name, rng, point_mass=False)
+    model.add_joint("j0", "free", "ground", "base", child_frame=random_frame(rng))
+    model.add_joint("j1", "revolute", "base", "arm", parent_frame=random_frame(rng),
+                    child_frame=random_frame(rng), axis=rng.standard_normal(3))  # fmt: skip
+    model.add_joint("j2", "free", "arm", "floating", parent_frame=random_frame(rng),
+                    child_frame=random_frame(rng))  # fmt: skip
+    model.add_joint("j3", "revolute", "floating", "tip", parent_frame=random_frame(rng),
+                    axis=rng.standard_normal(3))  # fmt: skip
+    model.add_force(JointForce("push-free", "j2", lambda t, q, v: ca.sin(t) - 0.3 * v))
+    model.add_force(JointForce("push-base", "j0", lambda t, q, v: 0.5 - 0.2 * v))
+    model.validate()
+    equations = get_formalism("recursive")().build(model)
+    k = TreeKinematics(model)
+    minimal = minimal_rhs(model)
+    for _ in range(3):
+        t = float(rng.uniform(0, 2))
+        y = random_state(k, rng)
+        (rhs,) = equations.forms["ode"].rhs(t, y)
+        assert_close(rhs, minimal_accelerations(minimal, t, y[: k.nq], y[k.nq :]))
+
+
 def chain(n: int, kind: str = "spatial") -> Model:
     model = Model(f"chain-{n}", kind=kind)
     parent = "ground"

@@ -41,3 +41,25 @@ def test_random_tree_is_general() -> None:
     assert all(not np.allclose(j.parent_frame.rotation, np.eye(3)) for j in joints)
     assert all(np.count_nonzero(np.abs(j.axis) > 1e-3) == 3 for j in joints)
     assert all(abs(model.bodies[j.child].inertia[0, 1]) > 1e-6 for j in joints)
+
+
+def test_rhs_clock_sees_every_evaluation_and_changes_nothing() -> None:
+    """benchmarks.simulation's split of a DOP853 solve (SciPy's own time against the
+    right-hand side's) counts exactly SciPy's evaluations and leaves the solution as it
+    is."""
+    from scipy.integrate import solve_ivp
+
+    from benchmarks.simulation import RhsClock
+
+    def decay(t: float, y: np.ndarray) -> np.ndarray:
+        return np.array([-y[0] + np.sin(t), -2.0 * y[1]])
+
+    arguments = ((0.0, 3.0), np.array([1.0, 2.0]))
+    options = {"method": "DOP853", "rtol": 1e-8, "atol": 1e-10}
+    plain = solve_ivp(decay, *arguments, **options)
+    clock = RhsClock()
+    timed = clock.solve_ivp(decay, *arguments, **options)
+    own, inside, calls = clock.split()
+    assert calls == plain.nfev == timed.nfev
+    np.testing.assert_array_equal(timed.y, plain.y)
+    assert clock.total > 0 and inside > 0

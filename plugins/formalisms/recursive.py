@@ -22,7 +22,9 @@ X_i is a constant placement (the parent's J, the joint frame P, the axis turn, f
 numbers) times a rotation about z (4 trigonometric products), and the inertias are
 turned into J_i numerically. Geometry then costs what Pinocchio's does, a fixed price a
 link: 53,978 -> 25,909 CasADi instructions on a random 30-body tree of every joint type
-(2026-11-24; docs/performance.md).
+(2026-11-24; docs/performance.md). A free joint (J_i = C) has S and c_J written out, and
+the articulated-body algorithm takes it in Pinocchio's free-flyer velocities
+[R^T p'; omega], in which S is constant (:class:`LocalVelocities`).
 
 Articulated-body algorithm (forward dynamics, v' for given tau):
 
@@ -62,6 +64,7 @@ shared and the ABA graph has O(n) instructions.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
@@ -181,6 +184,22 @@ class JointMotion(NamedTuple):
     S: Any
     v_J: Any
     c_J: Any
+    local: LocalVelocities | None = None
+
+
+class LocalVelocities(NamedTuple):
+    """A joint whose S(q) = S_nu T(q) is not constant, seen by the articulated-body
+    algorithm in the velocities nu = T v whose motion subspace S_nu (6, n) is constant
+    unit columns (c_J = 0 in nu): a free joint, nu = [C's linear velocity; its angular
+    velocity], both in C, as Pinocchio's free flyer. Then D = S_nu^T I^A S_nu is a block
+    of I^A, with no symbolic congruence through S(q).
+
+    ``tau``: tau -> tau_nu = T^-T tau (n); ``rates``: nu' -> v' = T^-1 (nu' - T' v) (n).
+    """
+
+    S: Any
+    tau: Callable[[Any], Any]
+    rates: Callable[[Any], Any]
 
 
 def joint_model(
@@ -215,6 +234,8 @@ def joint_model(
     elif kind == "spherical":
         _, R_rel = jk.relative_transform(joint, q)
         E, r, S = ca.mtimes(_sx(R_rel).T, _sx(L_R.T)), _sx(L_r), _unit_columns([0, 1, 2])
+    elif kind == "free" and joint.drive is None:
+        return _free_joint_model(joint, q, v, L_R, L_r)
     else:
         return _general_joint_model(joint, q, v, t, L_R, L_r)
     v_J = ca.mtimes(S, v)
@@ -231,6 +252,36 @@ def _rotation_z(angle: Any) -> Any:
     R = ca.SX(3, 3)
     R[0, 0], R[0, 1], R[1, 0], R[1, 1], R[2, 2] = c, -s, s, c, 1
     return R
+
+
+def _free_joint_model(
+    joint: Joint, q: Any, v: Any, L_R: np.ndarray, L_r: np.ndarray
+) -> JointMotion:
+    """A free joint in J_i = C: v = [p'; omega] (p' the rate of C's origin in P, omega the
+    angular velocity in C), so with R = R(Euler parameters) the twist is
+    v_J = [omega; R^T p'], S = [0 1; R^T 0] and c_J = S' v = [0; -omega x R^T p']
+    (R' = R omega~). The articulated-body algorithm takes nu = [R^T p'; omega]
+    (:class:`LocalVelocities`): tau_nu = [R^T tau_p; tau_omega] and
+    p'' = R (nu'_lin + omega x R^T p'), omega' = nu'_ang."""
+    r_rel, R_rel = jk.relative_transform(joint, q)
+    R = _sx(R_rel)
+    E = ca.mtimes(R.T, _sx(L_R.T))
+    r = _sx(L_r) + ca.mtimes(_sx(L_R), _sx(r_rel))
+    omega, linear = v[3:6], ca.mtimes(R.T, v[0:3])
+    v_J = ca.vertcat(omega, linear)
+    S = ca.SX(6, 6)
+    S[:3, 3:] = ca.SX.eye(3)
+    S[3:, :3] = R.T
+    c_J = ca.vertcat(ca.SX.zeros(3), -ca.cross(omega, linear))
+
+    def tau(tau_v: Any) -> Any:
+        return ca.vertcat(ca.mtimes(R.T, tau_v[0:3]), tau_v[3:6])
+
+    def rates(nu_dot: Any) -> Any:
+        return ca.vertcat(ca.mtimes(R, nu_dot[0:3] + ca.cross(omega, linear)), nu_dot[3:6])
+
+    local = LocalVelocities(_unit_columns([3, 4, 5, 0, 1, 2]), tau, rates)
+    return JointMotion(E, r, S, v_J, c_J, local)
 
 
 def _general_joint_model(
@@ -275,6 +326,7 @@ class Link:
     f_ext: Any  # f^x_i (6,): applied force on the body, J_i coordinates
     tau: Any  # (n_i,) the model's joint forces
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
+    local: LocalVelocities | None = None  # ABA's velocities nu = T v (free joints)
 
     @property
     def nv(self) -> int:
@@ -332,6 +384,7 @@ class SpatialTree:
                     f_ext=f_ext,
                     tau=tau,
                     v_slice=v_slice,
+                    local=X.local,
                 )
             )
             index[joint.child] = len(self.links) - 1
@@ -359,16 +412,23 @@ def _unit_rows(S: Any) -> tuple[int, ...]:
     return tuple(rows)
 
 
+def _reciprocal(x: Any) -> Any:
+    """1 / x as a value to multiply by: one division for many products (a division costs
+    several multiplications). Written 2 / (x + x) because CasADi turns y * (1 / x) back
+    into y / x; doubling is exact, so this is 1 / x to the last bit."""
+    return 2 / (x + x)
+
+
 def _solve_symmetric(D: Any, B: Any) -> Any:
     """D^-1 B for a symmetric positive definite D (n, n) without a linear-solve node: a
     division for n = 1, cofactors for n = 2, 3 (a spherical joint's 3 x 3 articulated
     block), else D = L diag(d) L^T eliminated entry by entry (a free joint's 6 x 6)."""
     n = D.size1()
     if n == 1:
-        return B * (1 / D)  # one division, then products (a division costs several)
+        return B * _reciprocal(D)  # one division, then products
     if n == 2:
         inverse = ca.vertcat(ca.horzcat(D[1, 1], -D[0, 1]), ca.horzcat(-D[0, 1], D[0, 0]))
-        return ca.mtimes(inverse * (1 / (D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1])), B)
+        return ca.mtimes(inverse * _reciprocal(D[0, 0] * D[1, 1] - D[0, 1] * D[0, 1]), B)
     if n == 3:
         cofactor = symmetric(
             lambda i, j: (
@@ -377,20 +437,29 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
             ),
             3,
         )
-        return ca.mtimes(cofactor * (1 / ca.dot(D[0, :].T, cofactor[:, 0])), B)
-    L, d = [[None] * n for _ in range(n)], [None] * n
+        return ca.mtimes(cofactor * _reciprocal(ca.dot(D[0, :].T, cofactor[:, 0])), B)
+    L, d, d_inv = [[None] * n for _ in range(n)], [None] * n, [None] * n
     for j in range(n):
         d[j] = D[j, j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
+        d_inv[j] = _reciprocal(d[j])
         for i in range(j + 1, n):
-            L[i][j] = (D[i, j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))) / d[j]
+            L[i][j] = (
+                D[i, j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
+            ) * d_inv[j]
     x = [B[j, :] for j in range(n)]
     for j in range(n):  # L y = B
         x[j] = x[j] - sum((L[j][k] * x[k] for k in range(j)), ca.SX.zeros(1, B.size2()))
     for j in reversed(range(n)):  # diag(d) L^T x = y
-        x[j] = x[j] / d[j] - sum(
+        x[j] = x[j] * d_inv[j] - sum(
             (L[k][j] * x[k] for k in range(j + 1, n)), ca.SX.zeros(1, B.size2())
         )
     return ca.vertcat(*x)
+
+
+def _aba_subspace(link: Link) -> Any:
+    """The motion subspace the articulated-body algorithm works with: S_nu of a joint's
+    local velocities (:class:`LocalVelocities`), else S."""
+    return link.local.S if link.local else link.S
 
 
 def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
@@ -407,7 +476,8 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
     for i, link in enumerate(links):
         V_parent = ZERO6 if link.parent < 0 else V[link.parent]
         V[i] = transform_motion(link.E, link.r, V_parent) + link.v_J
-        c[i] = link.c_J + motion_cross(V[i], link.v_J)
+        c_J = ZERO6 if link.local else link.c_J  # c_J = 0 in a joint's local velocities
+        c[i] = c_J + motion_cross(V[i], link.v_J)
         I_A[i] = link.inertia
         p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
 
@@ -416,11 +486,12 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
     U, D_inv_U, D_inv_u = [None] * n, [None] * n, [None] * n
     root_D, root_u = {}, {}
     for i in reversed(range(n)):
-        link, S = links[i], links[i].S
+        link, S = links[i], _aba_subspace(links[i])
         if link.nv:
             U[i] = ca.mtimes(I_A[i], S)
             D = ca.mtimes(S.T, U[i])
-            u = tau[link.v_slice] - ca.mtimes(S.T, p_A[i])
+            tau_i = link.local.tau(tau[link.v_slice]) if link.local else tau[link.v_slice]
+            u = tau_i - ca.mtimes(S.T, p_A[i])
             if link.parent < 0:
                 root_D[i], root_u[i] = D, u
                 continue
@@ -430,7 +501,7 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
             I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows)
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
             for column, row in enumerate(rows):  # S^T p^a = tau exactly
-                p_a[row] = tau[link.v_slice][column]
+                p_a[row] = tau_i[column]
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
@@ -448,8 +519,8 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
                 vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
             else:
                 vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
-            vdot[link.v_slice] = vdot_i
-            a[i] = a_prime + ca.mtimes(link.S, vdot_i)
+            a[i] = a_prime + ca.mtimes(_aba_subspace(link), vdot_i)
+            vdot[link.v_slice] = link.local.rates(vdot_i) if link.local else vdot_i
         else:
             a[i] = a_prime
     return vdot

@@ -60,12 +60,15 @@ class ScipyIvp(Integrator):
         form, options = task.form, task.options
         accepted = [0]
 
-        non_finite: list[float] = []
+        last: list[Any] = [None, None]  # (t, value) of the latest evaluation
 
         def rhs(t: float, y: np.ndarray) -> np.ndarray:
-            value = form.rhs.into(t, y)[0].copy()  # a copy: RK stages keep the returned arrays
-            if not non_finite and not np.isfinite(value).all():  # the method: 2x cheaper
-                non_finite.append(t)
+            # a copy: RK stages keep the returned arrays. No finiteness test here: at
+            # about 1 us a call it cost more than many a right-hand side; a failure
+            # looks at the latest value instead (a NaN makes the method shrink its step
+            # until it gives up, evaluating at the NaN to the end)
+            value = form.rhs.into(t, y)[0].copy()
+            last[0], last[1] = t, value
             return value
 
         extra: dict[str, Any] = {"max_step": options.max_step}
@@ -91,9 +94,9 @@ class ScipyIvp(Integrator):
         if solution.status < 0:
             trajectory.success = False
             trajectory.message = f"{self.name}: {solution.message}"
-            if non_finite:
+            if last[1] is not None and not np.isfinite(last[1]).all():
                 trajectory.message += (
-                    f" (the right-hand side became NaN or infinite at t = {non_finite[0]:.6g})"
+                    f" (the right-hand side was NaN or infinite at t = {last[0]:.6g})"
                 )
 
 

@@ -67,7 +67,8 @@ def quaternion_to_matrix(p: Any) -> Any:
     """
     p0, p1, p2, p3 = entries(p, 4)
     a, b, c, d = p0 * p0, p1 * p1, p2 * p2, p3 * p3
-    inverse = 1 / (a + b + c + d)
+    norm2 = a + b + c + d
+    inverse = 2 / (norm2 + norm2)  # 1 / p^T p; CasADi would turn x * (1 / y) into 9 x / y
     rows = [
         [a + b - c - d, 2 * (p1 * p2 - p0 * p3), 2 * (p1 * p3 + p0 * p2)],
         [2 * (p1 * p2 + p0 * p3), a - b + c - d, 2 * (p2 * p3 - p0 * p1)],
