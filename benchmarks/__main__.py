@@ -111,6 +111,12 @@ def targets() -> list[Row]:
                         row.peak_pss_gib, 1.0, note=f"{row.runs} runs"))  # fmt: skip
         rows.append(Row("default sweep, share of the runs' time outside the integrators",
                         row.outside_share_of_stages, 0.1, note=load))  # fmt: skip
+    dask = RESULTS / "dask_sweep.csv"
+    if dask.exists():  # python -m benchmarks.dask_sweep: not part of `python -m benchmarks`
+        row = pd.read_csv(dask).iloc[0]  # the first repeat (the README says why not others)
+        rows.append(Row("default sweep through a local 2-worker Dask cluster / local pool",
+                        row.ratio, 1.3, note=f"{row.runs} runs, {row.dask_s:.0f} s against "
+                        f"{row.local_s:.0f} s; load {row.load_1min:.1f}"))  # fmt: skip
     throughput = RESULTS / "runner_throughput_summary.csv"
     if throughput.exists():
         two = pd.read_csv(throughput).set_index("jobs").loc[2]
