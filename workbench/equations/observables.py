@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from workbench.equations.evaluate import FastFunction, dense_function
+from workbench.equations.evaluate import FastFunction, dense_function, evaluate_along
 from workbench.mechanics import forces as fm
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import BodyState, contact_rows
@@ -38,7 +38,7 @@ class Observables:
     energy: FastFunction
     residuals: FastFunction
     body_names: list[str]
-    _mapped: dict = field(default_factory=dict, repr=False)  # (name, n) -> Function.map(n)
+    _mapped: dict = field(default_factory=dict, repr=False)  # Function.map(n)s: evaluate_along
 
     def poses(self, t: float, q: np.ndarray) -> np.ndarray:
         """(n_bodies, 7): position and unit quaternion (scalar first) of every body."""
@@ -81,16 +81,7 @@ class Observables:
 
     def _map(self, name: str, n: int, *args: np.ndarray) -> list[np.ndarray]:
         """Outputs of observable ``name`` at n states, each stacked as (n, rows, cols)."""
-        function = getattr(self, name).function
-        key = (name, n)
-        if key not in self._mapped:
-            self._mapped[key] = function.map(n)
-        outputs = self._mapped[key].call(list(args))
-        stacked = []
-        for i, value in enumerate(outputs):
-            rows, cols = function.sparsity_out(i).shape
-            stacked.append(np.asarray(value).reshape(rows, n, cols).transpose(1, 0, 2))
-        return stacked
+        return evaluate_along(getattr(self, name).function, n, list(args), self._mapped)
 
 
 @dataclass
