@@ -250,3 +250,28 @@ def test_evaluate_along_equals_one_point_at_a_time_bit_for_bit():
                 for i, value in enumerate(single):
                     np.testing.assert_array_equal(mapped[i][k], np.array(value))
     assert len(cache) == 3
+
+
+def test_poses_along_the_states_just_measured_are_those_of_along_and_no_others():
+    """poses_along at the states of the last along() (a run's recording after its metrics)
+    returns those poses, as a copy; at any other states it computes them."""
+    problem = get_problem("heavy-top")()
+    equations = get_formalism("recursive")().build(problem.model(), {})
+    state = consistent_initial_state(equations, problem)
+    rng = np.random.default_rng(5)
+    times = np.linspace(0.0, 1.0, 5)
+    q = state.q + 0.05 * rng.standard_normal((5, equations.nq))
+    v = np.tile(state.v, (5, 1))
+    observables = equations.observables
+    sampled = observables.along(times, q, v)
+    kept = observables.poses_along(times, q)
+    np.testing.assert_array_equal(kept, sampled.poses)
+    kept[:] = 0.0  # a copy: the next caller gets the poses again
+    np.testing.assert_array_equal(observables.poses_along(times, q), sampled.poses)
+    other = q.copy()
+    other[-1, 0] = np.nextafter(other[-1, 0], 1.0)  # one bit off
+    moved = observables.poses_along(times, other)
+    fresh = get_formalism("recursive")().build(problem.model(), {}).observables
+    np.testing.assert_array_equal(moved, fresh.poses_along(times, other))
+    assert not np.array_equal(moved, sampled.poses)
+    np.testing.assert_array_equal(observables.poses_along(times[:3], q[:3]), sampled.poses[:3])

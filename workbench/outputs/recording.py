@@ -225,10 +225,12 @@ class RerunSink:
         if series is None or len(series) == 0 or "t" not in series:
             return
         if run_id is not None and "run_id" in series:
-            series = series[series["run_id"].astype(str) == str(run_id)]
+            ids = series["run_id"].to_numpy()
+            if not (ids == str(run_id)).all():  # a run's own series is kept whole, unfiltered
+                series = series[series["run_id"].astype(str) == str(run_id)]
         t = series["t"].to_numpy(dtype=float)
         for quantity in SERIES_QUANTITIES:
-            if quantity not in series:
+            if quantity not in series.columns:
                 continue
             values = series[quantity].to_numpy(dtype=float)
             keep = np.isfinite(values) & np.isfinite(t)
