@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import numbers
 import types
 import typing
@@ -27,7 +28,7 @@ def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
     """(name, type, default) of every option, in declaration order (default None if required)."""
     if not dataclasses.is_dataclass(options_class):
         raise ConfigError(f"options class {options_class!r} is not a dataclass")
-    hints = typing.get_type_hints(options_class)
+    hints = _type_hints(options_class)
     rows = []
     for f in dataclasses.fields(options_class):
         default = f.default if f.default is not dataclasses.MISSING else None
@@ -35,6 +36,13 @@ def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
             default = f.default_factory()  # type: ignore[misc]
         rows.append((f.name, hints.get(f.name, Any), default))
     return rows
+
+
+@functools.lru_cache(maxsize=256)
+def _type_hints(options_class: type) -> dict[str, Any]:
+    """``typing.get_type_hints`` of an options class, resolved once: it evaluates every
+    annotation string again at each call (0.1 ms, three times a run)."""
+    return typing.get_type_hints(options_class)
 
 
 def _is_union(annotation: Any) -> bool:
