@@ -152,8 +152,10 @@ class RerunSink:
         """
         parts = run_parts(spec)
         path = entity_path(*parts)
+        run_id = getattr(spec, "run_id", None)  # a hash: computed once
         if path in self.runs:
-            parts = parts[:-1] + (f"{parts[-1]} {getattr(spec, 'run_id', len(self.runs))}",)
+            suffix = run_id if run_id is not None else len(self.runs)
+            parts = parts[:-1] + (f"{parts[-1]} {suffix}",)
             path = entity_path(*parts)
         label = f"{parts[2]} / {parts[3]} {parts[4]}"
         self.runs[path] = (parts[1], label)
@@ -162,16 +164,18 @@ class RerunSink:
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
         self._log_geometry(path, model, f"{spec.problem} {options} {model.name}")
         self._log_poses(path, equations, trajectory)
-        self._log_series(path, series, label, getattr(spec, "run_id", None))
+        self._log_series(path, series, label, run_id)
         return path
 
     def _log_geometry(self, path: str, model: Any, key: str) -> None:
-        for relative, archetypes in self._geometry(model, key):
-            self.recording.log(f"{path}/{relative}", *archetypes, static=True)
+        for relative, batches in self._geometry(model, key):
+            self.recording.log(f"{path}/{relative}", batches, static=True)
 
     def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
-        """(entity path below the run, archetypes) of the shapes and joint frames; made
-        once per model ``key`` (problem and options): the runs of a sweep share models."""
+        """(entity path below the run, component batches of its archetypes) of the shapes
+        and joint frames; made once per model ``key`` (problem and options): the runs of a
+        sweep share models, and their archetypes' batches (made at every ``log`` of an
+        archetype, a third of its cost) are logged as they are."""
         import rerun as rr
 
         if key in self._geometry_cache:
@@ -194,8 +198,11 @@ class RerunSink:
                     rr.TransformAxes3D(axis_length),
                 ]
                 entries.append((f"{owner}/{entity_path('joints', joint.name)}", frame_archetypes))
-        self._geometry_cache[key] = entries
-        return entries
+        self._geometry_cache[key] = [
+            (relative, [batch for each in archetypes for batch in each.as_component_batches()])
+            for relative, archetypes in entries
+        ]
+        return self._geometry_cache[key]
 
     def _log_poses(self, path: str, equations: Any, trajectory: Any) -> None:
         import rerun as rr
