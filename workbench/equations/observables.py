@@ -39,7 +39,7 @@ class Observables:
     residuals: FastFunction
     body_names: list[str]
     _mapped: dict = field(default_factory=dict, repr=False)  # Function.map(n)s: evaluate_along
-    _last: tuple = field(default=(), repr=False)  # (times, q, poses) of the last along()
+    _last: tuple = field(default=(), repr=False, compare=False)  # (times, q, poses) of along()
 
     def poses(self, t: float, q: np.ndarray) -> np.ndarray:
         """(n_bodies, 7): position and unit quaternion (scalar first) of every body."""
