@@ -264,13 +264,18 @@ def test_poses_along_the_states_just_measured_are_those_of_along_and_no_others()
     v = np.tile(state.v, (5, 1))
     observables = equations.observables
     sampled = observables.along(times, q, v)
+    mapped = []  # the frames evaluated again (not for the states just measured)
+    evaluate = type(observables)._map
+    observables._map = lambda *args: mapped.append(args[0]) or evaluate(observables, *args)
     kept = observables.poses_along(times, q)
     np.testing.assert_array_equal(kept, sampled.poses)
+    assert mapped == []
     kept[:] = 0.0  # a copy: the next caller gets the poses again
     np.testing.assert_array_equal(observables.poses_along(times, q), sampled.poses)
     other = q.copy()
     other[-1, 0] = np.nextafter(other[-1, 0], 1.0)  # one bit off
     moved = observables.poses_along(times, other)
+    assert mapped == ["frames"]
     fresh = get_formalism("recursive")().build(problem.model(), {}).observables
     np.testing.assert_array_equal(moved, fresh.poses_along(times, other))
     assert not np.array_equal(moved, sampled.poses)
