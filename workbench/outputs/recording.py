@@ -137,6 +137,7 @@ class RerunSink:
         self._file = Path()  # the file of begin_file
         self._stream: Any = None  # its binary stream, until end_file
         self._geometry_cache: dict[str, list[tuple[str, list[Any]]]] = {}
+        self._batches_cache: dict[str, list[tuple[str, list[Any]]]] = {}
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -168,14 +169,19 @@ class RerunSink:
         return path
 
     def _log_geometry(self, path: str, model: Any, key: str) -> None:
-        for relative, batches in self._geometry(model, key):
+        # the archetypes' component batches, made once per model: ``log`` of an archetype
+        # makes them again at every call (a third of its cost)
+        if key not in self._batches_cache:
+            self._batches_cache[key] = [
+                (relative, [batch for each in archetypes for batch in each.as_component_batches()])
+                for relative, archetypes in self._geometry(model, key)
+            ]
+        for relative, batches in self._batches_cache[key]:
             self.recording.log(f"{path}/{relative}", batches, static=True)
 
     def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
-        """(entity path below the run, component batches of its archetypes) of the shapes
-        and joint frames; made once per model ``key`` (problem and options): the runs of a
-        sweep share models, and their archetypes' batches (made at every ``log`` of an
-        archetype, a third of its cost) are logged as they are."""
+        """(entity path below the run, archetypes) of the shapes and joint frames; made
+        once per model ``key`` (problem and options): the runs of a sweep share models."""
         import rerun as rr
 
         if key in self._geometry_cache:
@@ -198,11 +204,8 @@ class RerunSink:
                     rr.TransformAxes3D(axis_length),
                 ]
                 entries.append((f"{owner}/{entity_path('joints', joint.name)}", frame_archetypes))
-        self._geometry_cache[key] = [
-            (relative, [batch for each in archetypes for batch in each.as_component_batches()])
-            for relative, archetypes in entries
-        ]
-        return self._geometry_cache[key]
+        self._geometry_cache[key] = entries
+        return entries
 
     def _log_poses(self, path: str, equations: Any, trajectory: Any) -> None:
         import rerun as rr
