@@ -111,3 +111,57 @@ def test_each_warning_is_one_item_of_the_list():
     metrics = {"energy_err_max": 1.0, "err_end": 1e-14, "length_scale": 1.0}
     found = audit_warnings(audit | {"reference_accuracy": 1e-10}, metrics, 1e-8, True)
     assert len(found) == 6 and all("; " not in w for w in found)
+
+
+def _one_sample_at_a_time(function, n, args, cache):
+    """evaluate_along's contract met by n separate calls (what the audit did before)."""
+    outputs = [function.call([np.asarray(a)[:, k] for a in args]) for k in range(n)]
+    return [np.stack([np.array(out[i]) for out in outputs]) for i in range(function.n_out())]
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism", "options"),
+    [
+        ("four-bar", "absolute-dae", {"index": 1}),  # W of the formalism's constraint rows
+        ("iftomm-a02", "nonholonomic-projection", {}),  # loops eliminated: residual Jacobian
+        ("ball-on-rotating-plane", "nonholonomic-projection", {}),  # velocity partition W_d
+    ],
+)
+def test_the_audit_of_all_samples_at_once_equals_one_sample_at_a_time(
+    problem, formalism, options, monkeypatch
+):
+    """The audit evaluates W (or W_d, or the residual Jacobian) at every output time in one
+    mapped call; its columns are bit for bit those of one call per sample, on perturbed
+    states whose ratio has local minima (so the refinement runs too)."""
+    from workbench.runs import audit
+
+    problem_ = get_problem(problem)()
+    equations = get_formalism(formalism)().build(problem_.model(), options)
+    state = consistent_initial_state(equations, problem_)
+    rng = np.random.default_rng(11)
+    n = 40
+    times = np.linspace(0.0, 1.0, n)
+    nq, nv = equations.nq, equations.nv
+    y = np.concatenate([state.q, state.v]) + 0.2 * rng.standard_normal((n, nq + nv))
+    rotations = equations.observables.along(times, y[:, :nq], y[:, nq : nq + nv]).rotations
+    seen = []  # the ratio at every sample, as the audit hands it to _local_minima
+
+    def local_minima(ratios):
+        seen.append(np.array(ratios))
+        return minima(ratios)
+
+    minima = audit._local_minima
+    monkeypatch.setattr(audit, "_local_minima", local_minima)
+    at_once = audit.health_audit(equations, times, y, rotations, 1e-6)
+    monkeypatch.setattr(audit, "evaluate_along", _one_sample_at_a_time)
+    if getattr(equations, "partition_matrices", None) is not None:  # the per-sample ratios
+        function = equations.partition_matrices
+        monkeypatch.setattr(equations, "partition_matrices", lambda t, q: function(t, q))
+    one_by_one = audit.health_audit(equations, times, y, rotations, 1e-6)
+    assert len(seen) == 2 and seen[0].shape == (n,)
+    np.testing.assert_array_equal(seen[0], seen[1])
+    assert math.isfinite(at_once["jacobian_sv_ratio_min"])
+    assert at_once.keys() == one_by_one.keys()
+    for key, value in at_once.items():
+        same_nan = isinstance(value, float) and math.isnan(value) and math.isnan(one_by_one[key])
+        assert value == one_by_one[key] or same_nan, key

@@ -211,3 +211,72 @@ def test_ode_jacobian_through_a_numeric_solve_equals_casadis(problem, options, f
         for e in np.eye(form.n)
     ]
     np.testing.assert_allclose(ours, np.column_stack(columns), atol=1e-5 * np.abs(ours).max())
+
+
+def test_evaluate_along_equals_one_point_at_a_time_bit_for_bit():
+    """evaluate_along (Function.map(n) through preallocated buffers, or through
+    Function.call when an output is sparse) gives exactly what n separate calls give:
+    the metrics computed from it are the same numbers, not merely close ones."""
+    from workbench.equations.evaluate import evaluate_along
+
+    problem = get_problem("four-bar")()
+    equations = get_formalism("absolute-dae")().build(problem.model(), {"index": 1})
+    state = consistent_initial_state(equations, problem)
+    rng = np.random.default_rng(3)
+    n, nq, nv = 7, equations.nq, equations.nv
+    times = np.linspace(0.0, 1.0, n)
+    q = state.q + 0.1 * rng.standard_normal((n, nq))
+    v = state.v + 0.1 * rng.standard_normal((n, nv))
+    residuals = equations.observables.residuals.function
+    sparse = ca.Function("sparse_jacobian", [ca.SX.sym("t"), x := ca.SX.sym("q", nq)],
+                         [ca.jacobian(ca.sin(x[:2]) * x[2], x)])  # fmt: skip
+    assert not sparse.sparsity_out(0).is_dense()
+    velocity_matrix = equations.forms["mechanical"].velocity_matrix.function
+    cache: dict = {}
+    for function, args in [(residuals, [times, q, v]), (sparse, [times, q]),
+                           (velocity_matrix, [times, q])]:  # fmt: skip
+        columns = [np.atleast_2d(a).T if a.ndim == 2 else a[None] for a in args]
+        before = []  # what the observables did before: Function.call, np.asarray(DM)
+        for i, value in enumerate(function.map(n).call(columns)):
+            rows, cols = function.sparsity_out(i).shape
+            before.append(np.asarray(value).reshape(rows, n, cols).transpose(1, 0, 2))
+        for _ in range(2):  # again, from the cache's buffers
+            mapped = evaluate_along(function, n, columns, cache)
+            for old, new in zip(before, mapped, strict=True):  # memory layout too: NumPy's
+                np.testing.assert_array_equal(new, old)  # reductions follow it to the last bit
+                assert new.strides == old.strides
+            for k in range(n):
+                single = function.call([np.atleast_1d(a[k]) for a in args])
+                for i, value in enumerate(single):
+                    np.testing.assert_array_equal(mapped[i][k], np.array(value))
+    assert len(cache) == 3
+
+
+def test_poses_along_the_states_just_measured_are_those_of_along_and_no_others():
+    """poses_along at the states of the last along() (a run's recording after its metrics)
+    returns those poses, as a copy; at any other states it computes them."""
+    problem = get_problem("heavy-top")()
+    equations = get_formalism("recursive")().build(problem.model(), {})
+    state = consistent_initial_state(equations, problem)
+    rng = np.random.default_rng(5)
+    times = np.linspace(0.0, 1.0, 5)
+    q = state.q + 0.05 * rng.standard_normal((5, equations.nq))
+    v = np.tile(state.v, (5, 1))
+    observables = equations.observables
+    sampled = observables.along(times, q, v)
+    mapped = []  # the frames evaluated again (not for the states just measured)
+    evaluate = type(observables)._map
+    observables._map = lambda *args: mapped.append(args[0]) or evaluate(observables, *args)
+    kept = observables.poses_along(times, q)
+    np.testing.assert_array_equal(kept, sampled.poses)
+    assert mapped == []
+    kept[:] = 0.0  # a copy: the next caller gets the poses again
+    np.testing.assert_array_equal(observables.poses_along(times, q), sampled.poses)
+    other = q.copy()
+    other[-1, 0] = np.nextafter(other[-1, 0], 1.0)  # one bit off
+    moved = observables.poses_along(times, other)
+    assert mapped == ["frames"]
+    fresh = get_formalism("recursive")().build(problem.model(), {}).observables
+    np.testing.assert_array_equal(moved, fresh.poses_along(times, other))
+    assert not np.array_equal(moved, sampled.poses)
+    np.testing.assert_array_equal(observables.poses_along(times[:3], q[:3]), sampled.poses[:3])

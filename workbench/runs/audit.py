@@ -42,9 +42,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import casadi as ca
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from workbench.equations.evaluate import FastFunction, evaluate_along
 from workbench.numerics.linalg import independent_rows
 
 SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
@@ -105,11 +107,18 @@ def health_audit(
             (w,) = mechanical.velocity_matrix(t, q_t)
             return np.reshape(np.asarray(w, dtype=float), (nc, nv))
 
+        matrices = _velocity_matrices(equations, mechanical.velocity_matrix, times, q)
+        if matrices is None:  # compiled C: evaluated where the integrator evaluates it
+            matrices = np.stack([jacobian(t, q_k) for t, q_k in zip(times, q, strict=True)])
     elif equations.model.cut_joints:
         # closed loops eliminated by the formalism (minimal velocities): the loops can still
         # pass a singular configuration, seen in the Jacobian of every joint's residual on
         # the body poses (observables), with respect to the formalism's q
         width, jacobian = nq, _residual_jacobian(equations)
+        function = equations.observables._audit_jacobian
+        zeros = np.zeros((equations.nv, len(times)))
+        (matrices,) = evaluate_along(function, len(times), [times[None], q.T, zeros],
+                                     _mapped(equations))  # fmt: skip
     else:
         row["dof_start"] = row["dof_max"] = nv
         if getattr(equations, "partition_matrices", None) is not None:
@@ -123,7 +132,6 @@ def health_audit(
             row[MEASURE] = "partition"
         return row
 
-    matrices = np.stack([jacobian(t, q_k) for t, q_k in zip(times, q, strict=True)])
     dof_start = width - len(independent_rows(matrices[0]))
     rank = width - dof_start  # rows redundant at the start are not a passage
     if rank <= 0:
@@ -222,11 +230,10 @@ def _partition_audit(in_chart: list[Any], times: np.ndarray, q: np.ndarray,
     the equations (the partition) sample k was computed in."""
 
     def ratio_in(equations: Any) -> Any:
+        matrices = _partition_function(equations)
+
         def ratio(t: float, q_t: np.ndarray) -> float:
-            w_d, w = (
-                np.atleast_2d(np.asarray(x, dtype=float))
-                for x in equations.partition_matrices(t, q_t)
-            )
+            w_d, w = (np.atleast_2d(np.asarray(x, dtype=float)) for x in matrices(t, q_t))
             scale = np.linalg.norm(w, 2)
             return float(np.linalg.svd(w_d, compute_uv=False)[-1] / scale) if scale > 0 else 0.0
 
@@ -235,7 +242,20 @@ def _partition_audit(in_chart: list[Any], times: np.ndarray, q: np.ndarray,
     def rate(j: int) -> np.ndarray:
         return in_chart[j].forms["mechanical"].qdot(times[j], q[j], v[j])[0]
 
-    ratios = np.array([ratio_in(e)(t, q_k) for e, t, q_k in zip(in_chart, times, q, strict=True)])
+    ratios = np.empty(len(times))
+    for equations in {id(e): e for e in in_chart}.values():  # each partition's samples
+        rows = np.array([k for k, e in enumerate(in_chart) if e is equations], dtype=int)
+        function = equations.partition_matrices
+        if isinstance(function, ca.Function):  # all its samples in one mapped call
+            w_d, w = evaluate_along(function, rows.size, [times[rows][None], q[rows].T],
+                                    _mapped(equations))  # fmt: skip
+            scale = np.linalg.norm(w, 2, axis=(1, 2))
+            smallest = np.linalg.svd(w_d, compute_uv=False)[:, -1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratios[rows] = np.where(scale > 0, smallest / scale, 0.0)
+        else:
+            ratio = ratio_in(equations)
+            ratios[rows] = [ratio(times[k], q[k]) for k in rows]
     best, best_at = float(np.min(ratios)), float(times[int(np.argmin(ratios))])
     deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
     for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
@@ -284,6 +304,40 @@ def _residual_jacobian(equations: Any) -> Any:
         observables._audit_jacobian = made
     zero_v = np.zeros(equations.nv)
     return lambda t, q_t: np.asarray(made(t, q_t, zero_v), dtype=float)
+
+
+def _mapped(equations: Any) -> dict:
+    """Where the audit keeps the mapped Functions of ``equations``
+    (:func:`~workbench.equations.evaluate.evaluate_along`): made once per equations."""
+    return equations.__dict__.setdefault("_audit_mapped", {})
+
+
+def _velocity_matrices(equations: Any, velocity_matrix: Any, times: np.ndarray,
+                       q: np.ndarray) -> np.ndarray | None:  # fmt: skip
+    """W(t, q) (n, nc, nv) at every sample in one mapped call of the symbolic Function, or
+    None when the formalism's W runs compiled C (then each sample is evaluated by it, the
+    values the integrator saw)."""
+    if getattr(velocity_matrix, "compiler", None) is not None:
+        return None
+    (matrices,) = evaluate_along(velocity_matrix.function, len(times), [times[None], q.T],
+                                 _mapped(equations))  # fmt: skip
+    return matrices
+
+
+def _partition_function(equations: Any) -> Any:
+    """``equations.partition_matrices`` for one (t, q) at a time: through preallocated
+    buffers when it is a CasADi Function with dense outputs (the same evaluation, without
+    ``Function.__call__``'s conversions: the refinement calls it up to 200 times a run)."""
+    function = equations.partition_matrices
+    if not isinstance(function, ca.Function):
+        return function
+    cache = _mapped(equations)
+    if "partition" not in cache:
+        try:
+            cache["partition"] = FastFunction(function)
+        except ValueError:  # sparse outputs
+            cache["partition"] = function
+    return cache["partition"]
 
 
 def _euler_parameter_defect(equations: Any, q: np.ndarray) -> float:
