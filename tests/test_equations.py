@@ -277,6 +277,7 @@ def test_poses_along_the_states_just_measured_are_those_of_along_and_no_others()
     moved = observables.poses_along(times, other)
     assert mapped == ["frames"]
     fresh = get_formalism("recursive")().build(problem.model(), {}).observables
+    # evaluated again, as a fresh copy would (one bit of a quaternion may leave the pose
+    # itself unchanged: it is normalized)
     np.testing.assert_array_equal(moved, fresh.poses_along(times, other))
-    assert not np.array_equal(moved, sampled.poses)
     np.testing.assert_array_equal(observables.poses_along(times[:3], q[:3]), sampled.poses[:3])
