@@ -2,7 +2,8 @@
 
 Run: ``python -m benchmarks`` (runs benchmarks.default_sweep,
 benchmarks.runner_throughput, benchmarks.overhead, benchmarks.peers and
-benchmarks.simulation, then summarizes; about 17 minutes on 2 cores, most of it
+benchmarks.simulation, then summarizes; about 17 minutes on 2 cores before the
+random trees and robots joined (about 5 minutes more), most of it
 compiling the 200-body models) or ``python -m benchmarks --summary`` (summarizes the
 CSVs already in benchmarks/results/). The summary lists every target of the README's
 Performance table that those CSVs measure, one line each: the value, its interval where
