@@ -399,8 +399,8 @@ def _plan(
 ) -> list[tuple[str, dict[str, Any], str, int, list[float]]]:
     """(name, option grid, key, grid size, rtols) of every plugin a list names (grids
     unexpanded). ``tolerances`` is (atol_factor, the sweep's rtols): an integrator entry may
-    list its own ``tolerances`` instead; other entries run once (rtols ``[nan]`` is never
-    read, the integrators' count)."""
+    list its own ``tolerances`` instead. Problems and formalisms get ``[nan]``, a
+    placeholder never read, so that every kind counts its runs as size x len(rtols)."""
     atol_factor, sweep_rtols = tolerances
     table_keys = {"name", "options", "tolerances"} if kind == "integrator" else {"name", "options"}
 
