@@ -280,4 +280,6 @@ def test_poses_along_the_states_just_measured_are_those_of_along_and_no_others()
     # evaluated again, as a fresh copy would (one bit of a quaternion may leave the pose
     # itself unchanged: it is normalized)
     np.testing.assert_array_equal(moved, fresh.poses_along(times, other))
+    other[-1, 0] += 1e-6  # and states that differ in the pose give other poses
+    assert not np.array_equal(observables.poses_along(times, other), sampled.poses)
     np.testing.assert_array_equal(observables.poses_along(times[:3], q[:3]), sampled.poses[:3])
