@@ -3,6 +3,10 @@ disk and reused, and falls back to the VM (with a warning in the run) without a 
 
 from __future__ import annotations
 
+import dataclasses
+import os
+
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -77,7 +81,7 @@ def test_the_cache_is_reused_by_a_second_build(cache):
     before = compiled.STATS.compiled
     expected = first.forms["ode"].rhs(*args)[0]
     assert compiled.STATS.compiled == before + 1  # the first call compiled one library
-    libraries = {path: path.stat().st_mtime_ns for path in cache.glob("*.so")}
+    libraries = {path: path.stat().st_ino for path in cache.glob("*.so")}  # a rewrite is a new inode
     assert len(libraries) == 1
 
     _, second = build("spatial-chain", {"n_links": 3}, "recursive", {"compile": "jit"})
@@ -85,7 +89,7 @@ def test_the_cache_is_reused_by_a_second_build(cache):
     np.testing.assert_array_equal(second.forms["ode"].rhs(*args)[0], expected)
     assert compiled.STATS.compiled == before + 1, "the second build invoked the compiler"
     assert compiled.STATS.loaded == loaded + 1
-    assert {path: path.stat().st_mtime_ns for path in cache.glob("*.so")} == libraries
+    assert {path: path.stat().st_ino for path in cache.glob("*.so")} == libraries
 
     # other flags are another library
     _, other = build(
@@ -185,3 +189,109 @@ def test_long_bodies_are_split_and_give_the_same_numbers(cache):
     x = ca.MX.sym("x", 6, 6)
     looped = compiled.generate_c(ca.Function("looped", [x], [ca.mtimes(x, x)]))
     assert "for (" in looped and compiled.split_long_bodies(looped, 1) == looped
+
+
+def catalog_pairs():
+    """(problem, formalism) for every catalog problem (default options) and every formalism
+    that takes its model; robots whose files are not installed are left out."""
+    from workbench.plugin.registry import plugin_names
+
+    pairs = []
+    for problem in plugin_names("problem"):
+        try:
+            model = get_problem(problem)({}).model()
+        except Exception:  # noqa: BLE001 - e.g. a robot whose files are not installed
+            continue
+        pairs += [
+            (problem, formalism)
+            for formalism in plugin_names("formalism")
+            if not get_formalism(formalism).unsupported(model)
+            and "compile" in {f.name for f in dataclasses.fields(get_formalism(formalism).Options)}
+        ]
+    return pairs
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(3000)
+def test_every_catalog_problem_and_formalism_compiles_and_agrees_with_the_vm():
+    """compile=jit leaves no function in the VM (no libc name clash such as ``gamma``, no
+    LAPACK solve CasADi cannot generate C for), and compiled numbers equal the VM's."""
+    pairs = catalog_pairs()
+    assert len(pairs) > 50
+    failures = []
+    for problem, formalism in pairs:
+        problem_, plain = build(problem, {}, formalism, {})
+        _, jit = build(problem, {}, formalism, {"compile": "jit"})
+        state = consistent_initial_state(plain, problem_)
+        for label, form, name, args in hot_functions(plain, state):
+            if form not in plain.forms:
+                continue
+            expected = getattr(plain.forms[form], name)(*args)[0]
+            function = getattr(jit.forms[form], name)
+            value = function(*args)[0]
+            if not function.compile():
+                failures.append(f"{problem}/{formalism} {label}: {jit.compile_warnings}")
+                continue
+            scale = max(float(np.abs(expected).max()), 1.0)
+            error = float(np.abs(np.asarray(value) - np.asarray(expected)).max())
+            if not error <= 1e-12 * scale:
+                failures.append(f"{problem}/{formalism} {label}: off by {error:.1e}")
+        if jit.compile_warnings:
+            failures.append(f"{problem}/{formalism}: {jit.compile_warnings}")
+    assert failures == []
+
+
+def test_a_function_named_like_a_libm_function_compiles():
+    """CasADi exports a generated function under its name: ``gamma``, ``j0`` or ``y1`` would
+    clash with the C library's declarations (``conflicting types for 'gamma'``)."""
+    x = ca.SX.sym("x", 2)
+    for name in ("gamma", "j0", "y1", "sin"):
+        function = ca.Function(name, [x], [ca.vertcat(x[0] * x[1], ca.sin(x[0]))])
+        loaded = compiled.compile_function(function)
+        expected = np.array([0.3 * 0.7, np.sin(0.3)])
+        np.testing.assert_allclose(np.ravel(loaded([0.3, 0.7])), expected, rtol=1e-15)
+
+
+def test_the_numeric_linear_solvers_the_formalisms_use_compile():
+    """Beyond the symbolic-solve limit the KKT system is solved numerically inside the graph:
+    with a solver CasADi generates C for (not LAPACK's LU, whose code is an ``#error``)."""
+    x = ca.MX.sym("x", 3, 3)
+    b = ca.MX.sym("b", 3)
+    for method, compiles in (("qr", True), ("ldl", True), ("lapacklu", False)):
+        function = ca.Function(f"solve_{method}", [x, b], [ca.solve(x, b, method)])
+        if compiles:
+            a = np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]])
+            value = np.ravel(compiled.compile_function(function)(a, [1.0, 2.0, 3.0]))
+            np.testing.assert_allclose(value, np.linalg.solve(a, [1.0, 2.0, 3.0]), rtol=1e-13)
+        else:
+            with pytest.raises(RuntimeError, match="#error"):
+                compiled.compile_function(function)
+
+
+def test_a_compile_failure_names_the_compilers_real_error():
+    stderr = (
+        "code.c: In function 'wb_f':\n"
+        "code.c:12:5: warning: unused variable 'w' [-Wunused-variable]\n"
+        "code.c:40:1: error: conflicting types for 'gamma'\n"
+    )
+    assert compiled.compiler_error(stderr) == "code.c:40:1: error: conflicting types for 'gamma'"
+    assert compiled.compiler_error("#error LapackLu does not support code generation\n") == (
+        "#error LapackLu does not support code generation"
+    )
+    assert compiled.compiler_error("") == "no output"
+
+
+def test_the_cache_keeps_the_most_recently_used_libraries_within_its_limit(cache):
+    x = ca.SX.sym("x")
+    paths = []
+    for k in range(4):
+        compiled.compile_function(ca.Function(f"f{k}", [x], [x * (k + 1)]))
+        paths.append(next(cache.glob(f"wb_f{k}-*.so")))
+    size = paths[0].stat().st_size
+    for age, path in enumerate(paths):  # f0 oldest ... f3 newest
+        os.utime(path, (1e9 + age, 1e9 + age))
+    compiled.compile_function(ca.Function("f0", [x], [x * 1]))  # a use makes f0 newest
+    removed = compiled.trim_cache(limit=int(2.5 * size))
+    assert removed == 2
+    assert {p.name for p in cache.glob("*.so")} == {paths[0].name, paths[3].name}
+    assert compiled.cache_size() == (2, paths[0].stat().st_size + paths[3].stat().st_size)

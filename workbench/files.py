@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -54,4 +54,22 @@ def user_cache_dir() -> Path:
     return Path(configured) if configured else Path.home() / ".cache" / "mbs-workbench"
 
 
-__all__ = ["atomic_write", "user_cache_dir"]
+@contextlib.contextmanager
+def file_lock(path: Path) -> Iterator[None]:
+    """An exclusive advisory lock on ``path`` (created if missing), released by the OS if
+    the holder dies, so a killed process never leaves a lock behind."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock, at worst the work is done twice
+        yield
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+__all__ = ["atomic_write", "file_lock", "user_cache_dir"]

@@ -80,7 +80,7 @@ class Hamilton(Formalism):
         kind = ca.SX if symbolic else ca.MX
         t, q, p = kind.sym("t"), kind.sym("q", k.nq), kind.sym("p", k.nv)
         mass_q = parts(t, q, ca.DM.zeros(k.nv))[0]
-        rate = ca.solve(mass_q, p) if symbolic else ca.solve(mass_q, p, "lapacklu")
+        rate = ca.solve(mass_q, p) if symbolic else ca.solve(mass_q, p, "ldl")
         _, lagrangian, q_nc, *rest = parts(t, q, rate)
         hamiltonian = ca.dot(p, rate) - lagrangian  # Legendre transform
         qdot = ca.gradient(hamiltonian, p)

@@ -6,14 +6,19 @@ several times faster (benchmarks/peers.py). Compiling a large graph takes second
 the shared library is kept in an on-disk cache (``$WORKBENCH_CACHE``, else
 ``~/.cache/mbs-workbench``) under a hash of the generated C code, the flags, the
 compiler and the CasADi version: a sweep compiles each model once, whatever the number
-of processes. A library is written to a temporary file in the cache directory and
-renamed into place (:func:`os.replace` is atomic), so concurrent processes never see a
-partial file; two that compile the same code at once both produce the same bytes. Long
+of processes. The key holds the CPU too, so a cache on a shared home directory never
+hands one machine's ``-march=native`` code to another. A library is compiled under a lock
+(one process compiles, the others wait and load it), written to a temporary file in the
+cache directory and renamed into place (:func:`os.replace` is atomic), so no process sees a
+partial file; the least recently used libraries are removed when the cache outgrows
+``$WORKBENCH_CACHE_LIMIT_MB`` (2048 by default). Generated symbols carry a prefix
+(:data:`SYMBOL_PREFIX`), so a graph named ``gamma`` does not clash with libm. Long
 straight-line bodies are cut into parts before compiling (:func:`split_long_bodies`), which
 keeps the compile time about linear in the size of the graph.
 
-Without a C compiler, or when CasADi cannot generate C for a graph, evaluation stays in
-the virtual machine and a warning is recorded (:attr:`Compiler.warnings`) for the run's
+Without a C compiler, or when CasADi cannot generate C for a graph (the formalisms' linear
+solves use CasADi's own LDL^T and QR, which it can), evaluation stays in
+the virtual machine and a warning naming the compiler's own error is recorded (:attr:`Compiler.warnings`) for the run's
 message. Seconds spent generating, compiling and loading are counted in
 :data:`STATS`, so the runner can report them as their own stage.
 """
@@ -21,8 +26,10 @@ message. Seconds spent generating, compiling and loading are counted in
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import os
+import platform
 import re
 import shlex
 import shutil
@@ -36,10 +43,11 @@ from typing import Any
 
 import casadi as ca
 
-from workbench.files import atomic_write, user_cache_dir
+from workbench.files import atomic_write, file_lock, user_cache_dir
 
 MODES = ("none", "jit")
 DEFAULT_FLAGS = "-O1"
+SYMBOL_PREFIX = "wb_"  # generated C symbols never clash with libc/libm (gamma, j0, y1, ...)
 
 
 class CompileWarning(UserWarning):
@@ -80,12 +88,38 @@ _SIMPLE_STATEMENT = re.compile(
 )
 
 
+def exported(function: ca.Function) -> ca.Function:
+    """``function`` under the name its C symbol gets: :data:`SYMBOL_PREFIX` + its name.
+
+    CasADi exports a generated function under its own name, so a graph named ``gamma``
+    would define ``int gamma(...)`` and clash with the C library's ``gamma()``. An SX graph
+    is rebuilt under the new name (the same instructions); an MX graph is wrapped in one
+    call."""
+    name = SYMBOL_PREFIX + function.name()
+    symbols = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
+    return ca.Function(
+        name, symbols, function.call(symbols), function.name_in(), function.name_out()
+    )
+
+
 def generate_c(function: ca.Function, statements_per_part: int = STATEMENTS_PER_PART) -> str:
     """The C source of ``function`` (and what it calls), as CasADi generates it, with long
-    straight-line bodies cut into parts (:func:`split_long_bodies`)."""
+    straight-line bodies cut into parts (:func:`split_long_bodies`). Pass it through
+    :func:`exported` first: the exported symbol is the function's own name."""
     generator = ca.CodeGenerator(function.name(), {"with_header": False, "avoid_stack": True})
     generator.add(function)
     return split_long_bodies(generator.dump(), statements_per_part)
+
+
+def compiler_error(stderr: str) -> str:
+    """The line of a C compiler's output that says what went wrong: the first ``#error``
+    or ``error:`` line (the first line is often only "In function ..."), else the first."""
+    lines = [line.strip() for line in stderr.strip().splitlines() if line.strip()]
+    for marker in ("#error", "error:"):
+        for line in lines:
+            if marker in line:
+                return line
+    return lines[0] if lines else "no output"
 
 
 def split_long_bodies(code: str, statements_per_part: int) -> str:
@@ -129,9 +163,22 @@ def split_long_bodies(code: str, statements_per_part: int) -> str:
     return "\n".join(out)
 
 
+@functools.cache
+def cpu() -> str:
+    """The machine's architecture and CPU model (flags such as ``-march=native`` make a
+    library valid on this CPU only)."""
+    model = ""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    return f"{platform.machine()} {model or platform.processor()}"
+
+
 def library_path(code: str, flags: str, compiler: str, name: str) -> Path:
-    """Cache path of the library of ``code``: keyed by code, flags, compiler, CasADi."""
-    key = "\0".join((code, flags, compiler, ca.__version__))
+    """Cache path of the library of ``code``: keyed by code, flags, compiler, CPU, CasADi."""
+    key = "\0".join((code, flags, compiler, cpu(), ca.__version__))
     digest = hashlib.sha256(key.encode()).hexdigest()[:24]
     return cache_dir() / f"{name}-{digest}.so"
 
@@ -148,8 +195,8 @@ def build_library(code: str, flags: str, compiler: str, path: Path) -> None:
         def compile_to(output: str) -> None:
             done = subprocess.run([*command, output, "-lm"], capture_output=True, text=True)
             if done.returncode != 0:
-                first = (done.stderr.strip().splitlines() or ["no output"])[0]
-                raise RuntimeError(f"{Path(compiler).name} {flags} failed: {first}")
+                cause = compiler_error(done.stderr)
+                raise RuntimeError(f"{Path(compiler).name} {flags} failed: {cause}")
 
         atomic_write(path, compile_to, durable=False)
     STATS.compiled += 1
@@ -166,10 +213,19 @@ def compile_function(function: ca.Function, flags: str = DEFAULT_FLAGS) -> ca.Fu
         raise RuntimeError(f"no C compiler ({os.environ.get('CC') or 'cc'} not found)")
     start = time.perf_counter()
     try:
+        function = exported(function)
         code = generate_c(function)
+        if "#error" in code:  # e.g. LAPACK's LU: CasADi writes an #error, not C for it
+            cause = next(line for line in code.splitlines() if "#error" in line).strip()
+            raise RuntimeError(f"CasADi cannot generate C for it: {cause}")
         path = library_path(code, flags, compiler, function.name())
         if not path.exists():
-            build_library(code, flags, compiler, path)
+            with file_lock(path.with_suffix(".lock")):  # one process compiles, others wait
+                if not path.exists():
+                    build_library(code, flags, compiler, path)
+                    trim_cache(keep=path)
+        with contextlib.suppress(OSError):
+            os.utime(path)  # last use, for trim_cache
         # finite differences where a CasADi solver needs derivatives (Newton in CVODES)
         loaded = ca.external(function.name(), str(path), {"enable_fd": True})
         STATS.loaded += 1
@@ -223,6 +279,49 @@ class Compiler:
             return None
 
 
+DEFAULT_CACHE_LIMIT_MB = 2048
+
+
+def cache_limit_bytes() -> int:
+    """The compile cache's size limit: ``$WORKBENCH_CACHE_LIMIT_MB`` (default 2048 MB)."""
+    text = os.environ.get("WORKBENCH_CACHE_LIMIT_MB", "")
+    try:
+        megabytes = float(text) if text else DEFAULT_CACHE_LIMIT_MB
+    except ValueError:
+        megabytes = DEFAULT_CACHE_LIMIT_MB
+    return int(max(megabytes, 0.0) * 2**20)
+
+
+def trim_cache(keep: Path | None = None, limit: int | None = None) -> int:
+    """Remove the least recently used libraries until the cache fits its limit (the one
+    just built, ``keep``, stays); returns how many were removed. A process that still has
+    a removed library loaded keeps it: unlinking does not unmap."""
+    limit = cache_limit_bytes() if limit is None else limit
+    entries = []
+    for path in cache_dir().glob("*.so"):
+        with contextlib.suppress(FileNotFoundError):
+            entries.append((path.stat().st_mtime, path.stat().st_size, path))
+    total = sum(size for _, size, _ in entries)
+    removed = 0
+    for _, size, path in sorted(entries):
+        if total <= limit:
+            break
+        if path == keep:
+            continue
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+            path.with_suffix(".lock").unlink(missing_ok=True)
+            removed += 1
+        total -= size
+    return removed
+
+
+def cache_size() -> tuple[int, int]:
+    """(libraries, bytes) in the compile cache."""
+    sizes = [path.stat().st_size for path in cache_dir().glob("*.so")]
+    return len(sizes), sum(sizes)
+
+
 def clear_cache() -> int:
     """Remove every cached library; returns how many were removed."""
     removed = 0
@@ -230,4 +329,5 @@ def clear_cache() -> int:
         with contextlib.suppress(FileNotFoundError):
             path.unlink()
             removed += 1
+        path.with_suffix(".lock").unlink(missing_ok=True)
     return removed

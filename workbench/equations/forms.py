@@ -90,9 +90,9 @@ def _augmented_acceleration(
     symbols = (t, q, v)
     jacobian = None
     if nv + nc > SYMBOLIC_SOLVE_LIMIT or isinstance(q, ca.MX):
-        # M alone is symmetric positive definite: CasADi's sparse LDL^T, which (unlike
-        # LAPACK's LU) can be compiled to C (compile=jit)
-        method = "ldl" if nc == 0 else "lapacklu"
+        # M alone is symmetric positive definite: CasADi's sparse LDL^T; the indefinite KKT
+        # matrix: CasADi's sparse QR. Both (unlike LAPACK's LU) can be compiled to C.
+        method = "ldl" if nc == 0 else "qr"
         if isinstance(q, ca.SX):
             s = ca.SX.sym("s", nv + nc)
             residual = ca.mtimes(kkt, s) - rhs

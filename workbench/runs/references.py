@@ -41,7 +41,7 @@ import json
 import math
 import time
 import tomllib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata, resources
 from pathlib import Path
@@ -52,7 +52,7 @@ import pandas as pd
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import ConfigError, IntegrationError, WorkbenchError
-from workbench.files import atomic_write
+from workbench.files import atomic_write, file_lock
 from workbench.numerics.geometry import length_scale, rotation_angle
 from workbench.plugin import registry
 from workbench.plugin.options import options_dict
@@ -558,23 +558,6 @@ def reference_hash(key: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-@contextlib.contextmanager
-def _file_lock(path: Path) -> Iterator[None]:
-    """An exclusive advisory lock (released by the OS if the holder dies)."""
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock, at worst the reference is computed twice
-        yield
-        return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
-
-
 def _poses_to_frame(times: np.ndarray, poses: np.ndarray, bodies: list[str]) -> pd.DataFrame:
     n_times, n_bodies, _ = poses.shape
     frame = pd.DataFrame(poses.reshape(n_times * n_bodies, 7), columns=POSE_COLUMNS)
@@ -619,7 +602,7 @@ def computed_reference(
     if reference_dir is not None:
         path = Path(reference_dir) / f"{problem_name}-{digest}.parquet"
     started = time.perf_counter()
-    lock = _file_lock(path.with_suffix(".lock")) if path else contextlib.nullcontext()
+    lock = file_lock(path.with_suffix(".lock")) if path else contextlib.nullcontext()
     with lock:
         if path is not None and path.exists():
             try:
