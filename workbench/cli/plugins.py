@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import app, console, option_value
+from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
 from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
@@ -79,11 +80,13 @@ def describe(
         list[str] | None,
         typer.Option("-o", "--option", help="A problem's option NAME=VALUE (e.g. -o n=40)."),
     ] = None,
+    package_path: Annotated[list[str] | None, PACKAGE_PATH_OPTION] = None,
+    allow_root: Annotated[list[str] | None, ALLOW_ROOT_OPTION] = None,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
     from workbench.plugin.robot_problem import robot_file_problem
 
-    name, option = robot_file_problem(name, option or [])
+    name, option = robot_file_problem(name, option or [], package_path, allow_root)
     kind, plugin = registry.any_plugin(name)
     options = _problem_options(name, kind, option)
     out = console()

@@ -150,6 +150,19 @@ class FileRoots:
             )
         return self.regular_file(real, reference, where, what)
 
+    def check_folder(self, reference: str, where: str, what: str, bases: Iterable[Path]) -> None:
+        """Refuse (ModelError) a folder ``reference`` (e.g. MJCF ``meshdir``) that leads
+        outside the robot's folder and ``allow_roots`` from any of ``bases``."""
+        text = os.path.expanduser(reference.strip())
+        for candidate in [Path(text)] if os.path.isabs(text) else [b / text for b in bases]:
+            real = _real(candidate)
+            if not (_inside(real, self.folder) or any(_inside(real, a) for a in self.allow_roots)):
+                raise ModelError(
+                    f"{where}: {what} {reference!r} leads to {real}, outside {self.folder}; a "
+                    "robot file reads only files in its own folder; if you trust the file, "
+                    f"allow that folder with --allow-root {real}"
+                )
+
     def where_looked(self, reference: str) -> str:
         """Where :meth:`resolve` looked for ``reference``, for a "not found" message."""
         if reference.strip().lower().startswith("package://"):
