@@ -33,7 +33,8 @@ def ascii_stl(name: str) -> str:
 
 
 def obj_mesh() -> str:
-    return f"# {SECRET}\nv 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+    vertices = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\n"
+    return f"# {SECRET}\n{vertices}f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
 
 
 @pytest.fixture
