@@ -251,7 +251,7 @@ def robot_model(name: str) -> tuple[Model, Any]:
     relative, options = ROBOTS[name]
     share = metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")
     path = Path(share) / "example-robot-data" / "robots" / relative
-    imported = load_urdf(path, **options)
+    imported = load_urdf(path, package_path=[share], **options)
     if options.get("floating_base"):
         return imported.model, pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
     return imported.model, pin.buildModelFromUrdf(str(path))

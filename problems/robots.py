@@ -42,6 +42,11 @@ except metadata.PackageNotFoundError:
     ) from None
 
 
+PACKAGE_ROOT = _ROBOTS.parents[1]
+"""The folder holding the package ``example-robot-data`` that its URDFs' meshes name
+(``package://example-robot-data/robots/...``): a package root the catalog names."""
+
+
 def example_robot_file(relative: str) -> Path:
     """A URDF shipped by example-robot-data, found through the installed distribution."""
     return _ROBOTS / relative
@@ -53,7 +58,9 @@ class _UrdfRobot(Problem):
     n_samples = 51
 
     def model(self) -> Model:
-        model = load_urdf(example_robot_file(self.file), **self.import_options).model
+        model = load_urdf(
+            example_robot_file(self.file), package_path=[PACKAGE_ROOT], **self.import_options
+        ).model
         model.name = self.name
         return model
 

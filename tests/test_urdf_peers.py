@@ -12,6 +12,7 @@ checked against Pinocchio here.
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,7 +41,9 @@ RELATIVE = 1e-9
 def imported(robot: str, torques: bool = True):
     """The imported robot, with a constant random torque on every actuated joint."""
     relative, options = ROBOTS[robot]
-    result = load_urdf(example_robot(relative), **options)
+    path = example_robot(relative)
+    share = path.parents[len(Path(relative).parts) + 1]  # holds the package the meshes name
+    result = load_urdf(path, package_path=[share], **options)
     if torques:
         rng = np.random.default_rng(5)
         for joint in result.model.tree_joints:

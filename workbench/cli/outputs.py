@@ -54,14 +54,36 @@ def report(
     typer.echo(f"report: {index}")
 
 
+LOCAL_ONLY = "127.0.0.1"
+"""Where ``workbench view --web`` listens unless told otherwise (Rerun's own default is
+0.0.0.0, every network the machine is on)."""
+
+
 @app.command("view")
 def view(
     path: Annotated[
         str,
         typer.Argument(help="A Rerun recording (.rrd) or a directory with recording.rrd."),
     ] = "recording.rrd",
+    web: Annotated[
+        bool, typer.Option("--web", help="Serve the recording to a browser (rerun --serve-web).")
+    ] = False,
+    bind: Annotated[
+        str,
+        typer.Option(
+            "--bind", help="With --web: the address to listen on (0.0.0.0: every network)."
+        ),
+    ] = LOCAL_ONLY,
+    web_port: Annotated[int, typer.Option("--web-port", help="With --web: its HTTP port.")] = 9090,
+    grpc_port: Annotated[
+        int, typer.Option("--grpc-port", help="With --web: its gRPC port.")
+    ] = 9876,
 ) -> None:
-    """Open a Rerun recording in the Rerun viewer (or say how, when there is no display)."""
+    """Open a Rerun recording in the Rerun viewer (or say how, when there is no display).
+
+    With --web it is served to a browser on this machine only (127.0.0.1) unless --bind
+    names another address: a recording is data a network should not read by default.
+    """
     import os
     import shlex
     import shutil
@@ -81,12 +103,18 @@ def view(
         )
     viewer = rerun_command(shutil.which)
     rerun = shlex.join(viewer)
+    if web:
+        served = [*viewer, "--serve-web", "--bind", bind, "--web-viewer-port", str(web_port)]
+        typer.echo(f"serving {recording} to a browser on {bind} (Ctrl-C stops it)")
+        subprocess.run([*served, "--port", str(grpc_port), str(recording)], check=False)
+        return
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         typer.echo(
             f"no display (DISPLAY / WAYLAND_DISPLAY unset); to look at {recording}:\n"
             f"  on a machine with a display:  {rerun} {shlex.quote(str(recording))}\n"
-            f"  in a browser:  {rerun} --serve-web {shlex.quote(str(recording))}  "
-            "(then open the printed URL; forward its ports over ssh if remote)"
+            f"  in a browser:  workbench view --web {shlex.quote(str(recording))}  "
+            f"(= {rerun} --serve-web --bind {LOCAL_ONLY}; open the printed URL, forward its "
+            "ports over ssh if remote)"
         )
         return
     try:

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import app, console, option_value
+from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
 from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
@@ -79,11 +80,13 @@ def describe(
         list[str] | None,
         typer.Option("-o", "--option", help="A problem's option NAME=VALUE (e.g. -o n=40)."),
     ] = None,
+    package_path: Annotated[list[str] | None, PACKAGE_PATH_OPTION] = None,
+    allow_root: Annotated[list[str] | None, ALLOW_ROOT_OPTION] = None,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
     from workbench.plugin.robot_problem import robot_file_problem
 
-    name, option = robot_file_problem(name, option or [])
+    name, option = robot_file_problem(name, option or [], package_path, allow_root)
     kind, plugin = registry.any_plugin(name)
     options = _problem_options(name, kind, option)
     out = console()
@@ -137,8 +140,8 @@ def _problem_table(problem: Any) -> Table:
     table.add_column("property", no_wrap=True)
     table.add_column("value")
     table.add_row("kind", model.kind)
-    table.add_row("bodies", f"{len(model.bodies)}: {', '.join(model.bodies)}")
-    table.add_row("joints", f"{len(model.joints)}: {', '.join(model.joints)}")
+    table.add_row("bodies", f"{len(model.bodies)}: {_first_names(model.bodies)}")
+    table.add_row("joints", f"{len(model.joints)}: {_first_names(model.joints)}")
     for label, value in _topology_rows(problem, model):
         table.add_row(label, value)
     invariants = (["energy"] if problem.conservative else []) + [
@@ -162,8 +165,15 @@ def _parameters_table(problem: Any) -> Table:
     table = Table(title="parameters (SI units)", title_justify="left")
     for column in ("element", "quantity", "value"):
         table.add_column(column)
-    for row in model_parameters(problem.model()):
-        table.add_row(*row)
+    rows = model_parameters(problem.model())
+    elements = list(dict.fromkeys(element for element, _, _ in rows))
+    shown = set(elements[:LISTED])
+    for row in rows:
+        if row[0] in shown:
+            table.add_row(*row)
+    if len(elements) > LISTED:  # a 10,000-link robot: 30,000 rows are not read, only printed
+        more = len(elements) - LISTED
+        table.add_row("...", f"{more} more elements", "not listed (the first ones are above)")
     for label, values in (
         ("initial joint coordinates", problem.initial_joint_coordinates()),
         ("initial joint velocities", problem.initial_joint_velocities()),
@@ -171,6 +181,16 @@ def _parameters_table(problem: Any) -> Table:
         text = ", ".join(f"{joint} = {_values(value)}" for joint, value in values.items())
         table.add_row("initial state", label, text or "neutral / at rest")
     return table
+
+
+LISTED = 100
+"""Elements listed by name in ``describe`` (a 10,000-link chain is described in seconds)."""
+
+
+def _first_names(names: Any) -> str:
+    names = list(names)
+    listed = ", ".join(names[:LISTED])
+    return listed + (f", ... ({len(names) - LISTED} more)" if len(names) > LISTED else "")
 
 
 def _values(value: Any) -> str:

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import app, console, option_value
+from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields
 from workbench.runs.timing import (
@@ -92,6 +93,8 @@ def run(
             "--repeat-budget", help="Seconds of integration the samples may take together."
         ),
     ] = DEFAULT_REPEAT_BUDGET,
+    package_path: Annotated[list[str] | None, PACKAGE_PATH_OPTION] = None,
+    allow_root: Annotated[list[str] | None, ALLOW_ROOT_OPTION] = None,
 ) -> None:
     """Run one problem with one formalism and integrator and print its metrics.
 
@@ -114,7 +117,7 @@ def run(
     )
     from workbench.plugin.robot_problem import robot_file_problem
 
-    problem, option = robot_file_problem(problem, option or [])
+    problem, option = robot_file_problem(problem, option or [], package_path, allow_root)
     classes = {
         "problem": registry.get_problem(problem),
         "formalism": registry.get_formalism(formalism),

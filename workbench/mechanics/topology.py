@@ -35,6 +35,7 @@ import numpy as np
 from workbench.errors import ModelError
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import (
+    JointLayout,
     TreeKinematics,
     initial_joint_values,
     normalize_quaternions,
@@ -213,7 +214,9 @@ class RankConfiguration:
     assembled: bool
 
 
-def reference_configuration(model: Model, kinematics: TreeKinematics) -> np.ndarray:
+def reference_configuration(
+    model: Model, kinematics: TreeKinematics | JointLayout
+) -> np.ndarray:
     """The model's ``initial_configuration`` as tree coordinates (nq), neutral where a
     joint is not given, unit quaternions."""
     q = initial_joint_values(model, kinematics, model.initial_configuration, velocities=False)
@@ -282,6 +285,15 @@ def independent_rows_at(
 def _rank(
     model: Model, topology: Topology, q: np.ndarray | None, t: float, tolerance: float
 ) -> None:
+    if q is None and not model.cut_joints and not model.nonholonomic:
+        # a tree without constraint rows: W is empty (rank 0) wherever it is taken, so
+        # no symbolic kinematics is needed (they cost minutes on a 10,000-link chain)
+        topology.rank, topology.dof = 0, topology.dof_gruebler
+        topology.constraint_names, topology.redundant_constraints = [], []
+        topology.redundant_elements = []
+        topology.configuration = reference_configuration(model, JointLayout(model))
+        topology.assembled = True
+        return
     kinematics = TreeKinematics(model)
     w_function = kinematics.function("W", [kinematics.velocity_constraint_matrix], with_v=False)
 

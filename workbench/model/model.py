@@ -154,9 +154,10 @@ class Model:
             raise ModelError(f"model {self.name!r}: every element needs a non-empty name")
         if name == GROUND:
             raise ModelError(f"model {self.name!r}: {GROUND!r} is reserved for the inertial frame")
-        taken = set(self.bodies) | set(self.joints)
-        taken |= {f.name for f in self.forces} | {c.name for c in self.nonholonomic}
-        if name in taken:
+        # dictionary look-ups first: building a 10,000-link chain stays O(n)
+        taken = name in self.bodies or name in self.joints
+        taken = taken or any(f.name == name for f in self.forces)
+        if taken or any(c.name == name for c in self.nonholonomic):
             raise ModelError(
                 f"model {self.name!r}: duplicate name {name!r}; give every body, joint, "
                 "force and constraint its own name"

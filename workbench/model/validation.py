@@ -464,7 +464,13 @@ def _check_nonholonomic(model: Model, constraint: Any) -> None:
 
 
 def _check_tree(model: Model) -> None:
-    """Every body is the child of exactly one tree joint and reaches the ground."""
+    """Every body is the child of exactly one tree joint and reaches the ground.
+
+    O(n): each body's walk towards the ground stops at the first body already known to
+    reach it, so every tree joint is followed once (a serial chain of 10,000 links is
+    checked in milliseconds; walking every body to the ground was O(n^2), O(n^3) with the
+    loop test on a list).
+    """
     parent_joint: dict[str, Joint] = {}
     for joint in model.tree_joints:
         earlier = parent_joint.get(joint.child)
@@ -475,10 +481,12 @@ def _check_tree(model: Model) -> None:
                 f"so mark one of them as loop-closing (cut=True)"
             )
         parent_joint[joint.child] = joint
+    grounded: set[str] = {GROUND}
     for name in model.bodies:
         chain = [name]
+        on_chain = {name}
         body = name
-        while body != GROUND:
+        while body not in grounded:
             joint = parent_joint.get(body)
             if joint is None:
                 unattached = f" ({body!r} has no tree joint)" if body != name else ""
@@ -489,7 +497,7 @@ def _check_tree(model: Model) -> None:
                     "body; cut joints do not count)"
                 )
             body = joint.parent
-            if body in chain:
+            if body in on_chain:
                 loop = " -> ".join(_quoted(chain + [body]))
                 raise ModelError(
                     f"model {model.name!r}, body {name!r}: its tree joints form a closed "
@@ -497,6 +505,8 @@ def _check_tree(model: Model) -> None:
                     "loop as cut=True and attach the loop to the ground"
                 )
             chain.append(body)
+            on_chain.add(body)
+        grounded.update(chain)
 
 
 def _quoted(names: Iterable[str]) -> list[str]:

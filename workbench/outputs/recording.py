@@ -31,6 +31,7 @@ recording stream a run leaks memory in rerun-sdk (docs/performance.md has the fi
 
 from __future__ import annotations
 
+import io
 import json
 import re
 import uuid
@@ -137,6 +138,8 @@ class RerunSink:
         self._file = Path()  # the file of begin_file
         self._stream: Any = None  # its binary stream, until end_file
         self._geometry_cache: dict[str, list[tuple[str, list[Any]]]] = {}
+        self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
+        self.run_warnings: list[str] = []  # of the last run logged (for its row)
         self._batches_cache: dict[str, list[tuple[str, list[Any]]]] = {}
 
     # -- logging --------------------------------------------------------------------------
@@ -163,7 +166,9 @@ class RerunSink:
         model = equations.model
         self.recording.log(entity_path("runs", parts[1]), view_coordinates(model), static=True)
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
-        self._log_geometry(path, model, f"{spec.problem} {options} {model.name}")
+        key = f"{spec.problem} {options} {model.name}"
+        self._log_geometry(path, model, key)
+        self.run_warnings = list(self._geometry_warnings.get(key, []))
         self._log_poses(path, equations, trajectory)
         self._log_series(path, series, label, run_id)
         return path
@@ -187,13 +192,17 @@ class RerunSink:
         if key in self._geometry_cache:
             return self._geometry_cache[key]
         entries: list[tuple[str, list[Any]]] = []
+        warnings: list[str] = self._geometry_warnings.setdefault(key, [])
         for name, body in model.bodies.items():
             body_path = entity_path("bodies", name)
             for kind, archetype in _shape_archetypes(body.shapes).items():
                 entries.append((f"{body_path}/{SHAPE_ENTITIES[kind]}", [archetype]))
             meshes = [shape for shape in body.shapes if shape.kind == "mesh"]
             for index, shape in enumerate(meshes):  # a robot file's visual meshes
-                entries.append((f"{body_path}/meshes/{index}", _mesh_archetypes(shape)))
+                archetypes, warning = _mesh_archetypes(shape)
+                entries.append((f"{body_path}/meshes/{index}", archetypes))
+                if warning:
+                    warnings.append(f"body {name!r}: {warning}")
         axis_length = 0.3 * _model_scale(model)
         for joint in model.joints.values():
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
@@ -407,19 +416,41 @@ def _model_scale(model: Any) -> float:
     return scale if scale > 0 else 1.0
 
 
-def _mesh_archetypes(shape: Any) -> list[Any]:
-    """A mesh file at its frame, scaled: Rerun reads glTF, GLB, OBJ and STL itself
-    (Asset3D); other formats (COLLADA .dae of many URDFs) go through trimesh (Mesh3D)."""
+PLACEHOLDER_HALF_SIZE = 0.05
+"""Half the edge (m) of the box drawn where a mesh file cannot be read."""
+
+
+def _mesh_archetypes(shape: Any) -> tuple[list[Any], str]:
+    """(archetypes, warning) of a mesh file at its frame, scaled: Rerun reads glTF, GLB,
+    OBJ and STL itself (Asset3D); other formats (COLLADA .dae of many URDFs) go through
+    trimesh (Mesh3D). The file is read once, as a regular file (the importer checked where
+    it is), and parsed by trimesh; a file that cannot be read or holds no triangles is a
+    red placeholder box and a one-line warning, never a failed run (the dynamics do not
+    depend on it)."""
     import rerun as rr
+    import trimesh
+
+    from workbench.errors import one_line
+    from workbench.model.importers.file_roots import read_regular_file
 
     place = rr.Transform3D(
         translation=shape.frame.position, mat3x3=shape.frame.rotation @ np.diag(shape.size)
     )
-    if Path(shape.path).suffix.lower() in (".glb", ".gltf", ".obj", ".stl"):
-        return [place, rr.Asset3D(path=shape.path)]
-    import trimesh
-
-    mesh = trimesh.load(shape.path, force="mesh")
+    suffix = Path(shape.path).suffix.lower()
+    try:
+        data = read_regular_file(shape.path)
+        mesh = trimesh.load(io.BytesIO(data), file_type=suffix.lstrip("."), force="mesh")
+        if len(getattr(mesh, "faces", ())) == 0:
+            raise ValueError("no triangles in it")
+    except Exception as error:  # noqa: BLE001 - any reader's failure: a placeholder
+        placeholder = [
+            rr.Transform3D(translation=shape.frame.position, mat3x3=shape.frame.rotation),
+            rr.Boxes3D(half_sizes=[[PLACEHOLDER_HALF_SIZE] * 3], colors=[(220, 60, 60)]),
+        ]
+        return placeholder, f"mesh {shape.path} cannot be read ({one_line(error)}): drawn as a box"
+    if suffix in (".glb", ".gltf", ".obj", ".stl"):
+        media_type = rr.components.MediaType.guess_from_path(shape.path)
+        return [place, rr.Asset3D(contents=data, media_type=media_type)], ""
     return [
         place,
         rr.Mesh3D(
@@ -428,7 +459,7 @@ def _mesh_archetypes(shape: Any) -> list[Any]:
             vertex_normals=np.asarray(mesh.vertex_normals, dtype=np.float32),
             albedo_factor=tuple(shape.color),
         ),
-    ]
+    ], ""
 
 
 def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:

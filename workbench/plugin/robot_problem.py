@@ -20,6 +20,7 @@ from typing import Any, Literal
 from workbench.errors import ConfigError
 from workbench.model import JointSpringDamper, Model
 from workbench.model.importers import ImportedRobot, load_robot, robot_format
+from workbench.model.importers.file_roots import DEFAULT_MAX_MB
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import problem
 
@@ -37,8 +38,18 @@ class RobotOptions:
     floating_base: bool = False  # URDF: a free joint under the root link
     mimic: Literal["error", "independent"] = "error"  # URDF mimic joints
     keyframe: int = 0  # MJCF: the keyframe of the initial state, if the file has one
+    package_path: tuple[str, ...] = ()  # folders holding the packages package:// names
+    allow_roots: tuple[str, ...] = ()  # folders outside the file's own it may read
+    max_file_mb: float = DEFAULT_MAX_MB  # the largest file it may make the workbench read
 
     def __post_init__(self) -> None:
+        for name in ("package_path", "allow_roots"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not all(isinstance(p, str) and p for p in value):
+                raise ConfigError(f"option {name} must be a list of folders, not {value!r}")
+            object.__setattr__(self, name, tuple(value))
+        if not self.max_file_mb > 0:
+            raise ConfigError(f"max_file_mb must be > 0 MB, not {self.max_file_mb}")
         if not self.file:
             raise ConfigError("option 'file' is required: the path of a .urdf or MJCF .xml file")
         if robot_format(self.file) is None:
@@ -50,10 +61,14 @@ class RobotOptions:
 
 
 @functools.cache
-def _imported(file: str, floating_base: bool, mimic: str, keyframe: int) -> ImportedRobot:
+def _imported(
+    file: str, floating_base: bool, mimic: str, keyframe: int, roots: tuple[Any, ...]
+) -> ImportedRobot:
+    package_path, allow_roots, max_file_mb = roots
+    where = {"package_path": package_path, "allow_roots": allow_roots, "max_file_mb": max_file_mb}
     if robot_format(file) == "urdf":
-        return load_robot(file, floating_base=floating_base, mimic=mimic)
-    return load_robot(file, keyframe=keyframe)
+        return load_robot(file, floating_base=floating_base, mimic=mimic, **where)
+    return load_robot(file, keyframe=keyframe, **where)
 
 
 @problem
@@ -71,7 +86,8 @@ class RobotProblem(Problem):
 
     def imported(self) -> ImportedRobot:
         o = self.options
-        return _imported(o.file, o.floating_base, o.mimic, o.keyframe)
+        roots = (o.package_path, o.allow_roots, o.max_file_mb)
+        return _imported(o.file, o.floating_base, o.mimic, o.keyframe, roots)
 
     def model(self) -> Model:
         model = copy.deepcopy(self.imported().model)
@@ -179,19 +195,48 @@ def robot_entries(problems: Any, base: Path, fail: Any) -> Any:
         except ConfigError as error:
             raise fail(key, str(error)) from None
         options.update({k: v for k, v in item.items() if k != keys[0]})
+        for name in FOLDER_OPTIONS:  # folders relative to the specification; one value
+            if name in options:  # (a list here is not a grid of runs)
+                folders = options[name]
+                if not isinstance(folders, list) or not all(isinstance(f, str) for f in folders):
+                    raise fail(f"problems[{index}].{name}", "must be a list of folders")
+                options[name] = [[_folder(folder, base) for folder in folders]]
         entries.append({"name": ROBOT_PROBLEM, "options": options})
     return entries
 
 
-def robot_file_problem(problem: str, option: list[str]) -> tuple[str, list[str]]:
+FOLDER_OPTIONS = ("package_path", "allow_roots")
+
+
+def _folder(path: str | Path, base: Path | None = None) -> str:
+    """A folder named by the user, absolute (relative to ``base``, default the working
+    directory), so a run's options name it wherever the run executes."""
+    return str((Path(base or Path.cwd()) / Path(path).expanduser()).resolve())
+
+
+def robot_file_problem(
+    problem: str,
+    option: list[str],
+    package_path: list[str] | None = None,
+    allow_roots: list[str] | None = None,
+) -> tuple[str, list[str]]:
     """A robot file named where a problem is (``workbench run/describe robot.urdf``) -> the
-    "robot" problem and its ``-o problem.file=...`` first among the ``-o`` options."""
+    "robot" problem and its ``-o problem.file=...`` first among the ``-o`` options, with
+    ``--package-path`` and ``--allow-root`` folders (absolute) as its options."""
     import json
 
     if robot_format(problem) is None:
+        if package_path or allow_roots:
+            raise ConfigError(
+                f"--package-path and --allow-root are for robot files; {problem!r} is not one"
+            )
         return problem, option
     path = robot_problem_options(problem)["file"]
-    return ROBOT_PROBLEM, [f"problem.file={json.dumps(path)}", *option]
+    given = [f"problem.file={json.dumps(path)}"]
+    for name, folders in (("package_path", package_path), ("allow_roots", allow_roots)):
+        if folders:
+            given.append(f"problem.{name}={json.dumps([_folder(f) for f in folders])}")
+    return ROBOT_PROBLEM, [*given, *option]
 
 
 __all__ = [

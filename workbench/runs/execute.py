@@ -415,6 +415,10 @@ def execute_run(
                 if sink is not None:
                     stages.start("log")
                     sink.log_run(spec, equations, problem, trajectory, series)
+                    logged = getattr(sink, "run_warnings", [])  # e.g. a mesh it could not draw
+                    if logged:
+                        found = "; ".join(filter(None, [row.get("warnings", ""), *logged]))
+                        row["warnings"] = one_line_text(found)
                     stages.stop()
     except Exception as error:  # noqa: BLE001 - a failing plugin is a result, not a crash
         stages.stop()

@@ -26,6 +26,7 @@ resolves them.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -34,20 +35,36 @@ import numpy as np
 from workbench.errors import ModelError
 from workbench.model.elements import GROUND, Frame, JointSpringDamper, Shape
 from workbench.model.importers.common import ImportedRobot, RigidInertia, frame_of, moved_inertia
+from workbench.model.importers.file_roots import DEFAULT_MAX_MB, FileRoots
+from workbench.model.importers.mjcf_source import check_mjcf_source
 from workbench.model.model import Model
 
 TYPES = {0: "free", 1: "spherical", 2: "prismatic", 3: "revolute"}  # mjtJoint
 MJCF_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
 
 
-def load_mjcf(path: str | os.PathLike[str], keyframe: int | None = 0) -> ImportedRobot:
+def load_mjcf(
+    path: str | os.PathLike[str],
+    keyframe: int | None = 0,
+    package_path: Iterable[str | os.PathLike[str]] = (),
+    allow_roots: Iterable[str | os.PathLike[str]] = (),
+    max_file_mb: float = DEFAULT_MAX_MB,
+) -> ImportedRobot:
     """Read the MJCF file at ``path`` into an :class:`ImportedRobot`; ``keyframe``: the
-    index of the keyframe giving the initial state (None: start at qpos0)."""
+    index of the keyframe giving the initial state (None: start at qpos0).
+
+    Before MuJoCo compiles it, the XML (and every file it includes) is checked: the files
+    it names stay inside its folder or ``allow_roots`` (``package_path`` is accepted for
+    symmetry with URDF: MJCF has no package:// references), each at most ``max_file_mb``,
+    and its numbers are finite (:mod:`workbench.model.importers.mjcf_source`)."""
     import mujoco
 
     path = Path(path)
     if not path.is_file():
         raise ModelError(f"{path}: no such file; give the path of an MJCF .xml file")
+    roots = FileRoots.of(path, package_path, allow_roots, max_file_mb)
+    roots.regular_file(Path(os.path.realpath(path)), str(path), str(path), "robot file")
+    check_mjcf_source(path, roots)
     try:
         compiled = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as error:  # MuJoCo's compiler names the element and line

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -43,6 +44,7 @@ from workbench.model.importers.common import (
     frame_of,
     moved_inertia,
 )
+from workbench.model.importers.file_roots import DEFAULT_MAX_MB, FileRoots
 from workbench.model.model import Model
 
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -155,6 +157,9 @@ def load_urdf(
     mimic: Literal["error", "independent"] = "error",
     meshes: bool = True,
     gravity: Any = None,
+    package_path: Iterable[str | os.PathLike[str]] = (),
+    allow_roots: Iterable[str | os.PathLike[str]] = (),
+    max_file_mb: float = DEFAULT_MAX_MB,
 ) -> ImportedRobot:
     """Read the URDF file at ``path`` into an :class:`ImportedRobot`.
 
@@ -162,6 +167,8 @@ def load_urdf(
     fixing it to the ground; ``mimic``: "independent" imports mimic joints as free
     joints (Pinocchio's default), "error" refuses them; ``meshes``: check that every
     visual mesh file exists (False: import without them); ``gravity`` (3,) m/s^2.
+    ``package_path``, ``allow_roots``, ``max_file_mb``: where mesh files may be read
+    from and how large they may be (:mod:`workbench.model.importers.file_roots`).
     """
     import yourdfpy
 
@@ -170,23 +177,31 @@ def load_urdf(
         raise ModelError(f"{path}: no such file; give the path of a .urdf file")
     if mimic not in ("error", "independent"):
         raise ModelError(f"{path}: mimic must be 'error' or 'independent', not {mimic!r}")
+    roots = FileRoots.of(path, package_path, allow_roots, max_file_mb)
+    roots.regular_file(Path(os.path.realpath(path)), str(path), str(path), "robot file")
     source = _Source(path)
     source.check()
     try:
         robot = yourdfpy.URDF.load(
-            str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False
-        ).robot
+            str(path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False,
+            filename_handler=_no_file,
+        ).robot  # fmt: skip
     except Exception as error:  # noqa: BLE001 - yourdfpy raises many kinds; one line here
         raise ModelError(f"{path}: yourdfpy cannot read it: {error}") from None
-    return _Builder(source, robot, floating_base, mimic, meshes, gravity).build()
+    return _Builder(source, robot, floating_base, mimic, meshes, gravity, roots).build()
+
+
+def _no_file(filename: str, **_: Any) -> str:
+    """yourdfpy's file name handler: it resolves nothing (meshes go through FileRoots)."""
+    raise ModelError(f"yourdfpy was asked to open {filename!r}; meshes are read by the workbench")
 
 
 class _Builder:
     def __init__(
         self, source: _Source, robot: Any, floating_base: bool, mimic: str, meshes: bool,
-        gravity: Any,
+        gravity: Any, roots: FileRoots,
     ) -> None:  # fmt: skip
-        self.source, self.robot = source, robot
+        self.source, self.robot, self.roots = source, robot, roots
         self.floating_base, self.mimic, self.check_meshes = floating_base, mimic, meshes
         kwargs = {} if gravity is None else {"gravity": gravity}
         self.model = Model(robot.name or source.path.stem, "spatial", **kwargs)
@@ -278,8 +293,9 @@ class _Builder:
         if self.floating_base:
             self.model.add_joint(self.unique_joint_name("root_joint"), "free", GROUND, root)
             self.imported.file_joint_types["root_joint"] = "floating"
+        joint_to = {joint.child: joint for joint in self.robot.joints}
         for name in order[1:]:
-            joint = next(j for j in self.robot.joints if j.child == name)
+            joint = joint_to[name]
             if joint.type != "fixed":
                 self.add_joint(joint, host)
         try:
@@ -323,24 +339,26 @@ class _Builder:
     def add_visuals(
         self, link: Any, body: str, placement: np.ndarray, shapes: dict[str, list[Shape]]
     ) -> None:
-        import yourdfpy
-
         for visual in link.visuals:
             frame = frame_of(placement @ _origin(visual.origin))
             geometry = visual.geometry
             if geometry is None:
                 continue
             if geometry.mesh is not None:
-                directory = str(self.source.path.parent)
-                resolved = Path(yourdfpy.filename_handler_magic(geometry.mesh.filename, directory))
-                if not resolved.is_file():
+                where = self.source.where("link", link.name)
+                filename = geometry.mesh.filename
+                try:
+                    resolved = self.roots.resolve(filename, where)
+                except ModelError:
+                    if not self.check_meshes:
+                        continue
+                    raise
+                if resolved is None:
                     if not self.check_meshes:
                         continue
                     raise ModelError(
-                        f"{self.source.where('link', link.name)}: mesh "
-                        f"{geometry.mesh.filename!r} not found (looked beside the file and in "
-                        "the folders above it); install the robot's meshes, or import with "
-                        "meshes=False"
+                        f"{where}: mesh {filename!r} not found ({self.roots.where_looked(filename)}"
+                        "); install the robot's meshes, or import with meshes=False"
                     )
                 scale = np.broadcast_to(
                     np.asarray(1.0 if geometry.mesh.scale is None else geometry.mesh.scale), 3

@@ -11,6 +11,7 @@ a ``table`` float with a caption and a label.
 
 from __future__ import annotations
 
+import html
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -126,11 +127,16 @@ def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], li
 
 
 def markdown_table(table: pd.DataFrame, index: bool = False) -> str:
-    """A GitHub-flavoured Markdown pipe table (pipes in cells escaped)."""
+    """A GitHub-flavoured Markdown pipe table (pipes in cells escaped, and HTML: Markdown
+    passes raw HTML through, so a plugin named ``<img onerror=...>`` would be markup in
+    a rendered table; &, < and > become entities, as in the HTML report)."""
     head, rows = table_cells(table, index)
 
+    def cell(text: str) -> str:
+        return html.escape(text, quote=False).replace("|", "\\|").replace("\n", " ")
+
     def line(cells: list[str]) -> str:
-        return "| " + " | ".join(c.replace("|", "\\|").replace("\n", " ") for c in cells) + " |"
+        return "| " + " | ".join(cell(c) for c in cells) + " |"
 
     return (
         "\n".join(
