@@ -60,6 +60,7 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
 
 @app.command()
 def run(
+    ctx: typer.Context,
     problem: Annotated[
         str, typer.Argument(help="Problem name (`workbench list problems`) or a .urdf/.xml file.")
     ],
@@ -92,6 +93,9 @@ def run(
             "--repeat-budget", help="Seconds of integration the samples may take together."
         ),
     ] = DEFAULT_REPEAT_BUDGET,
+    wait: Annotated[
+        bool, typer.Option("--wait", help="If --out is in use by another command, wait for it.")
+    ] = False,
 ) -> None:
     """Run one problem with one formalism and integrator and print its metrics.
 
@@ -102,6 +106,7 @@ def run(
     from pathlib import Path
 
     from workbench.errors import ConfigError
+    from workbench.files import make_dirs
     from workbench.runs import store
     from workbench.runs.dask_pool import run_in_subprocess
     from workbench.runs.execute import RunSpec, normalized_spec
@@ -135,9 +140,10 @@ def run(
         )
     )
     reference_dir = ""
-    if out:
+    if out:  # one command at a time on OUT (held until the command ends), no link in it
+        hold_out_lock(ctx, out, wait)
+        make_dirs(Path(out) / "references", Path(out))
         reference_dir = str((Path(out) / "references").resolve())
-        os.makedirs(reference_dir, exist_ok=True)
     # the child imports the modules that registered these plugins (built-in or not)
     plugins = sorted({plugin.__module__ for plugin in classes.values()})
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
@@ -161,6 +167,14 @@ def run(
 EXIT_RUN_NOT_OK = 1  # the run was skipped, failed or timed out (2 stays bad input)
 
 
+def hold_out_lock(ctx: typer.Context, out: Any, wait: bool) -> None:
+    """Hold the lock of the output directory ``out`` until the command of ``ctx`` ends
+    (:func:`workbench.runs.out_lock.out_lock`; click releases it however the command ends)."""
+    from workbench.runs.out_lock import out_lock
+
+    ctx.with_resource(out_lock(out, wait=wait, say=typer.echo))
+
+
 def _cell(value: Any) -> str:
     if isinstance(value, float):
         return "" if value != value else f"{value:.4g}"
@@ -169,6 +183,7 @@ def _cell(value: Any) -> str:
 
 @app.command()
 def sweep(
+    ctx: typer.Context,
     spec: Annotated[
         str | None,
         typer.Argument(
@@ -208,6 +223,10 @@ def sweep(
             "--repeat-budget", help="Seconds of integration a run's samples may take together."
         ),
     ] = None,
+    wait: Annotated[
+        bool,
+        typer.Option("--wait", help="If the output directory is in use, wait for it to be free."),
+    ] = False,
 ) -> None:
     """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
 
@@ -226,6 +245,7 @@ def sweep(
     kinds = parse_rerun(rerun)
     loaded = load_spec(spec)
     _say_on_interrupt(loaded, out)
+    hold_out_lock(ctx, out or loaded.out, wait)  # the report below too
     from workbench.outputs.recording import SweepRecorder
 
     summary = run_sweep(
