@@ -278,9 +278,7 @@ def sweep(
     if summary.unfinished and not store.completed_run_ids(summary.out):
         typer.echo("report: none (no run has a row yet)")
     else:
-        index = report_directory(
-            summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
-        )
+        index = _sweep_report(summary, report_directory)
         typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
@@ -293,6 +291,35 @@ def sweep(
             err=True,
         )
         raise typer.Exit(1)
+
+
+def _sweep_report(summary: Any, report_directory: Any) -> Any:
+    """The sweep's report (its warnings one line each on stderr); a report that cannot be
+    finished (e.g. a figure worker killed twice) is one line and exit 1: the rows are
+    kept and ``workbench report OUT`` rebuilds it."""
+    import warnings
+
+    from workbench.errors import WorkbenchError, one_line
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            index = report_directory(
+                summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
+            )
+        except (WorkbenchError, OSError):
+            raise
+        except Exception as error:  # noqa: BLE001 - the rows stand; the report is a view
+            typer.echo(
+                f"error: the report of {summary.out} is unfinished ({one_line(error)}); "
+                "the rows are kept: rebuild it with "
+                f"`workbench report {summary.out}`",
+                err=True,
+            )
+            raise typer.Exit(1) from None
+    for warning in caught:
+        typer.echo(f"warning: {warning.message}", err=True)
+    return index
 
 
 def _without_rerun(arguments: list[str]) -> list[str]:
