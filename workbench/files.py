@@ -1,42 +1,180 @@
-"""Writing a file atomically: one implementation for every layer (foundation: no imports
-from the workbench).
+"""Writing files safely: one implementation for every layer (foundation: imports only
+workbench.errors).
 
-A reader never sees half a file: the content goes to a temporary file beside the target,
-which is then renamed over it (:func:`os.replace` is atomic within a file system).
-Temporary files are named ``.<name>.<pid>-<random>.tmp``, so a writer killed mid-write
-leaves a hidden ``.tmp`` file that the results store removes on resume.
+A reader never sees half a file: :func:`atomic_write` sends the content to a temporary
+file beside the target, which is then renamed over it (:func:`os.replace` is atomic within
+a file system). Temporary files are named ``.<name>.<pid>-<8 hex digits>.tmp``
+(:data:`TEMPORARY_NAME`), so a writer killed mid-write leaves a hidden ``.tmp`` file that
+the results store removes on resume (:func:`remove_temporaries`, which removes nothing
+else).
+
+Nothing written, replaced or deleted inside an output folder goes through a symbolic link
+(DESIGN.md, "Trust model"): a results folder is data that may come from someone else, and
+a link planted in it (``OUT/logs/.x.raw -> ~/.bashrc``, ``OUT/runs -> /elsewhere``) must not
+make the workbench write outside it. Callers name the folder (``root``); every path below
+it is checked with ``lstat`` (:func:`check_no_links`), files are opened with
+``O_NOFOLLOW`` (:func:`open_no_follow`), and :func:`refuse_links` finds a link anywhere
+under a folder before a command writes into it. A link refused is a
+:class:`LinkRefusedError` (one line, exit 2 at the command line).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from workbench.errors import ConfigError
+
+TEMPORARY_NAME = re.compile(r"^\..+\.\d+-[0-9a-f]{8}\.tmp$")  # what atomic_write creates
+
+
+class LinkRefusedError(ConfigError):
+    """A symbolic link where the workbench writes, replaces or deletes a file."""
+
+
+def _refused(link: Path, root: Path) -> LinkRefusedError:
+    try:
+        target = os.readlink(link)
+    except OSError:
+        target = "?"
+    return LinkRefusedError(
+        f"{link} is a symbolic link (to {target}) inside {root}: the workbench never "
+        "writes, replaces or deletes through a link in an output folder; remove the link "
+        "(it may have come with a results folder from someone else) or choose another "
+        "output folder"
+    )
+
+
+def check_no_links(path: str | os.PathLike[str], root: str | os.PathLike[str]) -> None:
+    """LinkRefusedError if ``path`` or a folder between ``root`` and it is a symbolic link
+    (``root`` itself may be one: the user chose it). ``path`` need not exist yet."""
+    root, path = Path(root), Path(path)
+    try:
+        parts = path.relative_to(root).parts
+    except ValueError:
+        raise LinkRefusedError(f"{path} is not inside the output folder {root}") from None
+    current = root
+    for part in parts:
+        if part == "..":
+            raise LinkRefusedError(f"{path} leaves the output folder {root} ('..')")
+        current = current / part
+        try:
+            if stat.S_ISLNK(os.lstat(current).st_mode):
+                raise _refused(current, root)
+        except FileNotFoundError:
+            return  # the rest does not exist yet: nothing there to follow
+
+
+def make_dirs(directory: str | os.PathLike[str], root: str | os.PathLike[str]) -> None:
+    """Create ``directory`` and the folders between ``root`` and it, none a link."""
+    Path(root).mkdir(parents=True, exist_ok=True)
+    check_no_links(directory, root)
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    check_no_links(directory, root)  # (a folder made meanwhile by another process)
+
+
+def refuse_links(root: str | os.PathLike[str]) -> None:
+    """LinkRefusedError naming the first symbolic link anywhere under ``root`` (not
+    followed; ``root`` itself may be one). A command calls it before writing into a folder
+    that may have come from someone else: the workbench itself never makes links."""
+    root = Path(root)
+    if not root.is_dir():
+        return
+    pending = [root]
+    while pending:
+        with os.scandir(pending.pop()) as entries:
+            for entry in entries:
+                if entry.is_symlink():
+                    raise _refused(Path(entry.path), root)
+                if entry.is_dir(follow_symlinks=False):
+                    pending.append(Path(entry.path))
+
+
+def open_no_follow(
+    path: str | os.PathLike[str], flags: int, root: str | os.PathLike[str], mode: int = 0o644
+) -> int:
+    """``os.open(path, flags | O_NOFOLLOW)`` after :func:`check_no_links` (a link planted as
+    ``path`` itself is refused by the kernel: ELOOP, reported as LinkRefusedError)."""
+    check_no_links(path, root)
+    try:
+        return os.open(path, flags | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
+    except OSError as error:
+        if os.path.islink(path):
+            raise _refused(Path(path), Path(root)) from None
+        raise error
+
+
+def remove_file(path: str | os.PathLike[str], root: str | os.PathLike[str]) -> bool:
+    """Delete the regular file ``path`` below ``root``; a link (or anything else that is
+    not a regular file) is refused. False if there was nothing to delete."""
+    check_no_links(path, root)
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            raise LinkRefusedError(f"{path} is not a regular file: not deleted")
+        os.unlink(path)
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def remove_temporaries(root: str | os.PathLike[str]) -> list[Path]:
+    """Delete the temporary files :func:`atomic_write` left under ``root`` (writers killed
+    mid-write): regular files named as it names them (:data:`TEMPORARY_NAME`), found
+    without entering a linked folder. Returns them."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    removed, pending = [], [root]
+    while pending:
+        with os.scandir(pending.pop()) as entries:
+            for entry in entries:
+                if entry.is_dir(follow_symlinks=False):
+                    pending.append(Path(entry.path))
+                elif entry.is_file(follow_symlinks=False) and TEMPORARY_NAME.match(entry.name):
+                    with contextlib.suppress(FileNotFoundError):
+                        os.unlink(entry.path)
+                    removed.append(Path(entry.path))
+    return removed
+
 
 def atomic_write(
-    path: str | os.PathLike[str], write: Callable[[str], Any], durable: bool = True
+    path: str | os.PathLike[str],
+    write: Callable[[str], Any],
+    durable: bool = True,
+    *,
+    root: str | os.PathLike[str] | None = None,
 ) -> None:
     """Call ``write(temp_name)`` to create a temporary file, then rename it over ``path``.
 
     ``write`` creates the file itself (so it gets the usual permissions, and a compiler
     or a library can write it like any output file). ``durable``: fsync the file before
     the rename, so that after a crash of the machine (not only of the process: a rename
-    alone covers that) the file is whole if present. On any error the temporary file is
-    removed and the error raised (an OSError naming no file, as a full disk's, is raised
-    again naming ``path``); ``path`` is then untouched.
+    alone covers that) the file is whole if present. ``root``: the output folder ``path``
+    is in; no folder between it and ``path``, nor ``path``, may be a symbolic link
+    (:func:`check_no_links`, checked before the write and again before the rename). On
+    any error the temporary file is removed and the error raised (an OSError naming no
+    file, as a full disk's, is raised again naming ``path``); ``path`` is then untouched.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if root is None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    else:
+        make_dirs(path.parent, root)
+        check_no_links(path, root)
     temp_name = str(path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp"))
     try:
         write(temp_name)
         if durable:
             with open(temp_name, "rb+") as written:
                 os.fsync(written.fileno())
+        if root is not None:
+            check_no_links(path, root)
         os.replace(temp_name, path)
     except BaseException as error:
         with contextlib.suppress(FileNotFoundError):
@@ -72,4 +210,17 @@ def file_lock(path: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-__all__ = ["atomic_write", "file_lock", "user_cache_dir"]
+
+__all__ = [
+    "TEMPORARY_NAME",
+    "LinkRefusedError",
+    "atomic_write",
+    "check_no_links",
+    "file_lock",
+    "make_dirs",
+    "open_no_follow",
+    "refuse_links",
+    "remove_file",
+    "remove_temporaries",
+    "user_cache_dir",
+]

@@ -13,6 +13,7 @@ from workbench.cli.app import app
 
 @app.command("report")
 def report(
+    ctx: typer.Context,
     results_path: Annotated[
         str,
         typer.Argument(
@@ -32,6 +33,9 @@ def report(
             "(default), integrate_wall or n_rhs.",
         ),
     ] = None,
+    wait: Annotated[
+        bool, typer.Option("--wait", help="If RESULTS is in use (a sweep), wait for it.")
+    ] = False,
 ) -> None:
     """Write an HTML report (figures, tables as CSV/Markdown/LaTeX) of a results directory."""
     import warnings
@@ -41,6 +45,10 @@ def report(
     from workbench.outputs.report.cost import check_cost
 
     check_cost(cost)  # before anything is read
+    if os.path.isdir(results_path):  # not while a sweep writes it; no link in it
+        from workbench.cli.runs import hold_out_lock
+
+        hold_out_lock(ctx, results_path, wait)
 
     on_interrupt(
         lambda: f"the results in {results_path} are untouched, the report is unfinished; "

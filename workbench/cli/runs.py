@@ -61,6 +61,7 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
 
 @app.command()
 def run(
+    ctx: typer.Context,
     problem: Annotated[
         str, typer.Argument(help="Problem name (`workbench list problems`) or a .urdf/.xml file.")
     ],
@@ -95,6 +96,9 @@ def run(
     ] = DEFAULT_REPEAT_BUDGET,
     package_path: Annotated[list[str] | None, PACKAGE_PATH_OPTION] = None,
     allow_root: Annotated[list[str] | None, ALLOW_ROOT_OPTION] = None,
+    wait: Annotated[
+        bool, typer.Option("--wait", help="If --out is in use by another command, wait for it.")
+    ] = False,
 ) -> None:
     """Run one problem with one formalism and integrator and print its metrics.
 
@@ -105,6 +109,7 @@ def run(
     from pathlib import Path
 
     from workbench.errors import ConfigError
+    from workbench.files import make_dirs
     from workbench.runs import store
     from workbench.runs.dask_pool import run_in_subprocess
     from workbench.runs.execute import RunSpec, normalized_spec
@@ -138,9 +143,10 @@ def run(
         )
     )
     reference_dir = ""
-    if out:
+    if out:  # one command at a time on OUT (held until the command ends), no link in it
+        hold_out_lock(ctx, out, wait)
+        make_dirs(Path(out) / "references", Path(out))
         reference_dir = str((Path(out) / "references").resolve())
-        os.makedirs(reference_dir, exist_ok=True)
     # the child imports the modules that registered these plugins (built-in or not)
     plugins = sorted({plugin.__module__ for plugin in classes.values()})
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
@@ -164,6 +170,14 @@ def run(
 EXIT_RUN_NOT_OK = 1  # the run was skipped, failed or timed out (2 stays bad input)
 
 
+def hold_out_lock(ctx: typer.Context, out: Any, wait: bool) -> None:
+    """Hold the lock of the output directory ``out`` until the command of ``ctx`` ends
+    (:func:`workbench.runs.out_lock.out_lock`; click releases it however the command ends)."""
+    from workbench.runs.out_lock import out_lock
+
+    ctx.with_resource(out_lock(out, wait=wait, say=typer.echo))
+
+
 def _cell(value: Any) -> str:
     if isinstance(value, float):
         return "" if value != value else f"{value:.4g}"
@@ -172,6 +186,7 @@ def _cell(value: Any) -> str:
 
 @app.command()
 def sweep(
+    ctx: typer.Context,
     spec: Annotated[
         str | None,
         typer.Argument(
@@ -211,6 +226,10 @@ def sweep(
             "--repeat-budget", help="Seconds of integration a run's samples may take together."
         ),
     ] = None,
+    wait: Annotated[
+        bool,
+        typer.Option("--wait", help="If the output directory is in use, wait for it to be free."),
+    ] = False,
 ) -> None:
     """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
 
@@ -229,6 +248,7 @@ def sweep(
     kinds = parse_rerun(rerun)
     loaded = load_spec(spec)
     _say_on_interrupt(loaded, out)
+    hold_out_lock(ctx, out or loaded.out, wait)  # the report below too
     from workbench.outputs.recording import SweepRecorder
 
     summary = run_sweep(
@@ -261,9 +281,7 @@ def sweep(
     if summary.unfinished and not store.completed_run_ids(summary.out):
         typer.echo("report: none (no run has a row yet)")
     else:
-        index = report_directory(
-            summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
-        )
+        index = _sweep_report(summary, report_directory)
         typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
@@ -276,6 +294,35 @@ def sweep(
             err=True,
         )
         raise typer.Exit(1)
+
+
+def _sweep_report(summary: Any, report_directory: Any) -> Any:
+    """The sweep's report (its warnings one line each on stderr); a report that cannot be
+    finished (e.g. a figure worker killed twice) is one line and exit 1: the rows are
+    kept and ``workbench report OUT`` rebuilds it."""
+    import warnings
+
+    from workbench.errors import WorkbenchError, one_line
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            index = report_directory(
+                summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
+            )
+        except (WorkbenchError, OSError):
+            raise
+        except Exception as error:  # noqa: BLE001 - the rows stand; the report is a view
+            typer.echo(
+                f"error: the report of {summary.out} is unfinished ({one_line(error)}); "
+                "the rows are kept: rebuild it with "
+                f"`workbench report {summary.out}`",
+                err=True,
+            )
+            raise typer.Exit(1) from None
+    for warning in caught:
+        typer.echo(f"warning: {warning.message}", err=True)
+    return index
 
 
 def _without_rerun(arguments: list[str]) -> list[str]:

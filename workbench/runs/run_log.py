@@ -22,6 +22,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from workbench.files import atomic_write, make_dirs, open_no_follow
+
 LOG_DIR = "logs"
 KEEP_BYTES = 64 * 1024  # kept from the start and from the end of a run's output
 RAW_LIMIT_BYTES = 8 * 1024 * 1024  # the raw file is emptied (head and tail kept) past this
@@ -39,14 +41,20 @@ def raw_path(out: Path, run_id: str) -> Path:
 
 def bounded(data_file: Path, keep: int = KEEP_BYTES) -> bytes:
     """The first and last ``keep`` bytes of ``data_file`` (all of it if it is shorter),
-    with a line saying how many bytes were left out between them."""
-    size = data_file.stat().st_size
-    with open(data_file, "rb") as source:
-        if size <= 2 * keep:
-            return source.read()
-        head = source.read(keep)
-        source.seek(size - keep)
-        tail = source.read()
+    with a line saying how many bytes were left out between them. A symbolic link is not
+    followed (OSError): a planted link must not copy another file into a log."""
+    fd = os.open(data_file, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    try:
+        return _bounded_fd(fd, keep)
+    finally:
+        os.close(fd)
+
+
+def _bounded_fd(fd: int, keep: int) -> bytes:
+    size = os.fstat(fd).st_size
+    if size <= 2 * keep:
+        return os.pread(fd, size, 0)
+    head, tail = os.pread(fd, keep, 0), os.pread(fd, keep, size - keep)
     return _joined(head, size - 2 * keep, tail)
 
 
@@ -60,7 +68,11 @@ class CapturedOutput:
 
     The raw file itself stays bounded too: a thread checks it every ``interval`` seconds
     and, past ``raw_limit`` bytes, keeps its head (once) and its latest tail in memory
-    and empties it (it is open for appending, so writes go on at its new end)."""
+    and empties it (it is open for appending, so writes go on at its new end).
+
+    ``raw_file`` is ``<out>/logs/.<run_id>.raw`` (:func:`raw_path`): it is opened without
+    following a link (:func:`workbench.files.open_no_follow`, below ``<out>``), and read,
+    emptied and removed through that open file, never through its name again."""
 
     def __init__(
         self,
@@ -77,12 +89,16 @@ class CapturedOutput:
         self._emptied = 0  # bytes removed from the raw file so far
         self._stop = threading.Event()
         self._watch: threading.Thread | None = None
+        self._fd: int | None = None  # the raw file, open for reading and truncating
 
     def __enter__(self) -> CapturedOutput:
         self.raw_file.parent.mkdir(parents=True, exist_ok=True)
         _flush()
-        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND
-        target = os.open(self.raw_file, flags, 0o644)
+        out = self.raw_file.parent.parent
+        flags = os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+        make_dirs(self.raw_file.parent, out)
+        target = open_no_follow(self.raw_file, flags, out)
+        self._fd = os.dup(target)
         try:
             self._saved = [os.dup(1), os.dup(2)]
             os.dup2(target, 1)
@@ -112,30 +128,34 @@ class CapturedOutput:
     def _empty(self) -> None:
         """Keep the head (the first time) and the tail of the raw file, then empty it;
         what is written between the read and the truncation is lost (and counted)."""
-        with open(self.raw_file, "rb") as source:
-            if self._head is None:
-                self._head = source.read(self.keep)
-            size = os.fstat(source.fileno()).st_size
-            source.seek(max(0, size - self.keep))
-            self._tail = (self._tail + source.read())[-self.keep :]
-        size = self.raw_file.stat().st_size
-        os.truncate(self.raw_file, 0)
+        fd = self._fd
+        if self._head is None:
+            self._head = os.pread(fd, self.keep, 0)
+        size = os.fstat(fd).st_size
+        start = max(0, size - self.keep)
+        self._tail = (self._tail + os.pread(fd, size - start, start))[-self.keep :]
+        size = os.fstat(fd).st_size
+        os.ftruncate(fd, 0)
         self._emptied += size
 
     def kept(self) -> bytes:
         """The bounded output, and the raw file removed."""
+        fd, self._fd = self._fd, None
+        if fd is None:
+            return b""
         try:
             if self._head is None:
-                return bounded(self.raw_file, self.keep)
-            rest = self.raw_file.read_bytes()
+                return _bounded_fd(fd, self.keep)
+            rest = os.pread(fd, os.fstat(fd).st_size, 0)
             total = self._emptied + len(rest)
             tail = (self._tail + rest)[-self.keep :]
             return _joined(self._head, total - len(self._head) - len(tail), tail)
         except OSError:
             return b""
         finally:
+            os.close(fd)
             with contextlib.suppress(OSError):
-                self.raw_file.unlink()
+                self.raw_file.unlink()  # (unlink removes a link, never its target)
 
 
 def raw_text(out: Path, run_id: str) -> str:
@@ -172,9 +192,8 @@ def write_log(out: Path, run_id: str, data: bytes) -> str:
     if not data:
         return ""
     path = log_path(out, run_id)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+    try:  # no link followed below out (workbench.files)
+        atomic_write(path, lambda name: Path(name).write_bytes(data), False, root=Path(out))
     except OSError:
         return ""
     return path.relative_to(out).as_posix()

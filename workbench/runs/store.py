@@ -39,7 +39,7 @@ from typing import Any
 import pandas as pd
 
 from workbench.errors import ConfigError, one_line
-from workbench.files import atomic_write
+from workbench.files import atomic_write, remove_temporaries
 from workbench.runs.row_check import row_defects, series_defect
 
 # The stable schema of a result row: (column, meaning). Units: seconds, metres, radians.
@@ -234,13 +234,17 @@ def migrate_row(row: dict[str, Any], source: str | os.PathLike[str]) -> dict[str
 # ---- atomic writes (workbench.files.atomic_write) ----------------------------------------
 
 
-def write_json_atomic(data: dict[str, Any], path: Path, durable: bool = True) -> None:
+def write_json_atomic(
+    data: dict[str, Any], path: Path, durable: bool = True, root: Path | None = None
+) -> None:
+    """``root``: the output folder ``path`` is in (no link followed below it)."""
     text = json.dumps(_jsonable(data), indent=1, allow_nan=True)
-    atomic_write(path, lambda name: Path(name).write_text(text, encoding="utf-8"), durable)
+    write = lambda name: Path(name).write_text(text, encoding="utf-8")  # noqa: E731
+    atomic_write(path, write, durable, root=root)
 
 
-def write_parquet_atomic(frame: pd.DataFrame, path: Path) -> None:
-    atomic_write(path, lambda name: frame.to_parquet(name, index=False))
+def write_parquet_atomic(frame: pd.DataFrame, path: Path, root: Path | None = None) -> None:
+    atomic_write(path, lambda name: frame.to_parquet(name, index=False), root=root)
 
 
 def _jsonable(value: Any) -> Any:
@@ -282,8 +286,8 @@ def write_run(out: Path, row: dict[str, Any], series: pd.DataFrame | None) -> No
     """
     run_id = row["run_id"]
     if series is not None:
-        write_parquet_atomic(series, series_path(out, run_id))
-    write_json_atomic(row, row_path(out, run_id), durable=False)
+        write_parquet_atomic(series, series_path(out, run_id), root=Path(out))
+    write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out))
 
 
 def read_row(path: Path) -> dict[str, Any] | None:
@@ -298,11 +302,9 @@ def read_row(path: Path) -> dict[str, Any] | None:
 
 
 def remove_stale_temporaries(out: Path) -> list[Path]:
-    """Delete temporary files left by writers killed mid-write (never read as results)."""
-    stale = [p for p in Path(out).rglob(".*.tmp") if p.is_file()]
-    for path in stale:
-        path.unlink(missing_ok=True)
-    return stale
+    """Delete temporary files left by writers killed mid-write (never read as results):
+    only files named as :func:`workbench.files.atomic_write` names them, no link followed."""
+    return remove_temporaries(out)
 
 
 def check_rows(out: Path) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
@@ -383,7 +385,7 @@ def consolidate(out: Path) -> Path:
     """Write ``<out>/results.parquet`` (atomically) from the row files; return its path."""
     frame = load_results(out)
     path = Path(out) / RESULTS_FILE
-    write_parquet_atomic(_parquet_safe(frame), path)
+    write_parquet_atomic(_parquet_safe(frame), path, root=Path(out))
     return path
 
 
@@ -501,9 +503,9 @@ __all__ = [
 ]
 
 
-def write_text_atomic(text: str, path: Path) -> None:
+def write_text_atomic(text: str, path: Path, root: Path | None = None) -> None:
     def write(name: str) -> None:
         with open(name, "w", encoding="utf-8") as out:
             out.write(text)
 
-    atomic_write(path, write)
+    atomic_write(path, write, root=root)

@@ -28,10 +28,12 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError
+from workbench.files import make_dirs
 from workbench.runs import store
 from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
 from workbench.runs.local_pool import merge_run_recordings, run_local
+from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
@@ -74,6 +76,7 @@ def run_sweep(
     say: Callable[[str], None] | None = None,
     repeats: int | None = None,
     repeat_budget: float | None = None,
+    wait: bool = False,
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
@@ -86,7 +89,10 @@ def run_sweep(
     ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
     runs (:func:`workbench.runs.resume.plan_resume`); ``say`` receives the one-line
     findings of the resume (default: printed on stderr). ``repeats`` and ``repeat_budget``
-    override the specification's timing of each integration (:mod:`workbench.runs.timing`)."""
+    override the specification's timing of each integration (:mod:`workbench.runs.timing`).
+
+    ``out`` is locked while the sweep runs (:func:`workbench.runs.out_lock.out_lock`):
+    OutputBusyError if another process holds it, or with ``wait`` wait for it."""
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
     jobs = int(jobs or sweep.jobs)
@@ -102,41 +108,46 @@ def run_sweep(
         ),
         jobs,
     )
-    store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
-    plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
-    for line in plan.lines():
-        (say or _stderr)(line)
-    todo = plan.todo
-    (out_dir / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
-    (out_dir / "references").mkdir(exist_ok=True)
-    # the machine that starts the sweep (with Dask, the client; rows name their workers)
-    store.write_json_atomic(sweep_environment(), out_dir / store.ENVIRONMENT_FILE)
-    if sweep.text:
-        store.write_text_atomic(sweep.text, out_dir / "sweep.toml")
-    counts: Counter = Counter()
-    # the local pool forks its workers: no thread may be running then (see _context)
-    with _progress(len(todo), show_progress, threaded=bool(scheduler)) as advance:
+    # one command at a time on out_dir, and no symbolic link in it (workbench.runs.out_lock)
+    with out_lock(out_dir, wait=wait, say=say):
+        store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
+        plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
+        for line in plan.lines():
+            (say or _stderr)(line)
+        todo = plan.todo
+        make_dirs(out_dir / store.RUNS_DIR, out_dir)
+        make_dirs(out_dir / "references", out_dir)
+        # the machine that starts the sweep (with Dask, the client; rows name their workers)
+        environment = sweep_environment()
+        store.write_json_atomic(environment, out_dir / store.ENVIRONMENT_FILE, root=out_dir)
+        if sweep.text:
+            store.write_text_atomic(sweep.text, out_dir / "sweep.toml", root=out_dir)
+        counts: Counter = Counter()
+        # the local pool forks its workers: no thread may be running then (see _context)
+        with _progress(len(todo), show_progress, threaded=bool(scheduler)) as advance:
 
-        def record(status: str) -> None:
-            counts[status] += 1
-            advance(counts)
+            def record(status: str) -> None:
+                counts[status] += 1
+                advance(counts)
 
-        if scheduler:
-            unfinished = run_dask(todo, out_dir, limit, sweep.plugins, scheduler, record, timing)
-        else:
-            tick = lambda: advance(None)  # noqa: E731
-            unfinished = run_local(
-                todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing
-            )
-    results = store.consolidate(out_dir)
-    recording = None
-    if recorder is not None:
-        try:  # a recording is a view, never fatal to the results ...
-            recording = merge_run_recordings(recorder, out_dir)
-        except OSError:
-            raise  # ... but a full or read-only disk is said (the rows are kept; resume merges)
-        except Exception:  # noqa: BLE001, S110
-            pass
+            if scheduler:
+                unfinished = run_dask(
+                    todo, out_dir, limit, sweep.plugins, scheduler, record, timing
+                )
+            else:
+                tick = lambda: advance(None)  # noqa: E731
+                unfinished = run_local(
+                    todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing
+                )
+        results = store.consolidate(out_dir)
+        recording = None
+        if recorder is not None:
+            try:  # a recording is a view, never fatal to the results ...
+                recording = merge_run_recordings(recorder, out_dir)
+            except OSError:
+                raise  # ... but a full or read-only disk is said (rows kept; resume merges)
+            except Exception:  # noqa: BLE001, S110
+                pass
     return SweepSummary(
         out_dir,
         counts,

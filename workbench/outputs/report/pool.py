@@ -4,7 +4,9 @@ Drawing is most of a report's time (matplotlib, three formats a figure), and pro
 independent, so each problem's figures are one task. Workers are spawned, not forked (fork
 is unsafe with the threads of rich and rerun), and cost about a second each to start.
 They leave Ctrl-C to the parent (which says what was kept, once) and exit when it dies,
-so an interrupted or killed report leaves no process drawing for nobody.
+so an interrupted or killed report leaves no process drawing for nobody. A worker killed
+from outside (SIGKILL, the OOM killer) breaks the pool: :func:`results_or_redone` draws the
+problems it took with it again in this process, so the report is still whole.
 """
 
 from __future__ import annotations
@@ -13,8 +15,10 @@ import contextlib
 import multiprocessing
 import os
 import signal
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from workbench.runs.local_pool import exit_with_parent
@@ -67,3 +71,42 @@ class InlineExecutor(Executor):
         except BaseException as error:  # handed to the caller by future.result()
             future.set_exception(error)
         return future
+
+
+def submit_or_none(executor: Executor, fn: Callable[..., Any], *args: Any) -> Future | None:
+    """``executor.submit(fn, *args)``, or None when its pool is broken (a worker died):
+    :func:`results_or_redone` then runs the task here."""
+    try:
+        return executor.submit(fn, *args)
+    except BrokenProcessPool:
+        return None
+
+
+def results_or_redone(
+    tasks: Sequence[tuple[str, Future | None, tuple]],
+    fn: Callable[..., Any],
+    done: Callable[[str], None] = lambda name: None,
+) -> list[Any]:
+    """The results of ``tasks`` ((name, future, arguments of ``fn``)) in order, calling
+    ``done(name)`` after each. A task whose worker died (BrokenProcessPool: every task
+    still in the pool then fails so) is run again here, ``fn(*arguments)``, and one
+    warning names them: a killed figure worker costs time, not the report."""
+    results, redone = [], []
+    for name, future, arguments in tasks:
+        try:
+            if future is None:
+                raise BrokenProcessPool("the pool was broken before the task was submitted")
+            result = future.result()
+        except BrokenProcessPool:
+            redone.append(name)
+            result = fn(*arguments)
+        results.append(result)
+        done(name)
+    if redone:
+        shown = ", ".join(redone[:3]) + (f" and {len(redone) - 3} more" if len(redone) > 3 else "")
+        warnings.warn(
+            "a report worker process died (killed from outside or out of memory); the "
+            f"figures of {len(redone)} problem(s) ({shown}) were drawn again in this process",
+            stacklevel=2,
+        )
+    return results

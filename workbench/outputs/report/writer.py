@@ -14,6 +14,7 @@ from pathlib import Path
 import pandas as pd
 
 from workbench.errors import ConfigError, WorkbenchError
+from workbench.files import refuse_links
 from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
@@ -40,7 +41,12 @@ from workbench.outputs.report.overview import (
 )
 from workbench.outputs.report.overview_figures import convergence_figure, heat_map_figure
 from workbench.outputs.report.page import Overview, PageTable, ProblemSection, render_page
-from workbench.outputs.report.pool import figure_executor, figure_jobs
+from workbench.outputs.report.pool import (
+    figure_executor,
+    figure_jobs,
+    results_or_redone,
+    submit_or_none,
+)
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
 from workbench.runs.progress import progress_bar
@@ -83,6 +89,7 @@ def write_report(
     runs = prepare_results(results)
     measure = resolve_cost(runs, cost)
     out = Path(out_dir)
+    refuse_links(out)  # the report may go into a folder from someone else (workbench.files)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "tables").mkdir(parents=True, exist_ok=True)
 
@@ -104,17 +111,15 @@ def write_report(
         progress_bar("report", len(problems), show=show) as bar,
         figure_executor(jobs) as executor,
     ):
-        pending = []
+        tasks = []
         for problem in problems:
             of_problem = runs[runs["problem"] == problem]
             series = _load_series(of_problem, series_loader, measure.column)
-            pending.append(
-                executor.submit(problem_section, of_problem, series, out, measure.column)
-            )
-        sections = []
-        for problem, future in zip(problems, pending, strict=True):
-            sections.append(future.result())
-            bar.step(problem)
+            arguments = (of_problem, series, out, measure.column)
+            future = submit_or_none(executor, problem_section, *arguments)
+            tasks.append((problem, future, arguments))
+        # a worker killed from outside: its problems are drawn again here (one warning)
+        sections = results_or_redone(tasks, problem_section, bar.step)
 
     page = render_page(
         title,

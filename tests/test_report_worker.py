@@ -1,0 +1,76 @@
+"""A report worker killed from outside (issue 31.5) costs time, not the report: the
+problems it took with it are drawn again in the parent, with one warning line, and
+``workbench sweep`` ends with its report whole and exit 0 (it was a BrokenProcessPool
+traceback and exit 1)."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from tests.test_sweep import spec_text
+from workbench import cli
+from workbench.outputs.report import writer
+from workbench.runs import store
+from workbench.runs.sweep import parse_spec, run_sweep
+
+PROBLEMS = '["test-pendulum", "test-slider-crank"]'
+REAL_SECTION = writer.problem_section  # (a spawned worker imports this module afresh)
+
+
+def section_killing_its_worker_once(runs, series, out, cost):
+    """problem_section, but the first call in a pool worker SIGKILLs that worker, as the
+    OOM killer would (a marker file in the report folder makes it once)."""
+    if multiprocessing.parent_process() is not None:
+        try:
+            os.close(os.open(Path(out) / "killed-once", os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            pass
+        else:
+            os.kill(os.getpid(), signal.SIGKILL)
+    return REAL_SECTION(runs, series, out, cost)
+
+
+@pytest.fixture
+def killing_pool(monkeypatch):
+    monkeypatch.setattr(writer, "problem_section", section_killing_its_worker_once)
+    monkeypatch.setattr(writer, "figure_jobs", lambda n_problems: 2)  # a pool, not inline
+
+
+def test_write_report_redraws_what_a_killed_worker_took(fake_plugins, tmp_path, killing_pool):
+    out = tmp_path / "out"
+    run_sweep(parse_spec(spec_text(out, '["test-rk45"]', PROBLEMS)), show_progress=False)
+    frame = store.load_results(out)
+    with pytest.warns(UserWarning, match="a report worker process died") as caught:
+        index = writer.write_report(
+            frame, lambda run_id: store.load_series(out, run_id), tmp_path / "report", "test",
+            jobs=2,
+        )  # fmt: skip
+    assert (tmp_path / "report" / "killed-once").exists()  # a worker was killed
+    assert len([w for w in caught if "report worker" in str(w.message)]) == 1
+    page = index.read_text()
+    for problem in ("test-pendulum", "test-slider-crank"):
+        assert f'id="{problem}"' in page
+        assert list((tmp_path / "report" / "figures").glob(f"*{problem}*.png"))
+
+
+def test_sweep_with_a_killed_report_worker_is_one_line_and_a_whole_report(
+    fake_plugins, tmp_path, killing_pool, monkeypatch
+) -> None:
+    monkeypatch.setenv("COLUMNS", "200")
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text(tmp_path / "out", '["test-rk45"]', PROBLEMS))
+    result = CliRunner().invoke(cli.app, ["sweep", str(spec)])
+    assert result.exit_code == 0, result.output
+    assert "Traceback" not in result.output and result.exception is None
+    lines = [line for line in result.output.splitlines() if "report worker" in line]
+    assert len(lines) == 1 and lines[0].startswith("warning: "), result.output
+    report = tmp_path / "out" / "report"
+    assert (report / "killed-once").exists()
+    page = (report / "index.html").read_text()
+    assert 'id="test-pendulum"' in page and 'id="test-slider-crank"' in page
