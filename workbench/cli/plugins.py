@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import app, console, option_value
+from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
 from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
@@ -73,16 +74,22 @@ def list_command(
 @app.command()
 def describe(
     name: Annotated[
-        str, typer.Argument(help="A problem, formalism or integrator name, or a robot file.")
+        str,
+        typer.Argument(
+            help="A problem, formalism or integrator name, a robot file, or MODULE_OR_FILE:Class."
+        ),
     ],
     option: Annotated[
         list[str] | None,
         typer.Option("-o", "--option", help="A problem's option NAME=VALUE (e.g. -o n=40)."),
     ] = None,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
     from workbench.plugin.robot_problem import robot_file_problem
 
+    _, (name,) = plugins_from_flags(plugins, no_local_plugins, name)
     name, option = robot_file_problem(name, option or [])
     kind, plugin = registry.any_plugin(name)
     options = _problem_options(name, kind, option)
