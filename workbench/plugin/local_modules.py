@@ -176,16 +176,18 @@ def import_plugin_modules(
     modules: Iterable[PluginModule | str],
     source: str = "plugins",
     say: Callable[[str], None] | None = None,
-) -> None:
+) -> list[tuple[str, str]]:
     """Import ``modules`` (:class:`PluginModule` or their text); a local one from its file,
-    said through ``say`` (e.g. printed on stderr; None: silent, as in workers). ConfigError
-    naming the one that fails."""
+    said through ``say`` (e.g. printed on stderr; None: silent, as in workers). Returns the
+    (kind, name) of each plugin class named with ``:Class``, registered if its module did
+    not register it. ConfigError naming the one that fails."""
+    named = []
     for index, item in enumerate(modules):
         module = PluginModule.from_text(item) if isinstance(item, str) else item
         try:
             if module.local:
                 _import_file(module)
-            importlib.import_module(module.name)
+            loaded = importlib.import_module(module.name)
         except ConfigError:
             raise
         except Exception as error:  # noqa: BLE001 - any import failure is a config error
@@ -193,8 +195,42 @@ def import_plugin_modules(
                 f"{source}[{index}]: cannot import plugin module {module.name!r}: {one_line(error)}"
             ) from None
         if module.local and say is not None:
-            loaded = getattr(sys.modules.get(module.name), "__file__", None) or module.file
-            say(f"plugins: imported local module {module.name} from {loaded}")
+            where = getattr(loaded, "__file__", None) or module.file
+            say(f"plugins: imported local module {module.name} from {where}")
+        if module.attribute:
+            named.append(_register(loaded, module.attribute, f"{source}[{index}]"))
+    return named
+
+
+def _register(module: object, attribute: str, where: str) -> tuple[str, str]:
+    """(kind, name) of the plugin class ``module.attribute``, registered unless it is."""
+    from workbench.plugin.formalism import Formalism
+    from workbench.plugin.integrator import Integrator
+    from workbench.plugin.problem import Problem
+    from workbench.plugin.registry import REGISTRY
+
+    plugin = getattr(module, attribute, None)
+    bases = {"problem": Problem, "formalism": Formalism, "integrator": Integrator}
+    kind = next(
+        (k for k, base in bases.items() if isinstance(plugin, type) and issubclass(plugin, base)),
+        None,
+    )
+    if kind is None:
+        raise ConfigError(
+            f"{where}: {getattr(module, '__name__', '?')}.{attribute} is not a problem, "
+            "formalism or integrator class (a subclass of Problem, Formalism or Integrator)"
+        )
+    name = getattr(plugin, "name", "")
+    REGISTRY.discover()
+    existing = REGISTRY.entries[kind].get(name)
+    if existing is not None and existing.plugin is not None and existing.plugin is not plugin:
+        raise ConfigError(
+            f"{where}: {kind} name {name!r} of {plugin.__qualname__} is already registered by "
+            f"{existing.module}; give the class another name"
+        )
+    if existing is None or existing.plugin is not plugin:
+        REGISTRY.add(kind, plugin)  # type: ignore[arg-type]
+    return kind, name
 
 
 def _import_file(module: PluginModule) -> None:
