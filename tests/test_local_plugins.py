@@ -182,3 +182,19 @@ def test_the_command_line_switch_and_a_sweep_that_imports_it_once(downloaded, tm
     assert said == [f"plugins: imported local module helper from {helper}"]
     frame = store.load_results(out)
     assert list(frame["status"]) == ["ok"], frame["message"].tolist()
+
+
+def test_plugins_given_on_the_command_line_join_a_specification(downloaded, capsys):
+    """`workbench sweep spec --plugins FILE`: a specification that names no plugin module,
+    the module given beside it (a path from the current directory), the same rules."""
+    spec = downloaded / "sweep.toml"
+    spec.write_text(spec_text(downloaded / "out", plugins=None))
+    with pytest.raises(ConfigError, match="unknown problem 'downloaded-pendulum'"):
+        load_spec(spec)
+    assert not (downloaded / "imported.marker").exists()
+    given = str(downloaded / "helper.py")
+    with pytest.raises(ConfigError, match=r"--plugins\[0\]: 'helper' is a local plugin module"):
+        load_spec(spec, plugins=[given], allow_local=False)
+    sweep = load_spec(spec, plugins=[given])
+    assert sweep.plugins == [f"helper={Path(given).resolve()}"]
+    assert "plugins: imported local module helper from" in capsys.readouterr().err

@@ -1,5 +1,5 @@
 """Plugins from anywhere, the same way everywhere (issue 34.3): ``--plugins MODULE_OR_FILE``
-on ``workbench run``, ``describe`` and ``python -m workbench.testing``, a plugin class
+on ``workbench run``, ``describe``, ``list`` and ``python -m workbench.testing``, a plugin class
 named as ``FILE.py:Class`` where a name goes, and the module-only plugin ``workbench new``
 writes without ``--package`` checked by the kit and run, end to end, as written."""
 
@@ -111,6 +111,8 @@ def test_the_module_only_scaffold_passes_the_kit_as_written(tmp_path, console_sc
     tested = run(sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
                  "test_my_lagrange.py", cwd=tmp_path)  # fmt: skip
     assert tested.returncode == 0, tested.stdout[-2000:]
+    listed = run(WORKBENCH, "list", "formalisms", "--plugins", "my_lagrange.py", cwd=tmp_path)
+    assert "my-lagrange" in listed.stdout and "broken" not in listed.stdout
     ran = run(WORKBENCH, "run", "double-pendulum", "-f", "my-lagrange", "-i", "scipy-dop853",
               "--plugins", "my_lagrange.py", cwd=tmp_path)  # fmt: skip
     assert ran.returncode == 0, ran.stderr

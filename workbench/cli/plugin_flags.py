@@ -1,8 +1,8 @@
 """The options every command that uses plugins shares: ``--plugins`` and ``--no-local-plugins``.
 
-``workbench run``, ``describe`` and ``sweep`` (and ``python -m workbench.testing``) take
-``--plugins MODULE_OR_FILE`` (repeatable: an installed module or a module or ``.py`` file
-of the current directory, imported before anything else is looked up) and a plugin named
+``workbench run``, ``describe``, ``list`` and ``sweep`` (and ``python -m workbench.testing``)
+take ``--plugins MODULE_OR_FILE`` (repeatable: an installed module or a module or ``.py``
+file of the current directory, imported before anything else is looked up) and a plugin named
 as ``MODULE_OR_FILE:Class`` where a registered name goes; ``--no-local-plugins`` (or
 ``WORKBENCH_NO_LOCAL_PLUGINS=1``) refuses every local module
 (:mod:`workbench.plugin.local_modules`).

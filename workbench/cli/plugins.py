@@ -59,8 +59,11 @@ def list_command(
         str | None,
         typer.Argument(help="problems, formalisms or integrators (default: all three)."),
     ] = None,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
     """List the registered plugins: name, summary, capabilities and status."""
+    plugins_from_flags(plugins, no_local_plugins)
     kinds = [describe_kind(kind)] if kind is not None else list(KINDS)
     out = console()
     for each in kinds:
