@@ -151,15 +151,17 @@ def find_plugin_modules(
             module = PluginModule(path.stem, str(path), attribute)
         else:
             top = entry.partition(".")[0]
-            if _installed(top, folders):
+            if top in _FROM_FILES:  # imported from its file already (found from elsewhere)
+                module = PluginModule(entry, _FROM_FILES[top], attribute)
+            elif _installed(top, folders):
                 module = PluginModule(entry, "", attribute)
             else:
                 file = next((f for f in map(lambda d: _top_level_file(d, top), folders) if f), None)
                 if file is None:
+                    places = " or in ".join(str(folder) for folder in folders)
                     raise ConfigError(
                         f"{where}: cannot import plugin module {entry!r}: No module named "
-                        f"{top!r} on the Python path, in the current directory ({cwd}) or in "
-                        f"{base}"
+                        f"{top!r} on the Python path or in {places}"
                     )
                 module = PluginModule(entry, str(file), attribute)
         if module.local and not allow:
