@@ -14,12 +14,7 @@ from typing import Annotated
 
 import typer
 
-from workbench.plugin.local_modules import (
-    NO_LOCAL_PLUGINS_VARIABLE,
-    PluginModule,
-    forbid_local_plugins,
-    load_plugins,
-)
+from workbench.plugin.local_modules import NO_LOCAL_PLUGINS_VARIABLE, PluginModule, load_plugins
 
 PluginsOption = Annotated[
     list[str] | None,
@@ -44,7 +39,6 @@ def plugins_from_flags(
 ) -> tuple[list[PluginModule], list[str]]:
     """Apply the flags: the modules imported and each of ``references`` as a registered
     name (a ``MODULE_OR_FILE:Class`` one is imported and named by its class)."""
-    if no_local:
-        forbid_local_plugins()  # for this process and the ones it starts
-    modules, names = load_plugins(plugins or [], references)
+    allow_local = False if no_local else None  # None: unless WORKBENCH_NO_LOCAL_PLUGINS
+    modules, names = load_plugins(plugins or [], references, allow_local)
     return modules, [names.get(reference, reference) for reference in references]

@@ -249,11 +249,8 @@ def sweep(
     if time_limit is not None and not time_limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
     kinds = parse_rerun(rerun)
-    if no_local_plugins:
-        from workbench.plugin.local_modules import forbid_local_plugins
-
-        forbid_local_plugins()  # for this process and the ones it starts
-    loaded = load_spec(spec, plugins=plugins or [])
+    # None: unless WORKBENCH_NO_LOCAL_PLUGINS is set
+    loaded = load_spec(spec, plugins or [], False if no_local_plugins else None)
     _say_on_interrupt(loaded, out)
     from workbench.outputs.recording import SweepRecorder
 

@@ -52,12 +52,6 @@ def local_plugins_allowed() -> bool:
     return os.environ.get(NO_LOCAL_PLUGINS_VARIABLE, "").strip() in ("", "0")
 
 
-def forbid_local_plugins() -> None:
-    """Switch local plugin modules off in this process and the processes it starts
-    (what ``--no-local-plugins`` does)."""
-    os.environ[NO_LOCAL_PLUGINS_VARIABLE] = "1"
-
-
 @dataclass(frozen=True)
 class PluginModule:
     """A plugin module to import: ``name``, for a local module the ``file`` of its
@@ -276,16 +270,17 @@ def is_class_reference(text: str) -> bool:
 
 
 def load_plugins(
-    entries: Iterable[str] = (), references: Iterable[str] = ()
+    entries: Iterable[str] = (), references: Iterable[str] = (), allow_local: bool | None = None
 ) -> tuple[list[PluginModule], dict[str, str]]:
     """What ``--plugins`` and a ``MODULE_OR_FILE:Class`` argument do on the command line:
     find and import ``entries`` and the class ``references`` (local modules said on
-    stderr, refused under ``WORKBENCH_NO_LOCAL_PLUGINS``); returns the modules (their
+    stderr, refused when ``allow_local`` is False, or None and ``WORKBENCH_NO_LOCAL_PLUGINS``
+    is set); returns the modules (their
     :meth:`PluginModule.text` is what a worker process is given) and reference ->
     registered name."""
     references = [text for text in references if is_class_reference(text)]
-    modules = find_plugin_modules(entries, "--plugins")
-    modules += find_plugin_modules(references, "plugin class")
+    modules = find_plugin_modules(entries, "--plugins", None, allow_local)
+    modules += find_plugin_modules(references, "plugin class", None, allow_local)
     named = import_plugin_modules(modules, "--plugins", say=stderr_line)
     if not references:
         return modules, {}

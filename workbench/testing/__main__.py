@@ -16,7 +16,6 @@ from pathlib import Path
 from workbench.errors import WorkbenchError
 from workbench.plugin.local_modules import (
     NO_LOCAL_PLUGINS_VARIABLE,
-    forbid_local_plugins,
     load_plugins,
 )
 from workbench.plugin.registry import REGISTRY
@@ -51,9 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     if problems and problems != "all":
         problems = [p.strip() for p in problems.split(",") if p.strip()]
     try:
-        if args.no_local_plugins:
-            forbid_local_plugins()
-        name = load_plugins(args.plugins, [args.name])[1].get(args.name, args.name)
+        allow_local = False if args.no_local_plugins else None  # None: the variable decides
+        name = load_plugins(args.plugins, [args.name], allow_local)[1].get(args.name, args.name)
         _say_if_not_registered(args.kind, name)
         if args.kind == "formalism":
             report = check_formalism(name, problems, checks=checks)
