@@ -198,3 +198,66 @@ def test_plugins_given_on_the_command_line_join_a_specification(downloaded, caps
     sweep = load_spec(spec, plugins=[given])
     assert sweep.plugins == [f"helper={Path(given).resolve()}"]
     assert "plugins: imported local module helper from" in capsys.readouterr().err
+
+
+def test_a_worker_imports_the_file_it_is_given_not_a_name_it_searches(downloaded, tmp_path):
+    """What every worker (local pool spawned or forkserver, Dask child, `workbench run`'s
+    child) does with the parent's list: a fresh interpreter elsewhere, with nothing on its
+    path, gets the very file; a file that is not there is one ConfigError naming it."""
+    helper = (downloaded / "helper.py").resolve()
+    code = (
+        "import sys\n"
+        "from workbench.plugin.local_modules import import_plugin_modules\n"
+        "from workbench.plugin.registry import get_problem\n"
+        "before = list(sys.path)\n"
+        "import_plugin_modules(sys.argv[1:])\n"
+        "assert sys.path == before\n"
+        "print(get_problem('downloaded-pendulum').__module__, sys.modules['helper'].__file__)\n"
+    )
+    elsewhere = tmp_path / "worker"
+    elsewhere.mkdir()
+    done = subprocess.run(
+        [sys.executable, "-c", code, f"helper={helper}"],
+        cwd=elsewhere, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["helper", str(helper)]
+    with pytest.raises(ConfigError, match="cannot import plugin module 'gone'"):
+        local_modules.import_plugin_modules([f"gone={tmp_path / 'gone.py'}"])
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        local_modules.PluginModule("helper"),
+        local_modules.PluginModule("helper", "/a b/c=d/helper.py"),
+        local_modules.PluginModule("my_pkg.plugins", "/x/my_pkg/__init__.py", "MyProblem"),
+        local_modules.PluginModule("pkg.mod", "", "Klass"),
+    ],
+)
+def test_what_workers_receive_reads_back(module):
+    assert local_modules.PluginModule.from_text(module.text()) == module
+
+
+def test_a_dotted_module_of_a_local_package(downloaded, capsys):
+    """``plugins = ["my_pkg.plugins"]`` beside the specification: the package is imported
+    from its ``__init__.py``, the submodule from the package's folder, nothing else."""
+    package = downloaded / "my_pkg"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "plugins.py").write_text(HELPER.replace("with_name(", "parent.with_name("))
+    (downloaded / "helper.py").unlink()
+    spec = downloaded / "sweep.toml"
+    spec.write_text(spec_text(downloaded / "out", plugins='["my_pkg.plugins"]'))
+    try:
+        sweep = load_spec(spec)
+        assert sweep.plugins == [f"my_pkg.plugins={(package / '__init__.py').resolve()}"]
+        assert (downloaded / "imported.marker").exists()
+        said = capsys.readouterr().err.strip().splitlines()
+        assert said == [
+            f"plugins: imported local module my_pkg.plugins from {package.resolve() / 'plugins.py'}"
+        ]
+    finally:
+        for name in ("my_pkg", "my_pkg.plugins"):
+            sys.modules.pop(name, None)
+        local_modules._FROM_FILES.pop("my_pkg", None)
