@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import app, console, option_value
+from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
@@ -59,8 +60,11 @@ def list_command(
         str | None,
         typer.Argument(help="problems, formalisms or integrators (default: all three)."),
     ] = None,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
     """List the registered plugins: name, summary, capabilities and status."""
+    plugins_from_flags(plugins, no_local_plugins)
     kinds = [describe_kind(kind)] if kind is not None else list(KINDS)
     out = console()
     for each in kinds:
@@ -74,7 +78,10 @@ def list_command(
 @app.command()
 def describe(
     name: Annotated[
-        str, typer.Argument(help="A problem, formalism or integrator name, or a robot file.")
+        str,
+        typer.Argument(
+            help="A problem, formalism or integrator name, a robot file, or MODULE_OR_FILE:Class."
+        ),
     ],
     option: Annotated[
         list[str] | None,
@@ -82,10 +89,13 @@ def describe(
     ] = None,
     package_path: Annotated[list[str] | None, PACKAGE_PATH_OPTION] = None,
     allow_root: Annotated[list[str] | None, ALLOW_ROOT_OPTION] = None,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
     """Describe one plugin: summary, options, capabilities; for a problem also its model."""
     from workbench.plugin.robot_problem import robot_file_problem
 
+    _, (name,) = plugins_from_flags(plugins, no_local_plugins, name)
     name, option = robot_file_problem(name, option or [], package_path, allow_root)
     kind, plugin = registry.any_plugin(name)
     options = _problem_options(name, kind, option)

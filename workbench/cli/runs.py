@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import app, console, option_value
+from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields
@@ -63,10 +64,18 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
 def run(
     ctx: typer.Context,
     problem: Annotated[
-        str, typer.Argument(help="Problem name (`workbench list problems`) or a .urdf/.xml file.")
+        str,
+        typer.Argument(
+            help="Problem name (`workbench list problems`), a .urdf/.xml file, or "
+            "MODULE_OR_FILE:Class (e.g. my_problem.py:MyProblem)."
+        ),
     ],
-    formalism: Annotated[str, typer.Option("-f", "--formalism", help="Formalism name.")],
-    integrator: Annotated[str, typer.Option("-i", "--integrator", help="Integrator name.")],
+    formalism: Annotated[
+        str, typer.Option("-f", "--formalism", help="Formalism name (or MODULE_OR_FILE:Class).")
+    ],
+    integrator: Annotated[
+        str, typer.Option("-i", "--integrator", help="Integrator name (or MODULE_OR_FILE:Class).")
+    ],
     rtol: Annotated[
         float, typer.Option("--rtol", help="Relative tolerance (0 < rtol < 1).")
     ] = 1e-6,
@@ -99,6 +108,8 @@ def run(
     wait: Annotated[
         bool, typer.Option("--wait", help="If --out is in use by another command, wait for it.")
     ] = False,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
     """Run one problem with one formalism and integrator and print its metrics.
 
@@ -122,6 +133,9 @@ def run(
     )
     from workbench.plugin.robot_problem import robot_file_problem
 
+    loaded, (problem, formalism, integrator) = plugins_from_flags(
+        plugins, no_local_plugins, problem, formalism, integrator
+    )
     problem, option = robot_file_problem(problem, option or [], package_path, allow_root)
     classes = {
         "problem": registry.get_problem(problem),
@@ -147,11 +161,16 @@ def run(
         hold_out_lock(ctx, out, wait)
         make_dirs(Path(out) / "references", Path(out))
         reference_dir = str((Path(out) / "references").resolve())
-    # the child imports the modules that registered these plugins (built-in or not)
-    plugins = sorted({plugin.__module__ for plugin in classes.values()})
+    # the child imports the plugin modules loaded here (a local one from its file), then
+    # the modules that registered these plugins (built-in or not)
+    from workbench.plugin.local_modules import imported_from_file
+
+    modules = [module.text() for module in loaded] + sorted(
+        {c.__module__ for c in classes.values() if not imported_from_file(c.__module__)}
+    )
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     row, series = run_in_subprocess(
-        spec.to_dict(), time_limit, plugins, reference_dir, paths, timing.to_dict()
+        spec.to_dict(), time_limit, modules, reference_dir, paths, timing.to_dict()
     )
     store_log(Path(out) if out else None, row)
     if out:
@@ -192,7 +211,7 @@ def sweep(
         typer.Argument(
             help="Sweep specification (TOML file) or suite name (default, iftomm, ...); "
             "default: the default sweep.",
-        )
+        ),
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
     scheduler: Annotated[
@@ -230,8 +249,14 @@ def sweep(
         bool,
         typer.Option("--wait", help="If the output directory is in use, wait for it to be free."),
     ] = False,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
     """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
+
+    The specification's ``plugins`` and ``--plugins`` are code: a local module is imported
+    from its file once the rest of the specification is valid, said on stderr, and refused
+    under ``--no-local-plugins`` (or ``WORKBENCH_NO_LOCAL_PLUGINS=1``).
 
     Exit status 1 if some runs could not be completed (their worker was killed from
     outside or lost): they have no row, and running the same command again redoes them.
@@ -246,7 +271,8 @@ def sweep(
     if time_limit is not None and not time_limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
     kinds = parse_rerun(rerun)
-    loaded = load_spec(spec)
+    # None: unless WORKBENCH_NO_LOCAL_PLUGINS is set
+    loaded = load_spec(spec, plugins or [], False if no_local_plugins else None)
     _say_on_interrupt(loaded, out)
     hold_out_lock(ctx, out or loaded.out, wait)  # the report below too
     from workbench.outputs.recording import SweepRecorder
@@ -352,8 +378,7 @@ def _say_on_interrupt(loaded: Any, out: str | None) -> None:
     def describe() -> str:
         kept = len(wanted & store.completed_run_ids(out_dir))  # whole rows only
         return (
-            f"{kept} of {len(wanted)} runs are kept in {out_dir}; "
-            f"run `{command}` again to resume"
+            f"{kept} of {len(wanted)} runs are kept in {out_dir}; run `{command}` again to resume"
         )
 
     on_interrupt(describe)

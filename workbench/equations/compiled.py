@@ -237,7 +237,16 @@ def compile_function(function: ca.Function, flags: str = DEFAULT_FLAGS) -> ca.Fu
 @dataclass
 class Compiler:
     """How the equations of one build are evaluated: ``mode`` "none" or "jit", C compiler
-    ``flags``; ``warnings`` collects why something stayed in the virtual machine."""
+    ``flags``; ``warnings`` collects why something stayed in the virtual machine.
+
+    Part of the plugin API: what a formalism needs to honour its ``compile`` option.
+    :func:`~workbench.equations.build_joint_space_equations` makes one from the options; a
+    formalism that calls :func:`~workbench.equations.build_equations` itself passes
+    ``compiler=Compiler.from_options(options)`` (options with the fields of
+    :class:`workbench.plugin.formalism.CompileOptions`), and every function of its forms
+    and observables is then compiled (:meth:`load`) or kept in the virtual machine with a
+    warning that reaches the run's message. ``mode`` "jit" without a C compiler falls back
+    to "none" with a warning."""
 
     mode: str = "none"
     flags: str = DEFAULT_FLAGS

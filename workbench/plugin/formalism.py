@@ -21,6 +21,24 @@ A formalism plugin subclasses :class:`Formalism`, registers with
    fixed velocity partition, offers ``Equations.partition_matrices`` so runs report where
    it turns singular. The conformance kit's ``dof`` check holds it to describe's count.
 
+6. if it enforces the constraints only approximately (a penalty or augmented-Lagrangian
+   method: the constraint rows become stiff forces, the DOF count is not describe's),
+   says so with :meth:`Formalism.constraint_tolerance` -> the largest constraint residual
+   (m, rad, m/s) it promises over a tight integration; the conformance kit then holds it
+   to that promise instead of to exact constraints (``approximation``, ``dof``,
+   ``constraints``; accelerations at a consistent state are not compared, and motion
+   errors may reach the declared tolerance over the model's length scale).
+
+The forms a formalism offers (``ode``, ``dae``, ``mechanical``, :data:`workbench.equations.FORMS`)
+are declared per options by :meth:`Formalism.forms` and built per model by
+:meth:`Formalism.build` (the kit's ``equations`` check holds the built ones to the
+declared ones; a model may add forms, never drop one). To honour the ``compile`` option
+(evaluate in C rather than the CasADi virtual machine), a formalism gives
+:func:`~workbench.equations.build_equations` a :class:`~workbench.equations.compiled.Compiler`
+(``Compiler.from_options(options)`` reads the ``compile`` and ``compile_flags`` fields of
+its options; :class:`CompileOptions` declares them), as
+:func:`~workbench.equations.build_joint_space_equations` does.
+
 A feature the formalism cannot handle raises :class:`PluginError` from :meth:`check`,
 naming the formalisms that do handle it. A limit that is not one of :data:`FEATURES`
 (e.g. quaternion joints, :func:`workbench.mechanics.lagrangian.quaternion_joints`) is declared by
@@ -109,6 +127,13 @@ class Formalism:
     def forms(cls, options: Any) -> dict[str, int]:
         """{form name: dae index (0 for ode and mechanical)} provided for ``options``."""
         raise NotImplementedError
+
+    @classmethod
+    def constraint_tolerance(cls, options: Any) -> float | None:
+        """None: the constraints hold to the integrator's tolerance (the default); a number
+        > 0: they are enforced approximately (penalty, augmented Lagrangian), to this
+        absolute residual (m, rad, m/s) with these ``options`` (contract item 6)."""
+        return None
 
     @classmethod
     def unsupported(cls, model: Model) -> set[str]:

@@ -8,8 +8,9 @@ Three layouts (:func:`scaffold`):
 * inside a workbench source tree (the current directory has ``plugins/`` and
   ``problems/``): a built-in plugin, ``plugins/formalisms/<module>.py`` (or
   ``plugins/integrators/``, ``problems/``) and ``tests/test_<module>.py``;
-* elsewhere: ``<module>.py`` and ``test_<module>.py`` in the current directory (for a
-  sweep, list the module under ``plugins``).
+* elsewhere: ``<module>.py`` and ``test_<module>.py`` in the current directory (a
+  module-only plugin: ``--plugins <module>.py`` on ``workbench run``, ``describe``,
+  ``sweep`` and ``python -m workbench.testing``, or ``plugins = ["<module>"]`` in a sweep).
 
 The plugin module has the contract's methods and docstrings; the physics (a formalism's
 mass matrix and forces, an integrator's method) raises NotImplementedError until written.
@@ -135,8 +136,11 @@ def scaffold(
         test_path = where / f"test_{module}.py"
         import_line = f"\nimport {module}  # noqa: F401, E402 - importing it registers the plugin\n"
         steps = [
+            f"python -m workbench.testing {kind} {name} --plugins {module}.py",
             f"pytest {test_path}   # needs pytest: pip install pytest",
-            f'in a sweep spec: plugins = ["{module}"]  (or use --package for a package)',
+            f"workbench describe {name} --plugins {module}.py",
+            f'in a sweep spec: plugins = ["{module}"] or --plugins {module}.py '
+            "(or use --package for a package)",
         ]
     files[test_path] = _render(
         "test_plugin.py.tmpl", values | {"import_line": import_line, "module": module}

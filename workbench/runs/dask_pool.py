@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError, one_line
+from workbench.plugin.local_modules import import_plugin_modules
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run, status_row
 from workbench.runs.local_pool import Keyed, _take_next
@@ -47,7 +48,6 @@ from workbench.runs.run_log import (
     store_log,
     write_log,
 )
-from workbench.runs.sweep_spec import import_plugin_modules
 from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,

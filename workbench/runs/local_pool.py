@@ -31,10 +31,10 @@ from typing import Any
 
 from workbench.errors import WorkbenchError
 from workbench.plugin import registry
+from workbench.plugin.local_modules import import_plugin_modules, imported_from_file
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run
 from workbench.runs.run_log import CapturedOutput, raw_path, write_log
-from workbench.runs.sweep_spec import import_plugin_modules
 from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
@@ -247,8 +247,8 @@ def _context() -> Any:
             info.module
             for kind in ("problem", "formalism", "integrator")
             for info in registry.list_plugins(kind)
-            if info.plugin is not None and info.module
-        ]
+            if info.plugin is not None and info.module and not imported_from_file(info.module)
+        ]  # a local plugin module is imported by each worker from its file
         context.set_forkserver_preload([*WORKER_MODULES, *dict.fromkeys(plugin_modules)])
         return context
     return multiprocessing.get_context("spawn")

@@ -12,7 +12,7 @@ benchmark problems; :func:`suite_names` lists them)::
     tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
-    plugins = ["my_package.my_plugins"]  # extra plugin modules, imported in every worker
+    plugins = ["my_package.my_plugins", "helper.py"]  # extra plugin modules (code: see below)
 
     problems = ["my-problem", { name = "my-top", options = { spin = [50.0, 100.0] } }]
     formalisms = ["all", { name = "my-formalism", options = { index = [1, 3] } }]
@@ -33,9 +33,12 @@ An integrator entry (a table, ``"all"`` included) may list its own ``tolerances`
 replace the sweep's for it: so a costly integrator can join a sweep at the tolerances
 where it is affordable.
 
-``plugins`` is a feature for plugin authors: modules (importable from the current
-directory or the Python path) whose registration decorators add plugins for this sweep
-only, without packaging them with entry points.
+``plugins`` is a feature for plugin authors: modules (installed, or a module or ``.py``
+file in the current directory or beside the specification) whose registration decorators
+add plugins for this sweep only, without packaging them with entry points. They are code:
+they are imported only after everything else in the specification that needs no plugin
+is valid, a local one from its file (said on stderr), and ``--no-local-plugins`` /
+``WORKBENCH_NO_LOCAL_PLUGINS=1`` refuses them (:mod:`workbench.plugin.local_modules`).
 
 Everything is validated before anything is written (:func:`load_spec`): unknown keys,
 wrong types, unknown plugins (with close matches), unknown or ill-typed options, tolerances
@@ -48,7 +51,6 @@ key. Validation never expands a grid before it has counted it, so it stays fast.
 
 from __future__ import annotations
 
-import importlib
 import itertools
 import json
 import math
@@ -66,8 +68,12 @@ from typing import Any
 from workbench.errors import ConfigError, PluginError, one_line
 from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
+from workbench.plugin.local_modules import (
+    find_plugin_modules,
+    import_plugin_modules,
+    stderr_line,
+)
 from workbench.plugin.registry import Kind
-from workbench.plugin.search_path import make_importable, plugin_directories
 from workbench.runs.execute import RunSpec, problem_span
 from workbench.runs.timing import (
     DEFAULT_REPEAT_BUDGET,
@@ -108,7 +114,7 @@ TOP_LEVEL_KEYS = {
     "tolerances": "list of rtol values (numbers > 0)",
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
-    "plugins": "list of plugin module names to import",
+    "plugins": "list of plugin module names or .py files to import",
     "problems": 'list of problem names or {name, options} tables, or "all"',
     "formalisms": 'list of formalism names or {name, options} tables, or "all"',
     "integrators": 'list of integrator names or {name, options} tables, or "all"',
@@ -116,6 +122,13 @@ TOP_LEVEL_KEYS = {
 
 
 REQUIRED_KEYS = ("problems", "formalisms", "integrators", "tolerances")
+
+
+KIND_KEYS: tuple[tuple[Kind, str], ...] = (
+    ("problem", "problems"),
+    ("formalism", "formalisms"),
+    ("integrator", "integrators"),
+)
 
 
 @dataclass
@@ -126,6 +139,7 @@ class SweepSpec:
     out: Path
     jobs: int = DEFAULT_JOBS
     time_limit: float = DEFAULT_TIME_LIMIT
+    # the plugin modules imported, as workers receive them (PluginModule.text())
     plugins: list[str] = field(default_factory=list)
     source: str = ""
     text: str = ""
@@ -159,45 +173,42 @@ def default_spec_text() -> str:
     return suite_text("default")
 
 
-def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
+def load_spec(
+    path: str | os.PathLike[str] | None = None,
+    plugins: Iterable[str] = (),
+    allow_local: bool | None = None,
+) -> SweepSpec:
     """Read and validate a sweep specification: a TOML file, or the name of a shipped suite
     (None: the default one); nothing is written. A name that is both an existing file and
-    a suite is read as the file."""
+    a suite is read as the file. ``plugins``: more plugin modules (``--plugins``), found
+    from the current directory; ``allow_local``: see :func:`parse_spec`."""
     if path is None:
         path = "default"
     if isinstance(path, str) and SUITE_NAME.fullmatch(path) and not Path(path).exists():
-        return parse_spec(suite_text(path), f"suite {path} (workbench/runs/suites/{path}.toml)")
+        source = f"suite {path} (workbench/runs/suites/{path}.toml)"
+        return parse_spec(suite_text(path), source, None, plugins, allow_local)
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         raise ConfigError(f"cannot read the sweep specification {path}: {error}") from None
-    return parse_spec(text, str(path), path.parent)
-
-
-def import_plugin_modules(
-    modules: Iterable[str], source: str = "plugins", spec_directory: str | Path | None = None
-) -> None:
-    """Import the plugin ``modules`` (ConfigError naming the one that fails); they are found
-    on the Python path, in the current directory and in ``spec_directory``."""
-    modules = list(modules)
-    if modules:
-        make_importable(plugin_directories() + ([str(spec_directory)] if spec_directory else []))
-    for index, name in enumerate(modules):
-        try:
-            importlib.import_module(name)
-        except Exception as error:  # noqa: BLE001 - any import failure is a config error
-            raise ConfigError(
-                f"{source}[{index}]: cannot import plugin module {name!r}: "
-                f"{type(error).__name__}: {error}"
-            ) from None
+    return parse_spec(text, str(path), path.parent, plugins, allow_local)
 
 
 def parse_spec(
-    text: str, source: str = "sweep specification", directory: str | Path | None = None
+    text: str,
+    source: str = "sweep specification",
+    directory: str | Path | None = None,
+    extra_plugins: Iterable[str] = (),
+    allow_local: bool | None = None,
 ) -> SweepSpec:
-    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key);
-    ``directory`` (the specification file's) is searched for its plugin modules too."""
+    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key).
+
+    ``directory`` (the specification file's) is searched for its plugin modules too;
+    ``extra_plugins`` (``--plugins``) are found from the current directory. The plugin
+    modules are imported only once everything that needs no plugin is valid; a local one
+    is said on stderr, and refused when ``allow_local`` is False (None: unless
+    ``WORKBENCH_NO_LOCAL_PLUGINS`` is set; :mod:`workbench.plugin.local_modules`)."""
     try:
         data = tomllib.loads(text)
     except RecursionError:
@@ -255,21 +266,27 @@ def parse_spec(
     rtols = _tolerance_list(data["tolerances"], "tolerances", atol_factor, fail)
     plugins = data.get("plugins", [])
     if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
-        raise fail("plugins", f"must be a list of module names, not {_show(plugins)}")
-    import_plugin_modules(plugins, f"{source}: plugins", directory)
+        raise fail("plugins", f"must be a list of module names or .py files, not {_show(plugins)}")
 
     from workbench.plugin.robot_problem import robot_entries
 
     base = Path(source).parent if Path(source).is_file() else Path.cwd()
     data["problems"] = robot_entries(data["problems"], base, fail)  # { urdf = PATH } entries
+    # the plugin modules are code: everything that needs none is checked before any runs
+    for kind, key in KIND_KEYS:
+        named, all_entry = _listed(data[key], kind, key, fail, atol_factor)
+        grids = [(options, item_key) for _, options, item_key, _ in named]
+        if all_entry is not None:
+            grids.append(all_entry[:2])
+        for options, item_key in grids:
+            _grid_size(options, f"{item_key}.options", fail)
+    modules = find_plugin_modules(plugins, f"{source}: plugins", directory, allow_local)
+    modules += find_plugin_modules(extra_plugins, "--plugins", None, allow_local)
+    import_plugin_modules(modules, f"{source}: plugins", say=stderr_line)
     # every list is resolved and its grids counted before any grid is expanded
     plans = {
         key: _plan(data[key], kind, key, missing, fail, (atol_factor, rtols))
-        for kind, key in (
-            ("problem", "problems"),
-            ("formalism", "formalisms"),
-            ("integrator", "integrators"),
-        )
+        for kind, key in KIND_KEYS
     }
     sizes = {
         key: sum(size * len(tols) for _, _, _, size, tols in plan) for key, plan in plans.items()
@@ -307,7 +324,7 @@ def parse_spec(
         Path(out),
         int(jobs),
         time_limit,
-        list(plugins),
+        [module.text() for module in modules],
         source,
         text,
         repeats,
@@ -402,6 +419,43 @@ def _plan(
     list its own ``tolerances`` instead. Problems and formalisms get ``[nan]``, a
     placeholder never read, so that every kind counts its runs as size x len(rtols)."""
     atol_factor, sweep_rtols = tolerances
+    named, all_entry = _listed(value, kind, key, fail, atol_factor)
+    explicit = {name for name, *_ in named}
+    if all_entry is not None:
+        all_options, all_key, all_rtols = all_entry
+        declared: set[str] = set()
+        for info in registry.list_plugins(kind):
+            if info.plugin is not None:
+                fields = _option_names(info.plugin)
+                declared |= fields
+                if info.name not in explicit:
+                    mine = {k: v for k, v in all_options.items() if k in fields}
+                    named.append((info.name, mine, all_key, all_rtols))
+        unknown = sorted(set(all_options) - declared)
+        if unknown:
+            raise fail(f"{all_key}.options.{unknown[0]}", f"no registered {kind} has this option")
+    resolved = []
+    for name, options, item_key, rtols in named:
+        if kind != "integrator":
+            rtols = [math.nan]
+        try:
+            registry.REGISTRY.get(kind, name)
+        except PluginError as error:
+            if missing == "skip" and name not in registry.REGISTRY.entries[kind]:
+                continue
+            raise fail(item_key, str(error)) from None
+        size = _grid_size(options, f"{item_key}.options", fail)
+        resolved.append((name, options, item_key, size, rtols or sweep_rtols))
+    if not resolved:
+        raise fail(key, f"no registered {kind} left to run (empty grid)")
+    return resolved
+
+
+def _listed(
+    value: Any, kind: Kind, key: str, fail: Callable[[str, str], ConfigError], atol_factor: float
+) -> tuple[list[tuple[str, Any, str, list[float] | None]], tuple[Any, str, Any] | None]:
+    """The entries of one list, checked without the registry: ((name, options, key, own
+    rtols) of every named entry, (options, key, rtols) of an "all" entry or None)."""
     table_keys = {"name", "options", "tolerances"} if kind == "integrator" else {"name", "options"}
 
     def own_tolerances(item: dict[str, Any], item_key: str) -> list[float] | None:
@@ -451,34 +505,7 @@ def _plan(
             named.append((name, options, item_key, rtols))
         else:
             raise fail(item_key, f"must be a name or a {{name, options}} table, not {_show(item)}")
-    explicit = {name for name, *_ in named}
-    if wants_all:
-        declared: set[str] = set()
-        for info in registry.list_plugins(kind):
-            if info.plugin is not None:
-                fields = _option_names(info.plugin)
-                declared |= fields
-                if info.name not in explicit:
-                    mine = {k: v for k, v in all_options.items() if k in fields}
-                    named.append((info.name, mine, all_key, all_rtols))
-        unknown = sorted(set(all_options) - declared)
-        if unknown:
-            raise fail(f"{all_key}.options.{unknown[0]}", f"no registered {kind} has this option")
-    resolved = []
-    for name, options, item_key, rtols in named:
-        if kind != "integrator":
-            rtols = [math.nan]
-        try:
-            registry.REGISTRY.get(kind, name)
-        except PluginError as error:
-            if missing == "skip" and name not in registry.REGISTRY.entries[kind]:
-                continue
-            raise fail(item_key, str(error)) from None
-        size = _grid_size(options, f"{item_key}.options", fail)
-        resolved.append((name, options, item_key, size, rtols or sweep_rtols))
-    if not resolved:
-        raise fail(key, f"no registered {kind} left to run (empty grid)")
-    return resolved
+    return named, ((all_options, all_key, all_rtols) if wants_all else None)
 
 
 def _expand(
