@@ -19,8 +19,8 @@ keeps the compile time about linear in the size of the graph.
 Without a C compiler, or when CasADi cannot generate C for a graph (the formalisms' linear
 solves use CasADi's own LDL^T and QR, which it can), evaluation stays in the virtual
 machine and a warning naming the compiler's own error is recorded
-(:attr:`Compiler.warnings`) for the run's message. Seconds spent generating, compiling and loading are counted in
-:data:`STATS`, so the runner can report them as their own stage.
+(:attr:`Compiler.warnings`) for the run's message. Seconds spent generating, compiling
+and loading are counted in :data:`STATS`, so the runner can report them as their own stage.
 """
 
 from __future__ import annotations
