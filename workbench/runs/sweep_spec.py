@@ -13,6 +13,7 @@ benchmark problems; :func:`suite_names` lists them)::
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
     plugins = ["my_package.my_plugins"]  # extra plugin modules, imported in every worker
+    store_trajectories = true      # the states at the output samples beside the series
 
     problems = ["my-problem", { name = "my-top", options = { spin = [50.0, 100.0] } }]
     formalisms = ["all", { name = "my-formalism", options = { index = [1, 3] } }]
@@ -109,6 +110,7 @@ TOP_LEVEL_KEYS = {
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
     "plugins": "list of plugin module names to import",
+    "store_trajectories": "store each run's states at its output samples (true or false)",
     "problems": 'list of problem names or {name, options} tables, or "all"',
     "formalisms": 'list of formalism names or {name, options} tables, or "all"',
     "integrators": 'list of integrator names or {name, options} tables, or "all"',
@@ -131,6 +133,7 @@ class SweepSpec:
     text: str = ""
     repeats: int = DEFAULT_REPEATS
     repeat_budget: float = DEFAULT_REPEAT_BUDGET
+    store_trajectories: bool = True  # each run's states beside its series (store.write_run)
 
 
 SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
@@ -257,6 +260,9 @@ def parse_spec(
     if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
         raise fail("plugins", f"must be a list of module names, not {_show(plugins)}")
     import_plugin_modules(plugins, f"{source}: plugins", directory)
+    store_trajectories = data.get("store_trajectories", True)
+    if not isinstance(store_trajectories, bool):
+        raise fail("store_trajectories", f"must be true or false, not {_show(store_trajectories)}")
 
     from workbench.plugin.robot_problem import robot_entries
 
@@ -312,6 +318,7 @@ def parse_spec(
         text,
         repeats,
         float(repeat_budget),
+        store_trajectories,
     )
 
 
