@@ -78,9 +78,15 @@ class Description:
 
 
 def describe(name: str | type, **options: Any) -> Description:
-    """Describe a registered problem, formalism or integrator (a name, or the class);
+    """Describe a registered problem, formalism or integrator (a name, or the class), or
+    a robot file (``.urdf``, MJCF ``.xml``);
     ``options`` are a problem's (e.g. ``describe(NAME, n=5)``)."""
+    from workbench.api.runs import robot_file
+
     registry.REGISTRY.discover()
+    if robot_file(name, None)[1] is not None:  # a robot file: the robot problem of it
+        name, given = robot_file(name, None)
+        options = given | options
     if isinstance(name, type):
         plugin = name
         kind = next(k for k in registry.KINDS if issubclass_of_kind(plugin, k))

@@ -74,7 +74,9 @@ def run(
     :class:`~workbench.api.result.Result` (row, trajectory, drift and energy, plots).
 
     Each of the three is a registered name or a plugin class (registered if it is not,
-    so a class defined in a notebook runs as it is). ``atol`` defaults to rtol * 1e-3.
+    so a class defined in a notebook runs as it is); ``problem`` may also be a robot
+    file (``.urdf``, MJCF ``.xml``), as in ``workbench run robot.urdf``. ``atol``
+    defaults to rtol * 1e-3.
     ``options``: option values by name, each given to the formalism, integrator or
     problem that declares it (``index=1``); ``*_options`` name the plugin explicitly.
     ``out``: also store the run in that results directory (as ``workbench run --out``).
@@ -85,6 +87,7 @@ def run(
     its ``row["status"]`` and ``row["message"]`` say what happened. Bad input (an
     unknown name, option or tolerance) raises :class:`~workbench.errors.ConfigError`.
     """
+    problem, problem_options = robot_file(problem, problem_options)
     names = {
         kind: plugin_name(kind, plugin)
         for kind, plugin in (
@@ -132,6 +135,15 @@ def run(
         sink.problem,
         sink.charts,
     )
+
+
+def robot_file(problem: Any, options: dict[str, Any] | None) -> tuple[Any, dict | None]:
+    """A robot file named where a problem is -> the robot problem and its ``file`` option."""
+    from workbench.plugin.robot_problem import ROBOT_PROBLEM, robot_format, robot_problem_options
+
+    if isinstance(problem, str | os.PathLike) and robot_format(str(problem)) is not None:
+        return ROBOT_PROBLEM, robot_problem_options(problem) | (options or {})
+    return problem, options
 
 
 class _Keep:
