@@ -1,4 +1,4 @@
-"""The formalism-neutral description of a mechanism (DESIGN.md, "The model").
+"""The formalism-neutral description of a mechanism (docs/architecture.md, "The model").
 
 A :class:`Model` is plain data: bodies, joints (tree and loop-closing), force elements,
 nonholonomic constraints and visual shapes. It knows nothing of coordinates chosen by a
