@@ -97,7 +97,9 @@ def test_describe_and_the_lists(fake_plugins) -> None:
     description = workbench.describe("test-slider-crank")
     assert description.kind == "problem" and description.facts["loops"] == "1"
     assert description.facts["DOF"] == "1"  # a slider-crank has one degree of freedom
-    assert "test-slider-crank" in description._repr_html_()
+    html = description._repr_html_()
+    assert "test-slider-crank" in html and "rod &rarr; slider" in html  # the model's joints
+    assert "<td>j4</td><td>revolute</td>" in description.model._repr_html_()
     options = workbench.describe("minimal-ode").options
     assert options.loc["index", "default"] == 3 or "index" in options.index
 

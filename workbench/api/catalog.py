@@ -69,10 +69,12 @@ class Description:
             for k, v in self.facts.items()
         )
         options = self.options.to_html() if len(self.options) else "<p>no options</p>"
+        model = self.model._repr_html_() if self.model is not None else ""
         return (
             f"<h4>{html.escape(self.name)} <small>({self.kind})</small></h4>"
             f"<p>{html.escape(self.summary)}</p>"
             + (f"<table>{facts}</table>" if facts else "")
+            + model
             + f"<b>options</b>{options}"
         )
 
