@@ -2,7 +2,7 @@
 
 ``workbench.run``, ``workbench.sweep``, ``workbench.describe``, ``workbench.load_results``
 and the registry's list (``workbench.list_plugins(kind)``),
-a thin layer beside the CLI over the same calls (:mod:`workbench.runs`). Everything here
+a thin layer beside the CLI over the same calls (``workbench.runs``). Everything here
 is also importable from ``workbench`` itself, lazily (``import workbench`` stays cheap).
 """
 

@@ -17,7 +17,7 @@ def plot_work_precision(
 ) -> Any:
     """scd (correct digits at the end) against ``cost`` (log x), one curve per ``by``
     group, one point per tolerance, of the ok runs of ``problem`` (default: the only
-    problem in ``results``). ``results`` as :func:`workbench.load_results` returns it;
+    problem in ``results``). ``results`` as ``workbench.load_results`` returns it;
     ``cost``: any cost column (``integrate_cpu_s``, ``integrate_s``, ``n_rhs``...).
     Returns the Axes."""
     if problem is None:

@@ -1,4 +1,4 @@
-"""The result of :func:`workbench.run`: its row, trajectory, series and plots."""
+"""The result of ``workbench.run``: its row, trajectory, series and plots."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ HEADLINE = [
 @dataclass
 class Result:
     """One run: ``row`` (a pandas Series, the columns of
-    :data:`workbench.runs.store.SCHEMA`), ``series`` (drift, energy and error at every output
+    ``workbench.runs.store.SCHEMA``), ``series`` (drift, energy and error at every output
     sample) and ``trajectory`` (time ``t`` in s and every named coordinate, velocity and
     multiplier). ``equations`` and ``problem`` are the objects the run used (None if it
     stopped before building them)."""

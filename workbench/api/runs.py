@@ -71,7 +71,7 @@ def run(
     **options: Any,
 ) -> Result:
     """Run ``problem`` with ``formalism`` and ``integrator`` at ``rtol`` and return its
-    :class:`~workbench.api.result.Result` (row, trajectory, drift and energy, plots).
+    ``Result`` (row, trajectory, drift and energy, plots).
 
     Each of the three is a registered name or a plugin class (registered if it is not,
     so a class defined in a notebook runs as it is); ``problem`` may also be a robot
@@ -85,7 +85,7 @@ def run(
     The run executes in this process, with no time limit (``workbench run`` kills its
     child at ``--time-limit``). A run that fails or is skipped is returned, not raised:
     its ``row["status"]`` and ``row["message"]`` say what happened. Bad input (an
-    unknown name, option or tolerance) raises :class:`~workbench.errors.ConfigError`.
+    unknown name, option or tolerance) raises ``ConfigError``.
     """
     problem, problem_options = robot_file(problem, problem_options)
     names = {

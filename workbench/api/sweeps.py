@@ -41,7 +41,7 @@ def sweep(
     fresh: bool = False,
     **keys: Any,
 ) -> pd.DataFrame:
-    """Run a sweep and return its results frame (as :func:`workbench.load_results`).
+    """Run a sweep and return its results frame (as ``workbench.load_results``).
 
     ``spec``: a sweep specification file, a suite name (``"iftomm"``), a dict of its keys,
     or None; ``keys`` add or replace keys (``problems=[...]``, ``formalisms=[...]``,

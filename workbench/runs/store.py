@@ -506,7 +506,7 @@ def load_trajectory(path: str | os.PathLike[str], run_id: str) -> pd.DataFrame:
     a run written before trajectories were stored, or one that never integrated)."""
     frame = load_series(path, run_id, states=True)
     names = [c for c in frame.columns if c.startswith(STATE_PREFIX)]
-    if not names and len(frame) or "t" not in frame.columns:
+    if (not names and len(frame)) or "t" not in frame.columns:  # (no samples: an empty one)
         raise ConfigError(
             f"run {run_id!r} in {path} has no stored trajectory (swept with "
             "store_trajectories = false, or by a workbench that did not store them): "
