@@ -1,6 +1,6 @@
 """The elements of a mechanism: frames, bodies, joints, force elements, constraints.
 
-Plain frozen data (DESIGN.md, "The model"), with no behaviour beyond normalizing their
+Plain frozen data (docs/architecture.md, "The model"), with no behaviour beyond normalizing their
 inputs; :class:`~workbench.model.model.Model` gathers them and validation judges them.
 Units: SI; vectors (3,) and tensors (3, 3) in body coordinates.
 """
