@@ -12,6 +12,7 @@ checked against Pinocchio here.
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,8 +23,9 @@ from workbench.model.importers.urdf import load_urdf
 from workbench.plugin.registry import get_formalism, plugin_names
 from workbench.testing.states import body_accelerations, formalism_state
 
+LOCAL = Path(__file__).parent / "robots"
 ROBOTS = {
-    # name: (file in example-robot-data, import options)
+    # name: (file in example-robot-data, or a Path of a test file, import options)
     "ur5": ("ur_description/urdf/ur5_robot.urdf", {}),  # 4 fixed joints (world, ee_link, ...)
     "panda": ("panda_description/urdf/panda.urdf", {"mimic": "independent"}),  # prismatic
     "solo12": ("solo_description/robots/solo12.urdf", {"floating_base": True}),  # free base
@@ -31,6 +33,8 @@ ROBOTS = {
         "double_pendulum_description/urdf/double_pendulum_continuous.urdf",
         {},
     ),
+    # a planar joint (axis z of a tilted joint frame) carrying a pendulum
+    "planar-carriage": (LOCAL / "planar.urdf", {}),
 }
 STATES = 3
 RELATIVE = 1e-9
@@ -40,11 +44,17 @@ RELATIVE = 1e-9
 def imported(robot: str, torques: bool = True):
     """The imported robot, with a constant random torque on every actuated joint."""
     relative, options = ROBOTS[robot]
-    result = load_urdf(example_robot(relative), **options)
+    path = relative if isinstance(relative, Path) else example_robot(relative)
+    result = load_urdf(path, **options)
     if torques:
         rng = np.random.default_rng(5)
         for joint in result.model.tree_joints:
-            if joint.type != "free":
+            if joint.type == "planar":  # a force along x, y and a torque about z
+                value = tuple(rng.uniform(-5.0, 5.0, 3))
+                result.model.add_force(JointForce(
+                    f"torque {joint.name}", joint.name, lambda t, q, v, c=value: np.array(c)
+                ))  # fmt: skip
+            elif joint.type != "free":
                 value = float(rng.uniform(-5.0, 5.0))
                 result.model.add_force(
                     JointForce(f"torque {joint.name}", joint.name, lambda t, q, v, c=value: c)
@@ -93,14 +103,12 @@ def test_every_formalism_equals_pinocchio_aba(robot: str) -> None:
     pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
     peers = PinocchioMap(imported(robot), pinocchio_model(imported(robot)))
     data = peers.pin_model.createData()
-    tau_pin = peers.state(*random_state(peers.kinematics, np.random.default_rng(0)))[
-        2
-    ] @ torque_vector(robot, peers)
     formalisms = supporting(robot)
     assert "recursive" in formalisms
     compared = []
     for q, v in states(robot, peers):
-        q_pin, v_pin, _ = peers.state(q, v)
+        q_pin, v_pin, t_matrix = peers.state(q, v)
+        tau_pin = t_matrix @ torque_vector(robot, peers)  # T orthogonal: T^-T = T
         expected = pin.aba(peers.pin_model, data, q_pin, v_pin, tau_pin)
         scale = np.abs(expected).max()
         assert scale > 1.0
@@ -151,3 +159,27 @@ def test_joint_space_mass_matrices_equal_pinocchio_crba(robot: str) -> None:
             )  # fmt: skip
             checked += 1
     assert checked >= STATES
+
+
+def test_a_planar_joint_moves_along_its_frames_x_and_y_as_pinocchio():
+    """URDF planar joint, axis z: q = (x, y, angle) moves the child link along the joint
+    frame's x and y and turns it about z, where Pinocchio's JointModelPlanar puts it."""
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    from workbench.mechanics import joints as jk
+
+    robot = imported("planar-carriage", torques=False)
+    peers = PinocchioMap(robot, pinocchio_model(robot))
+    data = peers.pin_model.createData()
+    joint = robot.model.joints["plane"]
+    index = peers.pin_model.getJointId("plane")
+    for q_joint in ([0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.3, -0.2, 1.1]):
+        q = np.zeros(peers.kinematics.nq)
+        q[peers.kinematics.joint_slices["plane"][0]] = q_joint
+        q_pin, _, _ = peers.state(q, np.zeros(peers.kinematics.nv))
+        pin.forwardKinematics(peers.pin_model, data, q_pin)
+        offset, rotation = jk.relative_transform(joint, np.array(q_joint))
+        frame = joint.parent_frame
+        position = frame.position + frame.rotation @ np.ravel(np.asarray(offset, float))
+        orientation = frame.rotation @ np.asarray(rotation, float) @ joint.child_frame.rotation.T
+        np.testing.assert_allclose(position, data.oMi[index].translation, atol=1e-12)
+        np.testing.assert_allclose(orientation, data.oMi[index].rotation, atol=1e-12)

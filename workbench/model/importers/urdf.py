@@ -11,7 +11,9 @@ http://wiki.ros.org/urdf/XML).
 * revolute and continuous -> revolute (one angle: a continuous joint is not written as
   (cos, sin) as Pinocchio does); prismatic -> prismatic; floating -> free (position of the
   child in the parent's joint frame, Euler parameters scalar-first); planar -> planar in the
-  plane normal to the axis; fixed -> the child link is welded into its parent's body: its
+  plane normal to the axis (its x and y are the joint frame's turned by the least rotation
+  taking z onto the axis: for axis z, q = (x, y, angle) as Pinocchio's ``JointModelPlanar``);
+  fixed -> the child link is welded into its parent's body: its
   mass, centre of mass and inertia are combined (parallel-axis theorem) and its visuals
   move with it. The root link is fixed to the ground unless ``floating_base`` gives it a
   free joint (Pinocchio's ``JointModelFreeFlyer`` root); links welded to the ground carry
@@ -406,11 +408,16 @@ def _homogeneous(rotation: np.ndarray) -> np.ndarray:
 
 
 def _z_to(axis: np.ndarray) -> np.ndarray:
-    """A rotation whose third column is the unit ``axis``."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, axis)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(axis, x), axis])
+    """The least rotation taking z onto the unit ``axis`` (Rodrigues): the identity for
+    axis z, so the plane's x and y are the joint frame's, as in URDF and Pinocchio's
+    ``JointModelPlanar``; for axis -z a half turn about x."""
+    z = np.array([0.0, 0.0, 1.0])
+    cosine = float(axis @ z)
+    if cosine < -1.0 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    k = np.cross(z, axis)
+    cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + cross + cross @ cross / (1.0 + cosine)
 
 
 def _shape(geometry: Any, frame: Frame) -> Shape | None:
