@@ -77,7 +77,7 @@ tolerances = [1e-6]
     monkeypatch.chdir(REPO)  # not the spec's folder
     parsed = parse_spec(text, str(spec))
     (run,) = parsed.runs
-    assert run.problem == "robot"
+    assert run.problem == "arm.xml[q0={shoulder:0.2},t_end=0.5]"
     assert run.problem_options["file"] == str((tmp_path / "robots" / "arm.xml").resolve())
     assert run.problem_options["t_end"] == 0.5
     with pytest.raises(ConfigError, match=r"problems\[0\]\.urdf.*not found"):
@@ -200,3 +200,31 @@ def test_without_example_robot_data_the_robots_module_says_how_to_install_it(mon
     spec = importlib.util.spec_from_file_location("robots_probe", REPO / "problems" / "robots.py")
     with pytest.raises(ImportError, match=r"pip install 'mbs-workbench\[robots\]'"):
         spec.loader.exec_module(importlib.util.module_from_spec(spec))
+
+
+def test_a_sweep_of_two_robots_gives_two_problems(tmp_path):
+    """Each robot file is a problem of its own, named after the file (parent folders tell
+    files of the same name apart) and the options set: in the rows, in `workbench results`
+    and in the recording; a robot's name also finds the robot problem in the registry."""
+    from workbench.plugin.registry import get_problem
+    from workbench.runs.store import load_results
+
+    for folder, source in (("arm", ARM), ("floating", REPO / "tests" / "robots" / "floating.xml")):
+        (tmp_path / folder).mkdir()
+        shutil.copy(source, tmp_path / folder / "robot.xml")
+    (tmp_path / "spec.toml").write_text(
+        'problems = [{ mjcf = "arm/robot.xml", t_end = 0.05 }, { mjcf = "floating/robot.xml" }]\n'
+        'formalisms = ["recursive"]\nintegrators = ["sundials-cvode-bdf"]\ntolerances = [1e-4]\n'
+    )
+    parsed = parse_spec((tmp_path / "spec.toml").read_text(), str(tmp_path / "spec.toml"))
+    names = ["arm/robot.xml[t_end=0.05]", "floating/robot.xml"]
+    assert [run.problem for run in parsed.runs] == names
+    assert get_problem("floating/robot.xml") is RobotProblem
+    result = workbench("sweep", "spec.toml", "-o", "out", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    rows = load_results(tmp_path / "out")
+    assert sorted(rows["problem"]) == names
+    assert set(rows["status"]) == {"ok"}
+    listed = workbench("results", "out", "--format", "csv", cwd=tmp_path)
+    assert listed.returncode == 0, listed.stderr
+    assert all(name in listed.stdout for name in names)

@@ -3,16 +3,23 @@
 
 The problem "robot" takes the file as its option ``file`` (an absolute path, so a run's id
 names the file wherever the run executes); the command line and the sweep specification
-turn a path into it (:func:`robot_problem_options`). The robot moves unforced under
-gravity from ``q0`` / ``v0`` ({joint: value}, or one list of every tree joint's coordinates
-in the file's order), else the file's keyframe (MJCF), else the neutral configuration at
-rest. Its energy is conserved unless the file has joint dampers.
+turn a path into it (:func:`robot_problem_options`). A run of it is named after its file
+and the options that differ from the defaults (``solo12.urdf[floating_base=true]``,
+:func:`robot_problem_name`), so that several robots of one sweep stay distinct problems in
+rows, report and recording; the registry resolves such a name to this problem.
+
+The robot moves unforced under gravity from ``q0`` / ``v0`` ({joint: value}, or one list
+of every tree joint's coordinates in the file's order), else the file's keyframe (MJCF),
+else the neutral configuration at rest. Its energy is conserved unless the file has joint dampers.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
+import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -66,6 +73,7 @@ class RobotProblem(Problem):
 
     def __init__(self, options: Any = None) -> None:
         super().__init__(options)
+        self.name = robot_problem_name(dataclasses.asdict(self.options))
         self.t_end = float(self.options.t_end)
         self.n_samples = int(self.options.n_samples)
 
@@ -183,6 +191,56 @@ def robot_entries(problems: Any, base: Path, fail: Any) -> Any:
     return entries
 
 
+def robot_problem_name(options: Mapping[str, Any], folders: int = 0) -> str:
+    """The name of a run of the robot problem with ``options``: the file's name (with
+    ``folders`` parent folders), then the options that differ from the defaults,
+    ``name[key=value,...]`` (keys sorted, values as compact JSON without quotes)."""
+    path = Path(str(options.get("file", "")))
+    name = "/".join([*path.parent.parts[len(path.parent.parts) - folders :], path.name])
+    defaults = {f.name: f.default for f in dataclasses.fields(RobotOptions)}
+    changed = {
+        key: value
+        for key, value in options.items()
+        if key != "file" and (key not in defaults or defaults[key] != value)
+    }
+    if not changed:
+        return name
+    text = ",".join(
+        f"{key}={json.dumps(changed[key], separators=(',', ':'), default=str)}"
+        for key in sorted(changed)
+    )
+    return f"{name}[{text.replace(chr(34), '')}]"
+
+
+def is_robot_problem_name(name: str) -> bool:
+    """``name`` is a robot problem's run name (a robot file's name, options in brackets)."""
+    return robot_format(name.split("[", 1)[0]) is not None
+
+
+def run_problem_names(problems: Sequence[tuple[str, Mapping[str, Any]]]) -> list[str]:
+    """The problem name of each (registered name, options) in runs: a robot problem's is
+    :func:`robot_problem_name`, with as many parent folders as tell its file apart from
+    other files of the same name; the others keep theirs."""
+
+    def robot(name: str) -> bool:
+        return name == ROBOT_PROBLEM or is_robot_problem_name(name)
+
+    files = {str(options.get("file", "")) for name, options in problems if robot(name)}
+    folders = {}
+    for file in files:
+        depth = 0
+        while depth < 32 and any(
+            robot_problem_name({"file": other}, depth) == robot_problem_name({"file": file}, depth)
+            for other in files - {file}
+        ):
+            depth += 1
+        folders[file] = depth
+    return [
+        robot_problem_name(options, folders[str(options.get("file", ""))]) if robot(name) else name
+        for name, options in problems
+    ]
+
+
 def robot_file_problem(problem: str, option: list[str]) -> tuple[str, list[str]]:
     """A robot file named where a problem is (``workbench run/describe robot.urdf``) -> the
     "robot" problem and its ``-o problem.file=...`` first among the ``-o`` options."""
@@ -198,7 +256,10 @@ __all__ = [
     "ENTRY_KEYS",
     "ROBOT_PROBLEM",
     "RobotProblem",
+    "is_robot_problem_name",
     "robot_entries",
     "robot_file_problem",
+    "robot_problem_name",
     "robot_problem_options",
+    "run_problem_names",
 ]
