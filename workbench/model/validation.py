@@ -57,8 +57,10 @@ JOINT_SPRING_TYPES: tuple[str, ...] = (
     "cylindrical",
     "universal",
     "planar",
+    "spherical",
+    "free",
 )
-"""Joint types with one coordinate per velocity, on which a JointSpringDamper may act."""
+"""Joint types a JointSpringDamper may act on (spherical and free: rest is a pose)."""
 
 SPINNING_POINT_MASS_TYPES: tuple[str, ...] = ("spherical", "universal", "cylindrical", "free")
 """Joint types that rotate a spatial point mass about an axis through it."""
@@ -391,6 +393,14 @@ def _check_force(model: Model, element: Any) -> None:
         rest = np.atleast_1d(real_array(element.rest, _where(model, what), "rest"))
         if not np.all(np.isfinite(rest)):
             raise ModelError(f"{_where(model, what)}: rest = {rest.tolist()} is not finite")
+        if joint.type in ("spherical", "free"):
+            size = 4 if joint.type == "spherical" else 7
+            if rest.size != size or abs(np.linalg.norm(rest[-4:]) - 1.0) > 1e-6:
+                raise ModelError(
+                    f"{_where(model, what)}: rest = {rest.tolist()}; on the {joint.type} joint "
+                    f"{joint.name!r} give the rest pose as its {size} coordinates (a unit "
+                    "quaternion, scalar first" + (", after the position)" if size == 7 else ")")
+                )
     elif isinstance(element, JointForce):
         _known_joint(model, what, element.joint)
         _check_callable(model, what, element.function)
