@@ -147,6 +147,26 @@ CASES = {
         mjcf('<bodyy name="b"/>'),
         ["MuJoCo cannot compile it", "bodyy"],
     ),
+    "MJCF armature": (
+        "scene.xml",
+        mjcf(MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" armature="0.01"')),
+        ["joint 'h': armature 0.01", "rotor inertia", "drop=['armature']"],
+    ),
+    "MJCF frictionloss": (
+        "scene.xml",
+        mjcf(MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" frictionloss="0.2"')),
+        ["joint 'h': frictionloss 0.2", "dry joint friction", "drop=['frictionloss']"],
+    ),
+    "MJCF gravity compensation": (
+        "scene.xml",
+        mjcf(MJCF_BODY.replace('<body name="b">', '<body name="b" gravcomp="1">')),
+        ["body 'b': gravcomp 1", "drop=['gravcomp']"],
+    ),
+    "MJCF fluid forces": (
+        "scene.xml",
+        mjcf(extra='<option density="1.2"/>'),
+        ["density 1.2", "fluid forces", "drop=['fluid']"],
+    ),
     "massless MJCF body": (
         "scene.xml",
         mjcf('<body name="b"><joint name="h" axis="0 0 1"/></body>'),
@@ -189,3 +209,29 @@ def test_mimic_joints_import_as_independent_joints_when_asked(tmp_path: Path) ->
     path.write_text(text)
     imported = load_robot(path, mimic="independent")
     assert [j.name for j in imported.model.tree_joints] == ["shoulder", "wrist"]
+
+
+def test_an_mjcf_term_the_model_cannot_hold_is_left_out_only_when_asked(tmp_path: Path) -> None:
+    """drop=[...] imports the file without the named terms and says so in the notes; an
+    unknown name is refused with the list of names."""
+    path = tmp_path / "scene.xml"
+    path.write_text(
+        mjcf(MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" armature="0.01" frictionloss="1"'))
+    )
+    with pytest.raises(ModelError, match="armature"):
+        load_robot(path, drop=["frictionloss"])
+    imported = load_robot(path, drop=["armature", "frictionloss"])
+    assert any("armature 0.01: left out" in note for note in imported.notes)
+    assert any("frictionloss 1: left out" in note for note in imported.notes)
+    with pytest.raises(ModelError, match="'friction' is not a term.*armature, frictionloss"):
+        load_robot(path, drop=["friction"])
+
+
+def test_mjcf_switches_for_gravity_springs_and_dampers_are_honoured(tmp_path: Path) -> None:
+    path = tmp_path / "scene.xml"
+    body = MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" stiffness="3" damping="0.5"')
+    path.write_text(mjcf(body, '<option><flag gravity="disable" spring="disable"/></option>'))
+    model = load_robot(path).model
+    assert not model.gravity.any()
+    (spring,) = model.forces
+    assert (spring.stiffness, spring.damping) == (0.0, 0.5)

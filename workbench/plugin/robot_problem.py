@@ -44,6 +44,8 @@ class RobotOptions:
     floating_base: bool = False  # URDF: a free joint under the root link
     mimic: Literal["error", "independent"] = "error"  # URDF mimic joints
     keyframe: int = 0  # MJCF: the keyframe of the initial state, if the file has one
+    meshes: bool = True  # URDF: False imports without checking the visual mesh files
+    drop: tuple[str, ...] = ()  # MJCF: terms the model cannot hold, left out (DROPPABLE)
 
     def __post_init__(self) -> None:
         if not self.file:
@@ -57,10 +59,12 @@ class RobotOptions:
 
 
 @functools.cache
-def _imported(file: str, floating_base: bool, mimic: str, keyframe: int) -> ImportedRobot:
+def _imported(
+    file: str, floating_base: bool, mimic: str, keyframe: int, meshes: bool, drop: tuple[str, ...]
+) -> ImportedRobot:
     if robot_format(file) == "urdf":
-        return load_robot(file, floating_base=floating_base, mimic=mimic)
-    return load_robot(file, keyframe=keyframe)
+        return load_robot(file, floating_base=floating_base, mimic=mimic, meshes=meshes)
+    return load_robot(file, keyframe=keyframe, drop=drop)
 
 
 @problem
@@ -79,7 +83,9 @@ class RobotProblem(Problem):
 
     def imported(self) -> ImportedRobot:
         o = self.options
-        return _imported(o.file, o.floating_base, o.mimic, o.keyframe)
+        return _imported(
+            o.file, o.floating_base, o.mimic, o.keyframe, o.meshes, tuple(o.drop or ())
+        )
 
     def model(self) -> Model:
         model = copy.deepcopy(self.imported().model)
