@@ -117,6 +117,21 @@ CASES = {
         ["joint 'shoulder' (line 6)", "<axis> is zero"],
     ),
     "not a robot": ("robot.urdf", "<mujoco/>", ["root element is <mujoco>"]),
+    "robot without a name": (
+        "robot.urdf",
+        urdf().replace('<robot name="bad">', "<robot>"),
+        ["line 2", '<robot> has no name="..."'],
+    ),
+    "nothing moves": (
+        "robot.urdf",
+        urdf().replace('type="revolute"', 'type="fixed"'),
+        ["link 'base' (line 3)", "no moving joint", "floating_base=True"],
+    ),
+    "impossible inertia": (
+        "robot.urdf",
+        urdf(arm='<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.5"/></inertial>'),
+        ["link 'arm' (line 4)", "triangle inequality"],
+    ),
     "unsupported MJCF element (tendon)": (
         "scene.xml",
         mjcf(
@@ -235,3 +250,25 @@ def test_mjcf_switches_for_gravity_springs_and_dampers_are_honoured(tmp_path: Pa
     assert not model.gravity.any()
     (spring,) = model.forces
     assert (spring.stiffness, spring.damping) == (0.0, 0.5)
+
+
+def test_what_the_urdf_specification_allows_is_read(tmp_path: Path) -> None:
+    """Read as Pinocchio reads them: a Gazebo extension's non-numeric ``value`` (PR2), a
+    joint and a link of the same name (SO-100's "gripper"; the body takes the name
+    gripper_link), a link with a mass and a zero inertia (iCub: a point mass at its
+    centre of mass)."""
+    text = urdf(
+        links='<link name="gripper"><inertial><origin xyz="0.1 0 0"/><mass value="0.3"/>'
+        '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>'
+        '<gazebo reference="arm"><material value="Gazebo/Grey"/></gazebo>',
+        joints='<joint name="gripper" type="revolute"><parent link="arm"/>'
+        '<child link="gripper"/><origin xyz="0 0 0.2"/><axis xyz="0 1 0"/></joint>',
+    )
+    path = tmp_path / "robot.urdf"
+    path.write_text(text)
+    imported = load_robot(path)
+    model = imported.model
+    assert imported.links["gripper"][0] == "gripper_link"
+    assert model.joints["gripper"].child == "gripper_link"
+    body = model.bodies["gripper_link"]
+    assert body.point_mass and body.mass == 0.3 and list(body.com) == [0.1, 0.0, 0.0]

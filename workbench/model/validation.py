@@ -530,10 +530,11 @@ def _check_point_mass_joints(model: Model) -> None:
         elif model.kind == "planar" and joint.type == "planar":
             spins = True
         elif joint.type == "revolute":
-            # the mass sits at the body origin, i.e. at -position relative to frame C
+            # the mass sits at its com (the body origin unless given), relative to frame C
             axis = joint.child_frame.rotation @ (joint.axis / np.linalg.norm(joint.axis))
-            offset = np.linalg.norm(np.cross(axis, joint.child_frame.position))
-            spins = offset <= 1e-9 * max(1.0, np.linalg.norm(joint.child_frame.position))
+            arm = np.asarray(body.com, float) - joint.child_frame.position
+            offset = np.linalg.norm(np.cross(axis, arm))
+            spins = offset <= 1e-9 * max(1.0, np.linalg.norm(arm))
         if spins:
             raise ModelError(
                 f"model {model.name!r}, body {body.name!r}: the point mass would spin about "

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any, Literal
 
@@ -61,6 +62,10 @@ NUMERIC_ATTRIBUTES = {
     "effort", "velocity", "radius", "length", "size", "scale", "multiplier", "offset",
     "damping", "friction", "rgba",
 }  # fmt: skip
+
+
+# elements outside the URDF specification's kinematics and dynamics: never read here
+IGNORED_EXTENSIONS = ("gazebo", "transmission")
 
 
 class _Source:
@@ -113,11 +118,26 @@ class _Source:
         return f"{self.path}: {owner}<{element.tag}> (line {element.sourceline})"
 
     def check(self) -> None:
-        """Numbers are finite numbers, joints have a known type, a parent and a child."""
+        """Numbers are finite numbers, joints have a known type, a parent and a child.
+
+        Only the URDF specification's own attributes are numbers: ``<gazebo>`` and
+        ``<transmission>`` extensions are not read (PR2's ``<material value="PR2/...">``
+        names a Gazebo material), and ``value`` is a number on ``<mass>`` only."""
+        if not self.root.get("name"):
+            raise ModelError(
+                f'{self.path}: line {self.root.sourceline}: <robot> has no name="..."; the '
+                "URDF specification requires one (Pinocchio and yourdfpy refuse it too)"
+            )
         for element in self.root.iter():
-            if not isinstance(element.tag, str):
+            if not isinstance(element.tag, str) or any(
+                ancestor.tag in IGNORED_EXTENSIONS for ancestor in element.iterancestors()
+            ):
+                continue
+            if element.tag in IGNORED_EXTENSIONS:
                 continue
             for attribute in NUMERIC_ATTRIBUTES & set(element.attrib):
+                if attribute == "value" and element.tag != "mass":
+                    continue
                 text = element.get(attribute)
                 try:
                     values = [float(word) for word in text.split()]
@@ -193,6 +213,7 @@ class _Builder:
         kwargs = {} if gravity is None else {"gravity": gravity}
         self.model = Model(robot.name or source.path.stem, "spatial", **kwargs)
         self.imported = ImportedRobot(self.model, source.path)
+        self.link_of: dict[str, str] = {}  # body -> the link it is named after
 
     # -- the tree ---------------------------------------------------------------------
     def root_link(self) -> tuple[str, dict[str, list[Any]]]:
@@ -229,16 +250,35 @@ class _Builder:
             )
         return roots[0], children
 
+    def body_name(self, link: str) -> str:
+        """The body of a moving link: the link's name, unless a joint has that name too
+        (URDF allows it; the model does not): then ``<link>_link``."""
+        joints = {joint.name for joint in self.robot.joints}
+        if self.floating_base:
+            joints.add("root_joint")
+        name = link
+        while name in joints:
+            name += "_link"
+        self.link_of[name] = link
+        return name
+
     def build(self) -> ImportedRobot:
         root, children = self.root_link()
+        if all(j.type == "fixed" for j in self.robot.joints) and not self.floating_base:
+            raise ModelError(
+                f"{self.source.where('link', root)}: the file has no moving joint, so its "
+                "links are fixed to the ground and nothing moves; import with "
+                "floating_base=True (option floating_base = true) to let it fly freely"
+            )
         # host[link] = (body or GROUND, 4x4 link frame in that body's frame)
         host: dict[str, tuple[str, np.ndarray]] = {}
         inertias: dict[str, RigidInertia] = {}
         moved_by: dict[str, str] = {}  # body -> the file joint that moves it
         if self.floating_base:
-            host[root] = (root, np.eye(4))
-            inertias[root] = RigidInertia()
-            moved_by[root] = "root_joint"
+            body = self.body_name(root)
+            host[root] = (body, np.eye(4))
+            inertias[body] = RigidInertia()
+            moved_by[body] = "root_joint"
         else:
             host[root] = (GROUND, np.eye(4))
         order = [root]
@@ -250,9 +290,10 @@ class _Builder:
             if joint.type == "fixed":
                 host[joint.child] = (parent_body, placement)
             else:
-                host[joint.child] = (joint.child, np.eye(4))
-                inertias[joint.child] = RigidInertia()
-                moved_by[joint.child] = joint.name
+                body = self.body_name(joint.child)
+                host[joint.child] = (body, np.eye(4))
+                inertias[body] = RigidInertia()
+                moved_by[body] = joint.name
             order.append(joint.child)
             stack.extend(reversed(children.get(joint.child, [])))
         reached = set(order)
@@ -272,13 +313,20 @@ class _Builder:
         for body, inertia in inertias.items():
             if inertia.mass <= 0.0:
                 raise ModelError(
-                    f"{self.source.where('link', body)}: moves with joint {moved_by[body]!r} "
-                    "but has no mass (no <inertial>, or mass 0, on it and on the links fixed "
-                    "to it); give it an <inertial> with a mass > 0"
+                    f"{self.source.where('link', self.link_of[body])}: moves with joint "
+                    f"{moved_by[body]!r} but has no mass (no <inertial>, or mass 0, on it and "
+                    "on the links fixed to it), which the model cannot hold (Pinocchio can, "
+                    "inside a chain); give it an <inertial> with a mass > 0"
                 )
+            if np.abs(inertia.inertia).max() <= 1e-12 * inertia.mass:  # a zero inertia:
+                # a point mass (1e-12 kg m^2 a kg: round-off of rotated zero inertias)
+                self.model.add_point_mass(body, inertia.mass, shapes[body], com=inertia.com)
+                continue
             self.model.add_body(body, inertia.mass, inertia.com, inertia.inertia, shapes[body])
         if self.floating_base:
-            self.model.add_joint(self.unique_joint_name("root_joint"), "free", GROUND, root)
+            self.model.add_joint(
+                self.unique_joint_name("root_joint"), "free", GROUND, host[root][0]
+            )
             self.imported.file_joint_types["root_joint"] = "floating"
         for name in order[1:]:
             joint = next(j for j in self.robot.joints if j.child == name)
@@ -287,14 +335,25 @@ class _Builder:
         try:
             self.model.validate()
         except ModelError as error:
-            raise ModelError(f"{self.source.path}: {error}") from None
+            raise ModelError(f"{self.where_model(str(error))}: {error}") from None
         return self.imported
 
+    def where_model(self, message: str) -> str:
+        """The file and, when the model's message names a body or joint, its element
+        and line in the file."""
+        found = re.search(r"\b(body|joint) '([^']+)'", message)
+        if found is None:
+            return str(self.source.path)
+        kind, name = found.groups()
+        if kind == "body":
+            return self.source.where("link", self.link_of.get(name, name))
+        return self.source.where("joint", name)
+
     def unique_joint_name(self, name: str) -> str:
-        if name in self.model.bodies or name in self.model.joints:
+        if name in self.model.joints:  # "root_joint" of floating_base, and a file joint
             raise ModelError(
-                f"{self.source.where('joint', name)}: the name {name!r} is also a link's; "
-                "give joints and links different names"
+                f"{self.source.where('joint', name)}: the name {name!r} is the free base's "
+                "(floating_base); rename the joint"
             )
         return name
 
@@ -380,7 +439,7 @@ class _Builder:
             name,
             MODEL_TYPES[joint.type],
             parent_body,
-            joint.child,
+            host[joint.child][0],
             frame_of(placement),
             child_frame,
             axis=axis,
