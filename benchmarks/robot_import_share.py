@@ -57,7 +57,7 @@ def workbench_reads(path: Path, **options) -> tuple[object | None, str]:
     try:
         return quietly(load_urdf, path, **options), ""
     except ModelError as error:
-        return None, str(error).replace(str(path.parent), "").lstrip("/")[:200]
+        return None, str(error).replace(str(path.parent), "").lstrip("/")
 
 
 def as_pinocchio(path: Path) -> tuple[object | None, str, str]:
