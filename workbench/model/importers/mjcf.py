@@ -14,9 +14,20 @@ resolves them.
   qvel the angular velocity in the child frame, as ours); free -> free (qpos = position and
   Euler parameters in the world; qvel = world velocity of the body origin and body-frame
   angular velocity, as ours).
-* joint ``stiffness`` (about ``springref``) and ``damping`` -> a JointSpringDamper;
-  ``armature``, ``frictionloss``, actuators, contacts and joint limits are not modelled:
-  each one present is listed in :attr:`ImportedRobot.notes`; limits are recorded.
+* joint ``stiffness`` and ``damping`` -> a JointSpringDamper on every joint type, as
+  MuJoCo's ``mj_passive``: about ``springref`` on a hinge or slide, and for a ball or free
+  joint on the rotation vector of the quaternion difference to its compiled pose
+  (``mju_subQuat``), the damping on every velocity; the ``spring``, ``damper``,
+  ``gravity`` and ``equality`` disable flags are honoured.
+* What changes the smooth dynamics but the model cannot hold (:data:`DROPPABLE`:
+  armature, frictionloss, gravcomp, fluid forces, nonlinear or plastic springs, actuator
+  armature and damping, engine plugins) refuses the file in one line naming the first
+  element, unless ``drop`` names it: then it is left out and noted.
+* Outside the compared dynamics by definition (the passive robot, free of contacts and
+  limits: docs/robots.md): actuators (the robot moves unactuated), contacts and geom
+  contact parameters, joint limits (recorded in :attr:`ImportedRobot.limits`, not
+  enforced); each present is listed in :attr:`ImportedRobot.notes`. Sensors, sites,
+  cameras, lights and materials are not dynamics.
 * equality ``connect`` -> a spherical loop-closing joint between its two anchors;
   ``weld`` -> a fixed loop-closing joint at the relative pose MuJoCo compiled; other
   equalities, tendons and flexes are refused (ModelError naming them).
