@@ -203,11 +203,14 @@ def robot_problem_name(options: Mapping[str, Any], folders: int = 0) -> str:
     ``name[key=value,...]`` (keys sorted, values as compact JSON without quotes)."""
     path = Path(str(options.get("file", "")))
     name = "/".join([*path.parent.parts[len(path.parent.parts) - folders :], path.name])
-    defaults = {f.name: f.default for f in dataclasses.fields(RobotOptions)}
+    def plain(value: Any) -> str:  # () and [] alike: options come back from JSON as lists
+        return json.dumps(value, sort_keys=True, default=str)
+
+    defaults = {f.name: plain(f.default) for f in dataclasses.fields(RobotOptions)}
     changed = {
         key: value
         for key, value in options.items()
-        if key != "file" and (key not in defaults or defaults[key] != value)
+        if key != "file" and defaults.get(key) != plain(value)
     }
     if not changed:
         return name
