@@ -228,3 +228,29 @@ def test_a_sweep_of_two_robots_gives_two_problems(tmp_path):
     listed = workbench("results", "out", "--format", "csv", cwd=tmp_path)
     assert listed.returncode == 0, listed.stderr
     assert all(name in listed.stdout for name in names)
+
+
+def test_meshes_false_imports_a_robot_whose_meshes_are_missing(tmp_path):
+    """The advice of a missing mesh (import with meshes=False) is an option of the robot
+    problem: ``-o meshes=false`` on the command line, ``meshes = false`` in a sweep entry."""
+    (tmp_path / "robot.urdf").write_text(
+        '<robot name="r"><link name="base"/><link name="arm"><inertial><mass value="1"/>'
+        '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>'
+        '<visual><geometry><mesh filename="meshes/gone.stl"/></geometry></visual></link>'
+        '<joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<origin xyz="0 0 0.1"/><axis xyz="0 1 0"/></joint></robot>'
+    )
+    refused = workbench("describe", "robot.urdf", cwd=tmp_path)
+    assert refused.returncode != 0 and "meshes=False" in refused.stderr
+    described = workbench("describe", "robot.urdf", "-o", "meshes=false", cwd=tmp_path)
+    assert described.returncode == 0, described.stderr
+    assert "shoulder" in described.stdout
+    text = """problems = [{ urdf = "robot.urdf", meshes = false }]
+formalisms = ["recursive"]
+integrators = ["sundials-cvode-bdf"]
+tolerances = [1e-6]
+"""
+    (tmp_path / "spec.toml").write_text(text)
+    (run,) = parse_spec(text, str(tmp_path / "spec.toml")).runs
+    assert run.problem == "robot.urdf[meshes=false]"
+    assert RobotProblem(run.problem_options).model().bodies["arm"].mass == 1.0

@@ -514,13 +514,15 @@ def test_joint_spring_negative_damping() -> None:
         model.validate()
 
 
-def test_joint_spring_on_spherical() -> None:
+def test_joint_spring_on_spherical_needs_a_rest_orientation() -> None:
     model = pendulum()
     model.add_body("b", 1.0, inertia=CUBE)
     model.add_joint("ball", "spherical", "link", "b")
     model.add_force(JointSpringDamper("torsion", "ball", 1.0))
-    with pytest.raises(ModelError, match=r"force 'torsion'.*spherical joint 'ball'"):
+    with pytest.raises(ModelError, match=r"force 'torsion'.*spherical joint 'ball'.*unit quat"):
         model.validate()
+    model.forces[-1] = JointSpringDamper("torsion", "ball", 1.0, rest=(1.0, 0.0, 0.0, 0.0))
+    model.validate()
 
 
 def test_joint_force_unknown_joint() -> None:
