@@ -4,13 +4,14 @@ Run: ``python -m benchmarks.robot_import_share [--no-dynamics]``. Prints a table
 file, then the shares) and writes ``benchmarks/results/robot_import_share.csv``.
 
 For every ``*.urdf`` of the installed example-robot-data: does ``pin.buildModelFromUrdf``
-build it (mimic joints as independent joints, its default), does ``load_urdf`` import it
-with its defaults, and with the options its one-line refusal advises, which are also
-Pinocchio's reading: ``mimic="independent"``, ``meshes=False`` (Pinocchio does not need the
-meshes) and, for a file without a moving joint, ``floating_base=True``. Where both import,
-the recursive formalism's accelerations at one random state are compared with ``pin.aba``
-(``rel_diff``: max |ours - aba| / max |aba|), so a file counts as read only if the
-dynamics agree too (to 1e-9); ``--no-dynamics`` skips that (a few seconds a file).
+build it (mimic joints as independent joints, its default) and is its ``aba`` finite;
+does ``load_urdf`` import it with its defaults, and with the options its one-line refusal
+advises, which are also Pinocchio's reading: ``mimic="independent"``, ``meshes=False``
+(Pinocchio does not need the meshes) and, for a file without a moving joint,
+``floating_base=True``. Where both import, the recursive formalism's accelerations at one
+random state are compared with ``pin.aba`` (``rel_diff``: max |ours - aba| / max |aba|),
+so a file counts as read only if the dynamics agree too (to 1e-9); ``--no-dynamics``
+skips that (a few seconds a file).
 """
 
 from __future__ import annotations
@@ -53,6 +54,19 @@ def pinocchio_reads(path: Path) -> tuple[bool, str]:
     return True, ""
 
 
+def pinocchio_simulates(path: Path) -> bool:
+    """``pin.aba`` is finite at the neutral configuration at rest (a massless link at the
+    end of a chain makes the mass matrix singular: Pinocchio builds the model, but its
+    accelerations are not numbers)."""
+    import pinocchio as pin
+
+    model = quietly(pin.buildModelFromUrdf, str(path))
+    zero = np.zeros(model.nv)
+    return bool(
+        np.all(np.isfinite(pin.aba(model, model.createData(), pin.neutral(model), zero, zero)))
+    )
+
+
 def workbench_reads(path: Path, **options) -> tuple[object | None, str]:
     try:
         return quietly(load_urdf, path, **options), ""
@@ -92,6 +106,7 @@ def aba_difference(robot) -> float:
 def measure(path: Path, root: Path, dynamics: bool) -> dict:
     row = {"file": str(path.relative_to(root))}
     row["pinocchio"], row["pinocchio_error"] = pinocchio_reads(path)
+    row["pinocchio_aba_finite"] = row["pinocchio"] and pinocchio_simulates(path)
     default, _ = workbench_reads(path)
     row["workbench_default"] = default is not None
     robot, row["options"], row["workbench_error"] = as_pinocchio(path)
@@ -126,7 +141,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     pin_ok = int(table["pinocchio"].sum())
     both = table["pinocchio"] & table["workbench"]
     print(f"\n{n} URDF files in example-robot-data {metadata.version('example-robot-data')}")
-    print(f"Pinocchio builds {pin_ok} ({pin_ok / n:.0%})")
+    finite = int(table["pinocchio_aba_finite"].sum())
+    print(f"Pinocchio builds {pin_ok} ({pin_ok / n:.0%}); its aba is finite on {finite}")
     print(
         f"workbench imports {int(table['workbench_default'].sum())} with its defaults, "
         f"{int(table['workbench'].sum())} with the options its refusals advise "

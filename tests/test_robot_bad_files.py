@@ -54,7 +54,7 @@ CASES = {
     "zero mass": (
         "robot.urdf",
         urdf(arm='<inertial><mass value="0"/><inertia ixx="1" iyy="1" izz="1"/></inertial>'),
-        ["link 'arm' (line 4)", "moves with joint 'shoulder'", "no mass"],
+        ["link 'arm' (line 4)", "moves with joint 'shoulder'", "no mass", "moves nothing"],
     ),
     "no inertial on a moving link": (
         "robot.urdf",
@@ -256,7 +256,7 @@ def test_what_the_urdf_specification_allows_is_read(tmp_path: Path) -> None:
     """Read as Pinocchio reads them: a Gazebo extension's non-numeric ``value`` (PR2), a
     joint and a link of the same name (SO-100's "gripper"; the body takes the name
     gripper_link), a link with a mass and a zero inertia (iCub: a point mass at its
-    centre of mass)."""
+    centre of mass), a massless link between two joints (human.urdf's gimbals)."""
     text = urdf(
         links='<link name="gripper"><inertial><origin xyz="0.1 0 0"/><mass value="0.3"/>'
         '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>'
@@ -264,10 +264,14 @@ def test_what_the_urdf_specification_allows_is_read(tmp_path: Path) -> None:
         joints='<joint name="gripper" type="revolute"><parent link="arm"/>'
         '<child link="gripper"/><origin xyz="0 0 0.2"/><axis xyz="0 1 0"/></joint>',
     )
+    text = text.replace(  # the arm becomes a massless link between two joints
+        f'<link name="arm">{INERTIAL}</link>', '<link name="arm"/>'
+    )
     path = tmp_path / "robot.urdf"
     path.write_text(text)
     imported = load_robot(path)
     model = imported.model
+    assert model.bodies["arm"].point_mass and model.bodies["arm"].mass == 0.0
     assert imported.links["gripper"][0] == "gripper_link"
     assert model.joints["gripper"].child == "gripper_link"
     body = model.bodies["gripper_link"]

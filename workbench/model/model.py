@@ -98,7 +98,8 @@ class Model:
         com: Any = (0.0, 0.0, 0.0),
     ) -> Body:
         """Add a point mass (no rotational inertia) at ``com`` in its body frame (default
-        the origin; e.g. a robot link whose file gives a mass and a zero inertia)."""
+        the origin; e.g. a robot link whose file gives a mass and a zero inertia). Mass 0
+        is a massless link between joints (a gimbal's), which must carry other bodies."""
         where = f"model {self.name!r}, body {name!r}"
         position = real_array(com, where, "com (centre of mass)")
         body = Body(name, _mass(where, mass), position, np.zeros((3, 3)), True, tuple(shapes))

@@ -147,7 +147,7 @@ def _check_model(model: Model) -> None:
 def _check_body(model: Model, body: Body) -> None:
     what = f"body {body.name!r}"
     mass = _finite_scalar(model, what, "mass", body.mass)
-    if mass <= 0:
+    if mass < 0 or (mass == 0 and not body.point_mass):  # a massless point: see below
         raise ModelError(
             f"{_where(model, what)}: mass must be > 0 kg (got {mass}); give a positive mass"
         )
@@ -514,7 +514,8 @@ def _quoted(names: Iterable[str]) -> list[str]:
 
 
 def _check_point_mass_joints(model: Model) -> None:
-    """A point mass must not be free to spin about an axis through itself.
+    """A point mass must not be free to spin about an axis through itself, and a massless
+    one (a link between joints) must carry tree children.
 
     Only point masses without tree children are checked: a child attached at an offset
     may carry the rotation's inertia.
@@ -522,6 +523,12 @@ def _check_point_mass_joints(model: Model) -> None:
     has_children = {joint.parent for joint in model.tree_joints}
     for joint in model.tree_joints:
         body = model.bodies[joint.child]
+        if body.point_mass and body.mass == 0 and body.name not in has_children:
+            raise ModelError(
+                f"model {model.name!r}, body {body.name!r}: a massless body must carry other "
+                f"bodies (a link between joints); at the end of a chain its {joint.type} "
+                f"joint {joint.name!r} moves no mass; give it a mass"
+            )
         if not body.point_mass or body.name in has_children or joint.drive is not None:
             continue
         spins = False

@@ -13,11 +13,13 @@ http://wiki.ros.org/urdf/XML).
   child in the parent's joint frame, Euler parameters scalar-first); planar -> planar in the
   plane normal to the axis (its x and y are the joint frame's turned by the least rotation
   taking z onto the axis: for axis z, q = (x, y, angle) as Pinocchio's ``JointModelPlanar``);
-  fixed -> the child link is welded into its parent's body: its
-  mass, centre of mass and inertia are combined (parallel-axis theorem) and its visuals
-  move with it. The root link is fixed to the ground unless ``floating_base`` gives it a
-  free joint (Pinocchio's ``JointModelFreeFlyer`` root); links welded to the ground carry
-  no dynamics.
+  fixed -> the child link is welded into its parent's body: its mass, centre of mass and
+  inertia are combined (parallel-axis theorem) and its visuals move with it. A moving
+  link without mass that carries other moving links (a gimbal's link between joints) is a
+  massless body; at the end of a chain it is refused. A link with a mass and a zero
+  inertia is a point mass at its centre of mass. The root link is fixed to the ground
+  unless ``floating_base`` gives it a free joint (Pinocchio's ``JointModelFreeFlyer``
+  root); links welded to the ground carry no dynamics.
 * ``<limit>`` lower/upper are recorded in :attr:`ImportedRobot.limits`, not enforced;
   ``<dynamics>`` damping and friction are not modelled (the file's joint then moves
   freely); mimic joints are refused unless ``mimic="independent"``.
@@ -310,13 +312,18 @@ class _Builder:
             self.imported.links[name] = (body, frame_of(placement))
             self.add_inertial(links[name], body, placement, inertias)
             self.add_visuals(links[name], body, placement, shapes)
+        carrying = {host[j.parent][0] for j in self.robot.joints if j.type != "fixed"}
         for body, inertia in inertias.items():
+            if inertia.mass <= 0.0 and body in carrying:  # a massless link between joints
+                self.model.add_point_mass(body, 0.0, shapes[body])
+                continue
             if inertia.mass <= 0.0:
                 raise ModelError(
                     f"{self.source.where('link', self.link_of[body])}: moves with joint "
                     f"{moved_by[body]!r} but has no mass (no <inertial>, or mass 0, on it and "
-                    "on the links fixed to it), which the model cannot hold (Pinocchio can, "
-                    "inside a chain); give it an <inertial> with a mass > 0"
+                    "on the links fixed to it) and carries no moving link, so that joint "
+                    "moves nothing (its mass matrix is singular); give it an <inertial> "
+                    "with a mass > 0"
                 )
             if np.abs(inertia.inertia).max() <= 1e-12 * inertia.mass:  # a zero inertia:
                 # a point mass (1e-12 kg m^2 a kg: round-off of rotated zero inertias)
