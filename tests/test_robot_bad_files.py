@@ -276,3 +276,13 @@ def test_what_the_urdf_specification_allows_is_read(tmp_path: Path) -> None:
     assert model.joints["gripper"].child == "gripper_link"
     body = model.bodies["gripper_link"]
     assert body.point_mass and body.mass == 0.3 and list(body.com) == [0.1, 0.0, 0.0]
+
+
+def test_an_mjcf_body_and_joint_may_share_a_name(tmp_path: Path) -> None:
+    """MuJoCo names bodies and joints apart: the body becomes <name>_body."""
+    path = tmp_path / "scene.xml"
+    path.write_text(mjcf('<body name="arm"><joint name="arm" axis="0 1 0"/><geom size="0.1" '
+                         'pos="0.2 0 0"/></body>'))  # fmt: skip
+    imported = load_robot(path)
+    assert imported.links["arm"][0] == "arm_body"
+    assert imported.model.joints["arm"].child == "arm_body"

@@ -196,6 +196,14 @@ class _Builder:
         self.refuse_unmodelled()
         names = [self.name(obj.mjOBJ_BODY, b, "body") for b in range(m.nbody)]
         names[0] = GROUND
+        # MJCF names bodies, joints and equalities apart; the model does not: a body that
+        # shares a joint's or an equality's name becomes <name>_body
+        taken = {self.name(obj.mjOBJ_JOINT, j, "joint") for j in range(m.njnt)}
+        taken |= {self.name(obj.mjOBJ_EQUALITY, e, "equality") for e in range(m.neq)}
+        bodies = list(names)
+        for index in range(1, m.nbody):
+            while bodies[index] in taken:
+                bodies[index] += "_body"
         host: dict[int, tuple[str, np.ndarray]] = {0: (GROUND, np.eye(4))}
         inertias: dict[str, RigidInertia] = {}
         joint_of: dict[int, int] = {}
@@ -213,8 +221,8 @@ class _Builder:
             if count == 0:
                 host[body] = (parent_body, placement)
             else:
-                host[body] = (names[body], np.eye(4))
-                inertias[names[body]] = RigidInertia()
+                host[body] = (bodies[body], np.eye(4))
+                inertias[bodies[body]] = RigidInertia()
                 joint_of[body] = int(m.body_jntadr[body])
         shapes: dict[str, list[Shape]] = {name: [] for name in inertias}
         for body in range(1, m.nbody):
@@ -241,7 +249,7 @@ class _Builder:
         for body, joint in joint_of.items():
             parent = host[int(m.body_parentid[body])]
             self.add_joint(
-                joint, names[body], parent, _placement(m.body_pos[body], m.body_quat[body])
+                joint, bodies[body], parent, _placement(m.body_pos[body], m.body_quat[body])
             )
         if m.neq and (self.disabled("mjDSBL_EQUALITY") or self.disabled("mjDSBL_CONSTRAINT")):
             self.imported.notes.append("equality constraints disabled in the file: none imported")
