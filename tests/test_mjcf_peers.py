@@ -208,8 +208,6 @@ def test_quaternion_joint_springs_equal_mujoco_passive_forces_and_energy():
         for name in supporting(file):
             equations = built(file, name)
             state = formalism_state(equations, 0.0, q, v)
-            kinetic, potential = np.ravel(
-                equations.observables.energy(0.0, state.q, state.v)[0]
-            )
+            kinetic, potential = np.ravel(equations.observables.energy(0.0, state.q, state.v)[0])
             np.testing.assert_allclose([potential, kinetic], data.energy, rtol=1e-10,
                                        atol=1e-10, err_msg=name)  # fmt: skip

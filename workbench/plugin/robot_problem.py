@@ -203,6 +203,7 @@ def robot_problem_name(options: Mapping[str, Any], folders: int = 0) -> str:
     ``name[key=value,...]`` (keys sorted, values as compact JSON without quotes)."""
     path = Path(str(options.get("file", "")))
     name = "/".join([*path.parent.parts[len(path.parent.parts) - folders :], path.name])
+
     def plain(value: Any) -> str:  # () and [] alike: options come back from JSON as lists
         return json.dumps(value, sort_keys=True, default=str)
 
