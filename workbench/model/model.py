@@ -91,11 +91,18 @@ class Model:
         return body
 
     def add_point_mass(
-        self, name: str, mass: float, shapes: tuple[Shape, ...] | list[Shape] = ()
+        self,
+        name: str,
+        mass: float,
+        shapes: tuple[Shape, ...] | list[Shape] = (),
+        com: Any = (0.0, 0.0, 0.0),
     ) -> Body:
-        """Add a point mass at its body frame's origin (no rotational inertia)."""
+        """Add a point mass (no rotational inertia) at ``com`` in its body frame (default
+        the origin; e.g. a robot link whose file gives a mass and a zero inertia). Mass 0
+        is a massless link between joints (a gimbal's), which must carry other bodies."""
         where = f"model {self.name!r}, body {name!r}"
-        body = Body(name, _mass(where, mass), np.zeros(3), np.zeros((3, 3)), True, tuple(shapes))
+        position = real_array(com, where, "com (centre of mass)")
+        body = Body(name, _mass(where, mass), position, np.zeros((3, 3)), True, tuple(shapes))
         self._add(self.bodies, name, body)
         return body
 

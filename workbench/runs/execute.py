@@ -137,8 +137,10 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
     parsed = integrator_class.parse_options(spec.integrator_options)
     integrator_class.check_step_count(parsed, problem_span(problem))
     integrator_options = options_dict(parsed)
+    from workbench.plugin.robot_problem import run_problem_names
+
     return RunSpec(
-        spec.problem,
+        run_problem_names([(spec.problem, problem_options)])[0],
         spec.formalism,
         spec.integrator,
         float(spec.rtol),

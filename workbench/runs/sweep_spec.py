@@ -315,6 +315,11 @@ def parse_spec(
         except ConfigError as error:
             raise fail(f"{item_key}.options", one_line(error, with_type=False)) from None
 
+    from workbench.plugin.robot_problem import run_problem_names
+
+    # a robot file's runs are named after it (and its options), so robots stay distinct
+    names = run_problem_names([(p_name, p_opts) for p_name, p_opts, *_ in problems])
+    problems = [(name, *rest) for name, (_, *rest) in zip(names, problems, strict=True)]
     # entries and tolerances are free of repeats, so every run is distinct (no ids to hash)
     runs = [
         RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
