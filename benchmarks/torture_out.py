@@ -364,6 +364,8 @@ def report(rows: list[dict]) -> int:
     """Print the table, write the CSV; 1 if a figure that must be zero is not."""
     columns = ["attack", "tries", "what happens", *MUST_BE_ZERO]
     table = pd.DataFrame(rows).reindex(columns=columns)
+    for column in MUST_BE_ZERO:  # whole numbers, empty where an attack does not count it
+        table[column] = pd.to_numeric(table[column]).astype("Int64")
     RESULTS.mkdir(exist_ok=True)
     table.to_csv(RESULTS / "torture-out.csv", index=False)
     with pd.option_context("display.width", 250, "display.max_colwidth", 120):
