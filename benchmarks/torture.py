@@ -18,6 +18,9 @@ catalog problems through two formalisms and two integrators):
   earlier results (files hashed before and after).
 - **fuzz**: seeded specs through ``workbench sweep``, models through validation and
   ``workbench run`` command lines: tracebacks, hangs and silently accepted non-finite values.
+- **out**: attacks on the output folder (planted links, two sweeps at once, a stale lock,
+  a killed report worker, a killed Dask scheduler): :mod:`benchmarks.torture_out`, printed
+  as a table of its own and written to ``benchmarks/results/torture-out.csv``.
 
 Prints one table of figures and writes ``benchmarks/results/torture.csv``. Exit status 1
 when any figure that must be zero is not.
@@ -504,7 +507,7 @@ MUST_BE_ZERO = (
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="1 kill of each kind, fewer fuzz")
-    parser.add_argument("--only", default="kills,disk,fuzz", help="comma list of experiments")
+    parser.add_argument("--only", default="kills,disk,fuzz,out", help="comma list of experiments")
     parser.add_argument("--seed", type=int, default=18)
     args = parser.parse_args(argv)
     only = set(args.only.split(","))
@@ -526,6 +529,13 @@ def main(argv: list[str] | None = None) -> int:
         if "fuzz" in only:
             counts = (200, 200, 50) if args.quick else (1100, 1300, 240)
             rows += fuzz(*counts, base)
+        if "out" in only:  # the output folder's attacks: their own table (torture_out)
+            from benchmarks import torture_out
+
+            (base / "out").mkdir()
+            out_status = torture_out.report(torture_out.attacks(base / "out", args.quick))
+    if not rows:
+        return out_status if "out" in only else 0
     table = pd.DataFrame(rows)
     RESULTS.mkdir(exist_ok=True)
     table.to_csv(RESULTS / "torture.csv", index=False)
@@ -539,7 +549,7 @@ def main(argv: list[str] | None = None) -> int:
     bad = {column: value for column, value in bad.items() if value}
     print(f"load {os.getloadavg()[0]:.1f}, {time.perf_counter() - started:.0f} s")
     print("all zero" if not bad else f"NOT ZERO: {bad}")
-    return 1 if bad else 0
+    return 1 if bad or ("out" in only and out_status) else 0
 
 
 if __name__ == "__main__":

@@ -74,3 +74,22 @@ def test_sweep_with_a_killed_report_worker_is_one_line_and_a_whole_report(
     assert (report / "killed-once").exists()
     page = (report / "index.html").read_text()
     assert 'id="test-pendulum"' in page and 'id="test-slider-crank"' in page
+
+
+def section_that_fails(runs, series, out, cost):
+    raise RuntimeError("drawing failed")
+
+
+def test_a_report_that_cannot_be_finished_is_one_line_exit_1_and_the_rows_kept(
+    fake_plugins, tmp_path, monkeypatch
+) -> None:
+    monkeypatch.setattr(writer, "problem_section", section_that_fails)
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text(tmp_path / "out", '["test-rk45"]', PROBLEMS))
+    result = CliRunner().invoke(cli.app, ["sweep", str(spec)])
+    assert result.exit_code == 1, result.output
+    assert not isinstance(result.exception, RuntimeError)  # said in one line, not raised
+    last = result.output.strip().splitlines()[-1]
+    assert last.startswith("error: the report of ") and "drawing failed" in last, result.output
+    assert f"rebuild it with `workbench report {tmp_path / 'out'}`" in last
+    assert len(store.load_results(tmp_path / "out")) == 4

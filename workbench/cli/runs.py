@@ -314,9 +314,12 @@ def sweep(
     if summary.unfinished:
         first, why = next(iter(summary.unfinished.items()))
         again = " ".join(["workbench", *_without_rerun(sys.argv[1:])])
+        named = list(summary.unfinished)[:5]
+        more = len(summary.unfinished) - len(named)
+        runs = ", ".join(named) + (f" and {more} more" if more else "")
         typer.echo(
             f"{len(summary.unfinished)} run(s) could not be completed, not by their own fault "
-            f"(e.g. run {first}: {why}); they have no row: resume with `{again}`",
+            f"(runs {runs}; e.g. run {first}: {why}); they have no row: resume with `{again}`",
             err=True,
         )
         raise typer.Exit(1)

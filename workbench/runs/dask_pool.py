@@ -423,14 +423,34 @@ def run_dask(
                     failures[spec.run_id] += 1
                     give_up(spec, _lost_message(error))
 
+    def abandon(reason: str) -> None:
+        """The scheduler is gone: every run not done is left without a row (a resume redoes
+        them), instead of waiting for futures that never resolve once the client closed."""
+        pending = [spec for spec, _worker in futures.values()]
+        pending += [spec for _key, spec in queue]
+        futures.clear()
+        queue.clear()
+        for spec in pending:
+            failures[spec.run_id] += 1
+            give_up(spec, reason)
+
+    watch = _ClientWatch(client, scheduler)
     try:
-        threads = sum(client.nthreads().values()) or 1
+        try:
+            threads = sum(client.nthreads().values()) or 1
+        except Exception:  # noqa: BLE001 - lost already: the watch below says so
+            threads = 1
         timed = replace(timing or Timing(), workers=threads).to_dict()  # read by submit
         fill()
         while futures:
             finished, _ = concurrent.futures.wait(
-                futures, return_when=concurrent.futures.FIRST_COMPLETED
+                futures, timeout=WATCH_S, return_when=concurrent.futures.FIRST_COMPLETED
             )
+            if not finished:
+                lost = watch.lost()  # the client, not only the futures: they may never end
+                if lost:
+                    abandon(lost)
+                continue
             for future in finished:
                 spec, _worker = futures.pop(future)
                 try:
@@ -448,8 +468,40 @@ def run_dask(
                 record(row.get("status", "failed"))
             fill()
     finally:
-        client.close()
+        with contextlib.suppress(Exception):  # (a lost scheduler: nothing to say goodbye to)
+            client.close(timeout=CLOSE_S)
     return unfinished
+
+
+WATCH_S = 1.0  # s between looks at the client while no run finishes
+LOST_AFTER_S = 60.0  # s the client may stay disconnected (reconnecting) before it is lost
+CLOSE_S = 10.0  # s to close the client
+
+
+class _ClientWatch:
+    """Whether the client lost its scheduler: closed (distributed closes it when its
+    reconnection times out), or not running for :data:`LOST_AFTER_S` seconds."""
+
+    def __init__(self, client: Any, address: str) -> None:
+        self.client, self.address = client, address
+        self.since: float | None = None  # when it was first seen not running
+
+    def lost(self) -> str | None:
+        """Why the runs not done will never finish (one line), or None while they may."""
+        import time
+
+        status = str(getattr(self.client, "status", "unknown"))
+        if status == "running":
+            self.since = None
+            return None
+        now = time.monotonic()
+        self.since = now if self.since is None else self.since
+        if status in ("closed", "closing", "failed") or now - self.since > LOST_AFTER_S:
+            return (
+                f"the Dask scheduler {self.address} was lost (client {status}); "
+                "start it again (or drop --scheduler) and resume"
+            )
+        return None
 
 
 def _lost_message(error: BaseException) -> str:

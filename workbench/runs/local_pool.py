@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
+from workbench.files import check_no_links, make_dirs
 from workbench.plugin import registry
 from workbench.plugin.local_modules import import_plugin_modules, imported_from_file
 from workbench.runs import store
@@ -119,7 +120,9 @@ def _begin_recording(recorder: Any, sink: Any, out: Path, run_id: str) -> Any:
     try:
         if sink is None:
             sink = recorder()
-        sink.begin_file(out / RECORDINGS_DIR / f"{run_id}.{recorder.suffix}")
+        path = out / RECORDINGS_DIR / f"{run_id}.{recorder.suffix}"
+        make_dirs(path.parent, out)  # no link below out (workbench.files)
+        sink.begin_file(path)
         return sink
     except Exception:  # noqa: BLE001
         return None
@@ -137,6 +140,8 @@ def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
     files = sorted((out / RECORDINGS_DIR).glob(f"*.{recorder.suffix}"))
     if not files:
         return None
+    check_no_links(out / RECORDINGS_DIR, out)  # read and written below out, never through
+    check_no_links(out / "recording.rrd", out)  # a link (workbench.files)
     return recorder.merge(files, out)
 
 

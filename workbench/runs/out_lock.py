@@ -99,35 +99,44 @@ def out_lock(
     except OSError as error:
         if error.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
             raise
-        yield  # a folder we may not write (a report of it goes elsewhere): nothing to lock
-        return
+        fd = None  # a folder we may not write (a report of it goes elsewhere): no lock
     try:
-        try:
-            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:  # EAGAIN or EACCES: held
-            holder = holder_text(_read_holder(fd))
-            if not wait:
-                raise OutputBusyError(
-                    f"{out} is in use by {holder}; wait until it ends, or run again with "
-                    "--wait to start when it does"
-                ) from None
-            tell(f"waiting for {out}: in use by {holder}")
-            fcntl.lockf(fd, fcntl.LOCK_EX)
-        left = _read_holder(fd)
-        if left and left.get("pid") != os.getpid():  # the kernel freed it: its holder is gone
-            tell(f"taking over the lock of {out} left by {holder_text(left)}, no longer running")
-        refuse_links(out)  # (again: the folder may have changed while we waited)
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, json.dumps(_me(command)).encode(), 0)
-        _HELD[key] = 1
-        try:
-            yield
-        finally:
-            del _HELD[key]
+        if fd is not None and _lock(fd, out, wait, tell, command):
+            _HELD[key] = 1
+        yield
+    finally:
+        if _HELD.pop(key, None) is not None:
             with contextlib.suppress(OSError):
                 os.ftruncate(fd, 0)  # released cleanly: no holder to report
-    finally:
-        os.close(fd)  # releases the lock
+        if fd is not None:
+            os.close(fd)  # releases the lock
+
+
+def _lock(fd: int, out: Path, wait: bool, tell: Callable[[str], None], command: str | None) -> bool:
+    """Take the lock on ``fd`` and write who holds it (see :func:`out_lock`); False on a
+    file system without locks (some network or FUSE ones), said as a warning."""
+    try:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as error:
+        if error.errno not in (errno.EAGAIN, errno.EACCES):  # held: those two only
+            tell(f"warning: cannot lock {out} ({error.strerror}); nothing stops a second "
+                 "command on it meanwhile")  # fmt: skip
+            return False
+        holder = holder_text(_read_holder(fd))
+        if not wait:
+            raise OutputBusyError(
+                f"{out} is in use by {holder}; wait until it ends, or run again with "
+                "--wait to start when it does"
+            ) from None
+        tell(f"waiting for {out}: in use by {holder}")
+        fcntl.lockf(fd, fcntl.LOCK_EX)
+    left = _read_holder(fd)
+    if left and left.get("pid") != os.getpid():  # the kernel freed it: its holder is gone
+        tell(f"taking over the lock of {out} left by {holder_text(left)}, no longer running")
+    refuse_links(out)  # (again: the folder may have changed while we waited)
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, json.dumps(_me(command)).encode(), 0)
+    return True
 
 
 __all__ = ["LOCK_FILE", "OutputBusyError", "holder_text", "out_lock"]
