@@ -113,6 +113,7 @@ def run_sweep(
     store.write_json_atomic(sweep_environment(), out_dir / store.ENVIRONMENT_FILE)
     if sweep.text:
         store.write_text_atomic(sweep.text, out_dir / "sweep.toml")
+    store.write_plan(out_dir, (spec.run_id for spec in sweep.runs), sweep.source)
     counts: Counter = Counter()
     # the local pool forks its workers: no thread may be running then (see _context)
     with _progress(len(todo), show_progress, threaded=bool(scheduler)) as advance:

@@ -17,6 +17,7 @@ from workbench.errors import ConfigError, WorkbenchError
 from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
+    coverage_notice,
     drift_runs,
     drift_table,
     oversubscription_warning,
@@ -25,6 +26,7 @@ from workbench.outputs.report.analysis import (
     status_matrix,
 )
 from workbench.outputs.report.cost import Cost, resolve_cost
+from workbench.outputs.report.decision import decision_frame, decision_rows, decision_targets
 from workbench.outputs.report.figures import (
     drift_figure,
     error_figure,
@@ -39,16 +41,29 @@ from workbench.outputs.report.overview import (
     trusted,
 )
 from workbench.outputs.report.overview_figures import convergence_figure, heat_map_figure
-from workbench.outputs.report.page import Overview, PageTable, ProblemSection, render_page
+from workbench.outputs.report.page import (
+    DecisionPage,
+    Overview,
+    PageTable,
+    ProblemSection,
+    render_page,
+)
+from workbench.outputs.report.picture import mechanism_picture
 from workbench.outputs.report.pool import figure_executor, figure_jobs
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
+from workbench.outputs.report.traits import problem_traits
 from workbench.runs.progress import progress_bar
 
 SeriesLoader = Callable[[str], pd.DataFrame | None]
 SUMMARY_CAPTION = (
     "Cheapest pair (least {cost}) reaching each target scd, among the runs without "
     "warnings; errors are pose errors over the samples (L2: root mean square); {statement}"
+)
+DECISION_CAPTION = (
+    "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
+    "its cost and how far ahead of the runner-up it is; tie: pairs whose timed samples' "
+    "ranges overlap; {statement}"
 )
 STATUS_CAPTION = (
     "Runs by status, per problem and pair; the numbers in brackets refer to the reasons "
@@ -66,6 +81,7 @@ def write_report(
     progress: bool | None = None,
     jobs: int | None = None,
     cost: str | None = None,
+    plan: dict | None = None,
 ) -> Path:
     """Write the report of ``results`` into ``out_dir``; return the path of ``index.html``.
 
@@ -79,6 +95,8 @@ def write_report(
     jobs: processes drawing figures; default: one per CPU when there are 4 problems or more.
     cost: the cost measure of the diagrams, tables and recommendation, a key of
         :data:`~workbench.outputs.report.cost.COST_MEASURES` (default: see that module).
+    plan: the sweep's plan (:func:`workbench.runs.store.load_plan`): the first screen then
+        says how many of the planned runs are present.
     """
     runs = prepare_results(results)
     measure = resolve_cost(runs, cost)
@@ -116,6 +134,14 @@ def write_report(
             sections.append(future.result())
             bar.step(problem)
 
+    targets = decision_targets(runs, measure.column)
+    decided = decision_rows(runs, targets, measure.column, sections)
+    write_table(
+        decision_frame(decided, targets, measure.column),
+        out / "tables",
+        "decision",
+        DECISION_CAPTION.format(statement=measure.statement()),
+    )
     page = render_page(
         title,
         runs,
@@ -128,6 +154,8 @@ def write_report(
         cards,
         cost=measure,
         timing_warning=oversubscription_warning(runs),
+        decision=DecisionPage(decided, targets, measure.column),
+        coverage=coverage_notice(runs, plan),
     )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
@@ -158,7 +186,7 @@ def report_directory(
     """
     import shlex
 
-    from workbench.runs.store import load_results, load_series
+    from workbench.runs.store import load_plan, load_results, load_series
 
     source = Path(results_path)
     if not source.exists():
@@ -181,7 +209,10 @@ def report_directory(
 
     if command is None:
         command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
-    return write_report(frame, series_loader, target, command, progress=progress, cost=cost)
+    plan = load_plan(directory)
+    return write_report(
+        frame, series_loader, target, command, progress=progress, cost=cost, plan=plan
+    )
 
 
 def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> Overview:
@@ -284,6 +315,9 @@ def problem_section(
     matplotlib.use("Agg", force=True)
     problem = str(runs["problem"].iloc[0])
     work_precision = work_precision_figure(runs, out, problem, cost)
+    traits = problem_traits(runs)
+    picture = mechanism_picture(traits.model, out, problem) if traits.model is not None else None
+    traits.model = None  # plain data back to the parent
     drift, rtol = drift_figure(runs, series, out, problem)
     error = error_figure(runs, series, out, problem, cost)
     table = None
@@ -306,4 +340,6 @@ def problem_section(
         drift=drift,
         drift_table=table,
         error=error,
+        picture=picture,
+        traits=traits,
     )
