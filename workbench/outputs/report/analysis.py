@@ -324,3 +324,20 @@ def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
     if other:
         parts.append(f"{other} row(s) come from other sweeps run in this directory")
     return "; ".join(parts)
+
+
+def status_by_problem(runs: pd.DataFrame, matrix: pd.DataFrame) -> pd.DataFrame:
+    """The status matrix (:func:`status_matrix`) folded to a line a problem, for print:
+    runs, how many ended in each status, and the reasons ([n]) of the others."""
+    flagged = runs.assign(status=runs["status"].where(~warned(runs), OK_WARNED))
+    rows = []
+    for problem, group in flagged.groupby("problem", sort=False):
+        counts = group["status"].value_counts()
+        row = {"problem": problem, "runs": len(group)}
+        row |= {status: int(counts.get(status, 0)) for status in STATUSES}
+        cells = " ".join(matrix.loc[problem]) if problem in matrix.index else ""
+        numbers = sorted({int(n) for ids in re.findall(r"\[([\d,]+)\]", cells)
+                          for n in ids.split(",")})  # fmt: skip
+        row["reasons"] = ", ".join(f"[{n}]" for n in numbers)
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["problem", "runs", *STATUSES, "reasons"])

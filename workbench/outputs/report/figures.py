@@ -95,15 +95,19 @@ def shown_tick_labels(axis: Any, renderer: Any) -> list[tuple[bool, float, Any]]
 def thin_tick_labels(figure: Any, gap: float = 2.0) -> None:
     """Blank the tick labels that would overlap another (boxes measured with the
     renderer, ``gap`` pixels apart at least): major labels are kept first, in order of
-    value, then the minor ones that still fit. Done by wrapping each axis's formatter,
-    so every format saved afterwards draws the same labels."""
+    value, then the minor ones that still fit; names are never blanked. Done by wrapping
+    each axis's formatter, so every format saved afterwards draws the same labels."""
     figure.canvas.draw()
     renderer = figure.canvas.get_renderer()
     for ax in figure.axes:
         for axis in (ax.xaxis, ax.yaxis):
+            shown = shown_tick_labels(axis, renderer)
+            texts = [label.get_text() for label in axis.get_ticklabels(minor=False)]
+            if not all(_is_number(text) for text in texts if text):
+                continue  # names (problems, pairs) are never thinned
             kept: list[Any] = []
             blank: dict[bool, list[float]] = {False: [], True: []}
-            for minor, value, box in sorted(shown_tick_labels(axis, renderer), key=_by_rank):
+            for minor, value, box in sorted(shown, key=_by_rank):
                 if any(box.overlaps(other) for other in kept):
                     blank[minor].append(value)
                 else:

@@ -22,6 +22,7 @@ from workbench.outputs.report.analysis import (
     drift_table,
     oversubscription_warning,
     prepare_results,
+    status_by_problem,
     status_counts,
     status_matrix,
 )
@@ -66,8 +67,8 @@ DECISION_CAPTION = (
     "ranges overlap; {statement}"
 )
 STATUS_CAPTION = (
-    "Runs by status, per problem and pair; the numbers in brackets refer to the reasons "
-    "listed in the report"
+    "Runs by status, per problem (the report's table splits them by pair); the numbers in "
+    "brackets refer to the reasons listed below"
 )
 
 
@@ -108,8 +109,12 @@ def write_report(
     summary = cheapest_pairs(runs, cost=measure.column)
     matrix, footnotes = status_matrix(runs)
     caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
-    write_table(summary, out / "tables", "summary", caption)
-    write_table(matrix, out / "tables", "status", STATUS_CAPTION)
+    printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs", "runner-up")]
+    write_table(summary, out / "tables", "summary", caption, latex=summary[printed])
+    write_table(
+        matrix, out / "tables", "status", STATUS_CAPTION,
+        latex=status_by_problem(runs, matrix), notes=footnotes,
+    )  # fmt: skip
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
     cards = scorecards(runs)
     for card in cards:
@@ -224,16 +229,19 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     recommendation = recommend(runs, cost=measure.column)
     target, cost = recommendation.target, recommendation.cost
     ratio = cost_ratio(cost_at_target(runs, target, cost))
-    heat_map = heat_map_figure(ratio, target, cost, out)
+    top = top_pairs(ratio, recommendation.table.index)
+    heat_map = heat_map_figure(ratio[top], target, cost, out, pairs=ratio.shape[1])
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
+    shown = f"the {len(top)} pairs within reach of the best on the most problems"
     write_table(
         ratio_table,
         out / "tables",
         "cost-at-target",
         f"{measure.name.capitalize()} of each pair at scd >= {target:g} divided by the least "
         f"on the problem (1: the best; empty: not reached without warnings); "
-        f"{measure.statement()}",
+        f"{measure.statement()}" + (f"; printed: {shown}" if len(top) < ratio.shape[1] else ""),
+        latex=ratio_table[top],
     )
     fronts = []
     for _problem, group in runs.groupby("problem", sort=False):
@@ -276,6 +284,17 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
         convergence=convergence_figure(runs, out),
         trusted_runs=len(trusted(runs)),
     )
+
+
+TOP_PAIRS = 10  # pair columns of the heat map and of the printed cost-at-target table
+
+
+def top_pairs(ratio: pd.DataFrame, ranked: pd.Index, count: int = TOP_PAIRS) -> list[str]:
+    """At most ``count`` pairs of ``ratio``'s columns, in the recommendation's order
+    (``ranked``: the most problems within reach of the best first), that reached the
+    target somewhere."""
+    reached = [pair for pair in ranked if pair in ratio and ratio[pair].notna().any()]
+    return reached[:count] or list(ratio.columns[:count])
 
 
 def _load_series(
