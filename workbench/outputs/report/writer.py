@@ -49,6 +49,7 @@ from workbench.outputs.report.page import (
     ProblemSection,
     render_page,
 )
+from workbench.outputs.report.paper import PaperSection, write_paper
 from workbench.outputs.report.picture import mechanism_picture
 from workbench.outputs.report.pool import figure_executor, figure_jobs
 from workbench.outputs.report.scorecards import scorecards
@@ -83,6 +84,7 @@ def write_report(
     jobs: int | None = None,
     cost: str | None = None,
     plan: dict | None = None,
+    paper: str | Path | None = None,
 ) -> Path:
     """Write the report of ``results`` into ``out_dir``; return the path of ``index.html``.
 
@@ -98,6 +100,7 @@ def write_report(
         :data:`~workbench.outputs.report.cost.COST_MEASURES` (default: see that module).
     plan: the sweep's plan (:func:`workbench.runs.store.load_plan`): the first screen then
         says how many of the planned runs are present.
+    paper: also write a paper folder there (:mod:`workbench.outputs.report.paper`).
     """
     runs = prepare_results(results)
     measure = resolve_cost(runs, cost)
@@ -164,6 +167,30 @@ def write_report(
     )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
+    if paper is not None:
+        intro = [
+            f"{len(runs)} runs of {len(problems)} problem(s) and {runs['pair'].nunique()} "
+            f"formalism / integrator pair(s); {measure.statement()}.",
+            *([coverage_notice(runs, plan) + "."] if plan and coverage_notice(runs, plan) else []),
+            overview.sentence,
+        ]
+        write_paper(
+            out,
+            Path(paper),
+            title,
+            intro,
+            ["decision", "summary", "status"],
+            [overview.heat_map] if overview.heat_map else [],
+            [
+                PaperSection(
+                    section.problem,
+                    [f for f in (section.work_precision, section.drift) if f is not None],
+                    [section.drift_table.name] if section.drift_table else [],
+                )
+                for section in sections
+            ],
+            ["ranking", "pareto", *(card.name for card in cards)],
+        )
     return index
 
 
@@ -175,6 +202,7 @@ def report_directory(
     progress: bool | None = None,
     stale: Mapping[str, str] | None = None,
     cost: str | None = None,
+    paper: str | os.PathLike[str] | None = None,
 ) -> Path:
     """The report of a results directory written by :mod:`workbench.runs.store` (or of a
     results.parquet); return the path of its ``index.html``.
@@ -187,7 +215,8 @@ def report_directory(
     equivalent ``workbench report`` command line. Time series are read from the directory's
     ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
     results. Warnings of :func:`workbench.runs.store.load_results` (unreadable rows) pass through.
-    cost: the report's cost measure (:func:`write_report`).
+    cost: the report's cost measure (:func:`write_report`); paper: also write a paper
+    folder there (:func:`write_report`).
     """
     import shlex
 
@@ -216,8 +245,9 @@ def report_directory(
         command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
     plan = load_plan(directory)
     return write_report(
-        frame, series_loader, target, command, progress=progress, cost=cost, plan=plan
-    )
+        frame, series_loader, target, command, progress=progress, cost=cost, plan=plan,
+        paper=paper,
+    )  # fmt: skip
 
 
 def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> Overview:
