@@ -108,7 +108,7 @@ class Decision:
             return "tie"
         if not self.runner_up:
             return "only pair"
-        ahead = f"{self.margin:.2g}x ahead"
+        ahead = f"{self.margin:.3g}x ahead"
         return ahead if self.tie_known else f"{ahead} (one sample: tie unknown)"
 
 

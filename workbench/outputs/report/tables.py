@@ -305,6 +305,14 @@ def _chunks(columns: list[_Column], keys: int) -> list[list[int]]:
     return [key + part for part in parts]
 
 
+def _cell(text: str, column: _Column) -> str:
+    """A body cell; in a wrapped column ragged right (no stretched spaces), grouped so
+    the row's ending \\\\ keeps its meaning."""
+    if column.wrapped and text:
+        return r"{\raggedright " + latex_escape(text) + r"\par}"
+    return latex_escape(text)
+
+
 def _header_cell(column: _Column) -> str:
     lines = [latex_escape(line) for line in column.header]
     if len(lines) == 1:
@@ -339,7 +347,7 @@ def latex_table(
     for number, part in enumerate(parts):
         align = "".join(columns[k].spec for k in part)
         header = " & ".join(_header_cell(columns[k]) for k in part) + r" \\"
-        body = [" & ".join(latex_escape(row[k]) for k in part) + r" \\" for row in rows]
+        body = [" & ".join(_cell(row[k], columns[k]) for k in part) + r" \\" for row in rows]
         if long:
             title = (
                 [
@@ -373,6 +381,7 @@ def latex_table(
                f"\\caption{{{latex_escape(caption)}}}"]  # fmt: skip
     if label:
         wrapped.append(f"\\label{{{label}}}")  # a slug: no special characters
+    wrapped.append(r"\par\smallskip")
     return (
         "\n".join([*wrapped, "\n\\par\\medskip\n".join(blocks), *notes_text, r"\end{table}"]) + "\n"
     )

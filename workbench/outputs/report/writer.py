@@ -144,11 +144,13 @@ def write_report(
 
     targets = decision_targets(runs, measure.column)
     decided = decision_rows(runs, targets, measure.column, sections)
+    decision_table = decision_frame(decided, targets, measure.column)
     write_table(
-        decision_frame(decided, targets, measure.column),
+        decision_table,
         out / "tables",
         "decision",
         DECISION_CAPTION.format(statement=measure.statement()),
+        latex=decision_table.drop(columns="family"),  # rows stay in family order
     )
     page = render_page(
         title,
