@@ -170,3 +170,14 @@ def test_picture_places_the_shapes_at_the_initial_pose() -> None:
     rows = decision_rows(prepare_results(synthetic_results(problems=("four-bar",))), [4.0],
                          "wall_s")  # fmt: skip
     assert rows[0].family == "closed loops"
+
+
+def test_steps_an_integrator_did_not_report_are_not_counted() -> None:
+    """-1 means 'not reported' (the store's convention): never a -1 % rejection rate."""
+    runs = pd.DataFrame(
+        {"status": ["ok"] * 4, "rtol": [1e-4, 1e-6] * 2, "n_jac": [0, 0, 12, 20],
+         "n_steps": [100, 200, 40, 60], "n_rejected": [-1, -1, 0, 0]}  # fmt: skip
+    )
+    said = stiffness(runs)
+    assert "-1" not in said and "rejected" not in said
+    assert said.startswith("not stiff: explicit integrators took 2.9x")  # 2.5x and 3.3x

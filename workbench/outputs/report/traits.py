@@ -108,7 +108,10 @@ def implicit(runs: pd.DataFrame) -> pd.Series:
 def stiffness(runs: pd.DataFrame) -> str:
     """A sentence on the problem's stiffness from its runs' statistics ('' when the runs
     cannot tell: no explicit or no implicit integrator ran)."""
-    done = runs[runs["status"].isin(["ok", "failed", "timeout"])]
+    done = runs[runs["status"].isin(["ok", "failed", "timeout"])].copy()
+    for column in ("n_steps", "n_rejected"):  # -1: not reported by the integrator
+        values = pd.to_numeric(done.get(column), errors="coerce")
+        done[column] = values.where(values >= 0) if values is not None else np.nan
     if done.empty:
         return ""
     by_kind = implicit(done)
@@ -123,7 +126,8 @@ def stiffness(runs: pd.DataFrame) -> str:
         i = ok_implicit.loc[ok_implicit["rtol"] == rtol, "n_steps"].median()
         if np.isfinite(e) and np.isfinite(i) and i > 0:
             ratios.append(e / i)
-    steps = (ok_explicit["n_steps"].sum(), ok_explicit["n_rejected"].sum())
+    counted = ok_explicit.dropna(subset=["n_steps", "n_rejected"])
+    steps = (counted["n_steps"].sum(), counted["n_rejected"].sum())
     rejected = steps[1] / steps[0] if steps[0] > 0 else np.nan
     ratio = float(np.median(ratios)) if ratios else np.nan
     numbers = []
