@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.outputs.report.ranking import cheapest_table
+from workbench.outputs.report.trust import ok_runs, warned
 from workbench.runs.timing import TIMING_COLUMNS
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
@@ -131,18 +133,6 @@ def _parse_options(text: str) -> dict[str, Any]:
     return value if isinstance(value, dict) else {"options": value}
 
 
-def ok_runs(runs: pd.DataFrame) -> pd.DataFrame:
-    """The rows of status ``ok``."""
-    return runs[runs["status"] == "ok"]
-
-
-def warned(runs: pd.DataFrame) -> pd.Series:
-    """True for the rows whose health audit found something (column ``warnings``)."""
-    if "warnings" not in runs:
-        return pd.Series(False, index=runs.index)
-    return runs["warnings"].fillna("").astype(str).str.len() > 0
-
-
 def warning_kinds(text: str) -> list[str]:
     """The kinds of warning in a row's ``warnings`` (the words before each ':')."""
     return [w.split(":", 1)[0].strip() for w in str(text or "").split("; ") if w.strip()]
@@ -160,8 +150,6 @@ def cheapest_pairs(
     A run with warnings (:func:`warned`) is never chosen: it may be wrong.
     ``runs`` is the output of :func:`prepare_results`.
     """
-    from workbench.outputs.report.ranking import cheapest_table
-
     return cheapest_table(runs, targets, cost)
 
 

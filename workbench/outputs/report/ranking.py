@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from workbench.outputs.report.analysis import ok_runs, warned
+from workbench.outputs.report.trust import ok_runs, warned
 
 NOT_REACHED = "none reached"
 
