@@ -77,3 +77,31 @@ def test_no_two_tick_labels_overlap(span: tuple[float, float]) -> None:
     time_panel = figure.axes[0]
     shown = shown_tick_labels(time_panel.xaxis, figure.canvas.get_renderer())
     assert len(shown) >= 2  # thinned, never emptied
+
+
+def test_the_heat_map_shows_the_top_pairs_readably(tmp_path) -> None:
+    """42 pairs made a 1,800 px heat map of 7 px labels; now at most 10 pair columns, no
+    wider than the 1400 px screen, and one number format in the printed ratio table."""
+    import struct
+
+    from tests.test_paper import wide_results
+    from workbench.outputs.report import prepare_results
+    from workbench.outputs.report.writer import overview_of
+
+    runs = prepare_results(wide_results())
+    runs["scd"] += 4.0  # most pairs reach the overview's target
+    (tmp_path / "figures").mkdir()
+    (tmp_path / "tables").mkdir()
+    overview_of(runs, tmp_path)
+    png = (tmp_path / "figures" / "overview-heat-map.png").read_bytes()
+    width, _height = struct.unpack(">II", png[16:24])
+    assert width <= 1400
+    latex = (tmp_path / "tables" / "cost-at-target.tex").read_text(encoding="utf-8")
+    headers = [line for line in latex.splitlines() if line.startswith("problem &")]
+    assert 5 <= sum(header.count(" & ") for header in headers) <= 10  # over the table's parts
+    rows = [line for line in latex.splitlines() if line.startswith(("simple", "four", "heavy"))]
+    numbers = [cell.strip(" \\") for row in rows for cell in row.split(" & ")[1:]]
+    decimals = {len(n.split(".")[1]) if "." in n else 0 for n in numbers if n}
+    assert len(decimals) == 1, numbers  # not '1' beside '1.000'
+    full = (tmp_path / "tables" / "cost-at-target.csv").read_text(encoding="utf-8")
+    assert full.splitlines()[0].count(",") == 42  # the CSV keeps every pair

@@ -85,7 +85,11 @@ def write_table(
     paths = [directory / f"{name}.{ext}" for ext in ("csv", "md", "tex")]
     index = shows_index(table)
     table.to_csv(paths[0], index=index)
-    paths[1].write_text(markdown_table(table, index=index), encoding="utf-8")
+    listed = "".join(f"\n- {note}" for note in notes)
+    paths[1].write_text(
+        markdown_table(table, index=index) + (f"\n{listed.lstrip()}\n" if notes else ""),
+        encoding="utf-8",
+    )
     printed = table if latex is None else latex
     latex = latex_table(
         printed, index=shows_index(printed), caption=caption or name, label=f"tab:{name}",
@@ -137,9 +141,15 @@ def _missing(value: Any) -> bool:
 
 def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], list[list[str]]]:
     """The readable header and the rows of ``table`` as text, one format a column
-    (:func:`column_formatter`), the index first when ``index``."""
+    (:func:`column_formatter`), the index first when ``index``. A table whose
+    ``attrs["one_format"]`` is true (a matrix of one quantity, e.g. cost ratios) has one
+    format for all its columns, so no column shows '1' beside another's '1.000'."""
     head = ([header(table.index.name or "")] if index else []) + [header(c) for c in table.columns]
-    formats = [column_formatter(c, table[c]) for c in table.columns]
+    if table.attrs.get("one_format") and len(table.columns):
+        stacked = pd.Series(table.to_numpy(dtype=float).ravel())
+        formats = [column_formatter("", stacked)] * len(table.columns)
+    else:
+        formats = [column_formatter(c, table[c]) for c in table.columns]
     rows = []
     for label, row in zip(table.index, table.itertuples(index=False), strict=True):
         cells = [fmt(value) for fmt, value in zip(formats, row, strict=True)]
@@ -253,7 +263,7 @@ def _columns(
         word = max((len(w) for c in cells for w in c.split()), default=0)
         wrapped = not numeric and longest > WRAP_CHARS
         chars = max(WRAP_CHARS, word) if wrapped else longest
-        width = max(chars, HEADER_CHARS)
+        width = max(chars, HEADER_CHARS, max(len(w) for w in name.split() or [""]) + 2)
         lines = _words_lines(name, width) if break_headers and len(name) > width else [name]
         chars = max(chars, *(len(line) for line in lines))
         columns.append(_Column(lines, numeric, chars, wrapped))

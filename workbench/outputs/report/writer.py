@@ -265,6 +265,7 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     heat_map = heat_map_figure(ratio[top], target, cost, out, pairs=ratio.shape[1])
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
+    ratio_table.attrs["one_format"] = True  # one quantity: one number format
     shown = f"the {len(top)} pairs within reach of the best on the most problems"
     write_table(
         ratio_table,
