@@ -76,6 +76,7 @@ def test_the_paper_of_a_sweep_of_42_pairs_fits_the_page(tmp_path: Path) -> None:
     assert compiled.overfull_pt <= WIDEST_OVERFULL_PT
     log = (paper / "main.log").read_text(encoding="utf-8", errors="replace")
     assert "Undefined control sequence" not in log and "Missing character" not in log
+    assert "Float too large" not in log
 
 
 def test_workbench_paper_of_a_small_sweep_compiles(tmp_path: Path) -> None:

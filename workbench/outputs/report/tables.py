@@ -219,7 +219,7 @@ COLUMN_GAP_PT = 6.0  # 2 x \tabcolsep
 WRAP_CHARS = 26  # a text column wider than this wraps in a p{} column
 MIN_WRAP_CHARS = 12  # a text column is never wrapped narrower
 HEADER_CHARS = 12  # a header longer than its column and this breaks into lines
-LONG_ROWS = 40  # more rows: a longtable (breaks across pages; \usepackage{longtable})
+LONG_ROWS = 40  # more lines of rows: a longtable (breaks across pages; \usepackage{longtable})
 TABLE_FONT = r"\footnotesize\setlength{\tabcolsep}{3pt}"
 
 
@@ -315,6 +315,14 @@ def _chunks(columns: list[_Column], keys: int) -> list[list[int]]:
     return [key + part for part in parts]
 
 
+def _text_lines(rows: list[list[str]], columns: list[_Column]) -> int:
+    """About how many lines of text the rows take (wrapped cells take several)."""
+    return sum(
+        max([1] + [math.ceil(len(row[k]) / c.chars) for k, c in enumerate(columns) if c.wrapped])
+        for row in rows
+    )
+
+
 def _cell(text: str, column: _Column) -> str:
     """A body cell; in a wrapped column ragged right (no stretched spaces), grouped so
     the row's ending \\\\ keeps its meaning."""
@@ -352,7 +360,7 @@ def latex_table(
     columns = _laid_out(head, rows, kinds)
     keys = 1 if (kinds and not kinds[0]) else 0
     parts = _chunks(columns, keys) if columns else [[]]
-    long = caption is not None and len(rows) > LONG_ROWS
+    long = caption is not None and _text_lines(rows, columns) > LONG_ROWS
     blocks = []
     for number, part in enumerate(parts):
         align = "".join(columns[k].spec for k in part)
