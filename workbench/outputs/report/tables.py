@@ -360,7 +360,8 @@ def latex_table(
     columns = _laid_out(head, rows, kinds)
     keys = 1 if (kinds and not kinds[0]) else 0
     parts = _chunks(columns, keys) if columns else [[]]
-    long = caption is not None and _text_lines(rows, columns) > LONG_ROWS
+    # the parts stack in one float: their lines add up
+    long = caption is not None and _text_lines(rows, columns) * len(parts) > LONG_ROWS
     blocks = []
     for number, part in enumerate(parts):
         align = "".join(columns[k].spec for k in part)
