@@ -133,7 +133,8 @@ def test_report_files_and_links(tmp_path: Path) -> None:
     index = write_report(results, synthetic_series, tmp_path / "report", "workbench report x")
     assert index == tmp_path / "report" / "index.html"
     sources = image_sources(index)
-    assert len(sources) == 7  # the heat map, two problems x (work-precision, error, drift)
+    # the heat map, two problems x (picture, work-precision, error, drift)
+    assert len(sources) == 9
     for source in sources:
         assert (index.parent / source).is_file(), source
     links = re.findall(r'href="([^"#]+)"', index.read_text(encoding="utf-8"))
@@ -160,7 +161,7 @@ def test_report_files_and_links(tmp_path: Path) -> None:
 
 def test_report_without_series_draws_no_drift(tmp_path: Path) -> None:
     index = write_report(synthetic_results(), None, tmp_path, "cmd")
-    assert len(image_sources(index)) == 3  # the heat map and the work-precision diagrams
+    assert len(image_sources(index)) == 5  # the heat map, pictures, work-precision diagrams
     assert "no drift plot" in index.read_text(encoding="utf-8")
 
 
@@ -314,7 +315,7 @@ def test_cli_report(tmp_path: Path) -> None:
     assert outcome.exit_code == 0, outcome.output
     index = tmp_path / "sweep" / "report" / "index.html"
     assert str(index) in outcome.output
-    assert len(image_sources(index)) == 2  # work-precision and drift from the stored series
+    assert len(image_sources(index)) == 3  # picture; work-precision and drift from the series
     assert f"workbench report {tmp_path / 'sweep'} -o" in index.read_text(encoding="utf-8")
 
     outcome = CliRunner().invoke(

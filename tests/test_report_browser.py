@@ -107,8 +107,9 @@ def test_report_renders_in_chromium(browser: Any, tmp_path: Path) -> None:
     rendered = render(browser, index, screenshot)
 
     assert problems(browser, rendered) == []
-    assert len(rendered["images"]) == 4  # heat map, work-precision, error and drift
-    assert all(width >= 600 for _src, width in rendered["images"])
+    # the picture in the decision table and its section, heat map, work-precision, error, drift
+    assert len(rendered["images"]) == 6
+    assert all(width >= 600 for src, width in rendered["images"] if "-picture" not in src)
     assert any(link.endswith(".svg") for link in rendered["links"])
     assert any(link.endswith("#heavy-top") for link in rendered["links"])
     width, height = png_size(screenshot)
@@ -136,35 +137,47 @@ def test_broken_page_fails_the_checks(browser: Any, tmp_path: Path) -> None:
 FIRST_SCREEN = (1400, 900)  # px: the README's screenshot
 
 
-def test_first_screen_shows_the_overview_and_every_axis_is_labelled(
+def test_first_screen_answers_per_mechanism_and_every_axis_is_labelled(
     browser: Any, tmp_path: Path
 ) -> None:
-    """At 1400 px the recommendation and the heat map start on the first screen; every
-    axis of every figure showing numbers has a label with a unit in brackets, and every
-    axis showing names has a label."""
+    """At 1400 x 900 px the decision table starts on the first screen with its first
+    problem's row (picture, cheapest pair, cost), every text in it at 10 px or more; the
+    heat map shows its labels at their size (not scaled down); every axis of every
+    figure showing numbers has a label with a unit in brackets, every axis showing names
+    a label."""
     import json
     import re
 
     index = write_report(synthetic_results(), synthetic_series, tmp_path / "report", "cmd")
     set_viewport(browser, *FIRST_SCREEN)
     browser.get(index.as_uri())
-    top = browser.execute_script(
+    screen = browser.execute_script(
         """
-        const box = id => { const e = document.getElementById(id);
-            return e ? [e.getBoundingClientRect().top, e.getBoundingClientRect().bottom,
-                        e.innerText] : null; };
+        const table = document.querySelector('#decision table.decision');
+        if (!table) return null;
+        const row = table.querySelector('tbody tr[id^="decision-"]');
+        const thumb = row ? row.querySelector('img.thumb') : null;
+        const sizes = Array.from(table.querySelectorAll('th, td, a, strong, span'),
+            e => parseFloat(getComputedStyle(e).fontSize));
         const heat = document.querySelector('#overview figure img');
-        return {overview: box('overview'), recommendation: box('recommendation'),
-                heat: heat ? heat.getBoundingClientRect().top : null};
+        return {top: table.getBoundingClientRect().top,
+                row: row ? [row.getBoundingClientRect().bottom, row.innerText] : null,
+                thumb: thumb ? [thumb.naturalWidth, thumb.getBoundingClientRect().height] : null,
+                smallest: Math.min(...sizes),
+                heat: heat ? [heat.naturalWidth, heat.getBoundingClientRect().width] : null};
         """
     )
-    assert top["overview"] is not None and top["recommendation"] is not None
-    _top, bottom, sentence = top["recommendation"]
-    assert bottom <= FIRST_SCREEN[1], "the recommendation is below the first screen"
-    assert "within 2x of the best wall time" in sentence
-    assert top["heat"] is not None and top["heat"] < FIRST_SCREEN[1]
+    assert screen is not None, "no decision table"
+    assert screen["top"] < FIRST_SCREEN[1] / 2, "the decision table starts below mid-screen"
+    bottom, text = screen["row"]
+    assert bottom <= FIRST_SCREEN[1], "the first problem's row is below the first screen"
+    assert " / " in text and re.search(r"\d (s|ms|\u00b5s)", text), text  # pair and cost
+    assert screen["thumb"] and screen["thumb"][0] > 0 and screen["thumb"][1] >= 48
+    assert screen["smallest"] >= 10, f"text of {screen['smallest']} px in the decision table"
+    natural, shown = screen["heat"]
+    assert shown >= 0.95 * natural  # 9 pt labels at 90 dpi: 11 px, if not scaled down
     figures = browser.execute_script(
-        "return Array.from(document.querySelectorAll('figure'),"
+        "return Array.from(document.querySelectorAll('figure[data-axes]'),"
         " f => [f.querySelector('img').getAttribute('src'), f.dataset.axes]);"
     )
     assert len(figures) >= 7  # the heat map; per problem work-precision, error, drift

@@ -79,4 +79,35 @@ def test_formats_from_the_command_line(results: Path) -> None:
     bad = runner.invoke(app, ["results", str(results), "-f", "xml"])
     assert bad.exit_code == 2 and "choose one of table, csv, markdown, latex" in bad.output
     table = runner.invoke(app, ["results", str(results)])
-    assert table.exit_code == 0 and "2 problems of 24 runs" in table.output
+    assert table.exit_code == 0 and "The 24 runs in" in table.output
+
+
+def test_caption_reads_well_and_names_the_cost_measure(results: Path) -> None:
+    """Not '11 runs of 36 runs in out-arm': what a line is, of how many runs, the measure."""
+    latex = runner.invoke(app, ["results", str(results), "-f", "latex", "--by", "run",
+                                "-w", "problem=heavy-top"])  # fmt: skip
+    assert latex.exit_code == 0, latex.output
+    assert "\\caption{12 of the 24 runs in " in latex.output
+    summary = runner.invoke(app, ["results", str(results), "-f", "latex"])
+    assert "a line a problem" in summary.output and "cost measure: wall time" in summary.output
+    assert "runs of" not in summary.output
+
+
+def test_results_names_the_reports_winner_and_its_tie(results: Path) -> None:
+    """`workbench results` ranks with the report's function: same pair, ties called."""
+    from workbench.outputs.report.analysis import prepare_results
+    from workbench.outputs.report.ranking import decide
+
+    frame = pd.read_parquet(results)
+    frame["repeats"] = 3
+    frame["wall_s_min"], frame["wall_s_max"] = frame["wall_s"] * 0.5, frame["wall_s"] * 3
+    table = results_table(frame)
+    runs = prepare_results(frame)
+    for row in table.itertuples():
+        group = runs[runs["problem"] == row.problem]
+        decision = decide(group, row.scd, "wall_s")
+        assert row.pair == decision.pair
+        expected = decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
+        if decision.is_tie:
+            expected = "tie: " + "; ".join(decision.tied)
+        assert row.verdict == expected

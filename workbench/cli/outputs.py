@@ -67,6 +67,63 @@ LOCAL_ONLY = "127.0.0.1"
 0.0.0.0, every network the machine is on)."""
 
 
+@app.command("paper")
+def paper(
+    results_path: Annotated[
+        str,
+        typer.Argument(
+            metavar="RESULTS",
+            help="A results directory (the output of `workbench sweep`) or a results.parquet.",
+        ),
+    ],
+    out: Annotated[
+        str | None,
+        typer.Option("--out", help="Paper directory (default: RESULTS/paper)."),
+    ] = None,
+    cost: Annotated[
+        str | None,
+        typer.Option(
+            "--cost", help="Cost measure: integrate_cpu (default), integrate_wall or n_rhs."
+        ),
+    ] = None,
+) -> None:
+    """Write a paper folder: main.tex with the report's LaTeX tables and PDF figures, which
+    a document can also \\input and include one by one; compiled when pdflatex is there."""
+    import warnings
+    from pathlib import Path
+
+    from workbench.cli.app import on_interrupt
+    from workbench.outputs.report import report_directory
+    from workbench.outputs.report.cost import check_cost
+    from workbench.outputs.report.paper import MAIN, compile_paper, pdflatex
+
+    check_cost(cost)
+    source = Path(results_path)
+    folder = Path(out) if out else (source if source.is_dir() else source.parent) / "paper"
+    on_interrupt(
+        lambda: (
+            f"the results in {results_path} are untouched, the paper is unfinished; "
+            f"run `workbench paper {' '.join(sys.argv[2:]) or results_path}` again"
+        )
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        index = report_directory(results_path, folder / "report", cost=cost, paper=folder)
+    for warning in caught:
+        typer.echo(f"warning: {warning.message}", err=True)
+    typer.echo(f"report: {index}")
+    main = folder / MAIN
+    if pdflatex() is None:
+        typer.echo(f"paper: {main} (pdflatex not found; compile with `pdflatex {MAIN}` there)")
+        return
+    compiled = compile_paper(main)
+    if compiled.pdf is None:
+        typer.echo(f"paper: {main}; pdflatex failed:\n{compiled.log_tail}", err=True)
+        raise typer.Exit(1)
+    wide = f", widest overfull box {compiled.overfull_pt:g} pt" if compiled.overfull_pt else ""
+    typer.echo(f"paper: {compiled.pdf} (from {main}{wide})")
+
+
 @app.command("view")
 def view(
     path: Annotated[

@@ -413,8 +413,10 @@ def results(
     import warnings
 
     from workbench.errors import ConfigError
+    from workbench.outputs.report.analysis import prepare_results
+    from workbench.outputs.report.cost import resolve_cost
     from workbench.outputs.report.tables import table_cells
-    from workbench.outputs.results_table import FORMATS, render, results_table
+    from workbench.outputs.results_table import FORMATS, caption, render, results_table
     from workbench.runs.store import load_results
 
     if fmt not in FORMATS:
@@ -429,8 +431,8 @@ def results(
         return [item.strip() for item in (text or "").split(",") if item.strip()]
 
     table = results_table(frame, by=by, columns=split(columns), where=where or [], sort=split(sort))
-    what = {"problem": "problems", "pair": "problem x pair lines", "run": "runs"}.get(by, by)
-    title = f"{len(table)} {what} of {len(frame)} runs in {path}"
+    statement = resolve_cost(prepare_results(frame)).statement()
+    title = caption(table, len(frame), by, path, statement)
     if fmt != "table":
         typer.echo(render(table, fmt, title), nl=False)
         return

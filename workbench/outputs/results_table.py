@@ -1,7 +1,8 @@
 """What ``workbench results`` prints: a summary by default, or chosen rows and columns.
 
 The default is one line a problem (runs by status, the best scd reached without warnings,
-the pair that reached it at least wall time), not every row of a sweep; ``by="pair"``
+the pair that reached it at least cost, in the report's cost measure and with the
+report's ranking, ties included), not every row of a sweep; ``by="pair"``
 gives one line a problem x pair, ``by="run"`` every run. Options are readable columns
 (``formalism.index``, ``integrator.step``), not JSON strings. Rows are filtered by
 conditions such as ``problem=my-problem``, ``scd>=6`` or ``status!=skipped``; sorted by
@@ -20,6 +21,8 @@ import pandas as pd
 
 from workbench.errors import ConfigError
 from workbench.outputs.report.analysis import prepare_results, warned
+from workbench.outputs.report.cost import resolve_cost
+from workbench.outputs.report.ranking import Decision, decide
 from workbench.outputs.report.tables import latex_table, markdown_table
 
 FORMATS: tuple[str, ...] = ("table", "csv", "markdown", "latex")
@@ -113,17 +116,18 @@ def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> 
         )
 
 
-def summary(runs: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "wall_s") -> pd.DataFrame:
     """One row a group of ``keys``: runs, how many ended in each status (ok, ok with
     warnings, failed, timeout, skipped: they add up to the runs), the best scd of an
-    ok run without warnings, and the pair, rtol, wall time and rhs evaluations of the
-    cheapest such run reaching it."""
+    ok run without warnings, and the pair, rtol, ``cost`` and rhs evaluations of the
+    cheapest such run reaching it, with its margin or tie
+    (:func:`workbench.outputs.report.ranking.decide`, the report's ranking)."""
     rows = []
     for key, group in runs.groupby(list(keys), sort=False):
         trusted = group[(group["status"] == "ok") & ~warned(group) & np.isfinite(group["scd"])]
         best = trusted["scd"].max() if not trusted.empty else np.nan
-        reaching = trusted[trusted["scd"] >= best]
-        cheapest = reaching.loc[reaching["wall_s"].idxmin()] if not reaching.empty else None
+        decision = decide(group, best, cost) if np.isfinite(best) else None
+        cheapest = decision.run if decision is not None else None
         row = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
         ok = group["status"] == "ok"
         row |= {"runs": len(group), "ok": int((ok & ~warned(group)).sum())}
@@ -133,10 +137,33 @@ def summary(runs: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
         row["scd"] = best
         if "pair" not in keys:
             row["pair"] = cheapest["pair"] if cheapest is not None else ""
-        for column in ("rtol", "wall_s", "n_rhs"):
+        for column in ("rtol", cost, "n_rhs"):
             row[column] = cheapest[column] if cheapest is not None else np.nan
+        if "pair" not in keys:
+            row["verdict"] = _verdict(decision)
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _verdict(decision: Decision | None) -> str:
+    if decision is None or decision.pair is None:
+        return ""
+    if decision.is_tie:
+        return "tie: " + "; ".join(decision.tied)
+    return decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
+
+
+def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) -> str:
+    """The caption of the printed table: what a line is, of how many runs, and where
+    they are; the cost measure of a summary."""
+    if by == "run":
+        shown = f"{len(table)} of the {runs} runs" if len(table) != runs else f"The {runs} runs"
+        return f"{shown} in {path}"
+    lines = {"problem": "a line a problem", "pair": "a line a problem and pair"}[by]
+    return (
+        f"The {runs} runs in {path}, {lines}: the best scd reached without warnings and the "
+        f"cheapest run reaching it ({statement})"
+    )
 
 
 def results_table(
@@ -160,7 +187,8 @@ def results_table(
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen]
     else:
-        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"])
+        cost = resolve_cost(runs).column
+        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"], cost)
         if columns:
             _check_columns(table, columns, "--columns")
             table = table[list(columns)]

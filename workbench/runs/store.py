@@ -10,6 +10,8 @@ Layout of an output directory ``<out>``::
     <out>/references/*.parquet       computed reference poses (see workbench.runs.metrics)
     <out>/results.parquet            all rows, consolidated at the end of a sweep
     <out>/sweep.toml                 the sweep specification that was run (if any)
+    <out>/plan.json                  the run ids the last sweep planned and its source,
+                                     so a report can tell planned from present runs
     <out>/environment.json           the full environment of the last sweep started here
                                      (workbench.runs.environment.sweep_environment)
 
@@ -135,6 +137,7 @@ RUNS_DIR = "runs"
 SERIES_DIR = "series"
 RESULTS_FILE = "results.parquet"
 ENVIRONMENT_FILE = "environment.json"
+PLAN_FILE = "plan.json"  # the run ids the last sweep started here planned (load_plan)
 
 
 # ---- schema versions ---------------------------------------------------------------------
@@ -550,3 +553,22 @@ def write_text_atomic(text: str, path: Path, root: Path | None = None) -> None:
             out.write(text)
 
     atomic_write(path, write, root=root)
+
+
+def write_plan(out: str | os.PathLike[str], run_ids: Iterable[str], source: str) -> None:
+    """Record the run ids a sweep planned in ``out`` (its source: a file or a suite)."""
+    ids = list(dict.fromkeys(str(run_id) for run_id in run_ids))
+    plan = {"source": source, "runs": len(ids), "run_ids": ids}
+    write_json_atomic(plan, Path(out) / PLAN_FILE, root=Path(out))
+
+
+def load_plan(out: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The plan of the last sweep started in ``out`` ({source, runs, run_ids}); None when
+    none was recorded or the file is unreadable (a report then cannot tell it)."""
+    try:
+        data = json.loads((Path(out) / PLAN_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or not isinstance(data.get("run_ids"), list):
+        return None
+    return data

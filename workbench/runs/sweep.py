@@ -125,6 +125,7 @@ def run_sweep(
         store.write_json_atomic(environment, out_dir / store.ENVIRONMENT_FILE, root=out_dir)
         if sweep.text:
             store.write_text_atomic(sweep.text, out_dir / "sweep.toml", root=out_dir)
+        store.write_plan(out_dir, (spec.run_id for spec in sweep.runs), sweep.source)
         counts: Counter = Counter()
         states = sweep.store_trajectories
         # the local pool forks its workers: no thread may be running then (see _context)

@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.outputs.report.ranking import cheapest_table
+from workbench.outputs.report.trust import ok_runs, warned
 from workbench.runs.timing import TIMING_COLUMNS
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
@@ -26,6 +28,8 @@ NUMERIC_COLUMNS: tuple[str, ...] = (
     "wall_s",
     "cpu_s",
     *TIMING_COLUMNS,
+    "integrate_cpu_s_min",
+    "integrate_cpu_s_max",
     "n_rhs",
     "n_jac",
     "n_steps",
@@ -130,18 +134,6 @@ def _parse_options(text: str) -> dict[str, Any]:
     return value if isinstance(value, dict) else {"options": value}
 
 
-def ok_runs(runs: pd.DataFrame) -> pd.DataFrame:
-    """The rows of status ``ok``."""
-    return runs[runs["status"] == "ok"]
-
-
-def warned(runs: pd.DataFrame) -> pd.Series:
-    """True for the rows whose health audit found something (column ``warnings``)."""
-    if "warnings" not in runs:
-        return pd.Series(False, index=runs.index)
-    return runs["warnings"].fillna("").astype(str).str.len() > 0
-
-
 def warning_kinds(text: str) -> list[str]:
     """The kinds of warning in a row's ``warnings`` (the words before each ':')."""
     return [w.split(":", 1)[0].strip() for w in str(text or "").split("; ") if w.strip()]
@@ -151,46 +143,15 @@ def cheapest_pairs(
     runs: pd.DataFrame, targets: Sequence[float] = TARGET_SCD, cost: str = "wall_s"
 ) -> pd.DataFrame:
     """For each problem and target scd: the ok run of least ``cost`` (a column, see
-    :mod:`workbench.outputs.report.cost`) with scd >= target.
+    :mod:`workbench.outputs.report.cost`) with scd >= target, its runner-up, margin and
+    ties (:func:`workbench.outputs.report.ranking.cheapest_table`, the one ranking the
+    report, ``workbench results`` and the LaTeX share).
 
     One row per (problem, target); problems where no run reached a target say so.
     A run with warnings (:func:`warned`) is never chosen: it may be wrong.
     ``runs`` is the output of :func:`prepare_results`.
     """
-    rows = []
-    for problem, group in runs.groupby("problem", sort=False):
-        ok = ok_runs(group[~warned(group)])
-        ok = ok[np.isfinite(ok["scd"]) & np.isfinite(ok[cost])]
-        for target in targets:
-            reached = ok[ok["scd"] >= target]
-            if reached.empty:
-                rows.append({"problem": problem, "target scd": target, "pair": "none reached"})
-                continue
-            best = reached.loc[reached[cost].idxmin()]
-            rows.append(
-                {
-                    "problem": problem,
-                    "target scd": target,
-                    "pair": best["pair"],
-                    "rtol": best["rtol"],
-                    "scd": best["scd"],
-                    "err_l2": best["err_l2"],
-                    "err_max": best["err_max"],
-                    cost: best[cost],
-                    "n_rhs": best["n_rhs"],
-                }
-            )
-    columns = [
-        "problem",
-        "target scd",
-        "pair",
-        "rtol",
-        "scd",
-        "err_l2",
-        "err_max",
-        *dict.fromkeys([cost, "n_rhs"]),
-    ]
-    return pd.DataFrame(rows, columns=columns)
+    return cheapest_table(runs, targets, cost)
 
 
 def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
@@ -328,3 +289,44 @@ def oversubscription_warning(runs: pd.DataFrame) -> str:
         "waiting for a core; compare costs with care, or sweep again with fewer --jobs on "
         "a quieter machine"
     )
+
+
+def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
+    """A notice for the first screen when the rows are not the whole sweep that was
+    planned (``plan``: :func:`workbench.runs.store.load_plan`): planned vs present runs,
+    and rows of other sweeps; '' when they are the plan exactly, or no plan is known."""
+    if not plan:
+        return ""
+    planned = set(map(str, plan.get("run_ids", [])))
+    present = set(runs["run_id"].astype(str))
+    have = len(planned & present)
+    other = len(present - planned)
+    parts = []
+    if have < len(planned):
+        missing = len(planned) - have
+        parts.append(
+            f"partial results: the sweep ({plan.get('source') or 'its specification'}) planned "
+            f"{len(planned)} runs and {have} of them have a row here, {missing} missing "
+            "(the sweep was interrupted, or the rows were filtered): run the same "
+            "`workbench sweep` again to complete it"
+        )
+    if other:
+        parts.append(f"{other} row(s) come from other sweeps run in this directory")
+    return "; ".join(parts)
+
+
+def status_by_problem(runs: pd.DataFrame, matrix: pd.DataFrame) -> pd.DataFrame:
+    """The status matrix (:func:`status_matrix`) folded to a line a problem, for print:
+    runs, how many ended in each status, and the reasons ([n]) of the others."""
+    flagged = runs.assign(status=runs["status"].where(~warned(runs), OK_WARNED))
+    rows = []
+    for problem, group in flagged.groupby("problem", sort=False):
+        counts = group["status"].value_counts()
+        row = {"problem": problem, "runs": len(group)}
+        row |= {status: int(counts.get(status, 0)) for status in STATUSES}
+        cells = " ".join(matrix.loc[problem]) if problem in matrix.index else ""
+        numbers = sorted({int(n) for ids in re.findall(r"\[([\d,]+)\]", cells)
+                          for n in ids.split(",")})  # fmt: skip
+        row["reasons"] = ", ".join(f"[{n}]" for n in numbers)
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["problem", "runs", *STATUSES, "reasons"])

@@ -67,6 +67,7 @@ class FigureFiles:
 def save_figure(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
     import matplotlib.pyplot as plt
 
+    thin_tick_labels(figure)
     # Cropped to what is drawn (the legend's column would leave a blank margin); the box is
     # measured once, since savefig(bbox_inches="tight") would lay out every format again.
     box = figure.get_tightbbox(figure.canvas.get_renderer()).padded(0.1)
@@ -77,6 +78,73 @@ def save_figure(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
     axes = labelled_axes(figure)
     plt.close(figure)
     return FigureFiles(stem, caption, axes)
+
+
+def shown_tick_labels(axis: Any, renderer: Any) -> list[tuple[bool, float, Any]]:
+    """(minor, value, window box) of the labels ``axis`` draws inside its view."""
+    low, high = sorted(axis.get_view_interval())
+    shown = []
+    for minor, ticks in ((False, axis.get_major_ticks()), (True, axis.get_minor_ticks())):
+        for tick in ticks:
+            label, value = tick.label1, tick.get_loc()
+            if label.get_visible() and label.get_text() and low <= value <= high:
+                shown.append((minor, value, label.get_window_extent(renderer)))
+    return shown
+
+
+def thin_tick_labels(figure: Any, gap: float = 2.0) -> None:
+    """Blank the tick labels that would overlap another (boxes measured with the
+    renderer, ``gap`` pixels apart at least): major labels are kept first, in order of
+    value, then the minor ones that still fit; names are never blanked. Done by wrapping
+    each axis's formatter, so every format saved afterwards draws the same labels."""
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    for ax in figure.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            shown = shown_tick_labels(axis, renderer)
+            texts = [label.get_text() for label in axis.get_ticklabels(minor=False)]
+            if not all(_is_number(text) for text in texts if text):
+                continue  # names (problems, pairs) are never thinned
+            kept: list[Any] = []
+            blank: dict[bool, list[float]] = {False: [], True: []}
+            for minor, value, box in sorted(shown, key=_by_rank):
+                if any(box.overlaps(other) for other in kept):
+                    blank[minor].append(value)
+                else:
+                    kept.append(box.expanded(1.0, 1.0).padded(gap / 2))
+            if blank[False]:
+                axis.set_major_formatter(blanked(axis.get_major_formatter(), blank[False]))
+            if blank[True]:
+                axis.set_minor_formatter(blanked(axis.get_minor_formatter(), blank[True]))
+
+
+def _by_rank(label: tuple[bool, float, Any]) -> tuple[bool, float]:
+    return label[0], label[1]
+
+
+def blanked(inner: Any, values: list[float]) -> Any:
+    """A matplotlib ``Formatter`` that writes nothing at ``values`` and defers to
+    ``inner`` elsewhere (its locations, axis and offset included)."""
+    from matplotlib.ticker import Formatter
+
+    class Blanked(Formatter):
+        def __call__(self, x: float, pos: Any = None) -> str:
+            if np.any(np.isclose(values, x, rtol=1e-9, atol=0.0)):
+                return ""
+            return inner(x, pos)
+
+        def set_axis(self, axis: Any) -> None:
+            super().set_axis(axis)
+            inner.set_axis(axis)
+
+        def set_locs(self, locs: Any) -> None:
+            super().set_locs(locs)
+            inner.set_locs(locs)
+
+        def get_offset(self) -> str:
+            return inner.get_offset()
+
+    return Blanked()
 
 
 def labelled_axes(figure: Any) -> list[Axis]:
@@ -218,7 +286,19 @@ SCD_LABEL = "scd: correct digits at the end [-]"
 def work_precision_figure(
     runs: pd.DataFrame, out: Path, problem: str, cost: str = "integrate_s"
 ) -> FigureFiles | None:
-    """scd against the ``cost`` column (the report's cost measure,
+    """The work-precision diagram of :func:`work_precision_drawing`, saved into ``out``."""
+    drawn = work_precision_drawing(runs, problem, cost)
+    if drawn is None:
+        return None
+    figure, caption = drawn
+    return save_figure(figure, out, f"{slug(problem)}-work-precision", caption)
+
+
+def work_precision_drawing(
+    runs: pd.DataFrame, problem: str, cost: str = "integrate_s"
+) -> tuple[Any, str] | None:
+    """The figure and caption of a problem's work-precision diagram (None: no ok run
+    with an scd): scd against the ``cost`` column (the report's cost measure,
     :mod:`workbench.outputs.report.cost`; the integration's wall time when that is rhs
     evaluations) and against rhs evaluations (log x), one curve a pair.
 
@@ -256,7 +336,7 @@ def work_precision_figure(
     for ax, (axis, xlabel) in zip(axes, work_axes, strict=True):
         front = ok[pareto_mask(ok, axis)].sort_values(axis) if axis in ok else ok.iloc[:0]
         if not front.empty:
-            ax.step(front[cost], front["scd"], where="post", color="0.45", linewidth=5,
+            ax.step(front[axis], front["scd"], where="post", color="0.45", linewidth=5,
                     alpha=0.35, zorder=0, solid_capstyle="round")  # fmt: skip
         if digits is not None:
             ax.axhline(digits, color="0.2", linestyle=":", linewidth=1)
@@ -275,10 +355,8 @@ def work_precision_figure(
         title += "\nred ring: the run carries warnings (it may be wrong; see the status table)"
     figure.suptitle(title, x=0.38)
     styles.legend(figure)
-    return save_figure(
+    return (
         figure,
-        out,
-        f"{slug(problem)}-work-precision",
         f"{problem}: work-precision diagrams (scd against {work_axes[0][1].split(' [')[0]} "
         "and rhs evaluations, one-off costs such as building and compiling excluded; grey "
         "band: the Pareto front, runs no other run beats on both cost and accuracy; the "

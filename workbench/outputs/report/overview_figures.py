@@ -14,23 +14,31 @@ import pandas as pd
 from workbench.outputs.report.figures import FigureFiles, PairStyles, log_axis, save_figure
 from workbench.outputs.report.overview import COST_COLUMNS, trusted
 
+NOT_REACHED_TEXT = "not\nreached"
 
-def heat_map_figure(ratio: pd.DataFrame, target: float, cost: str, out: Path) -> FigureFiles | None:
+
+def heat_map_figure(
+    ratio: pd.DataFrame, target: float, cost: str, out: Path, pairs: int | None = None
+) -> FigureFiles | None:
     """Problem x pair heat map of ``ratio`` (cost / the problem's best at scd >= target;
-    :func:`~workbench.outputs.report.overview.cost_ratio`), the ratio written in each
-    cell, "-" where the pair never reached the target without warnings."""
+    :func:`~workbench.outputs.report.overview.cost_ratio`; give it the top pairs, and the
+    number of pairs in all as ``pairs``), the ratio written in each cell, a hatched grey
+    "not reached" where the pair never reached the target without warnings. Sized to be
+    read at its natural width (about 1100 px): 9-10 pt labels at 90 dpi."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
+    from matplotlib.patches import Rectangle
     from matplotlib.ticker import LogFormatter
 
     if ratio.empty or not np.isfinite(ratio.to_numpy(dtype=float)).any():
         return None
     values = ratio.to_numpy(dtype=float)
     rows, columns = values.shape
-    figure, ax = plt.subplots(figsize=(max(7.5, 2.5 + 0.42 * columns), 1.8 + 0.3 * rows))
+    width = max(8.0, 3.0 + 0.95 * columns)
+    figure, ax = plt.subplots(figsize=(width, 2.4 + 0.42 * rows))
     top = float(np.nanmax(values))
     image = ax.imshow(
         np.ma.masked_invalid(values),
@@ -38,33 +46,44 @@ def heat_map_figure(ratio: pd.DataFrame, target: float, cost: str, out: Path) ->
         norm=LogNorm(vmin=1.0, vmax=max(top, 10.0)),
         aspect="auto",
     )
-    ax.set_facecolor("0.92")
     for i in range(rows):
         for j in range(columns):
             value = values[i, j]
-            text = "-" if not np.isfinite(value) else f"{value:.2g}"
-            color = "0.4" if not np.isfinite(value) else ("white" if value > 3 else "black")
-            ax.text(j, i, text, ha="center", va="center", fontsize=6.5, color=color)
-    ax.set_xticks(range(columns), [str(c) for c in ratio.columns], rotation=60, ha="right",
-                  fontsize="x-small")  # fmt: skip
-    ax.set_yticks(range(rows), [str(r) for r in ratio.index], fontsize="x-small")
+            if not np.isfinite(value):
+                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="0.88",
+                                       edgecolor="0.55", hatch="///", linewidth=0))  # fmt: skip
+                ax.text(j, i, NOT_REACHED_TEXT, ha="center", va="center", fontsize=8,
+                        color="0.15", linespacing=0.9,
+                        bbox={"facecolor": "0.88", "edgecolor": "none", "pad": 0.5})  # fmt: skip
+                continue
+            color = "white" if value > 3 else "black"
+            ax.text(j, i, f"{value:.2g}", ha="center", va="center", fontsize=9, color=color)
+    labels = [str(c).replace(" / ", "\n/ ") for c in ratio.columns]
+    ax.set_xticks(range(columns), labels, rotation=30, ha="right", rotation_mode="anchor",
+                  fontsize=9)  # fmt: skip
+    ax.set_yticks(range(rows), [str(r) for r in ratio.index], fontsize=9)
     ax.set_xlabel("pair (formalism / integrator)")
     ax.set_ylabel("problem")
     measure = COST_COLUMNS.get(cost, cost)
     name, _, unit = measure.partition(" [")
     bar = figure.colorbar(image, ax=ax, fraction=0.03, pad=0.01)
-    bar.set_label(f"{name} / the best on the problem [-]", fontsize="small")
+    bar.set_label(f"{name} / the best on the problem [-]", fontsize=9)
     plain = LogFormatter(labelOnlyBase=False, minor_thresholds=(1.2, 0.6))
     bar.ax.yaxis.set_major_formatter(plain)
     bar.ax.yaxis.set_minor_formatter(plain)
+    bar.ax.tick_params(labelsize=8)
+    shown = "" if pairs is None or pairs <= columns else f"the {columns} best of {pairs} pairs; "
     ax.set_title(f"cost at scd >= {target:g} relative to the best pair of each problem\n"
-                 "(1 = best; -: not reached without warnings)", fontsize="small")  # fmt: skip
+                 f"({shown}1 = best; hatched: not reached without warnings)",
+                 fontsize=10)  # fmt: skip
     return save_figure(
         figure,
         out,
         "overview-heat-map",
         f"Cost ({name}) of each pair at scd >= {target:g}, divided by the least cost of any "
-        "pair on that problem",
+        "pair on that problem"
+        + (f"; the {columns} pairs within reach of the best on the most problems of {pairs}"
+           if shown else ""),  # fmt: skip
     )
 
 

@@ -13,6 +13,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from typing import Any
 
 import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
@@ -69,6 +70,8 @@ class ProblemSection:
     drift: FigureFiles | None
     drift_table: PageTable | None
     error: FigureFiles | None = None
+    picture: FigureFiles | None = None  # the mechanism at its initial pose
+    traits: Any = None  # its Traits (workbench.outputs.report.traits), model left out
 
 
 @dataclass
@@ -88,6 +91,28 @@ class Overview:
     pareto: PageTable
     convergence: FigureFiles | None
     trusted_runs: int
+
+
+@dataclass
+class DecisionPage:
+    """The decision table as the page shows it (:mod:`workbench.outputs.report.decision`):
+    rows grouped by family, a column a target; ``cost_text`` formats a cost with its unit."""
+
+    rows: list[Any]
+    targets: list[float]
+    cost: str
+
+    def cost_text(self, value: float) -> str:
+        from workbench.outputs.report.decision import cost_text
+
+        return cost_text(value, self.cost)
+
+    def families(self) -> list[tuple[str, list[Any]]]:
+        """(family, its rows) in the rows' order."""
+        grouped: dict[str, list[Any]] = {}
+        for row in self.rows:
+            grouped.setdefault(row.family, []).append(row)
+        return list(grouped.items())
 
 
 def environment() -> Environment:
@@ -115,13 +140,16 @@ def render_page(
     scorecards: Sequence[Scorecard] = (),
     cost: Cost | None = None,
     timing_warning: str = "",
+    decision: DecisionPage | None = None,
+    coverage: str = "",
 ) -> str:
     """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
 
     overview: the recommendation and the figures above everything else.
     footnotes: as :func:`workbench.outputs.report.analysis.status_matrix` gives them,
     ``"[n] text"``; the page numbers them itself. cost: the cost measure in force (stated
-    on the page); timing_warning: shown at the top when not empty.
+    on the page); timing_warning: shown at the top when not empty. decision: the first
+    screen's table (none: not shown); coverage: the partial-sweep notice ('' : none).
     """
     cost = cost or resolve_cost(runs)
     problems = list(dict.fromkeys(runs["problem"]))
@@ -143,6 +171,8 @@ def render_page(
             cost_name=cost.name,
             cost_statement=cost.statement(),
             timing_warning=timing_warning,
+            decision=decision,
+            coverage=coverage,
             run_environment="; ".join(run_environment(runs)),
             versions=", ".join(f"{name} {version}" for name, version in library_versions().items()),
             machine=machine_description(),

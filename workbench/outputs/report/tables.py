@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +46,17 @@ HEADERS: dict[str, str] = {
     "energy_err_max": "max relative energy error",
     "invariant_err_max": "max relative invariant error",
     "fixed_step_s": "fixed step [s]",
+    "integrate_s": "integration wall time [s]",
+    "integrate_s_min": "least integration wall time [s]",
+    "integrate_s_max": "greatest integration wall time [s]",
+    "integrate_cpu_s": "integration CPU time [s]",
+    "integrate_cpu_s_min": "least integration CPU time [s]",
+    "integrate_cpu_s_max": "greatest integration CPU time [s]",
+    "repeats": "timed samples",
+    "margin": "margin over the runner-up [x]",
+    "runner-up": "runner-up",
+    "tied pairs": "tied pairs",
+    "verdict": "verdict",
     "length_scale": "length scale L [m]",
     "formalism_options": "formalism options",
     "integrator_options": "integrator options",
@@ -61,15 +73,29 @@ def header(column: Any) -> str:
 
 
 def write_table(
-    table: pd.DataFrame, directory: Path, name: str, caption: str | None = None
+    table: pd.DataFrame,
+    directory: Path,
+    name: str,
+    caption: str | None = None,
+    latex: pd.DataFrame | None = None,
+    notes: Sequence[str] = (),
 ) -> list[Path]:
     """Write ``table`` as ``name``.csv, .md and .tex (booktabs, captioned, labelled
-    ``tab:<name>``) into ``directory``."""
+    ``tab:<name>``) into ``directory``; ``latex``: another table for the .tex (one that
+    fits a page, e.g. a summary of a wide matrix), ``notes``: lines under it."""
     paths = [directory / f"{name}.{ext}" for ext in ("csv", "md", "tex")]
     index = shows_index(table)
     table.to_csv(paths[0], index=index)
-    paths[1].write_text(markdown_table(table, index=index), encoding="utf-8")
-    latex = latex_table(table, index=index, caption=caption or name, label=f"tab:{name}")
+    listed = "".join(f"\n- {note}" for note in notes)
+    paths[1].write_text(
+        markdown_table(table, index=index) + (f"\n{listed.lstrip()}\n" if notes else ""),
+        encoding="utf-8",
+    )
+    printed = table if latex is None else latex
+    latex = latex_table(
+        printed, index=shows_index(printed), caption=caption or name, label=f"tab:{name}",
+        notes=notes,
+    )  # fmt: skip
     paths[2].write_text(latex, encoding="utf-8")
     return paths
 
@@ -116,9 +142,15 @@ def _missing(value: Any) -> bool:
 
 def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], list[list[str]]]:
     """The readable header and the rows of ``table`` as text, one format a column
-    (:func:`column_formatter`), the index first when ``index``."""
+    (:func:`column_formatter`), the index first when ``index``. A table whose
+    ``attrs["one_format"]`` is true (a matrix of one quantity, e.g. cost ratios) has one
+    format for all its columns, so no column shows '1' beside another's '1.000'."""
     head = ([header(table.index.name or "")] if index else []) + [header(c) for c in table.columns]
-    formats = [column_formatter(c, table[c]) for c in table.columns]
+    if table.attrs.get("one_format") and len(table.columns):
+        stacked = pd.Series(table.to_numpy(dtype=float).ravel())
+        formats = [column_formatter("", stacked)] * len(table.columns)
+    else:
+        formats = [column_formatter(c, table[c]) for c in table.columns]
     rows = []
     for label, row in zip(table.index, table.itertuples(index=False), strict=True):
         cells = [fmt(value) for fmt, value in zip(formats, row, strict=True)]
@@ -157,12 +189,160 @@ LATEX_SPECIAL = {
     "}": r"\}",
     "~": r"\textasciitilde{}",
     "^": r"\textasciicircum{}",
+    "<": r"\textless{}",
+    ">": r"\textgreater{}",
+    "|": r"\textbar{}",
+    "\N{MICRO SIGN}": r"$\mu$",
+    "\N{GREEK SMALL LETTER MU}": r"$\mu$",
+    "\N{MINUS SIGN}": "-",
 }
+# Comparisons as mathematics: under the default OT1 encoding '>' prints as an inverted
+# question mark and '>=' as '¿='.
+LATEX_COMPARISONS = {">=": r"$\geq$", "<=": r"$\leq$", "!=": r"$\neq$"}
 
 
 def latex_escape(text: str) -> str:
-    """``text`` with LaTeX's special characters escaped."""
-    return "".join(LATEX_SPECIAL.get(char, char) for char in str(text))
+    """``text`` with LaTeX's special characters escaped, comparisons as $\\geq$ etc."""
+    out, text, k = [], str(text), 0
+    while k < len(text):
+        pair = text[k : k + 2]
+        if pair in LATEX_COMPARISONS:
+            out.append(LATEX_COMPARISONS[pair])
+            k += 2
+            continue
+        char = text[k]
+        out.append(LATEX_SPECIAL.get(char, char) if ord(char) < 128 or char in LATEX_SPECIAL
+                   else "?")  # fmt: skip
+        k += 1
+    return "".join(out)
+
+
+# How a LaTeX table is laid out to fit a page of plain ``article`` (10 pt, \textwidth
+# 345 pt): \footnotesize, 3 pt column separation, characters at most CHAR_PT wide.
+TEXT_WIDTH_PT = 345.0
+CHAR_PT = 4.3  # a generous mean width of a \footnotesize character (cmr8: 4.0-4.25)
+COLUMN_GAP_PT = 6.0  # 2 x \tabcolsep
+WRAP_CHARS = 26  # a text column wider than this wraps in a p{} column
+MIN_WRAP_CHARS = 12  # a text column is never wrapped narrower
+HEADER_CHARS = 12  # a header longer than its column and this breaks into lines
+LONG_ROWS = 40  # more lines of rows: a longtable (breaks across pages; \usepackage{longtable})
+TABLE_FONT = r"\footnotesize\setlength{\tabcolsep}{3pt}"
+
+
+def _words_lines(text: str, width: int) -> list[str]:
+    """``text`` broken at spaces into lines of at most ``width`` characters (a longer
+    word stays whole)."""
+    lines: list[str] = []
+    for word in text.split():
+        if lines and len(lines[-1]) + 1 + len(word) <= width:
+            lines[-1] += " " + word
+        else:
+            lines.append(word)
+    return lines or [""]
+
+
+@dataclass
+class _Column:
+    header: list[str]  # its lines
+    numeric: bool
+    chars: int  # width in characters
+    wrapped: bool  # a p{} column
+
+    @property
+    def spec(self) -> str:
+        if self.wrapped:
+            return f"p{{{self.chars * CHAR_PT:.0f}pt}}"
+        return "r" if self.numeric else "l"
+
+    @property
+    def width_pt(self) -> float:
+        return self.chars * CHAR_PT + COLUMN_GAP_PT
+
+
+def _columns(
+    head: list[str], rows: list[list[str]], kinds: list[bool], break_headers: bool
+) -> list[_Column]:
+    columns = []
+    for k, (name, numeric) in enumerate(zip(head, kinds, strict=True)):
+        cells = [row[k] for row in rows]
+        longest = max((len(c) for c in cells), default=0)
+        word = max((len(w) for c in cells for w in c.split()), default=0)
+        wrapped = not numeric and longest > WRAP_CHARS
+        chars = max(WRAP_CHARS, word) if wrapped else longest
+        width = max(chars, HEADER_CHARS, max(len(w) for w in name.split() or [""]) + 2)
+        lines = _words_lines(name, width) if break_headers and len(name) > width else [name]
+        chars = max(chars, *(len(line) for line in lines))
+        columns.append(_Column(lines, numeric, chars, wrapped))
+    return columns
+
+
+def _laid_out(head: list[str], rows: list[list[str]], kinds: list[bool]) -> list[_Column]:
+    """The columns with whole headers when they fit the page, else with broken ones and
+    the long text columns wrapped narrower (never below their longest word)."""
+    columns = _columns(head, rows, kinds, break_headers=False)
+    if sum(column.width_pt for column in columns) <= TEXT_WIDTH_PT:
+        return columns
+    columns = _columns(head, rows, kinds, break_headers=True)
+    narrow = [
+        k for k, c in enumerate(columns) if not c.numeric and c.chars > MIN_WRAP_CHARS and k > 0
+    ]
+    fixed = sum(c.width_pt for k, c in enumerate(columns) if k not in narrow)
+    if narrow and fixed < TEXT_WIDTH_PT:
+        share = int((TEXT_WIDTH_PT - fixed) / len(narrow) / CHAR_PT) - 2
+        for k in narrow:
+            column = columns[k]
+            cells = [row[k] for row in rows]
+            word = max((len(w) for c in cells for w in c.split()), default=0)
+            header = max(len(w) for line in column.header for w in line.split())
+            chars = max(share, word, header, MIN_WRAP_CHARS)
+            if chars < column.chars:
+                lines = _words_lines(" ".join(column.header), chars)
+                columns[k] = _Column(lines, False, chars, True)
+    return columns
+
+
+def _chunks(columns: list[_Column], keys: int) -> list[list[int]]:
+    """Column indices of each part of a table too wide for the page: the first ``keys``
+    columns (what a row is about) repeated in every part."""
+    key = list(range(min(keys, len(columns))))
+    budget = TEXT_WIDTH_PT - sum(columns[k].width_pt for k in key)
+    parts: list[list[int]] = []
+    current: list[int] = []
+    used = 0.0
+    for k in range(len(key), len(columns)):
+        width = columns[k].width_pt
+        if current and used + width > budget:
+            parts.append(current)
+            current, used = [], 0.0
+        current.append(k)
+        used += width
+    if current or not parts:
+        parts.append(current)
+    return [key + part for part in parts]
+
+
+def _text_lines(rows: list[list[str]], columns: list[_Column]) -> int:
+    """About how many lines of text the rows take (wrapped cells take several)."""
+    return sum(
+        max([1] + [math.ceil(len(row[k]) / c.chars) for k, c in enumerate(columns) if c.wrapped])
+        for row in rows
+    )
+
+
+def _cell(text: str, column: _Column) -> str:
+    """A body cell; in a wrapped column ragged right (no stretched spaces), grouped so
+    the row's ending \\\\ keeps its meaning."""
+    if column.wrapped and text:
+        return r"{\raggedright " + latex_escape(text) + r"\par}"
+    return latex_escape(text)
+
+
+def _header_cell(column: _Column) -> str:
+    lines = [latex_escape(line) for line in column.header]
+    if len(lines) == 1:
+        return lines[0]
+    align = "r" if column.numeric else "l"
+    return f"\\begin{{tabular}}[b]{{@{{}}{align}@{{}}}}" + r"\\{}".join(lines) + r"\end{tabular}"
 
 
 def latex_table(
@@ -170,23 +350,63 @@ def latex_table(
     index: bool = False,
     caption: str | None = None,
     label: str | None = None,
+    notes: Sequence[str] = (),
 ) -> str:
-    """A booktabs ``tabular`` (needs ``\\usepackage{booktabs}``): readable headers with
-    units, numbers right-aligned in one format a column, LaTeX's special characters
-    escaped. With a ``caption`` (and ``label``) it is wrapped in a ``table`` float."""
+    """Booktabs LaTeX of ``table`` (needs ``\\usepackage{booktabs}``, and
+    ``\\usepackage{longtable}`` for tables of more than :data:`LONG_ROWS` rows): readable
+    headers with units, numbers right-aligned in one format a column, LaTeX's special
+    characters escaped, laid out to fit the text width of a plain ``article``: long text
+    wraps, long headers break into lines, a table still too wide is split into parts
+    that repeat its first column. With a ``caption`` (and ``label``) it is a ``table``
+    float in \\footnotesize (a ``longtable`` when long); ``notes`` are printed under it."""
     head, rows = table_cells(table, index)
     kinds = ([False] if index else []) + [
         pd.api.types.is_numeric_dtype(table[c]) and table[c].dtype != bool for c in table.columns
     ]
-    align = "".join("r" if numeric else "l" for numeric in kinds)
-    lines = [f"\\begin{{tabular}}{{{align}}}", "\\toprule"]
-    lines.append(" & ".join(latex_escape(cell) for cell in head) + " \\\\")
-    lines.append("\\midrule")
-    lines += [" & ".join(latex_escape(cell) for cell in row) + " \\\\" for row in rows]
-    lines += ["\\bottomrule", "\\end{tabular}"]
+    columns = _laid_out(head, rows, kinds)
+    keys = 1 if (kinds and not kinds[0]) else 0
+    parts = _chunks(columns, keys) if columns else [[]]
+    # the parts stack in one float: their lines add up
+    long = caption is not None and _text_lines(rows, columns) * len(parts) > LONG_ROWS
+    blocks = []
+    for number, part in enumerate(parts):
+        align = "".join(columns[k].spec for k in part)
+        header = " & ".join(_header_cell(columns[k]) for k in part) + r" \\"
+        body = [" & ".join(_cell(row[k], columns[k]) for k in part) + r" \\" for row in rows]
+        if long:
+            title = (
+                [
+                    f"\\caption{{{latex_escape(caption)}}}"
+                    + (f"\\label{{{label}}}" if label else "")
+                    + r"\\"
+                ]
+                if number == 0
+                else []  # fmt: skip
+            )
+            blocks.append("\n".join([
+                f"\\begin{{longtable}}{{{align}}}", *title, r"\toprule", header, r"\midrule",
+                r"\endfirsthead", r"\toprule", header, r"\midrule", r"\endhead",
+                r"\bottomrule", r"\endlastfoot", *body, r"\end{longtable}",
+            ]))  # fmt: skip
+        else:
+            blocks.append("\n".join([
+                f"\\begin{{tabular}}{{{align}}}", r"\toprule", header, r"\midrule", *body,
+                r"\bottomrule", r"\end{tabular}",
+            ]))  # fmt: skip
+    notes_text = [
+        r"\par\smallskip\begin{minipage}{\linewidth}\raggedright",
+        *(latex_escape(note) + r"\par" for note in notes),
+        r"\end{minipage}",
+    ] if notes else []  # fmt: skip
     if caption is None:
-        return "\n".join(lines) + "\n"
-    wrapped = ["\\begin{table}[htbp]", "\\centering", f"\\caption{{{latex_escape(caption)}}}"]
+        return "\n\\par\\medskip\n".join(blocks) + "\n" + "\n".join(notes_text)
+    if long:
+        return "\n".join(["{" + TABLE_FONT, "\n\\medskip\n".join(blocks), *notes_text, "}"]) + "\n"
+    wrapped = [r"\begin{table}[htbp]", r"\centering", TABLE_FONT,
+               f"\\caption{{{latex_escape(caption)}}}"]  # fmt: skip
     if label:
         wrapped.append(f"\\label{{{label}}}")  # a slug: no special characters
-    return "\n".join([*wrapped, *lines, "\\end{table}"]) + "\n"
+    wrapped.append(r"\par\smallskip")
+    return (
+        "\n".join([*wrapped, "\n\\par\\medskip\n".join(blocks), *notes_text, r"\end{table}"]) + "\n"
+    )

@@ -18,14 +18,17 @@ from workbench.files import check_no_links, refuse_links
 from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
+    coverage_notice,
     drift_runs,
     drift_table,
     oversubscription_warning,
     prepare_results,
+    status_by_problem,
     status_counts,
     status_matrix,
 )
 from workbench.outputs.report.cost import Cost, resolve_cost
+from workbench.outputs.report.decision import decision_frame, decision_rows, decision_targets
 from workbench.outputs.report.figures import (
     drift_figure,
     error_figure,
@@ -40,7 +43,15 @@ from workbench.outputs.report.overview import (
     trusted,
 )
 from workbench.outputs.report.overview_figures import convergence_figure, heat_map_figure
-from workbench.outputs.report.page import Overview, PageTable, ProblemSection, render_page
+from workbench.outputs.report.page import (
+    DecisionPage,
+    Overview,
+    PageTable,
+    ProblemSection,
+    render_page,
+)
+from workbench.outputs.report.paper import PaperSection, write_paper
+from workbench.outputs.report.picture import mechanism_picture
 from workbench.outputs.report.pool import (
     figure_executor,
     figure_jobs,
@@ -49,6 +60,7 @@ from workbench.outputs.report.pool import (
 )
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
+from workbench.outputs.report.traits import problem_traits
 from workbench.runs.progress import progress_bar
 
 SeriesLoader = Callable[[str], pd.DataFrame | None]
@@ -56,9 +68,14 @@ SUMMARY_CAPTION = (
     "Cheapest pair (least {cost}) reaching each target scd, among the runs without "
     "warnings; errors are pose errors over the samples (L2: root mean square); {statement}"
 )
+DECISION_CAPTION = (
+    "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
+    "its cost and how far ahead of the runner-up it is; tie: pairs whose timed samples' "
+    "ranges overlap; {statement}"
+)
 STATUS_CAPTION = (
-    "Runs by status, per problem and pair; the numbers in brackets refer to the reasons "
-    "listed in the report"
+    "Runs by status, per problem (the report's table splits them by pair); the numbers in "
+    "brackets refer to the reasons listed below"
 )
 
 
@@ -72,6 +89,8 @@ def write_report(
     progress: bool | None = None,
     jobs: int | None = None,
     cost: str | None = None,
+    plan: dict | None = None,
+    paper: str | Path | None = None,
 ) -> Path:
     """Write the report of ``results`` into ``out_dir``; return the path of ``index.html``.
 
@@ -85,6 +104,9 @@ def write_report(
     jobs: processes drawing figures; default: one per CPU when there are 4 problems or more.
     cost: the cost measure of the diagrams, tables and recommendation, a key of
         :data:`~workbench.outputs.report.cost.COST_MEASURES` (default: see that module).
+    plan: the sweep's plan (:func:`workbench.runs.store.load_plan`): the first screen then
+        says how many of the planned runs are present.
+    paper: also write a paper folder there (:mod:`workbench.outputs.report.paper`).
     """
     runs = prepare_results(results)
     measure = resolve_cost(runs, cost)
@@ -97,8 +119,12 @@ def write_report(
     summary = cheapest_pairs(runs, cost=measure.column)
     matrix, footnotes = status_matrix(runs)
     caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
-    write_table(summary, out / "tables", "summary", caption)
-    write_table(matrix, out / "tables", "status", STATUS_CAPTION)
+    printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs", "runner-up")]
+    write_table(summary, out / "tables", "summary", caption, latex=summary[printed])
+    write_table(
+        matrix, out / "tables", "status", STATUS_CAPTION,
+        latex=status_by_problem(runs, matrix), notes=footnotes,
+    )  # fmt: skip
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
     cards = scorecards(runs)
     for card in cards:
@@ -121,6 +147,16 @@ def write_report(
         # a worker killed from outside: its problems are drawn again here (one warning)
         sections = results_or_redone(tasks, problem_section, bar.step)
 
+    targets = decision_targets(runs, measure.column)
+    decided = decision_rows(runs, targets, measure.column, sections)
+    decision_table = decision_frame(decided, targets, measure.column)
+    write_table(
+        decision_table,
+        out / "tables",
+        "decision",
+        DECISION_CAPTION.format(statement=measure.statement()),
+        latex=decision_table.drop(columns="family"),  # rows stay in family order
+    )
     page = render_page(
         title,
         runs,
@@ -133,9 +169,35 @@ def write_report(
         cards,
         cost=measure,
         timing_warning=oversubscription_warning(runs),
+        decision=DecisionPage(decided, targets, measure.column),
+        coverage=coverage_notice(runs, plan),
     )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
+    if paper is not None:
+        intro = [
+            f"{len(runs)} runs of {len(problems)} problem(s) and {runs['pair'].nunique()} "
+            f"formalism / integrator pair(s); {measure.statement()}.",
+            *([coverage_notice(runs, plan) + "."] if plan and coverage_notice(runs, plan) else []),
+            overview.sentence,
+        ]
+        write_paper(
+            out,
+            Path(paper),
+            title,
+            intro,
+            ["decision", "summary", "status"],
+            [overview.heat_map] if overview.heat_map else [],
+            [
+                PaperSection(
+                    section.problem,
+                    [f for f in (section.work_precision, section.drift) if f is not None],
+                    [section.drift_table.name] if section.drift_table else [],
+                )
+                for section in sections
+            ],
+            ["ranking", "pareto", *(card.name for card in cards)],
+        )
     return index
 
 
@@ -147,6 +209,7 @@ def report_directory(
     progress: bool | None = None,
     stale: Mapping[str, str] | None = None,
     cost: str | None = None,
+    paper: str | os.PathLike[str] | None = None,
 ) -> Path:
     """The report of a results directory written by :mod:`workbench.runs.store` (or of a
     results.parquet); return the path of its ``index.html``.
@@ -159,11 +222,12 @@ def report_directory(
     equivalent ``workbench report`` command line. Time series are read from the directory's
     ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
     results. Warnings of :func:`workbench.runs.store.load_results` (unreadable rows) pass through.
-    cost: the report's cost measure (:func:`write_report`).
+    cost: the report's cost measure (:func:`write_report`); paper: also write a paper
+    folder there (:func:`write_report`).
     """
     import shlex
 
-    from workbench.runs.store import load_results, load_series
+    from workbench.runs.store import load_plan, load_results, load_series
 
     source = Path(results_path)
     if not source.exists():
@@ -188,7 +252,11 @@ def report_directory(
 
     if command is None:
         command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
-    return write_report(frame, series_loader, target, command, progress=progress, cost=cost)
+    plan = load_plan(directory)
+    return write_report(
+        frame, series_loader, target, command, progress=progress, cost=cost, plan=plan,
+        paper=paper,
+    )  # fmt: skip
 
 
 def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> Overview:
@@ -200,16 +268,20 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     recommendation = recommend(runs, cost=measure.column)
     target, cost = recommendation.target, recommendation.cost
     ratio = cost_ratio(cost_at_target(runs, target, cost))
-    heat_map = heat_map_figure(ratio, target, cost, out)
+    top = top_pairs(ratio, recommendation.table.index)
+    heat_map = heat_map_figure(ratio[top], target, cost, out, pairs=ratio.shape[1])
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
+    ratio_table.attrs["one_format"] = True  # one quantity: one number format
+    shown = f"the {len(top)} pairs within reach of the best on the most problems"
     write_table(
         ratio_table,
         out / "tables",
         "cost-at-target",
         f"{measure.name.capitalize()} of each pair at scd >= {target:g} divided by the least "
         f"on the problem (1: the best; empty: not reached without warnings); "
-        f"{measure.statement()}",
+        f"{measure.statement()}" + (f"; printed: {shown}" if len(top) < ratio.shape[1] else ""),
+        latex=ratio_table[top],
     )
     fronts = []
     for _problem, group in runs.groupby("problem", sort=False):
@@ -254,6 +326,17 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     )
 
 
+TOP_PAIRS = 10  # pair columns of the heat map and of the printed cost-at-target table
+
+
+def top_pairs(ratio: pd.DataFrame, ranked: pd.Index, count: int = TOP_PAIRS) -> list[str]:
+    """At most ``count`` pairs of ``ratio``'s columns, in the recommendation's order
+    (``ranked``: the most problems within reach of the best first), that reached the
+    target somewhere."""
+    reached = [pair for pair in ranked if pair in ratio and ratio[pair].notna().any()]
+    return reached[:count] or list(ratio.columns[:count])
+
+
 def _load_series(
     runs: pd.DataFrame, series_loader: SeriesLoader | None, cost: str = "integrate_s"
 ) -> dict[str, pd.DataFrame | None] | None:
@@ -291,6 +374,9 @@ def problem_section(
     matplotlib.use("Agg", force=True)
     problem = str(runs["problem"].iloc[0])
     work_precision = work_precision_figure(runs, out, problem, cost)
+    traits = problem_traits(runs)
+    picture = mechanism_picture(traits.model, out, problem) if traits.model is not None else None
+    traits.model = None  # plain data back to the parent
     drift, rtol = drift_figure(runs, series, out, problem)
     error = error_figure(runs, series, out, problem, cost)
     table = None
@@ -313,4 +399,6 @@ def problem_section(
         drift=drift,
         drift_table=table,
         error=error,
+        picture=picture,
+        traits=traits,
     )

@@ -1,0 +1,100 @@
+"""`workbench paper`: a folder whose main.tex inputs the report's tables and includes its
+PDF figures, and which compiles under plain article with booktabs and no overfull box
+wider than 10 pt, even for a sweep of 42 pairs (whose cost and status tables were
+43-column tabulars, 5,908 pt too wide).
+
+The compiling tests need pdflatex (apt-get install texlive-latex-base
+texlive-latex-recommended): skipped with that reason where it is missing, unless CI is set.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from tests.test_report import synthetic_results, synthetic_series
+from workbench.cli import app
+from workbench.outputs.report import write_report
+from workbench.outputs.report.paper import MAIN, compile_paper, pdflatex
+from workbench.outputs.report.tables import latex_escape
+
+WIDEST_OVERFULL_PT = 10.0
+
+
+def needs_pdflatex() -> None:
+    if pdflatex() is None:
+        reason = (
+            "pdflatex is not installed (apt-get install -y texlive-latex-base "
+            "texlive-latex-recommended)"
+        )
+        if os.environ.get("CI"):
+            pytest.fail(f"{reason}; CI is set, so the paper must compile")
+        pytest.skip(reason)
+
+
+def wide_results():
+    """3 problems x 6 formalisms x 7 integrators: 42 pairs, as the default sweep has."""
+    return synthetic_results(
+        problems=("simple-pendulum", "four-bar", "heavy-top"),
+        formalisms=("minimal-ode", "absolute-dae", "recursive", "newton-euler-dae",
+                    "lagrange-multipliers", "hamilton-constrained"),
+        integrators=("scipy-dop853", "scipy-radau", "sundials-cvode-bdf", "sundials-ida",
+                     "generalized-alpha", "hht-newmark", "casadi-idas"),
+        rtols=(1e-4, 1e-7),
+    )  # fmt: skip
+
+
+def test_comparisons_print_as_mathematics() -> None:
+    """'>=' under the default font encoding prints as '¿='."""
+    assert latex_escape("scd >= 8, a < b, x != y") == (
+        r"scd $\geq$ 8, a \textless{} b, x $\neq$ y"
+    )
+    assert latex_escape("12 \N{MICRO SIGN}s") == r"12 $\mu$s"
+
+
+def test_the_paper_of_a_sweep_of_42_pairs_fits_the_page(tmp_path: Path) -> None:
+    needs_pdflatex()
+    paper = tmp_path / "paper"
+    write_report(wide_results(), synthetic_series, tmp_path / "report", "cmd", paper=paper,
+                 progress=False)  # fmt: skip
+    main = (paper / MAIN).read_text(encoding="utf-8")
+    for stem in re.findall(r"\\input\{tables/([^}]+)\}", main):
+        assert (paper / "tables" / f"{stem}.tex").is_file(), stem
+    for pdf in re.findall(r"\{(figures/[^}]+\.pdf)\}", main):
+        assert (paper / pdf).is_file(), pdf
+    assert {"decision", "summary", "status", "ranking", "pareto"} <= set(
+        re.findall(r"\\input\{tables/([^}]+)\}", main)
+    )
+    status = (paper / "tables" / "status.tex").read_text(encoding="utf-8")
+    assert "[1]" in status and "Newton iteration diverged" in status  # carries its reasons
+    compiled = compile_paper(paper / MAIN)
+    assert compiled.pdf is not None, compiled.log_tail
+    assert compiled.overfull_pt <= WIDEST_OVERFULL_PT
+    log = (paper / "main.log").read_text(encoding="utf-8", errors="replace")
+    assert "Undefined control sequence" not in log and "Missing character" not in log
+    assert "Float too large" not in log
+
+
+def test_workbench_paper_of_a_small_sweep_compiles(tmp_path: Path) -> None:
+    needs_pdflatex()
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        'problems = ["simple-pendulum"]\nformalisms = ["minimal-ode"]\n'
+        'integrators = ["scipy-dop853", "scipy-radau"]\ntolerances = [1e-4, 1e-7]\njobs = 1\n',
+        encoding="utf-8",
+    )
+    runner = CliRunner()
+    swept = runner.invoke(app, ["sweep", str(spec), "--out", str(tmp_path / "out")])
+    assert swept.exit_code == 0, swept.output
+    made = runner.invoke(app, ["paper", str(tmp_path / "out")])
+    assert made.exit_code == 0, made.output
+    pdf = tmp_path / "out" / "paper" / "main.pdf"
+    assert f"paper: {pdf}" in made.output and pdf.stat().st_size > 10_000
+    assert "overfull" not in made.output  # none at all
+    for name in ("decision", "summary", "status"):
+        assert (tmp_path / "out" / "paper" / "tables" / f"{name}.tex").is_file()
+    assert list((tmp_path / "out" / "paper" / "figures").glob("*work-precision.pdf"))

@@ -1,0 +1,183 @@
+"""The report's first screen: the decision table (cheapest trusted pair a problem and
+target, margin or tie), its "why", the partial-sweep notice and the mechanism's picture."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.test_report import synthetic_results
+from workbench.outputs.report import cheapest_pairs, prepare_results, write_report
+from workbench.outputs.report.decision import decision_rows, decision_targets
+from workbench.outputs.report.ranking import decide
+from workbench.outputs.report.traits import stiffness
+from workbench.runs import store
+
+
+def costed(rows: list[tuple[str, float, float, float, float]]) -> pd.DataFrame:
+    """Prepared rows of one problem: (pair 'f / i', scd, CPU median, CPU min, CPU max),
+    each run timed three times."""
+    records = []
+    for k, (pair, scd, median, low, high) in enumerate(rows):
+        formalism, integrator = pair.split(" / ")
+        records.append(
+            {"run_id": f"r{k}", "problem": "p", "formalism": formalism, "integrator": integrator,
+             "rtol": 1e-6, "status": "ok", "scd": scd, "integrate_s": median,
+             "integrate_cpu_s": median, "integrate_cpu_s_min": low, "integrate_cpu_s_max": high,
+             "repeats": 3, "n_rhs": 100 + k}  # fmt: skip
+        )
+    return prepare_results(pd.DataFrame(records))
+
+
+def test_overlapping_intervals_are_a_tie_and_apart_ones_a_margin() -> None:
+    runs = costed([
+        ("a / x", 6.0, 1.00, 0.95, 1.10),
+        ("b / y", 6.5, 1.05, 0.98, 1.20),  # reaches into a's interval: tied
+        ("c / z", 7.0, 3.00, 2.90, 3.20),
+    ])  # fmt: skip
+    tied = decide(runs, 4.0, "integrate_cpu_s")
+    assert tied.pair == "a / x" and tied.is_tie and tied.tied == ["a / x", "b / y"]
+    assert tied.verdict() == "tie"
+    apart = decide(runs[runs["pair"] != "b / y"], 4.0, "integrate_cpu_s")
+    assert not apart.is_tie and apart.runner_up == "c / z"
+    assert apart.margin == pytest.approx(3.0) and apart.verdict() == "3x ahead"
+    # a target only c reaches: the only pair
+    assert decide(runs, 6.8, "integrate_cpu_s").verdict() == "only pair"
+    assert decide(runs, 9.0, "integrate_cpu_s").verdict() == "none reached"
+
+
+def test_without_intervals_a_tie_is_not_claimed_and_the_reader_is_told() -> None:
+    runs = costed([("a / x", 6.0, 1.0, 0.9, 1.1), ("b / y", 6.0, 1.05, 0.9, 1.2)])
+    runs["repeats"] = 1  # one sample each: no spread
+    decision = decide(runs, 4.0, "integrate_cpu_s")
+    assert not decision.is_tie and not decision.tie_known
+    assert "tie unknown" in decision.verdict()
+    # rows of an older schema: no CPU interval, the wall-time one scaled to CPU time
+    runs = costed([("a / x", 6.0, 1.0, np.nan, np.nan), ("b / y", 6.0, 1.05, np.nan, np.nan)])
+    runs["integrate_s"] = [2.0, 2.1]
+    runs["integrate_s_min"], runs["integrate_s_max"] = [1.9, 2.05], [2.2, 2.3]
+    decision = decide(runs, 4.0, "integrate_cpu_s")
+    assert decision.tie_known and decision.is_tie
+    assert decision.high == pytest.approx(1.1)  # 2.2 s wall x (1 / 2) CPU per wall
+
+
+def test_the_cheapest_pair_table_and_the_decision_agree() -> None:
+    runs = prepare_results(synthetic_results())
+    runs["repeats"] = 3
+    runs["wall_s_min"], runs["wall_s_max"] = runs["wall_s"] * 0.98, runs["wall_s"] * 1.02
+    table = cheapest_pairs(runs, targets=(2.0, 4.0), cost="wall_s")
+    for row in table.itertuples():
+        decision = decide(runs[runs["problem"] == row.problem], row._2, "wall_s")
+        assert row.pair == (decision.pair or "none reached")
+        assert row.verdict == decision.verdict()
+    assert {"runner-up", "margin", "verdict", "tied pairs"} <= set(table.columns)
+
+
+def test_targets_are_those_the_sweep_reaches() -> None:
+    runs = costed([("a / x", 6.5, 1.0, 0.9, 1.1)])
+    assert decision_targets(runs, "integrate_cpu_s") == [2.0, 4.0, 6.0]
+    runs = costed([("a / x", 11.0, 1.0, 0.9, 1.1)])
+    assert decision_targets(runs, "integrate_cpu_s") == [4.0, 8.0, 10.0]
+
+
+def test_stiffness_is_read_from_the_integrators_statistics() -> None:
+    def rows(explicit_steps: int) -> pd.DataFrame:
+        return pd.DataFrame(
+            {"status": ["ok"] * 4, "rtol": [1e-4, 1e-6] * 2,
+             "n_jac": [0, 0, 12, 20], "n_steps": [explicit_steps] * 2 + [40, 60],
+             "n_rejected": [1, 2, 0, 0]}  # fmt: skip
+        )
+
+    assert stiffness(rows(2000)).startswith("stiff: explicit integrators took 42x")  # 50x, 33x
+    assert stiffness(rows(60)).startswith("not stiff: explicit integrators took 1.2x")
+    assert stiffness(rows(60)[2:]) == ""  # implicit ones only: the runs cannot tell
+
+
+def test_the_page_opens_with_the_decision_table_grouped_by_family(tmp_path: Path) -> None:
+    results = synthetic_results(problems=("simple-pendulum", "four-bar", "heavy-top"))
+    results.loc[results["problem"] == "four-bar", "scd"] -= 2.0  # never reaches scd 6
+    index = write_report(results, None, tmp_path, "cmd")
+    page = index.read_text(encoding="utf-8")
+    assert page.index('id="decision"') < page.index('id="overview"')
+    families = re.findall(r'<tr class="family"><th colspan="\d+">([^<]+)</th>', page)
+    assert families == ["open trees and chains", "rotations (spherical and free joints)",
+                        "closed loops"]  # fmt: skip
+    assert "closed loops (1 cut joint" in page and "Why:" in page
+    assert page.count('class="none">not reached') == 1  # the four-bar at scd >= 6
+    decision = pd.read_csv(tmp_path / "tables" / "decision.csv")
+    assert list(decision.columns[:2]) == ["family", "problem"]
+    assert len(decision) == 3
+    # every problem shows its picture in its row and its section
+    for problem in ("simple-pendulum", "four-bar", "heavy-top"):
+        assert (tmp_path / "figures" / f"{problem}-picture.png").is_file()
+        assert page.count(f'src="figures/{problem}-picture.png"') == 2
+
+
+def test_a_partial_sweep_says_so_on_the_first_screen(tmp_path: Path) -> None:
+    results = synthetic_results(problems=("simple-pendulum",))
+    directory = tmp_path / "sweep"
+    (directory / store.RUNS_DIR).mkdir(parents=True)
+    done = results.iloc[:8]
+    for row in done.to_dict("records"):
+        (directory / store.RUNS_DIR / f"{row['run_id']}.json").write_text(
+            json.dumps({k: v for k, v in row.items() if v == v}), encoding="utf-8"
+        )
+    store.write_plan(directory, results["run_id"], "suite first-look")
+    from workbench.outputs.report import report_directory
+
+    page = report_directory(directory, progress=False).read_text(encoding="utf-8")
+    notice = re.search(r'<p class="notice" id="coverage">(.*?)</p>', page, re.S)
+    assert notice is not None and page.index('id="coverage"') < page.index('id="decision"')
+    assert "planned 12 runs and 8 of them have a row here, 4 missing" in notice.group(1)
+    assert "suite first-look" in notice.group(1)
+    store.write_plan(directory, done["run_id"], "suite first-look")  # the whole plan: quiet
+    page = report_directory(directory, progress=False).read_text(encoding="utf-8")
+    assert 'id="coverage"' not in page
+
+
+def test_run_sweep_records_its_plan(tmp_path: Path) -> None:
+    from workbench.runs.sweep import parse_spec
+
+    spec = parse_spec(
+        'problems = ["simple-pendulum"]\nformalisms = ["minimal-ode"]\n'
+        'integrators = ["scipy-dop853"]\ntolerances = [1e-4, 1e-6]\n',
+        "test",
+    )
+    from workbench.runs.sweep import run_sweep
+
+    run_sweep(spec, jobs=1, out=tmp_path, show_progress=False, say=lambda line: None)
+    plan = store.load_plan(tmp_path)
+    assert plan is not None and plan["runs"] == 2 == len(plan["run_ids"])
+    assert set(plan["run_ids"]) == {run.run_id for run in spec.runs}
+
+
+def test_picture_places_the_shapes_at_the_initial_pose() -> None:
+    """Every body is placed, with a proper rotation, in the plane of a planar model."""
+    from workbench.outputs.report.picture import body_poses
+    from workbench.outputs.report.traits import problem_model
+
+    model = problem_model("four-bar")
+    poses = body_poses(model)
+    assert set(poses) == set(model.bodies)
+    for position, rotation in poses.values():
+        assert np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-12)
+        assert position[2] == pytest.approx(0.0)  # planar: in the x-y plane
+    rows = decision_rows(prepare_results(synthetic_results(problems=("four-bar",))), [4.0],
+                         "wall_s")  # fmt: skip
+    assert rows[0].family == "closed loops"
+
+
+def test_steps_an_integrator_did_not_report_are_not_counted() -> None:
+    """-1 means 'not reported' (the store's convention): never a -1 % rejection rate."""
+    runs = pd.DataFrame(
+        {"status": ["ok"] * 4, "rtol": [1e-4, 1e-6] * 2, "n_jac": [0, 0, 12, 20],
+         "n_steps": [100, 200, 40, 60], "n_rejected": [-1, -1, 0, 0]}  # fmt: skip
+    )
+    said = stiffness(runs)
+    assert "-1" not in said and "rejected" not in said
+    assert said.startswith("not stiff: explicit integrators took 2.9x")  # 2.5x and 3.3x

@@ -1,0 +1,171 @@
+"""The one ranking of pairs the report, ``workbench results`` and the LaTeX tables share:
+for a problem and a target accuracy, the cheapest trusted pair, how far ahead of the
+runner-up it is, and the pairs tied with it.
+
+A pair's cost at a target is that of its cheapest trusted run (status ``ok``, no audit
+warning, finite scd and cost) whose scd reaches the target. Each timed cost has an
+interval, the least and greatest of the run's timed samples (:func:`cost_interval`);
+pairs whose intervals overlap the winner's are **tied** with it: the timings cannot tell
+them apart, so the report names them all rather than one winner by noise. Rows without
+an interval (one sample, or written before intervals were recorded) cannot be told tied;
+the decision then says so (``tie_known`` False).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from workbench.outputs.report.trust import ok_runs, warned
+
+NOT_REACHED = "none reached"
+
+
+def cost_interval(runs: pd.DataFrame, cost: str) -> tuple[pd.Series, pd.Series]:
+    """The least and greatest value of ``cost`` over each run's timed samples.
+
+    ``<cost>_min`` / ``<cost>_max`` where the rows carry them (``integrate_cpu_s_min``,
+    ``integrate_s_min``); for CPU time without its own, the wall-time interval scaled by
+    CPU / wall time; a counted cost (``n_rhs``) is exact (its interval is the value).
+    NaN where unknown, and for runs timed once (a single sample has no spread).
+    """
+    value = pd.to_numeric(runs[cost], errors="coerce") if cost in runs else None
+    nan = pd.Series(np.nan, index=runs.index)
+    if value is None:
+        return nan, nan
+    if not cost.endswith("_s"):  # a count: no noise
+        return value, value
+    low, high = _column(runs, f"{cost}_min"), _column(runs, f"{cost}_max")
+    if cost == "integrate_cpu_s":
+        scale = value / _column(runs, "integrate_s")
+        low = low.fillna(_column(runs, "integrate_s_min") * scale)
+        high = high.fillna(_column(runs, "integrate_s_max") * scale)
+    once = _column(runs, "repeats") < 2
+    return low.mask(once), high.mask(once)
+
+
+def _column(runs: pd.DataFrame, name: str) -> pd.Series:
+    if name not in runs:
+        return pd.Series(np.nan, index=runs.index)
+    return pd.to_numeric(runs[name], errors="coerce")
+
+
+def pair_costs(runs: pd.DataFrame, target: float, cost: str) -> pd.DataFrame:
+    """One problem's pairs that reach scd >= ``target`` with a trusted run, cheapest
+    first: the run (``run_id``, rtol, scd, errors, n_rhs), its ``cost`` and interval
+    (``low``, ``high``)."""
+    trusted = ok_runs(runs[~warned(runs)])
+    if cost not in trusted:
+        return trusted.iloc[:0].assign(low=np.nan, high=np.nan)
+    values = pd.to_numeric(trusted[cost], errors="coerce")
+    keep = np.isfinite(trusted["scd"]) & np.isfinite(values) & (trusted["scd"] >= target)
+    reached = trusted[keep]
+    low, high = cost_interval(reached, cost)
+    reached = reached.assign(low=low, high=high)
+    best = reached.sort_values([cost, "rtol"], kind="stable").drop_duplicates("pair")
+    return best.reset_index(drop=True)
+
+
+@dataclass
+class Decision:
+    """The answer for one problem at one target accuracy.
+
+    pair: the cheapest pair (None: no trusted run reached the target); cost, low, high:
+    its cost and interval; runner_up, runner_cost: the next cheapest pair; margin:
+    runner_cost / cost (NaN: no runner-up); tied: the pairs (the cheapest first)
+    indistinguishable from it by their intervals, itself included when any other is;
+    tie_known: the intervals needed to tell ties were there.
+    """
+
+    problem: str
+    target: float
+    pair: str | None = None
+    cost: float = np.nan
+    low: float = np.nan
+    high: float = np.nan
+    rtol: float = np.nan
+    scd: float = np.nan
+    runner_up: str = ""
+    runner_cost: float = np.nan
+    margin: float = np.nan
+    tied: list[str] = field(default_factory=list)
+    tie_known: bool = True
+    run: pd.Series | None = None
+
+    @property
+    def is_tie(self) -> bool:
+        return len(self.tied) > 1
+
+    def verdict(self) -> str:
+        """'tie', 'only pair', '1.8x ahead', '1.8x ahead (one sample: tie unknown)' or
+        'none reached'."""
+        if self.pair is None:
+            return NOT_REACHED
+        if self.is_tie:
+            return "tie"
+        if not self.runner_up:
+            return "only pair"
+        ahead = f"{self.margin:.3g}x ahead"
+        return ahead if self.tie_known else f"{ahead} (one sample: tie unknown)"
+
+
+def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
+    """The :class:`Decision` for ``runs`` (one problem's, prepared) at ``target``."""
+    problem = str(runs["problem"].iloc[0]) if len(runs) else ""
+    ranked = pair_costs(runs, target, cost)
+    if ranked.empty:
+        return Decision(problem, target)
+    best = ranked.iloc[0]
+    decision = Decision(
+        problem,
+        target,
+        pair=str(best["pair"]),
+        cost=float(best[cost]),
+        low=float(best["low"]),
+        high=float(best["high"]),
+        rtol=float(best["rtol"]),
+        scd=float(best["scd"]),
+        run=best,
+    )
+    if len(ranked) < 2:
+        return decision
+    runner = ranked.iloc[1]
+    decision.runner_up, decision.runner_cost = str(runner["pair"]), float(runner[cost])
+    decision.margin = decision.runner_cost / decision.cost if decision.cost > 0 else np.nan
+    # A pair is tied when its interval reaches down into the winner's (costs are sorted).
+    known = np.isfinite(ranked["low"]) & np.isfinite(ranked["high"])
+    decision.tie_known = bool(known.iloc[0] and known.iloc[1])
+    overlapping = known & known.iloc[0] & (ranked["low"] <= decision.high)
+    overlapping |= ranked[cost] == decision.cost  # equal costs tie, interval or not
+    tied = ranked[overlapping]
+    decision.tied = [str(p) for p in tied["pair"]] if len(tied) > 1 else []
+    return decision
+
+
+def decisions(runs: pd.DataFrame, targets: Sequence[float], cost: str) -> list[Decision]:
+    """A :class:`Decision` for every problem (in order of appearance) and target."""
+    return [
+        decide(group, float(target), cost)
+        for _problem, group in runs.groupby("problem", sort=False)
+        for target in targets
+    ]
+
+
+def cheapest_table(runs: pd.DataFrame, targets: Sequence[float], cost: str) -> pd.DataFrame:
+    """One row a problem and target: the cheapest pair and its run, its cost, the
+    runner-up and margin, and the tie (the per-problem cheapest-pair table)."""
+    rows = []
+    for d in decisions(runs, targets, cost):
+        row = {"problem": d.problem, "target scd": d.target, "pair": d.pair or NOT_REACHED}
+        if d.run is not None:
+            row |= {k: d.run[k] for k in ("rtol", "scd", "err_l2", "err_max", cost, "n_rhs")}
+        row |= {"runner-up": d.runner_up, "margin": d.margin, "verdict": d.verdict()}
+        row["tied pairs"] = ", ".join(d.tied)
+        rows.append(row)
+    run_columns = ["rtol", "scd", "err_l2", "err_max", *dict.fromkeys([cost, "n_rhs"])]
+    columns = ["problem", "target scd", "pair", *run_columns]
+    columns += ["runner-up", "margin", "verdict", "tied pairs"]
+    return pd.DataFrame(rows, columns=columns)
