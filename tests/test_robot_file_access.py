@@ -200,3 +200,23 @@ def test_the_command_line_names_package_roots_and_allowed_folders(box, tmp_path)
     )
     assert described.returncode == 0, described.stderr
     assert "│ meshes" in described.stdout and "1" in described.stdout.split("│ meshes")[1][:40]
+
+
+def test_a_sweep_entry_names_package_roots_relative_to_the_spec(box, tmp_path, monkeypatch):
+    from workbench.runs.sweep_spec import parse_spec
+
+    robot, _ = box
+    (tmp_path / "packages" / "my_robot").mkdir(parents=True)
+    (robot / "robot.urdf").write_text(urdf("inside.stl"))
+    text = (
+        'problems = [{ urdf = "robot/robot.urdf", package_path = ["packages", "robot"], '
+        'allow_roots = ["outside"], max_file_mb = 5.0 }]\n'
+        'formalisms = ["recursive"]\nintegrators = ["scipy-dop853"]\ntolerances = [1e-6]\n'
+    )
+    (tmp_path / "spec.toml").write_text(text)
+    monkeypatch.chdir(robot)  # not the specification's folder
+    (run,) = parse_spec(text, str(tmp_path / "spec.toml")).runs  # two folders, one run
+    options = run.problem_options
+    assert options["package_path"] == [str(tmp_path / "packages"), str(robot)]
+    assert options["allow_roots"] == [str(tmp_path / "outside")]
+    assert options["max_file_mb"] == 5.0
