@@ -89,7 +89,8 @@ def run(
     repeat_budget: Annotated[
         float,
         typer.Option(
-            "--repeat-budget", help="Seconds of integration the samples may take together."
+            "--repeat-budget",
+            help="CPU seconds of integration the samples may take together.",
         ),
     ] = DEFAULT_REPEAT_BUDGET,
 ) -> None:
@@ -205,7 +206,8 @@ def sweep(
     repeat_budget: Annotated[
         float | None,
         typer.Option(
-            "--repeat-budget", help="Seconds of integration a run's samples may take together."
+            "--repeat-budget",
+            help="CPU seconds of integration a run's samples may take together.",
         ),
     ] = None,
 ) -> None:

@@ -8,7 +8,7 @@ benchmark problems; :func:`suite_names` lists them)::
     jobs = 2                       # local worker processes (``--jobs`` overrides)
     time_limit = 120.0             # seconds per run; a run over it is killed (``--time-limit``)
     repeats = 3                    # most timed samples of each integration (``--repeats``)
-    repeat_budget = 0.05           # s of integration a run may spend on them (``--repeat-budget``)
+    repeat_budget = 3.0            # CPU s of integration a run may spend on them (``--repeat-budget``)
     tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
@@ -104,7 +104,7 @@ TOP_LEVEL_KEYS = {
     "jobs": "number of local worker processes (integer >= 1)",
     "time_limit": "seconds per run (number > 0)",
     "repeats": "most timed samples of each run's integration (integer >= 1)",
-    "repeat_budget": "seconds of integration a run may spend on repeated samples (number >= 0)",
+    "repeat_budget": "CPU seconds of integration a run may spend on repeated samples (number >= 0)",
     "tolerances": "list of rtol values (numbers > 0)",
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
