@@ -8,7 +8,7 @@ benchmark problems; :func:`suite_names` lists them)::
     jobs = 2                       # local worker processes (``--jobs`` overrides)
     time_limit = 120.0             # seconds per run; a run over it is killed (``--time-limit``)
     repeats = 3                    # most timed samples of each integration (``--repeats``)
-    repeat_budget = 3.0            # CPU s of integration a run may spend on them (``--repeat-budget``)
+    repeat_budget = 3.0            # CPU s of integration for them (``--repeat-budget``)
     tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
