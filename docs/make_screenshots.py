@@ -168,7 +168,7 @@ def overview_screenshot(results: Path, target: Path) -> None:
         )
     report = results / "report"
     subprocess.run(
-        [sys.executable, "-m", "workbench", "report", str(results), "-o", str(report)], check=True
+        [sys.executable, "-m", "workbench", "report", str(results), "--out", str(report)], check=True
     )
     driver = headless_chromium(*FIRST_SCREEN)
     try:

@@ -318,7 +318,7 @@ def test_cli_report(tmp_path: Path) -> None:
     assert f"workbench report {tmp_path / 'sweep'} -o" in index.read_text(encoding="utf-8")
 
     outcome = CliRunner().invoke(
-        app, ["report", str(tmp_path / "sweep"), "-o", str(tmp_path / "r")]
+        app, ["report", str(tmp_path / "sweep"), "--out", str(tmp_path / "r")]
     )
     assert outcome.exit_code == 0, outcome.output
     assert (tmp_path / "r" / "index.html").is_file()

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from workbench.cli.app import app
+from workbench.cli.app import app, refuse_short_out
 
 
 @app.command("report")
@@ -22,8 +22,9 @@ def report(
     ],
     out: Annotated[
         str | None,
-        typer.Option("-o", "--out", help="Report directory (default: RESULTS/report)."),
+        typer.Option("--out", help="Report directory (default: RESULTS/report)."),
     ] = None,
+    old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
     cost: Annotated[
         str | None,
         typer.Option(
@@ -40,6 +41,7 @@ def report(
     from workbench.outputs.report import report_directory
     from workbench.outputs.report.cost import check_cost
 
+    refuse_short_out(old_out, "report")
     check_cost(cost)  # before anything is read
 
     on_interrupt(

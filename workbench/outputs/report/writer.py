@@ -180,7 +180,7 @@ def report_directory(
             return None
 
     if command is None:
-        command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
+        command = shlex.join(["workbench", "report", str(source), "--out", str(target)])
     return write_report(frame, series_loader, target, command, progress=progress, cost=cost)
 
 
