@@ -8,7 +8,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from workbench.cli.app import app, console, option_value
+from workbench.cli.app import app, console, option_value, refuse_short_out
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields
 from workbench.runs.timing import (
@@ -173,15 +173,19 @@ def sweep(
     spec: Annotated[
         str | None,
         typer.Argument(
-            help="Sweep specification (TOML file) or suite name (default, iftomm, ...); "
-            "default: the default sweep.",
+            help="Sweep specification (TOML file) or suite name (quick, full, iftomm, ivp); "
+            "default: quick, a first look in about a minute.",
         )
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Dask scheduler address (tcp://host:port).")
     ] = None,
-    out: Annotated[str | None, typer.Option("--out", "-o", help="Output directory.")] = None,
+    out: Annotated[
+        str | None,
+        typer.Option("--out", help="Output directory (default: the specification's out)."),
+    ] = None,
+    old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
     time_limit: Annotated[
         float | None, typer.Option("--time-limit", help="Seconds per run before it is killed.")
     ] = None,
@@ -220,7 +224,9 @@ def sweep(
     from workbench.runs import store
     from workbench.runs.resume import parse_rerun
     from workbench.runs.sweep import load_spec, run_sweep
+    from workbench.runs.sweep_spec import FULL_SUITE
 
+    refuse_short_out(old_out, "sweep")
     if jobs is not None and jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if time_limit is not None and not time_limit > 0:
@@ -266,6 +272,11 @@ def sweep(
         typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
+    if loaded.suite != FULL_SUITE:
+        typer.echo(
+            f"full comparison: workbench sweep {FULL_SUITE} (every problem, formalism and "
+            "integrator family; it says how long it will take before it starts)"
+        )
     if summary.unfinished:
         first, why = next(iter(summary.unfinished.items()))
         again = " ".join(["workbench", *_without_rerun(sys.argv[1:])])

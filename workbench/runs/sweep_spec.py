@@ -1,8 +1,9 @@
 """A sweep specification: problems x formalisms x integrators (option grids) x tolerances.
 
 A sweep specification is a TOML file, or the name of a suite shipped with the workbench in
-``workbench/runs/suites/NAME.toml`` (``default``, the default sweep; ``iftomm``, the IFToMM
-benchmark problems; :func:`suite_names` lists them)::
+``workbench/runs/suites/NAME.toml`` (``quick``, the default sweep: a first look in about a
+minute; ``full``, the full comparison; ``iftomm``, the IFToMM benchmark problems; ``ivp``,
+the IVP test set's; :func:`suite_names` lists them)::
 
     out = "reports/latest"         # output directory (``--out`` overrides)
     jobs = 2                       # local worker processes (``--jobs`` overrides)
@@ -131,6 +132,16 @@ class SweepSpec:
     text: str = ""
     repeats: int = DEFAULT_REPEATS
     repeat_budget: float = DEFAULT_REPEAT_BUDGET
+    suite: str = ""  # the name of the shipped suite it is ('' for a file)
+
+
+DEFAULT_SUITE = "quick"
+"""The suite of ``workbench sweep`` without an argument: a first look in about a minute."""
+
+FULL_SUITE = "full"
+"""The full comparison (every problem and formalism; the default sweep before ``quick``)."""
+
+RENAMED_SUITES = {"default": FULL_SUITE}
 
 
 SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
@@ -149,6 +160,12 @@ def suite_text(name: str) -> str:
     """The TOML text of suite ``name``; an unknown name is a ConfigError listing the suites."""
     if SUITE_NAME.fullmatch(name) and name in suite_names():
         return _suites().joinpath(f"{name}.toml").read_text("utf-8")
+    if name in RENAMED_SUITES:
+        raise ConfigError(
+            f"the sweep suite {name!r} is now called {RENAMED_SUITES[name]!r}: run "
+            f"`workbench sweep {RENAMED_SUITES[name]}` (`workbench sweep` alone runs the "
+            f"{DEFAULT_SUITE!r} suite, a first look in about a minute)"
+        )
     raise ConfigError(
         f"unknown sweep suite {name!r} (and no such file): the suites are "
         f"{', '.join(suite_names())}; or give the path of a TOML specification"
@@ -156,7 +173,7 @@ def suite_text(name: str) -> str:
 
 
 def default_spec_text() -> str:
-    return suite_text("default")
+    return suite_text(DEFAULT_SUITE)
 
 
 def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
@@ -164,9 +181,11 @@ def load_spec(path: str | os.PathLike[str] | None = None) -> SweepSpec:
     (None: the default one); nothing is written. A name that is both an existing file and
     a suite is read as the file."""
     if path is None:
-        path = "default"
+        path = DEFAULT_SUITE
     if isinstance(path, str) and SUITE_NAME.fullmatch(path) and not Path(path).exists():
-        return parse_spec(suite_text(path), f"suite {path} (workbench/runs/suites/{path}.toml)")
+        spec = parse_spec(suite_text(path), f"suite {path} (workbench/runs/suites/{path}.toml)")
+        spec.suite = path
+        return spec
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
