@@ -80,3 +80,17 @@ def test_formats_from_the_command_line(results: Path) -> None:
     assert bad.exit_code == 2 and "choose one of table, csv, markdown, latex" in bad.output
     table = runner.invoke(app, ["results", str(results)])
     assert table.exit_code == 0 and "2 problems of 24 runs" in table.output
+
+
+def test_the_summary_ranks_by_the_reports_cost_and_names_it() -> None:
+    """`workbench results` names the pair the report names: the cheapest by the median
+    integration CPU time (a / x), not by wall time (b / y waited less for a core)."""
+    from tests.test_timing import disagreeing_runs
+
+    table = results_table(disagreeing_runs())
+    assert table.loc[0, "pair"] == "a / x" and table.loc[0, "integrate_cpu_s"] == 0.1
+    assert "wall_s" not in table.columns
+    assert table.attrs["cost"] == "cheapest by integration CPU time (median of the timed samples)"
+    # rows without the CPU time (before schema 7) fall back as the report does, and say so
+    old = results_table(disagreeing_runs().drop(columns=["integrate_cpu_s"]))
+    assert old.loc[0, "pair"] == "b / y" and "written before schema 7" in old.attrs["cost"]

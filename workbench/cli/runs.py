@@ -366,6 +366,8 @@ def results(
     table = results_table(frame, by=by, columns=split(columns), where=where or [], sort=split(sort))
     what = {"problem": "problems", "pair": "problem x pair lines", "run": "runs"}.get(by, by)
     title = f"{len(table)} {what} of {len(frame)} runs in {path}"
+    if table.attrs.get("cost"):
+        title += f"; {table.attrs['cost']}"
     if fmt != "table":
         typer.echo(render(table, fmt, title), nl=False)
         return

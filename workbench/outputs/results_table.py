@@ -1,12 +1,17 @@
 """What ``workbench results`` prints: a summary by default, or chosen rows and columns.
 
 The default is one line a problem (runs by status, the best scd reached without warnings,
-the pair that reached it at least wall time), not every row of a sweep; ``by="pair"``
+the pair that reached it at least cost), not every row of a sweep; ``by="pair"``
 gives one line a problem x pair, ``by="run"`` every run. Options are readable columns
 (``formalism.index``, ``integrator.step``), not JSON strings. Rows are filtered by
 conditions such as ``problem=my-problem``, ``scd>=6`` or ``status!=skipped``; sorted by
 columns (``-scd``: descending); printed as a terminal table, CSV, Markdown or LaTeX (the
 report's writers: readable headers with units, one number format a column).
+
+The cost is the report's (:func:`workbench.outputs.report.cost.resolve_cost`: the median CPU
+time of the integration, ``integrate_cpu_s``, or what it falls back to for old rows), so
+``workbench results`` and the report name the same cheapest pair; the table's
+``attrs["cost"]`` states it for the caption.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import pandas as pd
 
 from workbench.errors import ConfigError
 from workbench.outputs.report.analysis import prepare_results, warned
+from workbench.outputs.report.cost import resolve_cost
 from workbench.outputs.report.tables import latex_table, markdown_table
 
 FORMATS: tuple[str, ...] = ("table", "csv", "markdown", "latex")
@@ -113,17 +119,18 @@ def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> 
         )
 
 
-def summary(runs: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
+def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_s") -> pd.DataFrame:
     """One row a group of ``keys``: runs, how many ended in each status (ok, ok with
     warnings, failed, timeout, skipped: they add up to the runs), the best scd of an
-    ok run without warnings, and the pair, rtol, wall time and rhs evaluations of the
-    cheapest such run reaching it."""
+    ok run without warnings, and the pair, rtol, cost (column ``cost``) and rhs
+    evaluations of the cheapest such run reaching it."""
     rows = []
     for key, group in runs.groupby(list(keys), sort=False):
         trusted = group[(group["status"] == "ok") & ~warned(group) & np.isfinite(group["scd"])]
         best = trusted["scd"].max() if not trusted.empty else np.nan
         reaching = trusted[trusted["scd"] >= best]
-        cheapest = reaching.loc[reaching["wall_s"].idxmin()] if not reaching.empty else None
+        costs = pd.to_numeric(reaching[cost], errors="coerce")
+        cheapest = reaching.loc[costs.idxmin()] if costs.notna().any() else None
         row = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
         ok = group["status"] == "ok"
         row |= {"runs": len(group), "ok": int((ok & ~warned(group)).sum())}
@@ -133,7 +140,7 @@ def summary(runs: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
         row["scd"] = best
         if "pair" not in keys:
             row["pair"] = cheapest["pair"] if cheapest is not None else ""
-        for column in ("rtol", "wall_s", "n_rhs"):
+        for column in dict.fromkeys(("rtol", cost, "n_rhs")):
             row[column] = cheapest[column] if cheapest is not None else np.nan
         rows.append(row)
     return pd.DataFrame(rows)
@@ -152,6 +159,7 @@ def results_table(
     if by not in GROUPINGS:
         raise ConfigError(f"--by {by!r}: choose one of {', '.join(GROUPINGS)}")
     runs = prepare_results(frame)
+    cost = resolve_cost(runs)
     runs = with_option_columns(runs)
     runs = filter_rows(runs, where)
     if by == "run":
@@ -160,11 +168,14 @@ def results_table(
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen]
     else:
-        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"])
+        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"], cost.column)
         if columns:
             _check_columns(table, columns, "--columns")
             table = table[list(columns)]
-    return sort_rows(table, sort).reset_index(drop=True)
+    table = sort_rows(table, sort).reset_index(drop=True)
+    if by != "run":
+        table.attrs["cost"] = f"cheapest by {cost.statement().removeprefix('cost measure: ')}"
+    return table
 
 
 def render(table: pd.DataFrame, fmt: str, caption: str) -> str:
