@@ -315,7 +315,7 @@ def test_cli_report(tmp_path: Path) -> None:
     index = tmp_path / "sweep" / "report" / "index.html"
     assert str(index) in outcome.output
     assert len(image_sources(index)) == 2  # work-precision and drift from the stored series
-    assert f"workbench report {tmp_path / 'sweep'} -o" in index.read_text(encoding="utf-8")
+    assert f"workbench report {tmp_path / 'sweep'} --out" in index.read_text(encoding="utf-8")
 
     outcome = CliRunner().invoke(
         app, ["report", str(tmp_path / "sweep"), "--out", str(tmp_path / "r")]
