@@ -217,6 +217,10 @@ def sweep(
 ) -> None:
     """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
 
+    Without SPEC: the quick suite, a first look in about a minute; `workbench sweep full`
+    is the full comparison. Before the first run it prints the planned runs and an
+    estimate of the time from measured costs (docs/suites.md).
+
     Exit status 1 if some runs could not be completed (their worker was killed from
     outside or lost): they have no row, and running the same command again redoes them.
     """
