@@ -1,7 +1,7 @@
 """The default sweep end to end: wall time, peak memory, and where the time goes.
 
-Run: ``python -m benchmarks.default_sweep [--jobs N] [--out DIR]``. Runs the
-README's main command, ``workbench sweep`` (the default sweep; here into a fresh directory so
+Run: ``python -m benchmarks.default_sweep [--jobs N] [--out DIR]``. Runs the README's
+former main command, ``workbench sweep full`` (the full sweep; here into a fresh directory so
 nothing is resumed), as a subprocess and measures:
 
 - wall time of the whole command, of its runs phase (as the command reports it) and of
@@ -62,7 +62,7 @@ def tree_memory(root: psutil.Process) -> tuple[int, int]:
 
 def run_sweep_command(out: Path, jobs: int | None) -> dict:
     """Run ``workbench sweep --out OUT`` and sample its memory; returns the measurements."""
-    command = [sys.executable, "-m", "workbench", "sweep", "--out", str(out)]
+    command = [sys.executable, "-m", "workbench", "sweep", "full", "--out", str(out)]
     if jobs:
         command += ["--jobs", str(jobs)]
     started = time.perf_counter()
@@ -180,9 +180,9 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
 
 
 def _spec_text() -> str:
-    from workbench.runs.sweep_spec import default_spec_text
+    from workbench.runs.sweep_spec import FULL_SUITE, suite_text
 
-    return default_spec_text()
+    return suite_text(FULL_SUITE)  # the default sweep before the quick suite
 
 
 if __name__ == "__main__":

@@ -167,9 +167,8 @@ def overview_screenshot(results: Path, target: Path) -> None:
             "or give its directory with --default-sweep"
         )
     report = results / "report"
-    subprocess.run(
-        [sys.executable, "-m", "workbench", "report", str(results), "-o", str(report)], check=True
-    )
+    command = [sys.executable, "-m", "workbench", "report", str(results), "--out", str(report)]
+    subprocess.run(command, check=True)
     driver = headless_chromium(*FIRST_SCREEN)
     try:
         driver.get((report / "index.html").resolve().as_uri())

@@ -1,8 +1,9 @@
 """Robots family: real robots imported from the URDF files of example-robot-data
 (https://github.com/Gepetto/example-robot-data, installed by ``pip install
-'mbs-workbench[robots]'``; nothing is downloaded at run time). Without that package this
-module does not import and ``workbench list`` shows the two problems' module as broken with
-the reason.
+'mbs-workbench[robots]'``; nothing is downloaded at run time). Without that package the two
+problems are still registered, so a sweep plans the same runs on every install; their
+availability check (:meth:`_UrdfRobot.unavailable`) makes each run a ``skipped`` row naming
+the install command.
 
 ``ur5`` — Universal Robots UR5 (``ur_description/urdf/ur5_robot.urdf``): 6 revolute
 joints, base fixed to the ground, its fixed links (ee_link, tool0) welded into wrist_3_link.
@@ -26,20 +27,21 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import workbench.plugin.registry
+from workbench.errors import ModelError
 from workbench.model import Model
 from workbench.model.importers.urdf import load_urdf
 from workbench.plugin.problem import Problem
 
+INSTALL = 'pip install "mbs-workbench[robots]"'
+
 try:
-    _ROBOTS = Path(
+    _ROBOTS: Path | None = Path(
         metadata.distribution("example-robot-data").locate_file(
             "cmeel.prefix/share/example-robot-data/robots"
         )
     )
 except metadata.PackageNotFoundError:
-    raise ImportError(
-        "example-robot-data is not installed: pip install 'mbs-workbench[robots]'"
-    ) from None
+    _ROBOTS = None  # the problems say so when run (unavailable), not at import
 
 
 PACKAGE_ROOT = _ROBOTS.parents[1]
@@ -49,6 +51,8 @@ PACKAGE_ROOT = _ROBOTS.parents[1]
 
 def example_robot_file(relative: str) -> Path:
     """A URDF shipped by example-robot-data, found through the installed distribution."""
+    if _ROBOTS is None:
+        raise ModelError(f"example-robot-data is not installed: {INSTALL}")
     return _ROBOTS / relative
 
 
@@ -56,6 +60,13 @@ class _UrdfRobot(Problem):
     file: ClassVar[str] = ""
     import_options: ClassVar[dict[str, Any]] = {}
     n_samples = 51
+
+    def unavailable(self) -> str | None:
+        if _ROBOTS is None:
+            return f"needs example-robot-data, which is not installed: {INSTALL}"
+        if not example_robot_file(self.file).is_file():
+            return f"example-robot-data has no {self.file}: reinstall it with {INSTALL}"
+        return None
 
     def model(self) -> Model:
         model = load_urdf(

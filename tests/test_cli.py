@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -189,3 +190,26 @@ def test_starter_problems_are_described():
         result = run_workbench("describe", name)
         assert result.returncode == 0, result.stderr
         assert "source:" in result.stdout and "DOF" in result.stdout
+
+
+# -- one meaning for -o -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("command", ["sweep", "report"])
+def test_dash_o_is_option_everywhere_and_the_old_output_directory_is_refused(
+    runner, tmp_path, command
+):
+    """``-o`` is ``--option NAME=VALUE`` (run, describe); in sweep and report, where it was
+    the output directory, it is refused before anything runs, naming ``--out``."""
+    target = tmp_path / "out"
+    first = "quick" if command == "sweep" else str(tmp_path)
+    result = runner.invoke(cli.app, [command, first, "-o", str(target)])
+    assert result.exit_code == 2
+    assert_one_line_error(result.stderr, "-o is --option NAME=VALUE", f"--out {target}")
+    assert not target.exists()  # nothing was run or written
+    for name in ("run", "describe"):
+        shown = runner.invoke(cli.app, [name, "--help"]).stdout
+        assert re.search(r"--option\s+-o\s", shown), name
+    for name in ("sweep", "report"):
+        shown = runner.invoke(cli.app, [name, "--help"]).stdout
+        assert "--out" in shown and not re.search(r"\s-o\s", shown), name

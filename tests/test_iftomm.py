@@ -141,13 +141,15 @@ def test_a05_a_third_pipeline_reproduces_the_reference():
 
 
 def test_suites_are_found_by_name_and_unknown_ones_listed():
-    assert {"default", "iftomm"} <= set(suite_names())
+    assert {"quick", "full", "iftomm", "ivp"} <= set(suite_names())
     iftomm = load_spec("iftomm")
     assert {r.problem for r in iftomm.runs} == {"iftomm-a01", "iftomm-a02", "iftomm-a03",
                                                 "iftomm-a04", "iftomm-a05"}  # fmt: skip
-    assert load_spec().source == load_spec("default").source
-    with pytest.raises(ConfigError, match="unknown sweep suite 'nope'.*default, iftomm"):
+    assert load_spec().source == load_spec("quick").source
+    with pytest.raises(ConfigError, match="unknown sweep suite 'nope'.*full, iftomm, ivp, quick"):
         load_spec("nope")
+    with pytest.raises(ConfigError, match="'default' is now called 'full'.*workbench sweep full"):
+        load_spec("default")
 
 
 # ---- scorecards --------------------------------------------------------------------

@@ -316,10 +316,10 @@ def test_cli_report(tmp_path: Path) -> None:
     index = tmp_path / "sweep" / "report" / "index.html"
     assert str(index) in outcome.output
     assert len(image_sources(index)) == 3  # picture; work-precision and drift from the series
-    assert f"workbench report {tmp_path / 'sweep'} -o" in index.read_text(encoding="utf-8")
+    assert f"workbench report {tmp_path / 'sweep'} --out" in index.read_text(encoding="utf-8")
 
     outcome = CliRunner().invoke(
-        app, ["report", str(tmp_path / "sweep"), "-o", str(tmp_path / "r")]
+        app, ["report", str(tmp_path / "sweep"), "--out", str(tmp_path / "r")]
     )
     assert outcome.exit_code == 0, outcome.output
     assert (tmp_path / "r" / "index.html").is_file()

@@ -111,3 +111,17 @@ def test_results_names_the_reports_winner_and_its_tie(results: Path) -> None:
         if decision.is_tie:
             expected = "tie: " + "; ".join(decision.tied)
         assert row.verdict == expected
+
+
+def test_the_summary_ranks_by_the_reports_cost_and_names_it() -> None:
+    """`workbench results` names the pair the report names: the cheapest by the median
+    integration CPU time (a / x), not by wall time (b / y waited less for a core)."""
+    from tests.test_timing import disagreeing_runs
+
+    table = results_table(disagreeing_runs())
+    assert table.loc[0, "pair"] == "a / x" and table.loc[0, "integrate_cpu_s"] == 0.1
+    assert "wall_s" not in table.columns
+    assert table.attrs["cost"] == "cheapest by integration CPU time (median of the timed samples)"
+    # rows without the CPU time (before schema 7) fall back as the report does, and say so
+    old = results_table(disagreeing_runs().drop(columns=["integrate_cpu_s"]))
+    assert old.loc[0, "pair"] == "b / y" and "written before schema 7" in old.attrs["cost"]

@@ -183,23 +183,27 @@ def test_planar_and_floating_urdf_joints_fall_as_they_should(tmp_path, kind, axi
     np.testing.assert_allclose(rates[:3], want, atol=1e-9)
 
 
-def test_without_example_robot_data_the_robots_module_says_how_to_install_it(monkeypatch):
-    """The URDF robots of the catalog need the robots extra; without it their module
-    fails to import with the pip command (the registry lists it as broken with that)."""
-    import importlib.util
-    from importlib import metadata
+def test_without_example_robot_data_the_robots_say_how_to_install_them(monkeypatch, tmp_path):
+    """The URDF robots of the catalog need the robots extra; without it they stay registered
+    (a sweep plans the same runs on every install) and each run is a skipped row naming
+    the pip command. The missing package is simulated where the problems look for it."""
+    pytest.importorskip("workbench.problems.robots", reason="example-robot-data missing")
+    from workbench.errors import ModelError
+    from workbench.problems import robots
+    from workbench.runs.execute import RunSpec, execute_run
 
-    real = metadata.distribution
-
-    def missing(name: str):
-        if name == "example-robot-data":
-            raise metadata.PackageNotFoundError(name)
-        return real(name)
-
-    monkeypatch.setattr(metadata, "distribution", missing)
-    spec = importlib.util.spec_from_file_location("robots_probe", REPO / "problems" / "robots.py")
-    with pytest.raises(ImportError, match=r"pip install 'mbs-workbench\[robots\]'"):
-        spec.loader.exec_module(importlib.util.module_from_spec(spec))
+    assert robots.UR5().unavailable() is None  # installed: it runs
+    monkeypatch.setattr(robots, "_ROBOTS", None)  # what the module keeps without the package
+    for problem in (robots.UR5(), robots.Solo12()):
+        assert 'pip install "mbs-workbench[robots]"' in problem.unavailable()
+        with pytest.raises(ModelError, match=r"mbs-workbench\[robots\]"):
+            problem.model()
+    spec = RunSpec("ur5", "recursive", "scipy-dop853", 1e-4, 1e-7)
+    row = execute_run(spec, reference_dir=tmp_path).row
+    assert row["status"] == "skipped"
+    assert 'not installed: pip install "mbs-workbench[robots]"' in row["message"]
+    monkeypatch.setattr(robots, "_ROBOTS", tmp_path)  # the package without its files
+    assert "has no ur_description/urdf/ur5_robot.urdf" in robots.UR5().unavailable()
 
 
 def test_a_sweep_of_two_robots_gives_two_problems(tmp_path):
@@ -220,7 +224,7 @@ def test_a_sweep_of_two_robots_gives_two_problems(tmp_path):
     names = ["arm/robot.xml[t_end=0.05]", "floating/robot.xml"]
     assert [run.problem for run in parsed.runs] == names
     assert get_problem("floating/robot.xml") is RobotProblem
-    result = workbench("sweep", "spec.toml", "-o", "out", cwd=tmp_path)
+    result = workbench("sweep", "spec.toml", "--out", "out", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     rows = load_results(tmp_path / "out")
     assert sorted(rows["problem"]) == names

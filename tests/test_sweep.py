@@ -92,8 +92,8 @@ def test_an_all_entry_gives_its_tolerances_to_the_integrators_not_named() -> Non
     assert rtols and all(values == {1e-3} for values in rtols.values())
 
 
-def test_default_spec_is_valid() -> None:
-    sweep = load_spec(None)
+def test_full_spec_is_valid() -> None:
+    sweep = load_spec("full")
     assert sweep.runs and str(sweep.out) == "reports/latest"
     assert {r.rtol for r in sweep.runs} == {1e-4, 1e-7, 1e-10}
     # "all": every working problem and formalism, including ones registered later

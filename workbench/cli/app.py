@@ -18,7 +18,7 @@ import typer
 from rich.console import Console
 
 from workbench import __version__
-from workbench.errors import WorkbenchError, one_line, one_line_text
+from workbench.errors import ConfigError, WorkbenchError, one_line, one_line_text
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command ended by Ctrl-C
@@ -120,6 +120,17 @@ def option_value(text: str) -> Any:
         return tomllib.loads(f"value = {text}")["value"]
     except tomllib.TOMLDecodeError:
         return text
+
+
+def refuse_short_out(value: str | None, command: str) -> None:
+    """``-o`` means ``--option NAME=VALUE`` in every command that takes options (run,
+    describe); where it used to mean the output directory (sweep, report) it is refused
+    with the long form to use instead."""
+    if value is not None:
+        raise ConfigError(
+            f"{command}: -o is --option NAME=VALUE (workbench run, describe); the output "
+            f"directory is --out: {command} ... --out {value}"
+        )
 
 
 def console() -> Console:

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from workbench.cli.app import app
+from workbench.cli.app import app, refuse_short_out
 
 
 @app.command("report")
@@ -23,8 +23,9 @@ def report(
     ],
     out: Annotated[
         str | None,
-        typer.Option("-o", "--out", help="Report directory (default: RESULTS/report)."),
+        typer.Option("--out", help="Report directory (default: RESULTS/report)."),
     ] = None,
+    old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
     cost: Annotated[
         str | None,
         typer.Option(
@@ -44,6 +45,7 @@ def report(
     from workbench.outputs.report import report_directory
     from workbench.outputs.report.cost import check_cost
 
+    refuse_short_out(old_out, "report")
     check_cost(cost)  # before anything is read
     if os.path.isdir(results_path):  # not while a sweep writes it; no link in it
         from workbench.cli.runs import hold_out_lock

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 import typer
 from rich.table import Table
 
-from workbench.cli.app import app, console, option_value
+from workbench.cli.app import app, console, option_value, refuse_short_out
 from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
@@ -100,7 +100,8 @@ def run(
     repeat_budget: Annotated[
         float,
         typer.Option(
-            "--repeat-budget", help="Seconds of integration the samples may take together."
+            "--repeat-budget",
+            help="CPU seconds of integration the samples may take together.",
         ),
     ] = DEFAULT_REPEAT_BUDGET,
     package_path: Annotated[list[str] | None, PACKAGE_PATH_OPTION] = None,
@@ -209,15 +210,19 @@ def sweep(
     spec: Annotated[
         str | None,
         typer.Argument(
-            help="Sweep specification (TOML file) or suite name (default, iftomm, ...); "
-            "default: the default sweep.",
-        ),
+            help="Sweep specification (TOML file) or suite name (quick, full, iftomm, ivp); "
+            "default: quick, a first look in about a minute.",
+        )
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Dask scheduler address (tcp://host:port).")
     ] = None,
-    out: Annotated[str | None, typer.Option("--out", "-o", help="Output directory.")] = None,
+    out: Annotated[
+        str | None,
+        typer.Option("--out", help="Output directory (default: the specification's out)."),
+    ] = None,
+    old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
     time_limit: Annotated[
         float | None, typer.Option("--time-limit", help="Seconds per run before it is killed.")
     ] = None,
@@ -242,7 +247,8 @@ def sweep(
     repeat_budget: Annotated[
         float | None,
         typer.Option(
-            "--repeat-budget", help="Seconds of integration a run's samples may take together."
+            "--repeat-budget",
+            help="CPU seconds of integration a run's samples may take together.",
         ),
     ] = None,
     wait: Annotated[
@@ -257,6 +263,9 @@ def sweep(
     The specification's ``plugins`` and ``--plugins`` are code: a local module is imported
     from its file once the rest of the specification is valid, said on stderr, and refused
     under ``--no-local-plugins`` (or ``WORKBENCH_NO_LOCAL_PLUGINS=1``).
+    Without SPEC: the quick suite, a first look in about a minute; `workbench sweep full`
+    is the full comparison. Before the first run it prints the planned runs and an
+    estimate of the time from measured costs (docs/suites.md).
 
     Exit status 1 if some runs could not be completed (their worker was killed from
     outside or lost): they have no row, and running the same command again redoes them.
@@ -265,7 +274,9 @@ def sweep(
     from workbench.runs import store
     from workbench.runs.resume import parse_rerun
     from workbench.runs.sweep import load_spec, run_sweep
+    from workbench.runs.sweep_spec import FULL_SUITE
 
+    refuse_short_out(old_out, "sweep")
     if jobs is not None and jobs < 1:
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if time_limit is not None and not time_limit > 0:
@@ -311,6 +322,11 @@ def sweep(
         typer.echo(f"report: {index}")
     if summary.recording is not None:
         typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
+    if loaded.suite != FULL_SUITE:
+        typer.echo(
+            f"full comparison: workbench sweep {FULL_SUITE} (every problem, formalism and "
+            "integrator family; it says how long it will take before it starts)"
+        )
     if summary.unfinished:
         first, why = next(iter(summary.unfinished.items()))
         again = " ".join(["workbench", *_without_rerun(sys.argv[1:])])

@@ -8,6 +8,11 @@ gives one line a problem x pair, ``by="run"`` every run. Options are readable co
 conditions such as ``problem=my-problem``, ``scd>=6`` or ``status!=skipped``; sorted by
 columns (``-scd``: descending); printed as a terminal table, CSV, Markdown or LaTeX (the
 report's writers: readable headers with units, one number format a column).
+
+The cost is the report's (:func:`workbench.outputs.report.cost.resolve_cost`: the median CPU
+time of the integration, ``integrate_cpu_s``, or what it falls back to for old rows), so
+``workbench results`` and the report name the same cheapest pair; the table's
+``attrs["cost"]`` states it for the caption.
 """
 
 from __future__ import annotations
@@ -116,7 +121,7 @@ def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> 
         )
 
 
-def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "wall_s") -> pd.DataFrame:
+def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_s") -> pd.DataFrame:
     """One row a group of ``keys``: runs, how many ended in each status (ok, ok with
     warnings, failed, timeout, skipped: they add up to the runs), the best scd of an
     ok run without warnings, and the pair, rtol, ``cost`` and rhs evaluations of the
@@ -137,7 +142,7 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "wall_s") -> pd
         row["scd"] = best
         if "pair" not in keys:
             row["pair"] = cheapest["pair"] if cheapest is not None else ""
-        for column in ("rtol", cost, "n_rhs"):
+        for column in dict.fromkeys(("rtol", cost, "n_rhs")):
             row[column] = cheapest[column] if cheapest is not None else np.nan
         if "pair" not in keys:
             row["verdict"] = _verdict(decision)
@@ -179,6 +184,7 @@ def results_table(
     if by not in GROUPINGS:
         raise ConfigError(f"--by {by!r}: choose one of {', '.join(GROUPINGS)}")
     runs = prepare_results(frame)
+    cost = resolve_cost(runs)
     runs = with_option_columns(runs)
     runs = filter_rows(runs, where)
     if by == "run":
@@ -192,7 +198,10 @@ def results_table(
         if columns:
             _check_columns(table, columns, "--columns")
             table = table[list(columns)]
-    return sort_rows(table, sort).reset_index(drop=True)
+    table = sort_rows(table, sort).reset_index(drop=True)
+    if by != "run":
+        table.attrs["cost"] = f"cheapest by {cost.statement().removeprefix('cost measure: ')}"
+    return table
 
 
 def render(table: pd.DataFrame, fmt: str, caption: str) -> str:

@@ -21,7 +21,10 @@ A problem plugin subclasses :class:`Problem` and registers with
 7. optionally give a :meth:`reference`: analytic body poses. Without one, a stored
    trajectory in ``references/`` beside the module (``workbench reference NAME``) is used,
    else a computed one: that choice is made by :mod:`workbench.runs.references`;
-8. optionally declare ``benchmark``, when the problem belongs to a published benchmark
+8. optionally implement :meth:`unavailable`: when the problem needs files from a package
+   that is not installed (robot files of an extra), say so there; its runs are then
+   ``skipped`` rows with that reason, so a sweep plans the same runs on every install;
+9. optionally declare ``benchmark``, when the problem belongs to a published benchmark
    suite that scores codes by a required precision: a dict with ``suite`` (e.g.
    "iftomm", "ivp"), ``precision`` (the bound), ``measure`` (the result column compared
    with it, e.g. "err_max" or "energy_err_max") and ``variables`` (what the benchmark
@@ -135,6 +138,11 @@ class Problem:
 
         A declaration only: the stored and computed references are found by
         :func:`workbench.runs.references.given_reference` and ``problem_reference``."""
+        return None
+
+    def unavailable(self) -> str | None:
+        """What this problem needs that is not installed, in one line with the command that
+        installs it (e.g. ``pip install "mbs-workbench[robots]"``); None when it can run."""
         return None
 
     def describe_rows(self) -> list[tuple[str, str]]:

@@ -345,8 +345,12 @@ def execute_run(
         integrator = registry.get_integrator(spec.integrator)()
         formalism_options = formalism_class.parse_options(spec.formalism_options)
         integrator_options = integrator.parse_options(spec.integrator_options)
-        model, _ = cached_problem_part(spec, "model", problem.model)
-        skip = _pairing(spec, model, formalism_class, formalism_options, integrator)
+        missing = problem.unavailable()  # files of an extra that is not installed
+        if missing:
+            skip = f"problem {spec.problem!r}: {missing}"
+        else:
+            model, _ = cached_problem_part(spec, "model", problem.model)
+            skip = _pairing(spec, model, formalism_class, formalism_options, integrator)
         stages.stop()
         if skip:
             row.update(status="skipped", message=skip)

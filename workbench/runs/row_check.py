@@ -7,7 +7,7 @@ report. Both answer in words (what is wrong), never by raising.
 
 What is checked: the key columns every row has (``REQUIRED``) with their types; every other
 schema column present has its type (text, number or flag; missing values are ``null``/NaN);
-the run id is the file's name; the repeated timing (schema 7) is whole (``repeats`` >= 1,
+the run id is the file's name; the repeated timing (schemas 7, 8) is whole (``repeats`` >= 1,
 the median ``integrate_s`` within its min and max). The series file (Parquet) must have a
 readable footer with the series columns, and as many samples as the row's ``n_samples``
 (rows of schema 4 on); an ``ok`` row of an older schema must have a readable series.
@@ -110,12 +110,14 @@ def _timing_defects(row: dict[str, Any]) -> list[str]:
     repeats = row.get("repeats")
     if not _is_missing(repeats) and not (repeats >= 1 and float(repeats).is_integer()):
         defects.append(f"repeats {repeats!r} is not a whole number >= 1")
-    low, median, high = (row.get(c) for c in ("integrate_s_min", "integrate_s", "integrate_s_max"))
-    if not any(_is_missing(v) for v in (low, median, high)) and not low <= median <= high:
-        defects.append(
-            f"integrate_s {median!r} is not within [integrate_s_min, integrate_s_max] "
-            f"= [{low!r}, {high!r}]"
-        )
+    for median_column in ("integrate_s", "integrate_cpu_s"):
+        low_column, high_column = f"{median_column}_min", f"{median_column}_max"
+        low, median, high = (row.get(c) for c in (low_column, median_column, high_column))
+        if not any(_is_missing(v) for v in (low, median, high)) and not low <= median <= high:
+            defects.append(
+                f"{median_column} {median!r} is not within [{low_column}, {high_column}] "
+                f"= [{low!r}, {high!r}]"
+            )
     return defects
 
 

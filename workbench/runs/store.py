@@ -126,6 +126,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("repeats", "timed samples of the integration (workbench.runs.timing; NaN: not timed)"),
     ("load_avg", "1-minute load average of the machine when the run started"),
     ("workers", "worker processes of the sweep running runs at the same time"),
+    ("integrate_cpu_s_min", "least CPU time of the integration's timed samples (s)"),
+    ("integrate_cpu_s_max", "greatest CPU time of the integration's timed samples (s)"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -159,7 +161,10 @@ PLAN_FILE = "plan.json"  # the run ids the last sweep started here planned (load
 #      the median of the samples, integrate_s_min, integrate_s_max, integrate_cpu_s,
 #      repeats, and the machine's load_avg and the sweep's workers; older rows timed one
 #      sample: its wall time stays integrate_s, the new columns are NaN (not measured)
-SCHEMA_VERSION = 7
+#   8  adds integrate_cpu_s_min and integrate_cpu_s_max (the interval of the CPU-time
+#      samples, within which pairs tie) and counts the repeat budget in CPU time; older
+#      rows did not keep them: NaN (a reader falls back to integrate_cpu_s alone)
+SCHEMA_VERSION = 8
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -190,6 +195,11 @@ def _migrate_6_to_7(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 7, "workers": math.nan} | dict.fromkeys(columns, math.nan)
 
 
+def _migrate_7_to_8(row: dict[str, Any]) -> dict[str, Any]:
+    unrecorded = dict.fromkeys(("integrate_cpu_s_min", "integrate_cpu_s_max"), math.nan)
+    return row | {"schema_version": 8} | unrecorded
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
@@ -198,6 +208,7 @@ MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     4: _migrate_4_to_5,
     5: _migrate_5_to_6,
     6: _migrate_6_to_7,
+    7: _migrate_7_to_8,
 }
 
 

@@ -32,6 +32,7 @@ from workbench.files import make_dirs
 from workbench.runs import store
 from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
+from workbench.runs.estimate import estimate_lines, known_costs
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
@@ -115,9 +116,9 @@ def run_sweep(
     with out_lock(out_dir, wait=wait, say=say):
         store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
         plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
-        for line in plan.lines():
-            (say or _stderr)(line)
         todo = plan.todo
+        for line in plan.lines() + _estimate(sweep, todo, out_dir, jobs, limit, scheduler):
+            (say or _stderr)(line)
         make_dirs(out_dir / store.RUNS_DIR, out_dir)
         make_dirs(out_dir / "references", out_dir)
         # the machine that starts the sweep (with Dask, the client; rows name their workers)
@@ -166,6 +167,23 @@ def run_sweep(
         stale={} if "stale" in plan.rerun or fresh else plan.stale,
         unfinished=unfinished,
     )
+
+
+def _estimate(
+    sweep: SweepSpec,
+    todo: list[Any],
+    out_dir: Path,
+    jobs: int,
+    limit: float,
+    scheduler: str | None,
+) -> list[str]:
+    """The planned runs and how long they should take (:mod:`workbench.runs.estimate`)."""
+    if scheduler:  # a cluster's workers are not counted here
+        return [f"plan: {len(sweep.runs)} runs, {len(todo)} to run on the Dask cluster"]
+    files = sorted((out_dir / store.RUNS_DIR).glob("*.json")) if todo else []
+    rows = {path.stem: row for path in files if (row := store.read_row(path)) is not None}
+    costs = known_costs(rows, limit, sweep.suite)
+    return estimate_lines(todo, len(sweep.runs), jobs, costs)
 
 
 def _stderr(line: str) -> None:

@@ -1,14 +1,15 @@
 """A sweep specification: problems x formalisms x integrators (option grids) x tolerances.
 
 A sweep specification is a TOML file, or the name of a suite shipped with the workbench in
-``workbench/runs/suites/NAME.toml`` (``default``, the default sweep; ``iftomm``, the IFToMM
-benchmark problems; :func:`suite_names` lists them)::
+``workbench/runs/suites/NAME.toml`` (``quick``, the default sweep: a first look in about a
+minute; ``full``, the full comparison; ``iftomm``, the IFToMM benchmark problems; ``ivp``,
+the IVP test set's; :func:`suite_names` lists them)::
 
     out = "reports/latest"         # output directory (``--out`` overrides)
     jobs = 2                       # local worker processes (``--jobs`` overrides)
     time_limit = 120.0             # seconds per run; a run over it is killed (``--time-limit``)
     repeats = 3                    # most timed samples of each integration (``--repeats``)
-    repeat_budget = 0.05           # s of integration a run may spend on them (``--repeat-budget``)
+    repeat_budget = 3.0            # CPU s of integration for them (``--repeat-budget``)
     tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
@@ -111,7 +112,7 @@ TOP_LEVEL_KEYS = {
     "jobs": "number of local worker processes (integer >= 1)",
     "time_limit": "seconds per run (number > 0)",
     "repeats": "most timed samples of each run's integration (integer >= 1)",
-    "repeat_budget": "seconds of integration a run may spend on repeated samples (number >= 0)",
+    "repeat_budget": "CPU seconds of integration a run may spend on repeated samples (number >= 0)",
     "tolerances": "list of rtol values (numbers > 0)",
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
@@ -148,6 +149,16 @@ class SweepSpec:
     repeats: int = DEFAULT_REPEATS
     repeat_budget: float = DEFAULT_REPEAT_BUDGET
     store_trajectories: bool = True  # each run's states beside its series (store.write_run)
+    suite: str = ""  # the name of the shipped suite it is ('' for a file)
+
+
+DEFAULT_SUITE = "quick"
+"""The suite of ``workbench sweep`` without an argument: a first look in about a minute."""
+
+FULL_SUITE = "full"
+"""The full comparison (every problem and formalism; the default sweep before ``quick``)."""
+
+RENAMED_SUITES = {"default": FULL_SUITE}
 
 
 SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
@@ -166,6 +177,12 @@ def suite_text(name: str) -> str:
     """The TOML text of suite ``name``; an unknown name is a ConfigError listing the suites."""
     if SUITE_NAME.fullmatch(name) and name in suite_names():
         return _suites().joinpath(f"{name}.toml").read_text("utf-8")
+    if name in RENAMED_SUITES:
+        raise ConfigError(
+            f"the sweep suite {name!r} is now called {RENAMED_SUITES[name]!r}: run "
+            f"`workbench sweep {RENAMED_SUITES[name]}` (`workbench sweep` alone runs the "
+            f"{DEFAULT_SUITE!r} suite, a first look in about a minute)"
+        )
     raise ConfigError(
         f"unknown sweep suite {name!r} (and no such file): the suites are "
         f"{', '.join(suite_names())}; or give the path of a TOML specification"
@@ -173,7 +190,7 @@ def suite_text(name: str) -> str:
 
 
 def default_spec_text() -> str:
-    return suite_text("default")
+    return suite_text(DEFAULT_SUITE)
 
 
 def load_spec(
@@ -186,10 +203,12 @@ def load_spec(
     a suite is read as the file. ``plugins``: more plugin modules (``--plugins``), found
     from the current directory; ``allow_local``: see :func:`parse_spec`."""
     if path is None:
-        path = "default"
+        path = DEFAULT_SUITE
     if isinstance(path, str) and SUITE_NAME.fullmatch(path) and not Path(path).exists():
         source = f"suite {path} (workbench/runs/suites/{path}.toml)"
-        return parse_spec(suite_text(path), source, None, plugins, allow_local)
+        spec = parse_spec(suite_text(path), source, None, plugins, allow_local)
+        spec.suite = path
+        return spec
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

@@ -251,7 +251,7 @@ def report_directory(
             return None
 
     if command is None:
-        command = shlex.join(["workbench", "report", str(source), "-o", str(target)])
+        command = shlex.join(["workbench", "report", str(source), "--out", str(target)])
     plan = load_plan(directory)
     return write_report(
         frame, series_loader, target, command, progress=progress, cost=cost, plan=plan,
