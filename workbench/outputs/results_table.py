@@ -193,8 +193,7 @@ def results_table(
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen]
     else:
-        cost = resolve_cost(runs).column
-        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"], cost)
+        table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"], cost.column)
         if columns:
             _check_columns(table, columns, "--columns")
             table = table[list(columns)]
