@@ -216,7 +216,8 @@ def catalog_pairs():
 @pytest.mark.timeout(3000)
 def test_every_catalog_problem_and_formalism_compiles_and_agrees_with_the_vm():
     """compile=jit leaves no function in the VM (no libc name clash such as ``gamma``, no
-    LAPACK solve CasADi cannot generate C for), and compiled numbers equal the VM's. At
+    LAPACK solve CasADi cannot generate C for), and compiled numbers equal the VM's (to
+    1e-11 of their size where a numeric KKT solve differs, QR against LU). At
     -O0: what is checked is that C is generated, compiles and agrees, not its speed."""
     pairs = catalog_pairs()
     assert len(pairs) > 50
@@ -236,7 +237,9 @@ def test_every_catalog_problem_and_formalism_compiles_and_agrees_with_the_vm():
                 continue
             scale = max(float(np.abs(expected).max()), 1.0)
             error = float(np.abs(np.asarray(value) - np.asarray(expected)).max())
-            if not error <= 1e-12 * scale:
+            # 1e-11: a compiled numeric KKT solve is CasADi's QR where the VM's is LAPACK's
+            # LU (Andrews through recursive: 1.1e-12); every SX graph agrees to the bit
+            if not error <= 1e-11 * scale:
                 failures.append(f"{problem}/{formalism} {label}: off by {error:.1e}")
         if jit.compile_warnings:
             failures.append(f"{problem}/{formalism}: {jit.compile_warnings}")
