@@ -523,6 +523,7 @@ class SweepRecorder(RerunSink):
     ``<out>/recording.rrd``."""
 
     suffix = "rrd"
+    merged_file = RECORDING_FILE  # merged again only when the runs' files change
 
     def __init__(self) -> None:
         super().__init__(max_frames=200)
