@@ -14,7 +14,8 @@ of 100 and 1000 recordings, a resume of a 100-run sweep).
    RK45 at N_RUNS/2 tolerances) is run, then run again with nothing to do: "after" as is,
    "before" with the outputs' keys removed first (``*.inputs``: then the results table, the
    recording and the report are remade, as before keys existed). Wall and CPU seconds of
-   the command (children included), its peak RSS, and whether the outputs were kept.
+   the command (its workers included), the peak RSS of its largest process, and how many
+   outputs it said were unchanged (of recording and report).
 
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``.
 On a shared machine wall times mean little: compare CPU seconds and memory.
@@ -162,21 +163,27 @@ def resume_spec(out: Path, n_runs: int) -> str:
 
 
 def _sweep(spec: Path) -> dict:
-    """Run ``workbench sweep SPEC`` (2 workers, 1 timed sample a run): its measures."""
+    """Run ``workbench sweep SPEC`` (2 workers, 1 timed sample a run) from a fresh process
+    of this module, so that the peak RSS is this command's: its measures."""
+    command = [sys.executable, "-m", "benchmarks.footprint", "--sweep-child", str(spec)]
+    done = subprocess.run(command, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _sweep_child(spec: str) -> None:
     workbench = Path(sys.executable).with_name("workbench")
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     done = subprocess.run(
-        [str(workbench), "sweep", str(spec), "-j", "2", "--repeats", "1"],
+        [str(workbench), "sweep", spec, "-j", "2", "--repeats", "1"],
         capture_output=True, text=True, check=True,
     )  # fmt: skip
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return {
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    print(json.dumps({
         "wall_s": time.perf_counter() - started,
-        "cpu_s": after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime,
-        "peak_rss_mib": after.ru_maxrss / 1024,  # the largest child so far
-        "kept": done.stdout.count("(unchanged"),
-    }
+        "cpu_s": used.ru_utime + used.ru_stime,  # the command and its workers
+        "peak_rss_mib": used.ru_maxrss / 1024,  # its largest process
+        "kept": done.stdout.count("(unchanged"),  # outputs said unchanged
+    }))  # fmt: skip
 
 
 def resume_rows(n_runs: int) -> list[dict]:
@@ -198,6 +205,9 @@ def resume_rows(n_runs: int) -> list[dict]:
 
 
 def main(argv: list[str]) -> pd.DataFrame:
+    if argv[:1] == ["--sweep-child"]:
+        _sweep_child(argv[1])
+        return pd.DataFrame()
     if argv[:1] == ["--merge-child"]:
         _merge_child(argv[1], argv[2], int(argv[3]))
         return pd.DataFrame()
