@@ -55,7 +55,7 @@ def test_a_resume_with_nothing_to_do_keeps_recording_and_report(
     again = sweep()  # every row done and whole: nothing is remade, and it says so
     assert [identity(path) for path in outputs] == before
     assert "report: " in again and "index.html (unchanged: made from the same rows)" in again
-    assert "recording.rrd (unchanged: made from the same runs)" in again
+    assert "recording.rrd (unchanged: made from the same runs; workbench view" in again
 
     row = next((out / store.RUNS_DIR).glob("*.json"))
     row.unlink()  # its run is done again: new inputs for every output

@@ -313,8 +313,10 @@ def sweep(
         index = _sweep_report(summary, report_directory)
         typer.echo(f"report: {index}")
     if summary.recording is not None:
-        same = kept.replace("rows", "runs") if summary.recording.name in summary.unchanged else ""
-        typer.echo(f"recording: {summary.recording}{same} (workbench view {summary.recording})")
+        same = "unchanged: made from the same runs; " * (
+            summary.recording.name in summary.unchanged
+        )
+        typer.echo(f"recording: {summary.recording} ({same}workbench view {summary.recording})")
     if summary.unfinished:
         first, why = next(iter(summary.unfinished.items()))
         again = " ".join(["workbench", *_without_rerun(sys.argv[1:])])
