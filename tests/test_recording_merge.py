@@ -58,7 +58,7 @@ def test_a_merge_on_a_full_disk_is_an_oserror_and_leaves_nothing(tmp_path, monke
     monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10**9, 10**9, 1000))
     with pytest.raises(OSError) as raised:
         merge_recordings(files, tmp_path / "merged.rrd")
-    assert raised.value.errno == errno.ENOSPC and "free space" in str(raised.value)
+    assert raised.value.errno == errno.ENOSPC and "MiB needed to merge" in str(raised.value)
     assert not (tmp_path / "merged.rrd").exists() and len(list(tmp_path.iterdir())) == 2
 
 

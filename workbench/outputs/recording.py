@@ -433,8 +433,9 @@ def check_free_space(target: Path, input_bytes: int) -> None:
     if free < needed:
         raise OSError(
             errno.ENOSPC,
-            f"not enough free space to merge the recordings ({free / 2**20:.0f} MiB free, "
-            f"{needed / 2**20:.0f} MiB needed); free some, then resume the sweep",
+            f"{os.strerror(errno.ENOSPC)}: {free / 2**20:.1f} MiB free, "
+            f"{needed / 2**20:.1f} MiB needed to merge the recordings; free some space, "
+            "then resume the sweep",
             str(target),
         )
 
