@@ -1,12 +1,13 @@
-"""The performance benchmarks of the README in one command, and their summary.
+"""The performance benchmarks of docs/performance-targets.md in one command, and their summary.
 
 Run: ``python -m benchmarks`` (runs benchmarks.default_sweep,
 benchmarks.runner_throughput, benchmarks.overhead, benchmarks.peers and
 benchmarks.simulation, then summarizes; about 17 minutes on 2 cores before the
 random trees and robots joined (about 5 minutes more), most of it
 compiling the 200-body models) or ``python -m benchmarks --summary`` (summarizes the
-CSVs already in benchmarks/results/). The summary lists every target of the README's
-Performance table that those CSVs measure, one line each: the value, its interval where
+CSVs already in benchmarks/results/). The summary lists every target of the
+Performance table (docs/performance-targets.md) that those CSVs measure, one line
+each: the value, its interval where
 the benchmark gives one (10-90 % of the interleaved repeats for forward dynamics, the
 95 % bootstrap interval of the median for whole simulations), the target, and the
 verdict: met, met at the median but not over the interval, missed by value / target,
@@ -58,7 +59,7 @@ class Row(NamedTuple):
 
 
 def targets() -> list[Row]:
-    """Every target of the README's Performance table that a CSV in RESULTS measures."""
+    """Every target of docs/performance-targets.md that a CSV in RESULTS measures."""
     rows: list[Row] = []
     chains = RESULTS / "peers.csv"
     if chains.exists():
@@ -114,7 +115,7 @@ def targets() -> list[Row]:
                         row.outside_share_of_stages, 0.1, note=load))  # fmt: skip
     dask = RESULTS / "dask_sweep.csv"
     if dask.exists():  # python -m benchmarks.dask_sweep: not part of `python -m benchmarks`
-        row = pd.read_csv(dask).iloc[0]  # the first repeat (the README says why not others)
+        row = pd.read_csv(dask).iloc[0]  # the first repeat (the docs say why)
         rows.append(Row("default sweep through a local 2-worker Dask cluster / local pool",
                         row.ratio, 1.3, note=f"{row.runs} runs, {row.dask_s:.0f} s against "
                         f"{row.local_s:.0f} s; load {row.load_1min:.1f}"))  # fmt: skip

@@ -1,7 +1,7 @@
 """The default sweep end to end: wall time, peak memory, and where the time goes.
 
-Run: ``python -m benchmarks.default_sweep [--jobs N] [--out DIR]``. Runs the README's
-main command, ``workbench sweep`` (the default sweep; here into a fresh directory so
+Run: ``python -m benchmarks.default_sweep [--jobs N] [--out DIR]``. Runs the
+README's main command, ``workbench sweep`` (the default sweep; here into a fresh directory so
 nothing is resumed), as a subprocess and measures:
 
 - wall time of the whole command, of its runs phase (as the command reports it) and of

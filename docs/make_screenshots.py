@@ -1,4 +1,4 @@
-"""Regenerate the README's pictures from real sweeps: ``python docs/make_screenshots.py``.
+"""Regenerate the documentation's pictures from real sweeps: ``python docs/make_screenshots.py``.
 
 1. ``docs/images/work-precision.png``: the work-precision diagram of the double pendulum
    drawn by the report of a sweep (3 formalisms x 3 integrators x 6 tolerances).

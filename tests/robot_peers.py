@@ -6,6 +6,9 @@ Coordinates, joint by joint (ours -> Pinocchio's):
 * revolute / prismatic: the same angle or displacement and rate;
 * continuous: ours is the angle theta (a revolute joint); Pinocchio's ``RUB`` joints use
   q = (cos theta, sin theta) and v = theta';
+* planar (Pinocchio ``JointModelPlanar``): ours q = (x, y, angle) in the joint frame's
+  x-y plane, v = their rates in that frame; Pinocchio's q = (x, y, cos, sin), v = (R^T
+  (x', y'), angle'), so T = diag(R^T, 1) and a_pin = T a - (omega x R^T (x', y'), 0);
 * free (URDF floating base, Pinocchio ``JointModelFreeFlyer``): ours q = (position of the
   base in the world, Euler parameters scalar-first (w, x, y, z)), v = (the position's rate
   in the world, angular velocity in the base frame); Pinocchio's q = (position, quaternion
@@ -61,6 +64,8 @@ def random_state(
             q[q_slice] = rng.uniform(-np.pi, np.pi)
         elif joint.type == "prismatic":
             q[q_slice] = rng.uniform(0.0, 0.04)
+        elif joint.type == "planar":
+            q[q_slice] = [*rng.uniform(-1, 1, 2), rng.uniform(-np.pi, np.pi)]
         elif joint.type == "free":
             quaternion = rng.standard_normal(4)
             q[q_slice] = np.concatenate(
@@ -78,6 +83,10 @@ def quaternion_matrix(wxyz: np.ndarray) -> np.ndarray:
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
     ])  # fmt: skip
+
+
+def planar_rotation(angle: float) -> np.ndarray:
+    return np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
 
 
 class PinocchioMap:
@@ -107,6 +116,9 @@ class PinocchioMap:
                 rotation = quaternion_matrix(qi[3:])
                 q_pin[pq] = np.concatenate([qi[:3], qi[[4, 5, 6, 3]]])
                 block[:3, :3] = rotation.T
+            elif joint.type == "planar":  # JointModelPlanar: (x, y, cos, sin), local rates
+                q_pin[pq] = [qi[0], qi[1], np.cos(qi[2]), np.sin(qi[2])]
+                block[:2, :2] = planar_rotation(qi[2]).T
             elif (
                 theirs.nq == 2 * theirs.nv
             ):  # continuous: RUBX/RUBY/RUBZ/RevoluteUnboundedUnaligned
@@ -122,10 +134,14 @@ class PinocchioMap:
         _, _, t_matrix = self.state(q, v)
         result = t_matrix @ a
         for joint, theirs in self.joints:
+            q_slice, v_slice = self.kinematics.joint_slices[joint.name]
             if joint.type == "free":
-                q_slice, v_slice = self.kinematics.joint_slices[joint.name]
                 rotation = quaternion_matrix(q[q_slice][3:])
                 body_velocity = rotation.T @ v[v_slice][:3]
                 omega = v[v_slice][3:]
                 result[theirs.idx_v : theirs.idx_v + 3] -= np.cross(omega, body_velocity)
+            elif joint.type == "planar":  # d/dt (R^T p') = R^T p'' - omega x R^T p'
+                local = planar_rotation(q[q_slice][2]).T @ v[v_slice][:2]
+                omega = v[v_slice][2]
+                result[theirs.idx_v : theirs.idx_v + 2] -= omega * np.array([-local[1], local[0]])
         return result

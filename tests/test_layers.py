@@ -30,6 +30,7 @@ LAYERS = [
     "runs",
     "testing",  # the conformance kit: runs plugins and compares with the references
     "outputs",
+    "api",  # the public Python API (workbench.run, sweep...): beside the CLI, not under it
     "cli",
     "facade",  # workbench/__init__.py, __main__.py and the deprecated re-export modules
 ]

@@ -28,7 +28,7 @@ from workbench.testing.states import body_accelerations, formalism_state
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is a dependency of the workbench")
 
 ROBOTS = Path(__file__).parent / "robots"
-MODELS = ["arm.xml", "floating.xml"]
+MODELS = ["arm.xml", "floating.xml", "springs.xml"]
 RELATIVE = 1e-9
 
 
@@ -173,3 +173,41 @@ def test_mass_matrix_equals_mj_full_m(file: str) -> None:
                 mass[np.ix_(index, index)], full, rtol=0, atol=RELATIVE * np.abs(full).max(),
                 err_msg=name,
             )  # fmt: skip
+
+
+def test_quaternion_joint_springs_equal_mujoco_passive_forces_and_energy():
+    """tests/robots/springs.xml: a free base and a ball joint with springs (about the
+    compiled pose) and dampers, a hinge with springref. At random states the imported
+    spring-dampers give MuJoCo's ``qfrc_passive`` (the rotation vector of the quaternion
+    difference, ``mju_subQuat``; damping on every velocity), and the potential and kinetic
+    energies of every formalism equal MuJoCo's (``mjENBL_ENERGY``: gravity and springs)."""
+    import casadi as ca
+
+    from workbench.mechanics.forces import joint_generalized_forces
+
+    file = "springs.xml"
+    peers = MujocoMap(file)
+    model = peers.model
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    data = mujoco.MjData(model)
+    ours = load_mjcf(ROBOTS / file).model  # springs and dampers only, no random torques
+    assert {force.joint for force in ours.forces} == {"root", "shoulder", "wrist"}
+    for q, v in peers.random_states(5):
+        data.qpos[:], data.qvel[:] = peers.state(q, v)
+        mujoco.mj_forward(model, data)
+        passive = np.zeros(peers.kinematics.nv)
+        coordinates = {
+            joint: (ca.DM(q[q_slice]), ca.DM(v[v_slice]))
+            for joint, (q_slice, v_slice) in peers.kinematics.joint_slices.items()
+        }
+        for joint, force in joint_generalized_forces(ours, 0.0, coordinates).items():
+            passive[peers.kinematics.joint_slices[joint][1]] = np.ravel(force)
+        assert np.abs(data.qfrc_passive).max() > 1.0
+        np.testing.assert_allclose(peers.velocities(passive), data.qfrc_passive, rtol=0,
+                                   atol=1e-12 * np.abs(data.qfrc_passive).max())  # fmt: skip
+        for name in supporting(file):
+            equations = built(file, name)
+            state = formalism_state(equations, 0.0, q, v)
+            kinetic, potential = np.ravel(equations.observables.energy(0.0, state.q, state.v)[0])
+            np.testing.assert_allclose([potential, kinetic], data.energy, rtol=1e-10,
+                                       atol=1e-10, err_msg=name)  # fmt: skip

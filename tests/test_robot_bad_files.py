@@ -54,7 +54,7 @@ CASES = {
     "zero mass": (
         "robot.urdf",
         urdf(arm='<inertial><mass value="0"/><inertia ixx="1" iyy="1" izz="1"/></inertial>'),
-        ["link 'arm' (line 4)", "moves with joint 'shoulder'", "no mass"],
+        ["link 'arm' (line 4)", "moves with joint 'shoulder'", "no mass", "moves nothing"],
     ),
     "no inertial on a moving link": (
         "robot.urdf",
@@ -117,6 +117,21 @@ CASES = {
         ["joint 'shoulder' (line 6)", "<axis> is zero"],
     ),
     "not a robot": ("robot.urdf", "<mujoco/>", ["root element is <mujoco>"]),
+    "robot without a name": (
+        "robot.urdf",
+        urdf().replace('<robot name="bad">', "<robot>"),
+        ["line 2", '<robot> has no name="..."'],
+    ),
+    "nothing moves": (
+        "robot.urdf",
+        urdf().replace('type="revolute"', 'type="fixed"'),
+        ["link 'base' (line 3)", "no moving joint", "floating_base=True"],
+    ),
+    "impossible inertia": (
+        "robot.urdf",
+        urdf(arm='<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.5"/></inertial>'),
+        ["link 'arm' (line 4)", "triangle inequality"],
+    ),
     "unsupported MJCF element (tendon)": (
         "scene.xml",
         mjcf(
@@ -146,6 +161,26 @@ CASES = {
         "scene.xml",
         mjcf('<bodyy name="b"/>'),
         ["MuJoCo cannot compile it", "bodyy"],
+    ),
+    "MJCF armature": (
+        "scene.xml",
+        mjcf(MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" armature="0.01"')),
+        ["joint 'h': armature 0.01", "rotor inertia", "drop=['armature']"],
+    ),
+    "MJCF frictionloss": (
+        "scene.xml",
+        mjcf(MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" frictionloss="0.2"')),
+        ["joint 'h': frictionloss 0.2", "dry joint friction", "drop=['frictionloss']"],
+    ),
+    "MJCF gravity compensation": (
+        "scene.xml",
+        mjcf(MJCF_BODY.replace('<body name="b">', '<body name="b" gravcomp="1">')),
+        ["body 'b': gravcomp 1", "drop=['gravcomp']"],
+    ),
+    "MJCF fluid forces": (
+        "scene.xml",
+        mjcf(extra='<option density="1.2"/>'),
+        ["density 1.2", "fluid forces", "drop=['fluid']"],
     ),
     "massless MJCF body": (
         "scene.xml",
@@ -189,3 +224,65 @@ def test_mimic_joints_import_as_independent_joints_when_asked(tmp_path: Path) ->
     path.write_text(text)
     imported = load_robot(path, mimic="independent")
     assert [j.name for j in imported.model.tree_joints] == ["shoulder", "wrist"]
+
+
+def test_an_mjcf_term_the_model_cannot_hold_is_left_out_only_when_asked(tmp_path: Path) -> None:
+    """drop=[...] imports the file without the named terms and says so in the notes; an
+    unknown name is refused with the list of names."""
+    path = tmp_path / "scene.xml"
+    path.write_text(
+        mjcf(MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" armature="0.01" frictionloss="1"'))
+    )
+    with pytest.raises(ModelError, match="armature"):
+        load_robot(path, drop=["frictionloss"])
+    imported = load_robot(path, drop=["armature", "frictionloss"])
+    assert any("armature 0.01: left out" in note for note in imported.notes)
+    assert any("frictionloss 1: left out" in note for note in imported.notes)
+    with pytest.raises(ModelError, match="'friction' is not a term.*armature, frictionloss"):
+        load_robot(path, drop=["friction"])
+
+
+def test_mjcf_switches_for_gravity_springs_and_dampers_are_honoured(tmp_path: Path) -> None:
+    path = tmp_path / "scene.xml"
+    body = MJCF_BODY.replace('axis="0 0 1"', 'axis="0 0 1" stiffness="3" damping="0.5"')
+    path.write_text(mjcf(body, '<option><flag gravity="disable" spring="disable"/></option>'))
+    model = load_robot(path).model
+    assert not model.gravity.any()
+    (spring,) = model.forces
+    assert (spring.stiffness, spring.damping) == (0.0, 0.5)
+
+
+def test_what_the_urdf_specification_allows_is_read(tmp_path: Path) -> None:
+    """Read as Pinocchio reads them: a Gazebo extension's non-numeric ``value`` (PR2), a
+    joint and a link of the same name (SO-100's "gripper"; the body takes the name
+    gripper_link), a link with a mass and a zero inertia (iCub: a point mass at its
+    centre of mass), a massless link between two joints (human.urdf's gimbals)."""
+    text = urdf(
+        links='<link name="gripper"><inertial><origin xyz="0.1 0 0"/><mass value="0.3"/>'
+        '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>'
+        '<gazebo reference="arm"><material value="Gazebo/Grey"/></gazebo>',
+        joints='<joint name="gripper" type="revolute"><parent link="arm"/>'
+        '<child link="gripper"/><origin xyz="0 0 0.2"/><axis xyz="0 1 0"/></joint>',
+    )
+    text = text.replace(  # the arm becomes a massless link between two joints
+        f'<link name="arm">{INERTIAL}</link>', '<link name="arm"/>'
+    )
+    path = tmp_path / "robot.urdf"
+    path.write_text(text)
+    imported = load_robot(path)
+    model = imported.model
+    assert model.bodies["arm"].point_mass and model.bodies["arm"].mass == 0.0
+    assert imported.links["gripper"][0] == "gripper_link"
+    assert model.joints["gripper"].child == "gripper_link"
+    body = model.bodies["gripper_link"]
+    assert body.point_mass and body.mass == 0.3 and list(body.com) == [0.1, 0.0, 0.0]
+
+
+def test_an_mjcf_body_and_joint_may_share_a_name(tmp_path: Path) -> None:
+    """MuJoCo names bodies and joints apart: the body becomes <name>_body."""
+    path = tmp_path / "scene.xml"
+    path.write_text(mjcf('<body name="arm"><joint name="arm" axis="0 1 0"/><geom size="0.1" '
+                         'pos="0.2 0 0"/></body>'))  # fmt: skip
+    imported = load_robot(path)
+    assert imported.links["arm"][0] == "arm_body"
+    assert imported.model.joints["arm"].child == "arm_body"

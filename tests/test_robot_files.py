@@ -77,7 +77,7 @@ tolerances = [1e-6]
     monkeypatch.chdir(REPO)  # not the spec's folder
     parsed = parse_spec(text, str(spec))
     (run,) = parsed.runs
-    assert run.problem == "robot"
+    assert run.problem == "arm.xml[q0={shoulder:0.2},t_end=0.5]"
     assert run.problem_options["file"] == str((tmp_path / "robots" / "arm.xml").resolve())
     assert run.problem_options["t_end"] == 0.5
     with pytest.raises(ConfigError, match=r"problems\[0\]\.urdf.*not found"):
@@ -200,3 +200,57 @@ def test_without_example_robot_data_the_robots_module_says_how_to_install_it(mon
     spec = importlib.util.spec_from_file_location("robots_probe", REPO / "problems" / "robots.py")
     with pytest.raises(ImportError, match=r"pip install 'mbs-workbench\[robots\]'"):
         spec.loader.exec_module(importlib.util.module_from_spec(spec))
+
+
+def test_a_sweep_of_two_robots_gives_two_problems(tmp_path):
+    """Each robot file is a problem of its own, named after the file (parent folders tell
+    files of the same name apart) and the options set: in the rows, in `workbench results`
+    and in the recording; a robot's name also finds the robot problem in the registry."""
+    from workbench.plugin.registry import get_problem
+    from workbench.runs.store import load_results
+
+    for folder, source in (("arm", ARM), ("floating", REPO / "tests" / "robots" / "floating.xml")):
+        (tmp_path / folder).mkdir()
+        shutil.copy(source, tmp_path / folder / "robot.xml")
+    (tmp_path / "spec.toml").write_text(
+        'problems = [{ mjcf = "arm/robot.xml", t_end = 0.05 }, { mjcf = "floating/robot.xml" }]\n'
+        'formalisms = ["recursive"]\nintegrators = ["sundials-cvode-bdf"]\ntolerances = [1e-4]\n'
+    )
+    parsed = parse_spec((tmp_path / "spec.toml").read_text(), str(tmp_path / "spec.toml"))
+    names = ["arm/robot.xml[t_end=0.05]", "floating/robot.xml"]
+    assert [run.problem for run in parsed.runs] == names
+    assert get_problem("floating/robot.xml") is RobotProblem
+    result = workbench("sweep", "spec.toml", "-o", "out", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    rows = load_results(tmp_path / "out")
+    assert sorted(rows["problem"]) == names
+    assert set(rows["status"]) == {"ok"}
+    listed = workbench("results", "out", "--format", "csv", cwd=tmp_path)
+    assert listed.returncode == 0, listed.stderr
+    assert all(name in listed.stdout for name in names)
+
+
+def test_meshes_false_imports_a_robot_whose_meshes_are_missing(tmp_path):
+    """The advice of a missing mesh (import with meshes=False) is an option of the robot
+    problem: ``-o meshes=false`` on the command line, ``meshes = false`` in a sweep entry."""
+    (tmp_path / "robot.urdf").write_text(
+        '<robot name="r"><link name="base"/><link name="arm"><inertial><mass value="1"/>'
+        '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>'
+        '<visual><geometry><mesh filename="meshes/gone.stl"/></geometry></visual></link>'
+        '<joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<origin xyz="0 0 0.1"/><axis xyz="0 1 0"/></joint></robot>'
+    )
+    refused = workbench("describe", "robot.urdf", cwd=tmp_path)
+    assert refused.returncode != 0 and "meshes=False" in refused.stderr
+    described = workbench("describe", "robot.urdf", "-o", "meshes=false", cwd=tmp_path)
+    assert described.returncode == 0, described.stderr
+    assert "shoulder" in described.stdout
+    text = """problems = [{ urdf = "robot.urdf", meshes = false }]
+formalisms = ["recursive"]
+integrators = ["sundials-cvode-bdf"]
+tolerances = [1e-6]
+"""
+    (tmp_path / "spec.toml").write_text(text)
+    (run,) = parse_spec(text, str(tmp_path / "spec.toml")).runs
+    assert run.problem == "robot.urdf[meshes=false]"
+    assert RobotProblem(run.problem_options).model().bodies["arm"].mass == 1.0

@@ -91,7 +91,9 @@ def test_closed_loop_drift_and_energy_with_inline_rk4(fake_plugins, tmp_path) ->
     assert fine.row["energy_err_max"] < coarse.row["energy_err_max"]
     assert fine.row["drift_pos_max"] < 1e-5 and fine.row["energy_err_max"] < 1e-4
     series = fine.series
-    assert list(series.columns) == store.SERIES_COLUMNS
+    n = len(store.SERIES_COLUMNS)  # then the trajectory's states (tests/test_trajectory_store.py)
+    assert list(series.columns[:n]) == store.SERIES_COLUMNS
+    assert all(c.startswith(store.STATE_PREFIX) for c in series.columns[n:])
     assert len(series) == 26 and (series["run_id"] == fine.row["run_id"]).all()
     assert series["drift_pos"].iloc[0] < 1e-10 and series["energy_err"].iloc[0] == 0
 

@@ -514,13 +514,15 @@ def test_joint_spring_negative_damping() -> None:
         model.validate()
 
 
-def test_joint_spring_on_spherical() -> None:
+def test_joint_spring_on_spherical_needs_a_rest_orientation() -> None:
     model = pendulum()
     model.add_body("b", 1.0, inertia=CUBE)
     model.add_joint("ball", "spherical", "link", "b")
     model.add_force(JointSpringDamper("torsion", "ball", 1.0))
-    with pytest.raises(ModelError, match=r"force 'torsion'.*spherical joint 'ball'"):
+    with pytest.raises(ModelError, match=r"force 'torsion'.*spherical joint 'ball'.*unit quat"):
         model.validate()
+    model.forces[-1] = JointSpringDamper("torsion", "ball", 1.0, rest=(1.0, 0.0, 0.0, 0.0))
+    model.validate()
 
 
 def test_joint_force_unknown_joint() -> None:
@@ -578,3 +580,16 @@ def test_rolling_sphere_in_planar_model() -> None:
     model.add_nonholonomic(RollingSphere("roll", "link", 0.1))
     with pytest.raises(ModelError, match=r"constraint 'roll'.*needs a spatial model"):
         model.validate()
+
+
+def test_a_massless_body_must_carry_other_bodies() -> None:
+    """Mass 0 is a massless link between joints (a URDF gimbal's); at the end of a chain
+    its joint would move nothing (a singular mass matrix)."""
+    model = pendulum()
+    model.add_point_mass("tip", 0.0)
+    model.add_joint("wrist", "revolute", "link", "tip", axis=(0, 1, 0))
+    with pytest.raises(ModelError, match=r"body 'tip': a massless body must carry other"):
+        model.validate()
+    model.add_body("hand", 1.0, com=(0.1, 0, 0), inertia=CUBE)
+    model.add_joint("finger", "revolute", "tip", "hand", axis=(1, 0, 0))
+    model.validate()

@@ -1,7 +1,8 @@
 """mbs-workbench: compare formalisms and integrators for multibody dynamics.
 
 The core knows no particular formalism, integrator or problem: those are plugins found
-through :mod:`workbench.plugin.registry`.
+through :mod:`workbench.plugin.registry`. The public Python API (``workbench.run``,
+``sweep``, ``describe``, ``load_results``...) is :mod:`workbench.api`, exported here.
 """
 
 from workbench.errors import (
@@ -16,10 +17,30 @@ __all__ = ["ConfigError", "IntegrationError", "ModelError", "PluginError", "Work
 __version__ = "0.1.0"
 
 
-def __getattr__(name: str):
-    """``workbench.load_results(PATH)``, imported lazily (pandas is not needed otherwise)."""
-    if name in ("load_results", "load_series"):
-        from workbench.runs import store
+# the public Python API (workbench.api), imported at first use: ``import workbench`` stays
+# cheap (no pandas, CasADi or plugins until one of these is asked for)
+API = (
+    "Description",
+    "Result",
+    "describe",
+    "list_plugins",
+    "load_results",
+    "load_series",
+    "load_trajectory",
+    "plot_work_precision",
+    "run",
+    "sweep",
+)
 
-        return getattr(store, name)
+
+def __getattr__(name: str):
+    """``workbench.run(...)``, ``workbench.sweep(...)``... (:mod:`workbench.api`), lazily."""
+    if name in API:
+        from workbench import api
+
+        return getattr(api, name)
     raise AttributeError(f"module 'workbench' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *API])

@@ -9,12 +9,12 @@ the results store removes on resume (:func:`remove_temporaries`, which removes n
 else).
 
 Nothing written, replaced or deleted inside an output folder goes through a symbolic link
-(DESIGN.md, "Trust model"): a results folder is data that may come from someone else, and
-a link planted in it (``OUT/logs/.x.raw -> ~/.bashrc``, ``OUT/runs -> /elsewhere``) must not
-make the workbench write outside it. Callers name the folder (``root``); every path below
-it is checked with ``lstat`` (:func:`check_no_links`), files are opened with
-``O_NOFOLLOW`` (:func:`open_no_follow`), and :func:`refuse_links` finds a link anywhere
-under a folder before a command writes into it. A link refused is a
+(docs/architecture.md, "Trust model"): a results folder is data that may come from someone
+else, and a link planted in it (``OUT/logs/.x.raw -> ~/.bashrc``, ``OUT/runs ->
+/elsewhere``) must not make the workbench write outside it. Callers name the folder
+(``root``); every path below it is checked with ``lstat`` (:func:`check_no_links`), files
+are opened with ``O_NOFOLLOW`` (:func:`open_no_follow`), and :func:`refuse_links` finds a
+link anywhere under a folder before a command writes into it. A link refused is a
 :class:`LinkRefusedError` (one line, exit 2 at the command line).
 """
 

@@ -1,4 +1,4 @@
-"""The equations contract: what a formalism returns for one model (DESIGN.md).
+"""The equations contract: what a formalism returns for one model (docs/architecture.md).
 
 A formalism describes its equations symbolically as a :class:`MechanicalSystem` (CasADi
 SX or MX expressions in its own t, q, v) and hands it to

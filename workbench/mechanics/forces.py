@@ -25,6 +25,7 @@ from workbench.model import (
     Model,
     SpringDamper,
 )
+from workbench.numerics.rotations import quaternion_conjugate, quaternion_multiply
 
 GROUND_STATE = BodyState(ca.DM.zeros(3), ca.DM.eye(3), ca.DM.zeros(3), ca.DM.zeros(3))
 
@@ -91,8 +92,8 @@ def joint_generalized_forces(
     for element in model.forces:
         if isinstance(element, JointSpringDamper):
             q, v = joint_coordinates[element.joint]
-            rest = ca.DM(np.broadcast_to(np.asarray(element.rest, float), (q.numel(),)).copy())
-            force = -element.stiffness * (q - rest) - element.damping * v
+            force = -element.stiffness * spring_deflection(model, element, q)
+            force = force - element.damping * v
         elif isinstance(element, JointForce):
             q, v = joint_coordinates[element.joint]
             force = _column(element.function(t, q, v))
@@ -100,6 +101,34 @@ def joint_generalized_forces(
             continue
         totals[element.joint] = totals.get(element.joint, 0) + force
     return totals
+
+
+def spring_deflection(model: Model, element: JointSpringDamper, q: Any) -> Any:
+    """How far a joint spring is from its rest, one value per joint velocity: q - rest for
+    joints with one coordinate per velocity; for a spherical joint the rotation vector
+    (axis times angle in [0, pi], in C) of rest^-1 (x) q, and for a free joint the position
+    difference followed by it (MuJoCo's ball and free joint springs, ``mju_subQuat``). Its
+    half square times the stiffness is the spring's energy, whose gradient the force is."""
+    rest = np.asarray(element.rest, float)
+    kind = model.joints[element.joint].type
+    if kind not in ("spherical", "free"):
+        return q - ca.DM(np.broadcast_to(rest, (q.numel(),)).copy())
+    rotation = rotation_vector(
+        quaternion_multiply(ca.DM(quaternion_conjugate(rest[-4:])), q[q.numel() - 4 :])
+    )
+    if kind == "spherical":
+        return rotation
+    return ca.vertcat(q[0:3] - ca.DM(rest[:3]), rotation)
+
+
+def rotation_vector(p: Any) -> Any:
+    """Axis times angle (angle in [0, pi]) of the rotation of Euler parameters ``p`` (4,),
+    the same for p and -p; smooth at the identity (a series below a 1e-6 half-angle)."""
+    sign = ca.if_else(p[0] < 0, -1.0, 1.0)
+    w, axis = sign * p[0], sign * p[1:4]
+    s = ca.norm_2(axis)
+    scale = ca.if_else(s < 1e-6, 2.0 / w * (1.0 - s**2 / (3.0 * w**2)), 2.0 * ca.atan2(s, w) / s)
+    return scale * axis
 
 
 def joints_with_forces(model: Model) -> list[str]:
@@ -174,8 +203,7 @@ def potential_energy(
             total += 0.5 * element.stiffness * stretch**2
         elif isinstance(element, JointSpringDamper):
             q = joint_coordinates[element.joint]
-            rest = ca.DM(np.broadcast_to(np.asarray(element.rest, float), (q.numel(),)).copy())
-            total += 0.5 * element.stiffness * ca.sumsqr(q - rest)
+            total += 0.5 * element.stiffness * ca.sumsqr(spring_deflection(model, element, q))
     return total
 
 

@@ -233,8 +233,9 @@ def relative_coordinates(joint: Joint, rel_r: Any, rel_rot: Any) -> Any:
     """Joint coordinates from C's pose relative to P (inverse of relative_transform).
 
     For revolute, prismatic, cylindrical, universal and planar joints (angles in
-    (-pi, pi]); used for joint forces and springs in absolute-coordinate formalisms and for
-    energies.
+    (-pi, pi]), spherical and free (Euler parameters with p0 >= 0, which may be the
+    negative of the tree's); used for joint forces and springs in absolute-coordinate
+    formalisms and for energies.
     """
     xp = ops(rel_r, rel_rot)
     a = unit(joint.axis)
@@ -251,6 +252,11 @@ def relative_coordinates(joint: Joint, rel_r: Any, rel_rot: Any) -> Any:
         return vector(_universal_angles(a, unit(joint.axis2), rel_rot, xp))
     if joint.type == "planar":
         return vector([rel_r[0], rel_r[1], xp.arctan2(rel_rot[1, 0], rel_rot[0, 0])])
+    if joint.type == "spherical":  # either sign of the Euler parameters: springs use both
+        return rot.matrix_to_quaternion(rel_rot)
+    if joint.type == "free":
+        p = rot.matrix_to_quaternion(rel_rot)
+        return vector([rel_r[0], rel_r[1], rel_r[2], p[0], p[1], p[2], p[3]])
     if joint.type == "fixed":
         return np.zeros(0)
     raise ValueError(

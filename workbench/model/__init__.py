@@ -1,4 +1,5 @@
-"""The model layer: a mechanism described once, for every formalism (DESIGN.md, "The model").
+"""The model layer: a mechanism described once, for every formalism (docs/architecture.md,
+"The model").
 
 ``elements`` holds the plain data (frames, bodies, joints, forces, constraints), ``model``
 the :class:`Model` that gathers and validates them, ``validation`` the checks that name

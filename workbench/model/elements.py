@@ -1,6 +1,6 @@
 """The elements of a mechanism: frames, bodies, joints, force elements, constraints.
 
-Plain frozen data (DESIGN.md, "The model"), with no behaviour beyond normalizing their
+Plain frozen data (docs/architecture.md, "The model"), with no behaviour beyond normalizing their
 inputs; :class:`~workbench.model.model.Model` gathers them and validation judges them.
 Units: SI; vectors (3,) and tensors (3, 3) in body coordinates.
 """
@@ -193,9 +193,14 @@ class SpringDamper:
 
 @dataclass(frozen=True)
 class JointSpringDamper:
-    """Spring-damper acting on a joint's coordinates (one-coordinate-per-velocity joints).
+    """Spring-damper acting on a joint's coordinates.
 
-    Generalized force: -stiffness * (q - rest) - damping * v, per joint coordinate.
+    Generalized force: -stiffness * d - damping * v, one value per joint velocity, where
+    the deflection d is q - rest for joints with one coordinate per velocity; on a
+    spherical joint (rest: a unit quaternion) d is the rotation vector of rest^-1 q (axis
+    times angle, in the child frame), on a free joint (rest: position and unit quaternion)
+    the position difference then that rotation vector: MuJoCo's ball and free joint
+    springs. Energy 1/2 stiffness |d|^2.
     """
 
     name: str

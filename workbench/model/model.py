@@ -1,4 +1,4 @@
-"""The formalism-neutral description of a mechanism (DESIGN.md, "The model").
+"""The formalism-neutral description of a mechanism (docs/architecture.md, "The model").
 
 A :class:`Model` is plain data: bodies, joints (tree and loop-closing), force elements,
 nonholonomic constraints and visual shapes. It knows nothing of coordinates chosen by a
@@ -91,11 +91,18 @@ class Model:
         return body
 
     def add_point_mass(
-        self, name: str, mass: float, shapes: tuple[Shape, ...] | list[Shape] = ()
+        self,
+        name: str,
+        mass: float,
+        shapes: tuple[Shape, ...] | list[Shape] = (),
+        com: Any = (0.0, 0.0, 0.0),
     ) -> Body:
-        """Add a point mass at its body frame's origin (no rotational inertia)."""
+        """Add a point mass (no rotational inertia) at ``com`` in its body frame (default
+        the origin; e.g. a robot link whose file gives a mass and a zero inertia). Mass 0
+        is a massless link between joints (a gimbal's), which must carry other bodies."""
         where = f"model {self.name!r}, body {name!r}"
-        body = Body(name, _mass(where, mass), np.zeros(3), np.zeros((3, 3)), True, tuple(shapes))
+        position = real_array(com, where, "com (centre of mass)")
+        body = Body(name, _mass(where, mass), position, np.zeros((3, 3)), True, tuple(shapes))
         self._add(self.bodies, name, body)
         return body
 
@@ -181,6 +188,28 @@ class Model:
         """Raise ModelError naming the fault and its fix; return self when the model is sound."""
         validate_model(self)
         return self
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: the joints (type, parent -> child, cut, driven) and the bodies."""
+        from html import escape
+
+        joints = "".join(
+            f"<tr><td>{escape(j.name)}</td><td>{escape(j.type)}</td>"
+            f"<td>{escape(j.parent)} &rarr; {escape(j.child)}</td>"
+            f"<td>{'cut' if j.cut else ''}{' driven' if j.drive is not None else ''}</td></tr>"
+            for j in self.joints.values()
+        )
+        bodies = ", ".join(
+            f"{escape(b.name)} ({b.mass:g} kg{', point mass' if b.point_mass else ''})"
+            for b in self.bodies.values()
+        )
+        return (
+            f"<b>model {escape(self.name)}</b> ({self.kind}; {len(self.bodies)} bodies, "
+            f"{len(self.joints)} joints, {len(self.forces)} force elements, "
+            f"{len(self.nonholonomic)} nonholonomic constraints)"
+            f"<table><tr><th>joint</th><th>type</th><th>parent &rarr; child</th><th></th></tr>"
+            f"{joints}</table><p>bodies: {bodies}</p>"
+        )
 
 
 def _mass(where: str, mass: Any) -> float:

@@ -63,7 +63,10 @@ def model_parameters(model: Model) -> list[Row]:
 
 def _body_rows(body: Body, planar: bool) -> list[Row]:
     if body.point_mass:
-        return [(body.name, "point mass", f"{number(body.mass)} kg")]
+        rows = [(body.name, "point mass", f"{number(body.mass)} kg")]
+        if np.any(np.asarray(body.com, float)):
+            rows.append((body.name, "at (body frame)", f"{vector(body.com, planar)} m"))
+        return rows
     rows = [(body.name, "mass", f"{number(body.mass)} kg")]
     rows.append((body.name, "centre of mass (body frame)", f"{vector(body.com, planar)} m"))
     inertia = np.asarray(body.inertia, dtype=float)

@@ -57,8 +57,10 @@ JOINT_SPRING_TYPES: tuple[str, ...] = (
     "cylindrical",
     "universal",
     "planar",
+    "spherical",
+    "free",
 )
-"""Joint types with one coordinate per velocity, on which a JointSpringDamper may act."""
+"""Joint types a JointSpringDamper may act on (spherical and free: rest is a pose)."""
 
 SPINNING_POINT_MASS_TYPES: tuple[str, ...] = ("spherical", "universal", "cylindrical", "free")
 """Joint types that rotate a spatial point mass about an axis through it."""
@@ -145,7 +147,7 @@ def _check_model(model: Model) -> None:
 def _check_body(model: Model, body: Body) -> None:
     what = f"body {body.name!r}"
     mass = _finite_scalar(model, what, "mass", body.mass)
-    if mass <= 0:
+    if mass < 0 or (mass == 0 and not body.point_mass):  # a massless point: see below
         raise ModelError(
             f"{_where(model, what)}: mass must be > 0 kg (got {mass}); give a positive mass"
         )
@@ -391,6 +393,14 @@ def _check_force(model: Model, element: Any) -> None:
         rest = np.atleast_1d(real_array(element.rest, _where(model, what), "rest"))
         if not np.all(np.isfinite(rest)):
             raise ModelError(f"{_where(model, what)}: rest = {rest.tolist()} is not finite")
+        if joint.type in ("spherical", "free"):
+            size = 4 if joint.type == "spherical" else 7
+            if rest.size != size or abs(np.linalg.norm(rest[-4:]) - 1.0) > 1e-6:
+                raise ModelError(
+                    f"{_where(model, what)}: rest = {rest.tolist()}; on the {joint.type} joint "
+                    f"{joint.name!r} give the rest pose as its {size} coordinates (a unit "
+                    "quaternion, scalar first" + (", after the position)" if size == 7 else ")")
+                )
     elif isinstance(element, JointForce):
         _known_joint(model, what, element.joint)
         _check_callable(model, what, element.function)
@@ -514,7 +524,8 @@ def _quoted(names: Iterable[str]) -> list[str]:
 
 
 def _check_point_mass_joints(model: Model) -> None:
-    """A point mass must not be free to spin about an axis through itself.
+    """A point mass must not be free to spin about an axis through itself, and a massless
+    one (a link between joints) must carry tree children.
 
     Only point masses without tree children are checked: a child attached at an offset
     may carry the rotation's inertia.
@@ -522,6 +533,12 @@ def _check_point_mass_joints(model: Model) -> None:
     has_children = {joint.parent for joint in model.tree_joints}
     for joint in model.tree_joints:
         body = model.bodies[joint.child]
+        if body.point_mass and body.mass == 0 and body.name not in has_children:
+            raise ModelError(
+                f"model {model.name!r}, body {body.name!r}: a massless body must carry other "
+                f"bodies (a link between joints); at the end of a chain its {joint.type} "
+                f"joint {joint.name!r} moves no mass; give it a mass"
+            )
         if not body.point_mass or body.name in has_children or joint.drive is not None:
             continue
         spins = False
@@ -530,10 +547,11 @@ def _check_point_mass_joints(model: Model) -> None:
         elif model.kind == "planar" and joint.type == "planar":
             spins = True
         elif joint.type == "revolute":
-            # the mass sits at the body origin, i.e. at -position relative to frame C
+            # the mass sits at its com (the body origin unless given), relative to frame C
             axis = joint.child_frame.rotation @ (joint.axis / np.linalg.norm(joint.axis))
-            offset = np.linalg.norm(np.cross(axis, joint.child_frame.position))
-            spins = offset <= 1e-9 * max(1.0, np.linalg.norm(joint.child_frame.position))
+            arm = np.asarray(body.com, float) - joint.child_frame.position
+            offset = np.linalg.norm(np.cross(axis, arm))
+            spins = offset <= 1e-9 * max(1.0, np.linalg.norm(arm))
         if spins:
             raise ModelError(
                 f"model {model.name!r}, body {body.name!r}: the point mass would spin about "

@@ -71,11 +71,20 @@ def run_parts(spec: Any) -> tuple[str, ...]:
     options are distinct entities, also once the files of several workers are merged."""
     return (
         "runs",
-        with_options("problem", spec.problem, getattr(spec, "problem_options", None)),
+        problem_part(spec),
         with_options("formalism", spec.formalism, getattr(spec, "formalism_options", None)),
         with_options("integrator", spec.integrator, getattr(spec, "integrator_options", None)),
         f"rtol={float(spec.rtol):g}",
     )
+
+
+def problem_part(spec: Any) -> str:
+    """The problem's path part: a robot run's name already says its file and options."""
+    from workbench.plugin.robot_problem import is_robot_problem_name
+
+    if is_robot_problem_name(spec.problem):
+        return str(spec.problem)
+    return with_options("problem", spec.problem, getattr(spec, "problem_options", None))
 
 
 def with_options(kind: str, name: str, options: dict[str, Any] | None) -> str:

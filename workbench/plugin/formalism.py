@@ -1,4 +1,4 @@
-"""The formalism contract (DESIGN.md, "Plugins" and "The equations contract").
+"""The formalism contract (docs/architecture.md, "Plugins" and "The equations contract").
 
 A formalism plugin subclasses :class:`Formalism`, registers with
 ``@workbench.plugin.registry.formalism`` and:

@@ -180,6 +180,8 @@ class Registry:
         check_kind(kind)
         self.discover()
         info = self.entries[kind].get(name)
+        if info is None and kind == "problem" and _robot_problem_name(name):
+            info = self.entries[kind].get("robot")  # a robot run's name: its file's
         if info is None:
             names = sorted(self.entries[kind])
             close = close_matches(name, names)
@@ -193,6 +195,13 @@ class Registry:
                 f"{kind} {name!r} is broken: {info.error_line} (module {info.module})"
             )
         return info.plugin
+
+
+def _robot_problem_name(name: str) -> bool:
+    """A run of the robot problem is named after its file (``ur5.urdf[t_end=2]``)."""
+    from workbench.model.importers import robot_format
+
+    return robot_format(name.split("[", 1)[0]) is not None
 
 
 def close_matches(name: str, names: list[str]) -> list[str]:

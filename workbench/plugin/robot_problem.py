@@ -3,16 +3,23 @@
 
 The problem "robot" takes the file as its option ``file`` (an absolute path, so a run's id
 names the file wherever the run executes); the command line and the sweep specification
-turn a path into it (:func:`robot_problem_options`). The robot moves unforced under
-gravity from ``q0`` / ``v0`` ({joint: value}, or one list of every tree joint's coordinates
-in the file's order), else the file's keyframe (MJCF), else the neutral configuration at
-rest. Its energy is conserved unless the file has joint dampers.
+turn a path into it (:func:`robot_problem_options`). A run of it is named after its file
+and the options that differ from the defaults (``solo12.urdf[floating_base=true]``,
+:func:`robot_problem_name`), so that several robots of one sweep stay distinct problems in
+rows, report and recording; the registry resolves such a name to this problem.
+
+The robot moves unforced under gravity from ``q0`` / ``v0`` ({joint: value}, or one list
+of every tree joint's coordinates in the file's order), else the file's keyframe (MJCF),
+else the neutral configuration at rest. Its energy is conserved unless the file has joint dampers.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
+import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -41,6 +48,8 @@ class RobotOptions:
     package_path: tuple[str, ...] = ()  # folders holding the packages package:// names
     allow_roots: tuple[str, ...] = ()  # folders outside the file's own it may read
     max_file_mb: float = DEFAULT_MAX_MB  # the largest file it may make the workbench read
+    meshes: bool = True  # URDF: False imports without checking the visual mesh files
+    drop: tuple[str, ...] = ()  # MJCF: terms the model cannot hold, left out (DROPPABLE)
 
     def __post_init__(self) -> None:
         for name in ("package_path", "allow_roots"):
@@ -62,13 +71,19 @@ class RobotOptions:
 
 @functools.cache
 def _imported(
-    file: str, floating_base: bool, mimic: str, keyframe: int, roots: tuple[Any, ...]
+    file: str,
+    floating_base: bool,
+    mimic: str,
+    keyframe: int,
+    roots: tuple[Any, ...],
+    meshes: bool,
+    drop: tuple[str, ...],
 ) -> ImportedRobot:
     package_path, allow_roots, max_file_mb = roots
     where = {"package_path": package_path, "allow_roots": allow_roots, "max_file_mb": max_file_mb}
     if robot_format(file) == "urdf":
-        return load_robot(file, floating_base=floating_base, mimic=mimic, **where)
-    return load_robot(file, keyframe=keyframe, **where)
+        return load_robot(file, floating_base=floating_base, mimic=mimic, meshes=meshes, **where)
+    return load_robot(file, keyframe=keyframe, drop=drop, **where)
 
 
 @problem
@@ -81,13 +96,16 @@ class RobotProblem(Problem):
 
     def __init__(self, options: Any = None) -> None:
         super().__init__(options)
+        self.name = robot_problem_name(dataclasses.asdict(self.options))
         self.t_end = float(self.options.t_end)
         self.n_samples = int(self.options.n_samples)
 
     def imported(self) -> ImportedRobot:
         o = self.options
         roots = (o.package_path, o.allow_roots, o.max_file_mb)
-        return _imported(o.file, o.floating_base, o.mimic, o.keyframe, roots)
+        return _imported(
+            o.file, o.floating_base, o.mimic, o.keyframe, roots, o.meshes, tuple(o.drop or ())
+        )
 
     def model(self) -> Model:
         model = copy.deepcopy(self.imported().model)
@@ -206,12 +224,68 @@ def robot_entries(problems: Any, base: Path, fail: Any) -> Any:
 
 
 FOLDER_OPTIONS = ("package_path", "allow_roots")
+# where the files are read from and how large they may be: not part of a problem's name
+NAMELESS_OPTIONS = ("file", *FOLDER_OPTIONS, "max_file_mb")
 
 
 def _folder(path: str | Path, base: Path | None = None) -> str:
     """A folder named by the user, absolute (relative to ``base``, default the working
     directory), so a run's options name it wherever the run executes."""
     return str((Path(base or Path.cwd()) / Path(path).expanduser()).resolve())
+
+
+def robot_problem_name(options: Mapping[str, Any], folders: int = 0) -> str:
+    """The name of a run of the robot problem with ``options``: the file's name (with
+    ``folders`` parent folders), then the options that differ from the defaults,
+    ``name[key=value,...]`` (keys sorted, values as compact JSON without quotes)."""
+    path = Path(str(options.get("file", "")))
+    name = "/".join([*path.parent.parts[len(path.parent.parts) - folders :], path.name])
+
+    def plain(value: Any) -> str:  # () and [] alike: options come back from JSON as lists
+        return json.dumps(value, sort_keys=True, default=str)
+
+    defaults = {f.name: plain(f.default) for f in dataclasses.fields(RobotOptions)}
+    changed = {
+        key: value
+        for key, value in options.items()
+        if key not in NAMELESS_OPTIONS and defaults.get(key) != plain(value)
+    }
+    if not changed:
+        return name
+    text = ",".join(
+        f"{key}={json.dumps(changed[key], separators=(',', ':'), default=str)}"
+        for key in sorted(changed)
+    )
+    return f"{name}[{text.replace(chr(34), '')}]"
+
+
+def is_robot_problem_name(name: str) -> bool:
+    """``name`` is a robot problem's run name (a robot file's name, options in brackets)."""
+    return robot_format(name.split("[", 1)[0]) is not None
+
+
+def run_problem_names(problems: Sequence[tuple[str, Mapping[str, Any]]]) -> list[str]:
+    """The problem name of each (registered name, options) in runs: a robot problem's is
+    :func:`robot_problem_name`, with as many parent folders as tell its file apart from
+    other files of the same name; the others keep theirs."""
+
+    def robot(name: str) -> bool:
+        return name == ROBOT_PROBLEM or is_robot_problem_name(name)
+
+    files = {str(options.get("file", "")) for name, options in problems if robot(name)}
+    folders = {}
+    for file in files:
+        depth = 0
+        while depth < 32 and any(
+            robot_problem_name({"file": other}, depth) == robot_problem_name({"file": file}, depth)
+            for other in files - {file}
+        ):
+            depth += 1
+        folders[file] = depth
+    return [
+        robot_problem_name(options, folders[str(options.get("file", ""))]) if robot(name) else name
+        for name, options in problems
+    ]
 
 
 def robot_file_problem(
@@ -243,7 +317,10 @@ __all__ = [
     "ENTRY_KEYS",
     "ROBOT_PROBLEM",
     "RobotProblem",
+    "is_robot_problem_name",
     "robot_entries",
     "robot_file_problem",
+    "robot_problem_name",
     "robot_problem_options",
+    "run_problem_names",
 ]

@@ -363,9 +363,11 @@ def run_dask(
     scheduler: str,
     record: Callable[[str], None],
     timing: Timing | None = None,
+    states: bool = True,
 ) -> dict[str, str]:
     """Run ``todo`` on the cluster (timed as ``timing`` says; its ``workers`` become the
-    cluster's worker threads, over all its machines); return the runs left without a row
+    cluster's worker threads, over all its machines; ``states``: store the trajectories,
+    :func:`~workbench.runs.store.write_run`); return the runs left without a row
     (run id -> why): those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
     import concurrent.futures
 
@@ -442,7 +444,7 @@ def run_dask(
                         give_up(spec, _lost_message(error))
                     continue
                 store_log(out, row)
-                store.write_run(out, row, series)
+                store.write_run(out, row, series, states)
                 record(row.get("status", "failed"))
             fill()
     finally:

@@ -26,6 +26,8 @@ a column (MuJoCo-style pipeline stages):
    the part that was reached;
 4. **metrics** — :mod:`workbench.runs.metrics` (``metrics_s``; obtaining the reference is
    timed apart as ``reference_s``);
+   The series also carries the trajectory: the states at the same samples, one column
+   ``state:<name>`` each (:func:`state_columns`; the store can leave them out);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
    series)`` (e.g. a Rerun recording). Logging is passed in, never written into
    formalisms or integrators.
@@ -57,7 +59,7 @@ from workbench.runs.environment import environment
 from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
-from workbench.runs.store import SCHEMA_VERSION, empty_series
+from workbench.runs.store import SCHEMA_VERSION, STATE_PREFIX, empty_series
 from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
 from workbench.runs.worker_env import threads_in_force, worker_threads
 
@@ -135,8 +137,10 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
     parsed = integrator_class.parse_options(spec.integrator_options)
     integrator_class.check_step_count(parsed, problem_span(problem))
     integrator_options = options_dict(parsed)
+    from workbench.plugin.robot_problem import run_problem_names
+
     return RunSpec(
-        spec.problem,
+        run_problem_names([(spec.problem, problem_options)])[0],
         spec.formalism,
         spec.integrator,
         float(spec.rtol),
@@ -403,6 +407,9 @@ def execute_run(
                     charts=getattr(trajectory, "charts", None),
                 )
                 row.update(metric_row)
+                states = np.atleast_2d(trajectory.y)[: len(series)]
+                if len(states) == len(series):
+                    series = pd.concat([series, state_columns(equations, form, states)], axis=1)
                 atlas = getattr(equations, "atlas", None)
                 switched = switch_note(atlas, trajectory) if atlas is not None else ""
                 row["notes"] = "; ".join(filter(None, [row.get("notes", ""), switched]))
@@ -505,6 +512,25 @@ def _index_hint(spec: RunSpec, accepts: dict[str, int]) -> str:
         f"; pair them with the formalism option index={index} (workbench run: -o index={index};"
         f" a sweep: formalisms = [{in_sweep}])"
     )
+
+
+def state_names(equations: Any, form: str, width: int) -> list[str]:
+    """Names of the ``width`` state components of a trajectory in ``form``: the equations'
+    q and v names, then ``lambda:<constraint>`` (and ``mu:<constraint>``) for the
+    multipliers a dae or mechanical form carries; ``y[k]`` for any the equations do not
+    name."""
+    names = equations.y_names("dae" if form == "dae" else "ode")
+    extra = [f"lambda:{n}" for n in equations.constraint_names]
+    extra += [f"mu:{n}" for n in equations.constraint_names[: equations.n_holonomic]]
+    names = list(names) + [n for n in extra if n not in names]
+    names = names[:width] + [f"y[{k}]" for k in range(len(names), width)]
+    return names
+
+
+def state_columns(equations: Any, form: str, y: np.ndarray) -> pd.DataFrame:
+    """The trajectory's states ``y`` (n, width) as series columns ``state:<name>``."""
+    names = state_names(equations, form, y.shape[1] if y.size else 0)
+    return pd.DataFrame(y, columns=[STATE_PREFIX + n for n in names], dtype=float)
 
 
 def _record_trajectory(row: dict[str, Any], trajectory: Any) -> None:

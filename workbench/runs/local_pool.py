@@ -58,13 +58,15 @@ def _worker_main(
     reference_dir: str | None = None,
     timing: dict[str, Any] | None = None,
     scratch: bool = False,
+    states: bool = True,
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None.
 
     ``parent``: the pid of a parent that is not multiprocessing's (:func:`exit_with_parent`);
     ``scratch``: ``out`` is this worker's own directory, removed if the parent dies;
     ``reference_dir``: where references are cached (default ``<out>/references``);
-    ``timing``: how each integration is timed (:meth:`Timing.to_dict`). Also the worker
+    ``timing``: how each integration is timed (:meth:`Timing.to_dict`); ``states``: store
+    the trajectory in the series (:func:`~workbench.runs.store.write_run`). Also the worker
     loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
@@ -97,7 +99,7 @@ def _worker_main(
                         spec, sink=sink, reference_dir=references, timing=Timing.from_dict(timing)
                     )
                 result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
-                store.write_run(Path(out), result.row, result.series)
+                store.write_run(Path(out), result.row, result.series, states)
             finally:
                 _end_recording(sink)
             conn.send(("done", spec.run_id, result.row["status"]))
@@ -274,9 +276,11 @@ def run_local(
     tick: Callable[[], None] = lambda: None,
     recorder: Any = None,
     timing: Timing | None = None,
+    states: bool = True,
 ) -> dict[str, str]:
     """Run ``todo`` (timed as ``timing`` says, default :class:`Timing` with ``jobs``
-    workers); return the runs left without a row (run id -> why): those whose
+    workers; ``states``: store each trajectory, :func:`~workbench.runs.store.write_run`);
+    return the runs left without a row (run id -> why): those whose
     worker was killed from outside twice (:mod:`workbench.runs.unfinished`)."""
     context = _context()
     timed = (timing or Timing(workers=jobs)).to_dict()
@@ -293,7 +297,7 @@ def run_local(
         process = context.Process(
             target=_worker_main,
             args=(child_end, plugins, str(out), list(sys.path), recorder),
-            kwargs={"timing": timed},
+            kwargs={"timing": timed, "states": states},
             daemon=True,
         )
         # a forked worker's garbage collector would visit every object it inherited and

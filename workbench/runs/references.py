@@ -39,6 +39,7 @@ import inspect
 import io
 import json
 import math
+import re
 import time
 import tomllib
 from collections.abc import Callable
@@ -600,7 +601,10 @@ def computed_reference(
         return ReferencePoses("computed", poses, description, accuracy=accuracy)
     path = None
     if reference_dir is not None:
-        path = Path(reference_dir) / f"{problem_name}-{digest}.parquet"
+        # a robot run's name holds its file's folders and options: keep the file name one
+        # short, plain file name (the digest tells the runs apart)
+        plain = re.sub(r"[^A-Za-z0-9._-]", "_", problem_name)[:60]
+        path = Path(reference_dir) / f"{plain}-{digest}.parquet"
     started = time.perf_counter()
     lock = file_lock(path.with_suffix(".lock")) if path else contextlib.nullcontext()
     with lock:

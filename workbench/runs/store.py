@@ -3,7 +3,10 @@
 Layout of an output directory ``<out>``::
 
     <out>/runs/<run_id>.json         one result row (JSON object), see SCHEMA
-    <out>/series/<run_id>.parquet    its time series (SERIES_COLUMNS)
+    <out>/series/<run_id>.parquet    its time series (SERIES_COLUMNS) and its trajectory:
+                                     the states at the same output samples, one column
+                                     "state:<name>" per named q, v and multiplier
+                                     (the sweep key store_trajectories = false leaves them out)
     <out>/references/*.parquet       computed reference poses (see workbench.runs.metrics)
     <out>/results.parquet            all rows, consolidated at the end of a sweep
     <out>/sweep.toml                 the sweep specification that was run (if any)
@@ -124,6 +127,8 @@ SCHEMA: list[tuple[str, str]] = [
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
+# a series column holding a state of the trajectory: STATE_PREFIX + the equations' name
+STATE_PREFIX = "state:"
 PRODUCER_COLUMNS = ["producer_problem", "producer_formalism", "producer_integrator"]
 UNKNOWN_PRODUCER = "unknown"
 RUNS_DIR = "runs"
@@ -276,8 +281,13 @@ def series_path(out: Path, run_id: str) -> Path:
     return Path(out) / SERIES_DIR / f"{run_id}.parquet"
 
 
-def write_run(out: Path, row: dict[str, Any], series: pd.DataFrame | None) -> None:
+def write_run(
+    out: Path, row: dict[str, Any], series: pd.DataFrame | None, states: bool = True
+) -> None:
     """Persist one run: the series first, then the row (so a row implies its series).
+
+    ``states``: keep the trajectory's state columns in the series (False: drift, energy
+    and error only, as before trajectories were stored).
 
     The series is synced to disk before the row is renamed into place; the row itself is
     not: after a machine crash a row lost or left corrupt reads as not done
@@ -286,6 +296,8 @@ def write_run(out: Path, row: dict[str, Any], series: pd.DataFrame | None) -> No
     """
     run_id = row["run_id"]
     if series is not None:
+        if not states:
+            series = series[[c for c in series.columns if not c.startswith(STATE_PREFIX)]]
         write_parquet_atomic(series, series_path(out, run_id), root=Path(out))
     write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out))
 
@@ -444,9 +456,13 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     return frame
 
 
-def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.DataFrame:
+def load_series(
+    path: str | os.PathLike[str], run_id: str | None = None, states: bool = False
+) -> pd.DataFrame:
     """Time series of one run (``run_id``) or of all runs of an output directory.
 
+    ``states``: also the trajectory's columns ``state:<name>`` (one run's only; see
+    :func:`load_trajectory`); without it the columns are :data:`SERIES_COLUMNS`.
     One run's: ConfigError if it is missing or unreadable. All runs': a file that cannot
     be read is left out with a warning naming it (a resumed sweep redoes its run)."""
     directory = Path(path) / SERIES_DIR
@@ -455,16 +471,17 @@ def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.D
         if not file.is_file():
             raise ConfigError(f"no time series for run {run_id!r} in {path}")
         try:
-            return pd.read_parquet(file)
+            frame = pd.read_parquet(file)
         except Exception as error:  # noqa: BLE001 - pyarrow raises several kinds
             raise ConfigError(
                 f"time series {file} is unreadable ({one_line(error)}); "
                 "re-run the sweep to redo its run"
             ) from None
+        return frame if states else _without_states(frame)
     frames, unreadable = [], []
     for file in sorted(directory.glob("*.parquet")):
         try:
-            frames.append(pd.read_parquet(file))
+            frames.append(_without_states(pd.read_parquet(file)))
         except Exception:  # noqa: BLE001 - pyarrow raises several kinds
             unreadable.append(str(file))
     if unreadable:
@@ -479,6 +496,28 @@ def load_series(path: str | os.PathLike[str], run_id: str | None = None) -> pd.D
     return pd.concat(frames, ignore_index=True)
 
 
+def _without_states(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame[[c for c in frame.columns if not c.startswith(STATE_PREFIX)]]
+
+
+def load_trajectory(path: str | os.PathLike[str], run_id: str) -> pd.DataFrame:
+    """The trajectory of run ``run_id`` stored in output directory ``path``: column ``t``
+    (s) and one column per state, named as the equations name it (q, v, then
+    ``lambda:<constraint>`` where the form integrated has multipliers), one row per output
+    sample reached. ConfigError if the run stored none (``store_trajectories = false``,
+    a run written before trajectories were stored, or one that never integrated)."""
+    frame = load_series(path, run_id, states=True)
+    names = [c for c in frame.columns if c.startswith(STATE_PREFIX)]
+    if (not names and len(frame)) or "t" not in frame.columns:  # (no samples: an empty one)
+        raise ConfigError(
+            f"run {run_id!r} in {path} has no stored trajectory (swept with "
+            "store_trajectories = false, or by a workbench that did not store them): "
+            "run it again to have one"
+        )
+    trajectory = frame[["t", *names]].rename(columns=lambda c: c.removeprefix(STATE_PREFIX))
+    return trajectory.reset_index(drop=True)
+
+
 __all__ = [
     "ENVIRONMENT_FILE",
     "MIGRATIONS",
@@ -486,12 +525,14 @@ __all__ = [
     "SCHEMA",
     "SCHEMA_COLUMNS",
     "SCHEMA_VERSION",
+    "STATE_PREFIX",
     "check_rows",
     "completed_run_ids",
     "consolidate",
     "frame_from_rows",
     "load_results",
     "load_series",
+    "load_trajectory",
     "migrate_row",
     "read_row",
     "row_path",

@@ -79,6 +79,7 @@ def run_sweep(
     repeats: int | None = None,
     repeat_budget: float | None = None,
     wait: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
@@ -96,7 +97,9 @@ def run_sweep(
     override the specification's timing of each integration (:mod:`workbench.runs.timing`).
 
     ``out`` is locked while the sweep runs (:func:`workbench.runs.out_lock.out_lock`):
-    OutputBusyError if another process holds it, or with ``wait`` wait for it."""
+    OutputBusyError if another process holds it, or with ``wait`` wait for it.
+    ``progress(done, total)`` is called as each run finishes (e.g. a notebook's bar)."""
+
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
     jobs = int(jobs or sweep.jobs)
@@ -127,21 +130,25 @@ def run_sweep(
         if sweep.text:
             store.write_text_atomic(sweep.text, out_dir / "sweep.toml", root=out_dir)
         counts: Counter = Counter()
+        states = sweep.store_trajectories
         # the local pool forks its workers: no thread may be running then (see _context)
         with _progress(len(todo), show_progress, threaded=bool(scheduler)) as advance:
 
             def record(status: str) -> None:
                 counts[status] += 1
                 advance(counts)
+                if progress is not None:
+                    progress(sum(counts.values()), len(todo))
 
             if scheduler:
                 unfinished = run_dask(
-                    todo, out_dir, limit, sweep.plugins, scheduler, record, timing
+                    todo, out_dir, limit, sweep.plugins, scheduler, record, timing, states
                 )
             else:
                 tick = lambda: advance(None)  # noqa: E731
                 unfinished = run_local(
-                    todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing
+                    todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing,
+                    states,
                 )
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds

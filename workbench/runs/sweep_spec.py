@@ -13,6 +13,7 @@ benchmark problems; :func:`suite_names` lists them)::
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
     plugins = ["my_package.my_plugins", "helper.py"]  # extra plugin modules (code: see below)
+    store_trajectories = true      # the states at the output samples beside the series
 
     problems = ["my-problem", { name = "my-top", options = { spin = [50.0, 100.0] } }]
     formalisms = ["all", { name = "my-formalism", options = { index = [1, 3] } }]
@@ -115,6 +116,7 @@ TOP_LEVEL_KEYS = {
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
     "plugins": "list of plugin module names or .py files to import",
+    "store_trajectories": "store each run's states at its output samples (true or false)",
     "problems": 'list of problem names or {name, options} tables, or "all"',
     "formalisms": 'list of formalism names or {name, options} tables, or "all"',
     "integrators": 'list of integrator names or {name, options} tables, or "all"',
@@ -145,6 +147,7 @@ class SweepSpec:
     text: str = ""
     repeats: int = DEFAULT_REPEATS
     repeat_budget: float = DEFAULT_REPEAT_BUDGET
+    store_trajectories: bool = True  # each run's states beside its series (store.write_run)
 
 
 SUITE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")
@@ -267,6 +270,9 @@ def parse_spec(
     plugins = data.get("plugins", [])
     if not isinstance(plugins, list) or not all(isinstance(p, str) and p for p in plugins):
         raise fail("plugins", f"must be a list of module names or .py files, not {_show(plugins)}")
+    store_trajectories = data.get("store_trajectories", True)
+    if not isinstance(store_trajectories, bool):
+        raise fail("store_trajectories", f"must be true or false, not {_show(store_trajectories)}")
 
     from workbench.plugin.robot_problem import robot_entries
 
@@ -309,6 +315,11 @@ def parse_spec(
         except ConfigError as error:
             raise fail(f"{item_key}.options", one_line(error, with_type=False)) from None
 
+    from workbench.plugin.robot_problem import run_problem_names
+
+    # a robot file's runs are named after it (and its options), so robots stay distinct
+    names = run_problem_names([(p_name, p_opts) for p_name, p_opts, *_ in problems])
+    problems = [(name, *rest) for name, (_, *rest) in zip(names, problems, strict=True)]
     # entries and tolerances are free of repeats, so every run is distinct (no ids to hash)
     runs = [
         RunSpec(p_name, f_name, i_name, rtol, rtol * atol_factor, p_opts, f_opts, i_opts)
@@ -329,6 +340,7 @@ def parse_spec(
         text,
         repeats,
         float(repeat_budget),
+        store_trajectories,
     )
 
 

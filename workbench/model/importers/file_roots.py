@@ -1,5 +1,5 @@
 """Where a robot file may make the workbench read: its own folder, the package roots the
-user names, and folders the user allows (DESIGN.md, "Trust model"; docs/robots.md).
+user names, and folders the user allows (docs/architecture.md, "Trust model"; docs/robots.md).
 
 A robot file is data from someone else. Each file it names (a URDF mesh, an MJCF
 ``<include>``, mesh, texture or height field) is resolved here, symbolic links included,

@@ -14,9 +14,20 @@ resolves them.
   qvel the angular velocity in the child frame, as ours); free -> free (qpos = position and
   Euler parameters in the world; qvel = world velocity of the body origin and body-frame
   angular velocity, as ours).
-* joint ``stiffness`` (about ``springref``) and ``damping`` -> a JointSpringDamper;
-  ``armature``, ``frictionloss``, actuators, contacts and joint limits are not modelled:
-  each one present is listed in :attr:`ImportedRobot.notes`; limits are recorded.
+* joint ``stiffness`` and ``damping`` -> a JointSpringDamper on every joint type, as
+  MuJoCo's ``mj_passive``: about ``springref`` on a hinge or slide, and for a ball or free
+  joint on the rotation vector of the quaternion difference to its compiled pose
+  (``mju_subQuat``), the damping on every velocity; the ``spring``, ``damper``,
+  ``gravity`` and ``equality`` disable flags are honoured.
+* What changes the smooth dynamics but the model cannot hold (:data:`DROPPABLE`:
+  armature, frictionloss, gravcomp, fluid forces, nonlinear or plastic springs, actuator
+  armature and damping, engine plugins) refuses the file in one line naming the first
+  element, unless ``drop`` names it: then it is left out and noted.
+* Outside the compared dynamics by definition (the passive robot, free of contacts and
+  limits: docs/robots.md): actuators (the robot moves unactuated), contacts and geom
+  contact parameters, joint limits (recorded in :attr:`ImportedRobot.limits`, not
+  enforced); each present is listed in :attr:`ImportedRobot.notes`. Sensors, sites,
+  cameras, lights and materials are not dynamics.
 * equality ``connect`` -> a spherical loop-closing joint between its two anchors;
   ``weld`` -> a fixed loop-closing joint at the relative pose MuJoCo compiled; other
   equalities, tendons and flexes are refused (ModelError naming them).
@@ -26,7 +37,7 @@ resolves them.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +51,18 @@ from workbench.model.importers.mjcf_source import check_mjcf_source
 from workbench.model.model import Model
 
 TYPES = {0: "free", 1: "spherical", 2: "prismatic", 3: "revolute"}  # mjtJoint
+DROPPABLE = {
+    "armature": "rotor inertia added to the mass matrix's diagonal",
+    "frictionloss": "dry joint friction, a constraint force",
+    "gravcomp": "gravity compensation of bodies",
+    "fluid": "fluid forces of option density / viscosity",
+    "nonlinear-springs": "nonlinear joint springs and dampers (stiffnesspoly, dampingpoly)",
+    "plasticity": "plastic joint springs (springyield)",
+    "actuator-passive": "actuator armature and damping, which act without control",
+    "plugins": "engine plugins, which may add passive forces",
+}
+"""Terms of an MJCF file that change the smooth dynamics but that the model cannot hold:
+a file with any is refused, unless the import is told to ``drop`` them."""
 MJCF_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
 
 
@@ -49,9 +72,12 @@ def load_mjcf(
     package_path: Iterable[str | os.PathLike[str]] = (),
     allow_roots: Iterable[str | os.PathLike[str]] = (),
     max_file_mb: float = DEFAULT_MAX_MB,
+    drop: Sequence[str] = (),
 ) -> ImportedRobot:
     """Read the MJCF file at ``path`` into an :class:`ImportedRobot`; ``keyframe``: the
-    index of the keyframe giving the initial state (None: start at qpos0).
+    index of the keyframe giving the initial state (None: start at qpos0); ``drop``: names
+    of :data:`DROPPABLE` terms of the file to leave out (each listed in the notes) rather
+    than refuse the file.
 
     Before MuJoCo compiles it, the XML (and every file it includes) is checked: the files
     it names stay inside its folder or ``allow_roots`` (``package_path`` is accepted for
@@ -70,7 +96,13 @@ def load_mjcf(
     except ValueError as error:  # MuJoCo's compiler names the element and line
         message = " ".join(str(error).split())
         raise ModelError(f"{path}: MuJoCo cannot compile it: {message}") from None
-    return _Builder(path, compiled).build(keyframe)
+    unknown = sorted(set(drop) - set(DROPPABLE))
+    if unknown:
+        raise ModelError(
+            f"{path}: drop {unknown[0]!r} is not a term that can be left out; choose among "
+            f"{', '.join(DROPPABLE)}"
+        )
+    return _Builder(path, compiled, tuple(drop)).build(keyframe)
 
 
 def _quat_matrix(wxyz: np.ndarray) -> np.ndarray:
@@ -89,12 +121,65 @@ def _placement(position: np.ndarray, wxyz: np.ndarray) -> np.ndarray:
 
 
 class _Builder:
-    def __init__(self, path: Path, compiled: Any) -> None:
+    def __init__(self, path: Path, compiled: Any, drop: tuple[str, ...] = ()) -> None:
         import mujoco
 
-        self.mujoco, self.path, self.m = mujoco, path, compiled
-        self.model = Model(path.stem, "spatial", gravity=np.array(compiled.opt.gravity))
+        self.mujoco, self.path, self.m, self.drop = mujoco, path, compiled, drop
+        gravity = np.array(compiled.opt.gravity, float)
+        if self.disabled("mjDSBL_GRAVITY"):
+            gravity = np.zeros(3)
+        self.model = Model(path.stem, "spatial", gravity=gravity)
         self.imported = ImportedRobot(self.model, path)
+
+    def disabled(self, flag: str) -> bool:
+        """The file's <option><flag> switches ``flag`` (an mjtDisableBit name) off."""
+        return bool(self.m.opt.disableflags & getattr(self.mujoco.mjtDisableBit, flag))
+
+    def refuse_unmodelled(self) -> None:
+        """Refuse (one line naming the first element) each :data:`DROPPABLE` term the file
+        has, unless it is in ``drop``: then it is left out and noted."""
+        m = self.m
+        dof_joint = np.asarray(m.dof_jntid, int)
+        checks = [  # (term, values a row per element, element kind, element of a row, name)
+            ("armature", m.dof_armature, "joint", dof_joint, "armature"),
+            ("nonlinear-springs", m.jnt_stiffnesspoly, "joint", None, "stiffnesspoly"),
+            ("nonlinear-springs", m.dof_dampingpoly, "joint", dof_joint, "dampingpoly"),
+            ("plasticity", m.jnt_springyield, "joint", None, "springyield"),
+            ("actuator-passive", m.actuator_armature, "actuator", None, "armature"),
+            ("actuator-passive", m.actuator_damping, "actuator", None, "damping"),
+        ]
+        if not (self.disabled("mjDSBL_FRICTIONLOSS") or self.disabled("mjDSBL_CONSTRAINT")):
+            checks.append(("frictionloss", m.dof_frictionloss, "joint", dof_joint, "frictionloss"))
+        if not self.disabled("mjDSBL_GRAVITY") and np.any(m.opt.gravity):
+            checks.append(("gravcomp", m.body_gravcomp, "body", None, "gravcomp"))
+        found: dict[str, str] = {}
+        for term, values, kind, owners, attribute in checks:
+            rows = np.asarray(values, float)
+            rows = rows.reshape(rows.shape[0], -1) if rows.size else rows.reshape(0, 1)
+            hits = np.flatnonzero(np.any(rows != 0, axis=1))
+            if term in found or not hits.size:
+                continue
+            if term == "nonlinear-springs" and self.disabled(
+                "mjDSBL_SPRING" if attribute == "stiffnesspoly" else "mjDSBL_DAMPER"
+            ):
+                continue
+            index = int(hits[0] if owners is None else owners[hits[0]])
+            kind_object = getattr(self.mujoco.mjtObj, f"mjOBJ_{kind.upper()}")
+            shown = " ".join(f"{x:g}" for x in rows[hits[0]])
+            found[term] = f"{kind} {self.name(kind_object, index, kind)!r}: {attribute} {shown}"
+        if m.opt.density > 0 or m.opt.viscosity > 0:
+            found["fluid"] = f"<option> density {m.opt.density:g}, viscosity {m.opt.viscosity:g}"
+        if m.nplugin:
+            found["plugins"] = f"{m.nplugin} engine plugin(s)"
+        for term, where in found.items():
+            if term in self.drop:
+                self.imported.notes.append(f"{where}: left out ({DROPPABLE[term]}; drop)")
+                continue
+            raise ModelError(
+                f"{self.path}: {where} ({DROPPABLE[term]}) cannot be represented in the "
+                f"model; remove it from the file, or import with drop=[{term!r}] (the robot "
+                f"problem's option drop) to compare the robot without it"
+            )
 
     def name(self, kind: Any, index: int, fallback: str) -> str:
         name = self.mujoco.mj_id2name(self.m, kind, index)
@@ -123,8 +208,17 @@ class _Builder:
     def build(self, keyframe: int | None) -> ImportedRobot:
         m, obj = self.m, self.mujoco.mjtObj
         self.refuse_unsupported()
+        self.refuse_unmodelled()
         names = [self.name(obj.mjOBJ_BODY, b, "body") for b in range(m.nbody)]
         names[0] = GROUND
+        # MJCF names bodies, joints and equalities apart; the model does not: a body that
+        # shares a joint's or an equality's name becomes <name>_body
+        taken = {self.name(obj.mjOBJ_JOINT, j, "joint") for j in range(m.njnt)}
+        taken |= {self.name(obj.mjOBJ_EQUALITY, e, "equality") for e in range(m.neq)}
+        bodies = list(names)
+        for index in range(1, m.nbody):
+            while bodies[index] in taken:
+                bodies[index] += "_body"
         host: dict[int, tuple[str, np.ndarray]] = {0: (GROUND, np.eye(4))}
         inertias: dict[str, RigidInertia] = {}
         joint_of: dict[int, int] = {}
@@ -142,8 +236,8 @@ class _Builder:
             if count == 0:
                 host[body] = (parent_body, placement)
             else:
-                host[body] = (names[body], np.eye(4))
-                inertias[names[body]] = RigidInertia()
+                host[body] = (bodies[body], np.eye(4))
+                inertias[bodies[body]] = RigidInertia()
                 joint_of[body] = int(m.body_jntadr[body])
         shapes: dict[str, list[Shape]] = {name: [] for name in inertias}
         for body in range(1, m.nbody):
@@ -170,10 +264,13 @@ class _Builder:
         for body, joint in joint_of.items():
             parent = host[int(m.body_parentid[body])]
             self.add_joint(
-                joint, names[body], parent, _placement(m.body_pos[body], m.body_quat[body])
+                joint, bodies[body], parent, _placement(m.body_pos[body], m.body_quat[body])
             )
-        for index in range(m.neq):
-            self.add_equality(index, names, host)
+        if m.neq and (self.disabled("mjDSBL_EQUALITY") or self.disabled("mjDSBL_CONSTRAINT")):
+            self.imported.notes.append("equality constraints disabled in the file: none imported")
+        else:
+            for index in range(m.neq):
+                self.add_equality(index, names, host)
         self.note_unmodelled()
         if keyframe is not None and m.nkey > keyframe:
             self.read_keyframe(keyframe)
@@ -205,16 +302,39 @@ class _Builder:
             axis=np.array(m.jnt_axis[joint], float),
         )  # fmt: skip
         self.imported.file_joint_types[name] = MJCF_TYPES[kind]
-        if kind in (2, 3):
-            if m.jnt_limited[joint]:
-                self.imported.limits[name] = tuple(float(x) for x in m.jnt_range[joint])
-            dof, address = int(m.jnt_dofadr[joint]), int(m.jnt_qposadr[joint])
-            stiffness, damping = float(m.jnt_stiffness[joint]), float(m.dof_damping[dof])
-            if stiffness or damping:
-                rest = float(m.qpos_spring[address] - m.qpos0[address])
-                self.model.add_force(
-                    JointSpringDamper(f"{name} spring-damper", name, stiffness, damping, rest)
-                )
+        if kind in (2, 3) and m.jnt_limited[joint]:
+            self.imported.limits[name] = tuple(float(x) for x in m.jnt_range[joint])
+        self.add_spring_damper(joint, name, kind)
+
+    def add_spring_damper(self, joint: int, name: str, kind: int) -> None:
+        """MuJoCo's joint spring (``stiffness`` about ``qpos_spring``: ``springref`` of a
+        hinge or slide, the compiled pose qpos0 of a ball or free joint) and damper
+        (``damping`` on every velocity of the joint), unless the file disables them."""
+        m, disabled = self.m, self.m.opt.disableflags
+        nq, nv = {0: (7, 6), 1: (4, 3), 2: (1, 1), 3: (1, 1)}[kind]
+        dof, address = int(m.jnt_dofadr[joint]), int(m.jnt_qposadr[joint])
+        stiffness = float(m.jnt_stiffness[joint])
+        dampings = np.array(m.dof_damping[dof : dof + nv], float)
+        if disabled & self.mujoco.mjtDisableBit.mjDSBL_SPRING:
+            stiffness = 0.0
+        if disabled & self.mujoco.mjtDisableBit.mjDSBL_DAMPER:
+            dampings[:] = 0.0
+        if np.ptp(dampings) > 0:  # MJCF gives one damping a joint; refuse what differs
+            raise ModelError(
+                f"{self.path}: joint {name!r}: damping differs between its degrees of freedom "
+                f"({dampings.tolist()}); the model takes one damping a joint"
+            )
+        damping = float(dampings[0])
+        if not (stiffness or damping):
+            return
+        rest = np.array(m.qpos_spring[address : address + nq], float)
+        if kind in (2, 3):  # our angle or displacement is qpos - qpos0
+            rest = float(rest[0] - m.qpos0[address])
+        else:
+            rest = tuple(float(x) for x in rest)
+        self.model.add_force(
+            JointSpringDamper(f"{name} spring-damper", name, stiffness, damping, rest)
+        )
 
     def add_equality(self, index: int, names: list[str], host: dict) -> None:
         m, obj = self.m, self.mujoco.mjtObj
@@ -256,16 +376,14 @@ class _Builder:
         return None
 
     def note_unmodelled(self) -> None:
+        """What the compared dynamics leaves out by definition (the passive robot, free of
+        contacts and limits; docs/robots.md): noted, not refused."""
         m, notes = self.m, self.imported.notes
-        if np.any(m.dof_armature):
-            notes.append("joint armature (rotor inertia) is not modelled")
-        if np.any(m.dof_frictionloss):
-            notes.append("joint frictionloss is not modelled")
         if m.nu:
             notes.append(f"{m.nu} actuator(s) not modelled (the robot moves unactuated)")
         if np.any(m.jnt_limited):
             notes.append("joint limits are recorded, not enforced")
-        if m.ngeom and not m.opt.disableflags & self.mujoco.mjtDisableBit.mjDSBL_CONTACT:
+        if m.ngeom and not self.disabled("mjDSBL_CONTACT"):
             notes.append("contacts are not modelled")
 
     def read_keyframe(self, key: int) -> None:

@@ -11,11 +11,15 @@ http://wiki.ros.org/urdf/XML).
 * revolute and continuous -> revolute (one angle: a continuous joint is not written as
   (cos, sin) as Pinocchio does); prismatic -> prismatic; floating -> free (position of the
   child in the parent's joint frame, Euler parameters scalar-first); planar -> planar in the
-  plane normal to the axis; fixed -> the child link is welded into its parent's body: its
-  mass, centre of mass and inertia are combined (parallel-axis theorem) and its visuals
-  move with it. The root link is fixed to the ground unless ``floating_base`` gives it a
-  free joint (Pinocchio's ``JointModelFreeFlyer`` root); links welded to the ground carry
-  no dynamics.
+  plane normal to the axis (its x and y are the joint frame's turned by the least rotation
+  taking z onto the axis: for axis z, q = (x, y, angle) as Pinocchio's ``JointModelPlanar``);
+  fixed -> the child link is welded into its parent's body: its mass, centre of mass and
+  inertia are combined (parallel-axis theorem) and its visuals move with it. A moving
+  link without mass that carries other moving links (a gimbal's link between joints) is a
+  massless body; at the end of a chain it is refused. A link with a mass and a zero
+  inertia is a point mass at its centre of mass. The root link is fixed to the ground
+  unless ``floating_base`` gives it a free joint (Pinocchio's ``JointModelFreeFlyer``
+  root); links welded to the ground carry no dynamics.
 * ``<limit>`` lower/upper are recorded in :attr:`ImportedRobot.limits`, not enforced;
   ``<dynamics>`` damping and friction are not modelled (the file's joint then moves
   freely); mimic joints are refused unless ``mimic="independent"``.
@@ -29,6 +33,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, Literal
@@ -61,6 +66,10 @@ NUMERIC_ATTRIBUTES = {
     "effort", "velocity", "radius", "length", "size", "scale", "multiplier", "offset",
     "damping", "friction", "rgba",
 }  # fmt: skip
+
+
+# elements outside the URDF specification's kinematics and dynamics: never read here
+IGNORED_EXTENSIONS = ("gazebo", "transmission")
 
 
 class _Source:
@@ -113,11 +122,26 @@ class _Source:
         return f"{self.path}: {owner}<{element.tag}> (line {element.sourceline})"
 
     def check(self) -> None:
-        """Numbers are finite numbers, joints have a known type, a parent and a child."""
+        """Numbers are finite numbers, joints have a known type, a parent and a child.
+
+        Only the URDF specification's own attributes are numbers: ``<gazebo>`` and
+        ``<transmission>`` extensions are not read (PR2's ``<material value="PR2/...">``
+        names a Gazebo material), and ``value`` is a number on ``<mass>`` only."""
+        if not self.root.get("name"):
+            raise ModelError(
+                f'{self.path}: line {self.root.sourceline}: <robot> has no name="..."; the '
+                "URDF specification requires one (Pinocchio and yourdfpy refuse it too)"
+            )
         for element in self.root.iter():
-            if not isinstance(element.tag, str):
+            if not isinstance(element.tag, str) or any(
+                ancestor.tag in IGNORED_EXTENSIONS for ancestor in element.iterancestors()
+            ):
+                continue
+            if element.tag in IGNORED_EXTENSIONS:
                 continue
             for attribute in NUMERIC_ATTRIBUTES & set(element.attrib):
+                if attribute == "value" and element.tag != "mass":
+                    continue
                 text = element.get(attribute)
                 try:
                     values = [float(word) for word in text.split()]
@@ -206,6 +230,7 @@ class _Builder:
         kwargs = {} if gravity is None else {"gravity": gravity}
         self.model = Model(robot.name or source.path.stem, "spatial", **kwargs)
         self.imported = ImportedRobot(self.model, source.path)
+        self.link_of: dict[str, str] = {}  # body -> the link it is named after
 
     # -- the tree ---------------------------------------------------------------------
     def root_link(self) -> tuple[str, dict[str, list[Any]]]:
@@ -242,16 +267,35 @@ class _Builder:
             )
         return roots[0], children
 
+    def body_name(self, link: str) -> str:
+        """The body of a moving link: the link's name, unless a joint has that name too
+        (URDF allows it; the model does not): then ``<link>_link``."""
+        joints = {joint.name for joint in self.robot.joints}
+        if self.floating_base:
+            joints.add("root_joint")
+        name = link
+        while name in joints:
+            name += "_link"
+        self.link_of[name] = link
+        return name
+
     def build(self) -> ImportedRobot:
         root, children = self.root_link()
+        if all(j.type == "fixed" for j in self.robot.joints) and not self.floating_base:
+            raise ModelError(
+                f"{self.source.where('link', root)}: the file has no moving joint, so its "
+                "links are fixed to the ground and nothing moves; import with "
+                "floating_base=True (option floating_base = true) to let it fly freely"
+            )
         # host[link] = (body or GROUND, 4x4 link frame in that body's frame)
         host: dict[str, tuple[str, np.ndarray]] = {}
         inertias: dict[str, RigidInertia] = {}
         moved_by: dict[str, str] = {}  # body -> the file joint that moves it
         if self.floating_base:
-            host[root] = (root, np.eye(4))
-            inertias[root] = RigidInertia()
-            moved_by[root] = "root_joint"
+            body = self.body_name(root)
+            host[root] = (body, np.eye(4))
+            inertias[body] = RigidInertia()
+            moved_by[body] = "root_joint"
         else:
             host[root] = (GROUND, np.eye(4))
         order = [root]
@@ -263,9 +307,10 @@ class _Builder:
             if joint.type == "fixed":
                 host[joint.child] = (parent_body, placement)
             else:
-                host[joint.child] = (joint.child, np.eye(4))
-                inertias[joint.child] = RigidInertia()
-                moved_by[joint.child] = joint.name
+                body = self.body_name(joint.child)
+                host[joint.child] = (body, np.eye(4))
+                inertias[body] = RigidInertia()
+                moved_by[body] = joint.name
             order.append(joint.child)
             stack.extend(reversed(children.get(joint.child, [])))
         reached = set(order)
@@ -282,16 +327,28 @@ class _Builder:
             self.imported.links[name] = (body, frame_of(placement))
             self.add_inertial(links[name], body, placement, inertias)
             self.add_visuals(links[name], body, placement, shapes)
+        carrying = {host[j.parent][0] for j in self.robot.joints if j.type != "fixed"}
         for body, inertia in inertias.items():
+            if inertia.mass <= 0.0 and body in carrying:  # a massless link between joints
+                self.model.add_point_mass(body, 0.0, shapes[body])
+                continue
             if inertia.mass <= 0.0:
                 raise ModelError(
-                    f"{self.source.where('link', body)}: moves with joint {moved_by[body]!r} "
-                    "but has no mass (no <inertial>, or mass 0, on it and on the links fixed "
-                    "to it); give it an <inertial> with a mass > 0"
+                    f"{self.source.where('link', self.link_of[body])}: moves with joint "
+                    f"{moved_by[body]!r} but has no mass (no <inertial>, or mass 0, on it and "
+                    "on the links fixed to it) and carries no moving link, so that joint "
+                    "moves nothing (its mass matrix is singular); give it an <inertial> "
+                    "with a mass > 0"
                 )
+            if np.abs(inertia.inertia).max() <= 1e-12 * inertia.mass:  # a zero inertia:
+                # a point mass (1e-12 kg m^2 a kg: round-off of rotated zero inertias)
+                self.model.add_point_mass(body, inertia.mass, shapes[body], com=inertia.com)
+                continue
             self.model.add_body(body, inertia.mass, inertia.com, inertia.inertia, shapes[body])
         if self.floating_base:
-            self.model.add_joint(self.unique_joint_name("root_joint"), "free", GROUND, root)
+            self.model.add_joint(
+                self.unique_joint_name("root_joint"), "free", GROUND, host[root][0]
+            )
             self.imported.file_joint_types["root_joint"] = "floating"
         joint_to = {joint.child: joint for joint in self.robot.joints}
         for name in order[1:]:
@@ -301,14 +358,25 @@ class _Builder:
         try:
             self.model.validate()
         except ModelError as error:
-            raise ModelError(f"{self.source.path}: {error}") from None
+            raise ModelError(f"{self.where_model(str(error))}: {error}") from None
         return self.imported
 
+    def where_model(self, message: str) -> str:
+        """The file and, when the model's message names a body or joint, its element
+        and line in the file."""
+        found = re.search(r"\b(body|joint) '([^']+)'", message)
+        if found is None:
+            return str(self.source.path)
+        kind, name = found.groups()
+        if kind == "body":
+            return self.source.where("link", self.link_of.get(name, name))
+        return self.source.where("joint", name)
+
     def unique_joint_name(self, name: str) -> str:
-        if name in self.model.bodies or name in self.model.joints:
+        if name in self.model.joints:  # "root_joint" of floating_base, and a file joint
             raise ModelError(
-                f"{self.source.where('joint', name)}: the name {name!r} is also a link's; "
-                "give joints and links different names"
+                f"{self.source.where('joint', name)}: the name {name!r} is the free base's "
+                "(floating_base); rename the joint"
             )
         return name
 
@@ -396,7 +464,7 @@ class _Builder:
             name,
             MODEL_TYPES[joint.type],
             parent_body,
-            joint.child,
+            host[joint.child][0],
             frame_of(placement),
             child_frame,
             axis=axis,
@@ -424,11 +492,16 @@ def _homogeneous(rotation: np.ndarray) -> np.ndarray:
 
 
 def _z_to(axis: np.ndarray) -> np.ndarray:
-    """A rotation whose third column is the unit ``axis``."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, axis)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(axis, x), axis])
+    """The least rotation taking z onto the unit ``axis`` (Rodrigues): the identity for
+    axis z, so the plane's x and y are the joint frame's, as in URDF and Pinocchio's
+    ``JointModelPlanar``; for axis -z a half turn about x."""
+    z = np.array([0.0, 0.0, 1.0])
+    cosine = float(axis @ z)
+    if cosine < -1.0 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    k = np.cross(z, axis)
+    cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + cross + cross @ cross / (1.0 + cosine)
 
 
 def _shape(geometry: Any, frame: Frame) -> Shape | None:

@@ -1,4 +1,4 @@
-"""Static HTML reports of a sweep (DESIGN.md, "Runs, results, reports").
+"""Static HTML reports of a sweep (docs/architecture.md, "Runs, results, reports").
 
 :func:`write_report` turns a results DataFrame (one row a run; the columns of
 :mod:`workbench.runs.store`) and the runs' time series into a directory::

@@ -68,7 +68,8 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
     if missing:
         raise ConfigError(
             f"results lack the column(s) {', '.join(missing)}; "
-            "give a table written by workbench.runs.store (see DESIGN.md, 'Runs, results, reports')"
+            "give a table written by workbench.runs.store (see docs/architecture.md, "
+            "'Runs, results, reports')"
         )
     runs = results.copy().reset_index(drop=True)
     for column in NUMERIC_COLUMNS + ("rtol",):

@@ -1,0 +1,27 @@
+"""The public Python API: the CLI's verbs for notebooks and scripts.
+
+``workbench.run``, ``workbench.sweep``, ``workbench.describe``, ``workbench.load_results``
+and the registry's list (``workbench.list_plugins(kind)``),
+a thin layer beside the CLI over the same calls (``workbench.runs``). Everything here
+is also importable from ``workbench`` itself, lazily (``import workbench`` stays cheap).
+"""
+
+from workbench.api.catalog import Description, describe, list_plugins
+from workbench.api.plots import plot_work_precision
+from workbench.api.result import Result
+from workbench.api.runs import run
+from workbench.api.sweeps import sweep
+from workbench.runs.store import load_results, load_series, load_trajectory
+
+__all__ = [
+    "Description",
+    "Result",
+    "describe",
+    "list_plugins",
+    "load_results",
+    "load_series",
+    "load_trajectory",
+    "plot_work_precision",
+    "run",
+    "sweep",
+]

@@ -1,0 +1,144 @@
+"""What is registered: ``list_plugins(kind)`` and ``describe(name)``."""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+from typing import Any
+
+import pandas as pd
+
+from workbench.plugin import registry
+from workbench.plugin.options import option_fields, type_name
+
+
+def list_plugins(kind: str | None = None) -> pd.DataFrame:
+    """The registered plugins, as ``workbench list [KIND]`` prints them: one row a plugin
+    (kind, name, summary, status, module); ``kind``: problems, formalisms or
+    integrators (default all three). A broken plugin is listed with its error as status.
+
+    (Not ``workbench.problems()``: ``workbench.problems`` is the catalog's package.)"""
+    registry.REGISTRY.discover()
+    kinds = [registry.describe_kind(kind)] if kind is not None else list(registry.KINDS)
+    rows = [
+        {
+            "kind": info.kind,
+            "name": info.name,
+            "summary": getattr(info.plugin, "summary", "") if info.plugin else "",
+            "status": info.status,
+            "module": info.module,
+        }
+        for each in kinds
+        for info in registry.list_plugins(each)
+    ]
+    return pd.DataFrame(rows, columns=["kind", "name", "summary", "status", "module"])
+
+
+@dataclass
+class Description:
+    """What ``workbench describe NAME`` prints, as data: shown as tables in Jupyter.
+
+    ``options``: name, type and default of each option; ``model`` (problems only): the
+    model built with the options given, and ``facts``: its bodies, joints, topology,
+    reference and time span."""
+
+    name: str
+    kind: str
+    plugin: type
+    options: pd.DataFrame
+    model: Any = None
+    facts: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def summary(self) -> str:
+        return getattr(self.plugin, "summary", "")
+
+    def __repr__(self) -> str:
+        lines = [f"{self.name} ({self.kind}): {self.summary}"]
+        lines += [f"  {key}: {value}" for key, value in self.facts.items()]
+        lines += [
+            f"  option {name} ({row['type']}) = {row['default']!r}"
+            for name, row in self.options.iterrows()
+        ]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        facts = "".join(
+            f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+            f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
+            for k, v in self.facts.items()
+        )
+        options = self.options.to_html() if len(self.options) else "<p>no options</p>"
+        model = self.model._repr_html_() if self.model is not None else ""
+        return (
+            f"<h4>{html.escape(self.name)} <small>({self.kind})</small></h4>"
+            f"<p>{html.escape(self.summary)}</p>"
+            + (f"<table>{facts}</table>" if facts else "")
+            + model
+            + f"<b>options</b>{options}"
+        )
+
+
+def describe(name: str | type, **options: Any) -> Description:
+    """Describe a registered problem, formalism or integrator (a name, or the class), or
+    a robot file (``.urdf``, MJCF ``.xml``);
+    ``options`` are a problem's (e.g. ``describe(NAME, n=5)``)."""
+    from workbench.api.runs import robot_file
+
+    registry.REGISTRY.discover()
+    if robot_file(name, None)[1] is not None:  # a robot file: the robot problem of it
+        name, given = robot_file(name, None)
+        options = given | options
+    if isinstance(name, type):
+        plugin = name
+        kind = next(k for k in registry.KINDS if issubclass_of_kind(plugin, k))
+        name = plugin.name
+    else:
+        kind, plugin = registry.any_plugin(name)
+    rows = [
+        {"name": n, "type": type_name(t), "default": d}
+        for n, t, d in option_fields(getattr(plugin, "Options", None) or _NoOptions)
+    ]
+    table = pd.DataFrame(rows, columns=["name", "type", "default"]).set_index("name")
+    description = Description(name, kind, plugin, table)
+    if kind == "problem":
+        problem = plugin(options)
+        description.model = problem.model()
+        description.facts = model_facts(problem, description.model)
+    elif options:
+        from workbench.errors import ConfigError
+
+        raise ConfigError(f"describe {name}: options describe a problem; {name} is a {kind}")
+    return description
+
+
+def issubclass_of_kind(plugin: type, kind: str) -> bool:
+    from workbench.plugin.formalism import Formalism
+    from workbench.plugin.integrator import Integrator
+    from workbench.plugin.problem import Problem
+
+    base = {"problem": Problem, "formalism": Formalism, "integrator": Integrator}[kind]
+    return issubclass(plugin, base)
+
+
+@dataclass(frozen=True)
+class _NoOptions:
+    pass
+
+
+def model_facts(problem: Any, model: Any) -> dict[str, str]:
+    """A problem's model in a few lines: kind, bodies, joints, loops, DOF, time span."""
+    from workbench.mechanics.topology import analyze
+
+    topology = analyze(model)
+    dof = topology.dof if topology.dof is not None else topology.dof_gruebler
+    return {
+        "kind": model.kind,
+        "bodies": f"{len(model.bodies)}: {', '.join(model.bodies)}",
+        "joints": f"{len(model.joints)}: {', '.join(model.joints)}",
+        "loops": str(topology.n_loops),
+        "DOF": str(dof),
+        "nonholonomic rows": str(topology.n_nonholonomic),
+        "conservative": "yes" if problem.conservative else "no",
+        "time span": f"{problem.t_start:g} .. {problem.t_end:g} s",
+    }

@@ -1,0 +1,200 @@
+"""The result of ``workbench.run``: its row, trajectory, series and plots."""
+
+from __future__ import annotations
+
+import html
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from workbench.errors import WorkbenchError
+from workbench.runs.store import SERIES_COLUMNS, STATE_PREFIX
+
+# the row's columns a result shows first (its HTML and its repr)
+HEADLINE = [
+    ("status", "status"),
+    ("form", "form integrated"),
+    ("scd", "scd (correct digits at the end)"),
+    ("err_end", "pose error at the end (m)"),
+    ("drift_pos_max", "max position drift"),
+    ("drift_vel_max", "max velocity drift"),
+    ("energy_err_max", "max relative energy error"),
+    ("integrate_s", "integration wall time (s)"),
+    ("integrate_cpu_s", "integration CPU time (s)"),
+    ("n_rhs", "right-hand sides"),
+    ("n_steps", "steps"),
+]
+
+
+@dataclass
+class Result:
+    """One run: ``row`` (a pandas Series, the columns of
+    ``workbench.runs.store.SCHEMA``), ``series`` (drift, energy and error at every output
+    sample) and ``trajectory`` (time ``t`` in s and every named coordinate, velocity and
+    multiplier). ``equations`` and ``problem`` are the objects the run used (None if it
+    stopped before building them)."""
+
+    row: pd.Series
+    series: pd.DataFrame
+    equations: Any = None
+    problem: Any = None
+    charts: list[Any] | None = None
+
+    @property
+    def run_id(self) -> str:
+        return str(self.row["run_id"])
+
+    @property
+    def ok(self) -> bool:
+        """True if the run finished and its audit found nothing wrong."""
+        return self.row["status"] == "ok" and not self.row.get("warnings")
+
+    @property
+    def trajectory(self) -> pd.DataFrame:
+        """States at the output samples reached: ``t`` and one column per state, named as
+        the equations name them (q, v, then ``lambda:<constraint>`` where the form has
+        multipliers)."""
+        names = [c for c in self.series.columns if c.startswith(STATE_PREFIX)]
+        frame = self.series[["t", *names]]
+        return frame.rename(columns=lambda c: c.removeprefix(STATE_PREFIX))
+
+    @property
+    def drift(self) -> pd.DataFrame:
+        """Constraint residuals over time: ``t``, ``drift_pos``, ``drift_vel``, ``drift_nh``."""
+        return self.series[["t", "drift_pos", "drift_vel", "drift_nh"]]
+
+    @property
+    def energy(self) -> pd.DataFrame:
+        """Relative energy error over time: ``t``, ``energy_err`` (NaN if not conservative)."""
+        return self.series[["t", "energy_err"]]
+
+    @property
+    def error(self) -> pd.DataFrame:
+        """Pose error against the reference over time: ``t``, ``ref_err`` (m)."""
+        return self.series[["t", "ref_err"]]
+
+    def poses(self) -> pd.DataFrame:
+        """Every body's pose at the output samples: ``t``, then per body ``<body>.x``,
+        ``.y``, ``.z`` (m) and the unit quaternion ``.p0`` .. ``.p3`` (scalar first)."""
+        if self.equations is None:
+            raise WorkbenchError(
+                f"run {self.run_id} has no equations to compute poses from "
+                f"({self.row['status']}: {self.row['message']})"
+            )
+        trajectory = self.trajectory
+        times = trajectory["t"].to_numpy()
+        q = trajectory.iloc[:, 1 : 1 + self.equations.nq].to_numpy()
+        poses = np.empty((len(times), len(self.equations.observables.body_names), 7))
+        atlas = getattr(self.equations, "atlas", None)
+        charts = self.charts if self.charts and atlas is not None else [None] * len(times)
+        for chart in dict.fromkeys(charts):  # each sample in its own chart's coordinates
+            rows = np.array([k for k, c in enumerate(charts) if c == chart], dtype=int)
+            equations = self.equations if chart is None else atlas.equations(chart)
+            poses[rows] = equations.observables.poses_along(times[rows], q[rows])
+        columns = {"t": times}
+        for b, body in enumerate(self.equations.observables.body_names):
+            for k, part in enumerate(("x", "y", "z", "p0", "p1", "p2", "p3")):
+                columns[f"{body}.{part}"] = poses[:, b, k]
+        return pd.DataFrame(columns)
+
+    # ---- plots (matplotlib) ------------------------------------------------------------
+
+    def plot(self, columns: list[str] | None = None, ax: Any = None) -> Any:
+        """The trajectory's coordinates (or the named ``columns``) against time; the Axes."""
+        trajectory = self.trajectory
+        names = columns or trajectory.columns[1 : 1 + _nq(self, trajectory)].tolist()
+        ax = _axes(ax)
+        for name in names:
+            ax.plot(trajectory["t"], trajectory[name], label=name)
+        ax.set_xlabel("t [s]")
+        ax.set_title(_title(self.row))
+        if len(names) <= 12:
+            ax.legend(fontsize="small")
+        return ax
+
+    def plot_drift(self, ax: Any = None) -> Any:
+        """Position, velocity and nonholonomic constraint residuals against time (log y)."""
+        return _plot_series(self, ["drift_pos", "drift_vel", "drift_nh"], "constraint residual", ax)
+
+    def plot_energy(self, ax: Any = None) -> Any:
+        """The relative energy error against time (log y)."""
+        return _plot_series(self, ["energy_err"], "relative energy error", ax)
+
+    def plot_error(self, ax: Any = None) -> Any:
+        """The pose error against the reference over time (log y)."""
+        return _plot_series(self, ["ref_err"], "pose error [m]", ax)
+
+    # ---- display -------------------------------------------------------------------------
+
+    def headline(self) -> dict[str, Any]:
+        return {label: self.row.get(column) for column, label in HEADLINE if column in self.row}
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{k}={_text(v)}" for k, v in self.headline().items())
+        return f"<Result {self.run_id} {_title(self.row)}: {shown}>"
+
+    def _repr_html_(self) -> str:
+        rows = "".join(
+            f"<tr><th style='text-align:left'>{html.escape(label)}</th>"
+            f"<td style='text-align:left'>{html.escape(_text(value))}</td></tr>"
+            for label, value in self.headline().items()
+        )
+        notes = "".join(
+            f"<p><b>{name}</b>: {html.escape(str(self.row[name]))}</p>"
+            for name in ("message", "warnings")
+            if self.row.get(name)
+        )
+        states = self.series.shape[0], len(self.trajectory.columns) - 1
+        return (
+            f"<h4>{html.escape(_title(self.row))}</h4><table>{rows}</table>{notes}"
+            f"<p><small>run {self.run_id}: trajectory of {states[0]} samples x {states[1]} "
+            "states (<code>.trajectory</code>), series <code>.drift</code>, "
+            "<code>.energy</code>, <code>.error</code>; <code>.row</code> has every column"
+            "</small></p>"
+        )
+
+
+def _title(row: pd.Series) -> str:
+    return f"{row['problem']} / {row['formalism']} / {row['integrator']} @ rtol {row['rtol']:g}"
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return "" if math.isnan(value) else f"{value:.4g}"
+    return "" if value is None else str(value)
+
+
+def _nq(result: Result, trajectory: pd.DataFrame) -> int:
+    if result.equations is not None:
+        return result.equations.nq
+    return sum(1 for c in trajectory.columns[1:] if not c.endswith(".v") and ":" not in c)
+
+
+def _axes(ax: Any) -> Any:
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        _, ax = plt.subplots(figsize=(7, 3.5))
+    return ax
+
+
+def _plot_series(result: Result, columns: list[str], label: str, ax: Any) -> Any:
+    ax = _axes(ax)
+    series = result.series
+    for column in columns:
+        values = series[column].to_numpy(dtype=float)
+        if np.isfinite(values).any():
+            ax.plot(series["t"], np.maximum(values, 1e-300), label=column)
+    ax.set_yscale("log")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(label)
+    ax.set_title(_title(result.row))
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize="small")
+    return ax
+
+
+__all__ = ["Result", "SERIES_COLUMNS"]

@@ -1,0 +1,156 @@
+"""``workbench.run``: one run in this process, as ``workbench run`` does in a child."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from workbench.api.result import Result
+from workbench.errors import ConfigError
+from workbench.plugin import registry
+from workbench.plugin.options import option_fields
+from workbench.runs import store
+from workbench.runs.execute import RunSpec, execute_run, normalized_spec
+from workbench.runs.timing import DEFAULT_REPEAT_BUDGET, DEFAULT_REPEATS, Timing
+
+# (kind, name) of the classes registered here, not by importing their module: a worker
+# process that imports the module does not find them (workbench.api.sweeps runs them here)
+REGISTERED_HERE: set[tuple[str, str]] = set()
+
+
+def plugin_name(kind: str, plugin: str | type) -> str:
+    """The registered name of ``plugin``: a name as it is, or a plugin class, which is
+    registered first if it is not (so a class defined in a notebook can be run)."""
+    registry.REGISTRY.discover()
+    if isinstance(plugin, str):
+        return plugin
+    if not isinstance(plugin, type):
+        raise ConfigError(f"{kind}: expected a name or a {kind} class, not {plugin!r}")
+    known = registry.REGISTRY.entries[kind].get(getattr(plugin, "name", None))
+    if known is None or known.plugin is not plugin:
+        registry.REGISTRY.add(kind, plugin)
+        REGISTERED_HERE.add((kind, plugin.name))
+    return plugin.name
+
+
+def route_options(classes: dict[str, type], options: dict[str, Any]) -> dict[str, dict]:
+    """Options without a kind to the first plugin that declares them (formalism, then
+    integrator, then problem), as ``workbench run -o NAME=VALUE`` does."""
+    routed: dict[str, dict[str, Any]] = {kind: {} for kind in classes}
+    for option, value in options.items():
+        for kind in ("formalism", "integrator", "problem"):
+            options_class = getattr(classes[kind], "Options", None)
+            names = [n for n, _, _ in option_fields(options_class)] if options_class else []
+            if option in names:
+                routed[kind][option] = value
+                break
+        else:
+            raise ConfigError(
+                f"{option}=: no option of that name in the problem, formalism or integrator; "
+                "see workbench.describe(NAME)"
+            )
+    return routed
+
+
+def run(
+    problem: str | type,
+    formalism: str | type,
+    integrator: str | type,
+    rtol: float = 1e-6,
+    atol: float | None = None,
+    *,
+    problem_options: dict[str, Any] | None = None,
+    formalism_options: dict[str, Any] | None = None,
+    integrator_options: dict[str, Any] | None = None,
+    out: str | os.PathLike[str] | None = None,
+    repeats: int = DEFAULT_REPEATS,
+    repeat_budget: float = DEFAULT_REPEAT_BUDGET,
+    **options: Any,
+) -> Result:
+    """Run ``problem`` with ``formalism`` and ``integrator`` at ``rtol`` and return its
+    ``Result`` (row, trajectory, drift and energy, plots).
+
+    Each of the three is a registered name or a plugin class (registered if it is not,
+    so a class defined in a notebook runs as it is); ``problem`` may also be a robot
+    file (``.urdf``, MJCF ``.xml``), as in ``workbench run robot.urdf``. ``atol``
+    defaults to rtol * 1e-3.
+    ``options``: option values by name, each given to the formalism, integrator or
+    problem that declares it (``index=1``); ``*_options`` name the plugin explicitly.
+    ``out``: also store the run in that results directory (as ``workbench run --out``).
+    ``repeats``, ``repeat_budget``: how often the integration is timed.
+
+    The run executes in this process, with no time limit (``workbench run`` kills its
+    child at ``--time-limit``). A run that fails or is skipped is returned, not raised:
+    its ``row["status"]`` and ``row["message"]`` say what happened. Bad input (an
+    unknown name, option or tolerance) raises ``ConfigError``.
+    """
+    problem, problem_options = robot_file(problem, problem_options)
+    names = {
+        kind: plugin_name(kind, plugin)
+        for kind, plugin in (
+            ("problem", problem),
+            ("formalism", formalism),
+            ("integrator", integrator),
+        )
+    }
+    getters = {
+        "problem": registry.get_problem,
+        "formalism": registry.get_formalism,
+        "integrator": registry.get_integrator,
+    }
+    classes = {kind: getters[kind](name) for kind, name in names.items()}
+    routed = route_options(classes, options)
+    given = {"problem": problem_options, "formalism": formalism_options,
+             "integrator": integrator_options}  # fmt: skip
+    for kind, values in given.items():
+        routed[kind].update(values or {})
+    spec = normalized_spec(
+        RunSpec(
+            names["problem"],
+            names["formalism"],
+            names["integrator"],
+            rtol,
+            atol if atol is not None else rtol * 1e-3,
+            routed["problem"],
+            routed["formalism"],
+            routed["integrator"],
+        )
+    )
+    reference_dir = None
+    if out is not None:
+        reference_dir = Path(out) / "references"
+        reference_dir.mkdir(parents=True, exist_ok=True)
+    sink = _Keep()
+    outcome = execute_run(spec, sink=sink, reference_dir=reference_dir,
+                          timing=Timing(repeats, repeat_budget))  # fmt: skip
+    if out is not None:
+        store.write_run(Path(out), outcome.row, outcome.series)
+    return Result(
+        pd.Series(outcome.row),
+        outcome.series.reset_index(drop=True),
+        sink.equations,
+        sink.problem,
+        sink.charts,
+    )
+
+
+def robot_file(problem: Any, options: dict[str, Any] | None) -> tuple[Any, dict | None]:
+    """A robot file named where a problem is -> the robot problem and its ``file`` option."""
+    from workbench.plugin.robot_problem import ROBOT_PROBLEM, robot_format, robot_problem_options
+
+    if isinstance(problem, str | os.PathLike) and robot_format(str(problem)) is not None:
+        return ROBOT_PROBLEM, robot_problem_options(problem) | (options or {})
+    return problem, options
+
+
+class _Keep:
+    """The run's sink: keeps the equations and problem (for poses) and the charts."""
+
+    equations = problem = charts = None
+
+    def log_run(self, spec: Any, equations: Any, problem: Any, trajectory: Any, series: Any):
+        self.equations, self.problem = equations, problem
+        self.charts = getattr(trajectory, "charts", None)

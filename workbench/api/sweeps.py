@@ -1,0 +1,185 @@
+"""``workbench.sweep``: a sweep from a specification or keyword arguments, its results frame.
+
+Worker processes find a plugin by importing its module. A plugin class defined in the
+running kernel (``__main__``, a notebook cell) or in a module that cannot be imported by
+name has no module to import: a sweep with one runs in this process instead, one run after
+another and without the time limit (chosen automatically; ``in_process`` forces either).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from workbench.api.runs import REGISTERED_HERE, plugin_name
+from workbench.errors import ConfigError
+from workbench.plugin import registry
+from workbench.runs import store
+from workbench.runs.environment import sweep_environment
+from workbench.runs.execute import execute_run
+from workbench.runs.resume import plan_resume
+from workbench.runs.sweep import run_sweep
+from workbench.runs.sweep_spec import SUITE_NAME, SweepSpec, parse_spec, suite_text
+from workbench.runs.timing import Timing
+
+KINDS = {"problems": "problem", "formalisms": "formalism", "integrators": "integrator"}
+
+
+def sweep(
+    spec: str | os.PathLike[str] | dict[str, Any] | None = None,
+    *,
+    out: str | os.PathLike[str] | None = None,
+    progress: Callable[[int, int], Any] | Any = None,
+    in_process: bool | None = None,
+    fresh: bool = False,
+    **keys: Any,
+) -> pd.DataFrame:
+    """Run a sweep and return its results frame (as ``workbench.load_results``).
+
+    ``spec``: a sweep specification file, a suite name (``"iftomm"``), a dict of its keys,
+    or None; ``keys`` add or replace keys (``problems=[...]``, ``formalisms=[...]``,
+    ``integrators=[...]``, ``tolerances=[...]``, ``jobs=2``, ``store_trajectories=False``;
+    see the sweep specification's keys). In the three lists a plugin class may stand for
+    its name (registered if it is not). ``out``: the results directory (default the
+    specification's ``out``); runs already there are not redone unless ``fresh``.
+    ``progress``: called as ``progress(done, total)`` after each run, or a tqdm-like bar
+    (an object with ``update``: its ``total`` is set and it advances one a run).
+    ``in_process``: run here instead of in worker processes (default: only when a
+    plugin cannot be imported by a worker, e.g. a class defined in a notebook).
+    """
+    data = _spec_data(spec)
+    for key, value in keys.items():
+        data[key] = value
+    for key, kind in KINDS.items():
+        if key in data:
+            data[key] = _named(kind, data[key])
+    if out is not None:
+        data["out"] = str(out)
+    is_file = isinstance(spec, str | os.PathLike) and Path(spec).is_file()
+    source = str(spec) if is_file else "workbench.sweep"  # robot files are found beside it
+    parsed = parse_spec(toml_text(data), source, Path(spec).parent if is_file else None)
+    local = local_plugins(parsed)
+    here = bool(local) if in_process is None else in_process
+    callback = _progress(progress)
+    if here:
+        run_here(parsed, callback, fresh)
+    else:
+        run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
+                  say=lambda line: None)  # fmt: skip
+    return store.load_results(parsed.out)
+
+
+def _spec_data(spec: Any) -> dict[str, Any]:
+    if spec is None:
+        return {}
+    if isinstance(spec, dict):
+        return dict(spec)
+    if isinstance(spec, str) and SUITE_NAME.fullmatch(spec) and not Path(spec).exists():
+        return tomllib.loads(suite_text(spec))
+    try:
+        return tomllib.loads(Path(spec).read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise ConfigError(f"cannot read the sweep specification {spec}: {error}") from None
+
+
+def _named(kind: str, entries: Any) -> Any:
+    """A list of names, tables and classes with each class replaced by its name."""
+    if not isinstance(entries, list):
+        return plugin_name(kind, entries) if isinstance(entries, type) else entries
+    named = []
+    for entry in entries:
+        if isinstance(entry, type):
+            entry = plugin_name(kind, entry)
+        elif isinstance(entry, dict) and isinstance(entry.get("name"), type):
+            entry = entry | {"name": plugin_name(kind, entry["name"])}
+        named.append(entry)
+    return named
+
+
+def local_plugins(sweep: SweepSpec) -> list[str]:
+    """Names of the sweep's plugins a worker process would not find: defined in
+    ``__main__`` or in a module not found by name, or registered by the API rather than
+    by importing their module."""
+    found = []
+    for run in sweep.runs:
+        for kind, name in (("problem", run.problem), ("formalism", run.formalism),
+                           ("integrator", run.integrator)):  # fmt: skip
+            module = registry.REGISTRY.entries[kind][name].module
+            here = (kind, name) in REGISTERED_HERE
+            if name not in found and (here or not _importable(module)):
+                found.append(name)
+    return found
+
+
+def _importable(module: str) -> bool:
+    if module == "__main__":
+        return False
+    loaded = sys.modules.get(module)
+    if loaded is not None and getattr(loaded, "__spec__", None) is None:
+        return False  # an exec'd or hand-made module: no file a worker could import
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def run_here(sweep: SweepSpec, progress: Callable[[int, int], Any] | None, fresh: bool) -> None:
+    """The sweep's runs not yet done, one after another in this process, stored as a pool
+    stores them (the time limit is not enforced: nothing can stop a run in this process)."""
+    out = Path(sweep.out)
+    store.remove_stale_temporaries(out)
+    todo = plan_resume(sweep.runs, out, frozenset(), fresh).todo
+    (out / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
+    (out / "references").mkdir(exist_ok=True)
+    store.write_json_atomic(sweep_environment(), out / store.ENVIRONMENT_FILE)
+    store.write_text_atomic(sweep.text, out / "sweep.toml")
+    timing = Timing(sweep.repeats, sweep.repeat_budget)
+    for done, spec in enumerate(todo, 1):
+        result = execute_run(spec, reference_dir=out / "references", timing=timing)
+        result.row["log"] = ""
+        store.write_run(out, result.row, result.series, sweep.store_trajectories)
+        if progress is not None:
+            progress(done, len(todo))
+    store.consolidate(out)
+
+
+def _progress(progress: Any) -> Callable[[int, int], Any] | None:
+    """``progress`` as a callback ``(done, total)``: a tqdm-like bar is advanced."""
+    if progress is None or not hasattr(progress, "update"):
+        return progress
+
+    def advance(done: int, total: int) -> None:
+        progress.total = total
+        progress.update(done - progress.n if hasattr(progress, "n") else 1)
+
+    return advance
+
+
+# ---- a sweep specification as TOML text --------------------------------------------------
+
+
+def toml_text(data: dict[str, Any]) -> str:
+    """``data`` (strings, numbers, booleans, lists and tables) as TOML text."""
+    return "".join(f"{key} = {_toml_value(value, key)}\n" for key, value in data.items())
+
+
+def _toml_value(value: Any, key: str) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, str | os.PathLike):
+        return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v, key) for v in value) + "]"
+    if isinstance(value, dict):
+        items = ", ".join(f"{k} = {_toml_value(v, key)}" for k, v in value.items())
+        return "{ " + items + " }"
+    raise ConfigError(f"sweep key {key}: {value!r} is not a TOML value (text, number, list, table)")
