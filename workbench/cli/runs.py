@@ -313,15 +313,21 @@ def sweep(
         )
     )
     typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
-    from workbench.outputs.report import report_directory
+    from workbench.outputs.report import current_report, report_directory
 
+    kept = " (unchanged: made from the same rows)"
     if summary.unfinished and not store.completed_run_ids(summary.out):
         typer.echo("report: none (no run has a row yet)")
+    elif index := current_report(summary.out, stale=summary.stale):
+        typer.echo(f"report: {index}{kept}")
     else:
         index = _sweep_report(summary, report_directory)
         typer.echo(f"report: {index}")
     if summary.recording is not None:
-        typer.echo(f"recording: {summary.recording} (workbench view {summary.recording})")
+        same = "unchanged: made from the same runs; " * (
+            summary.recording.name in summary.unchanged
+        )
+        typer.echo(f"recording: {summary.recording} ({same}workbench view {summary.recording})")
     if loaded.suite != FULL_SUITE:
         typer.echo(
             f"full comparison: workbench sweep {FULL_SUITE} (every problem, formalism and "

@@ -135,14 +135,24 @@ def _end_recording(sink: Any) -> None:
             sink.end_file()
 
 
-def merge_run_recordings(recorder: Any, out: Path) -> Path | None:
-    """Merge the per-run recordings of ``out`` into one file (``recorder.merge``)."""
+def merge_run_recordings(recorder: Any, out: Path) -> tuple[Path | None, bool]:
+    """Merge the per-run recordings of ``out`` into one file (``recorder.merge``):
+    (its path or None, merged now). With ``recorder.merged_file``, a merged file made from
+    the same run files by the same recorder code is kept (:mod:`workbench.runs.output_keys`)."""
+    from workbench.runs import output_keys
+
     files = sorted((out / RECORDINGS_DIR).glob(f"*.{recorder.suffix}"))
     if not files:
-        return None
+        return None, False
     check_no_links(out / RECORDINGS_DIR, out)  # read and written below out, never through
     check_no_links(out / "recording.rrd", out)  # a link (workbench.files)
-    return recorder.merge(files, out)
+    merged = getattr(recorder, "merged_file", None)
+    if merged is None:
+        return recorder.merge(files, out), True
+    key = output_keys.key_of(
+        output_keys.files_key(files), output_keys.source_key(recorder.__module__)
+    )
+    return output_keys.remake(out / merged, key, lambda: recorder.merge(files, out), root=out)
 
 
 def exit_with_parent(parent_pid: int | None = None, scratch: Path | None = None) -> None:

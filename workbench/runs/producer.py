@@ -85,8 +85,13 @@ def plugin_producer(plugin: type) -> str:
             part in _INSTALLED for part in path.parts
         ):
             continue  # the standard library (abc, typing): Python's, not the plugin's
-        installed = _distribution_of(module_name.partition(".")[0])
-        if installed and any(part in _INSTALLED for part in path.parts):
+        # only for a file in site-packages: the lookup of all distributions' files takes
+        # seconds, once a process (a no-op resume's largest cost; an editable install's
+        # plugins never need it)
+        installed = any(part in _INSTALLED for part in path.parts) and _distribution_of(
+            module_name.partition(".")[0]
+        )
+        if installed:
             distributions.append(installed)
             continue
         try:

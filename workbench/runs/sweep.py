@@ -29,7 +29,7 @@ from typing import Any
 
 from workbench.errors import ConfigError
 from workbench.files import make_dirs
-from workbench.runs import store
+from workbench.runs import output_keys, store
 from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
 from workbench.runs.estimate import estimate_lines, known_costs
@@ -57,6 +57,8 @@ class SweepSummary:
     stale: dict[str, str] = field(default_factory=dict)
     # runs left without a row by the infrastructure (run id -> why): a resume redoes them
     unfinished: dict[str, str] = field(default_factory=dict)
+    # outputs kept as they were, their inputs unchanged (results.parquet, recording.rrd)
+    unchanged: list[str] = field(default_factory=list)
 
     @property
     def total(self) -> int:
@@ -85,8 +87,10 @@ def run_sweep(
     ``recorder``: what records each run of the local pool (a class, made once a worker:
     ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``end_file()``; class
     attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
-    ``prepare()``), e.g. :class:`workbench.outputs.recording.RerunSink`; None records
-    nothing. Passed in, so the runs layer knows no recording format.
+    ``prepare()`` and ``merged_file``, the name of merge's file in ``out``: it is then
+    merged again only when the runs' files changed), e.g.
+    :class:`workbench.outputs.recording.RerunSink`; None records nothing. Passed in, so
+    the runs layer knows no recording format.
 
     ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
     runs (:func:`workbench.runs.resume.plan_resume`); ``say`` receives the one-line
@@ -148,11 +152,20 @@ def run_sweep(
                     todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing,
                     states,
                 )
-        results = store.consolidate(out_dir)
+        # remade only if their inputs changed (workbench.runs.output_keys): a resume with
+        # nothing to do returns in seconds
+        results, remade = output_keys.remake(
+            out_dir / store.RESULTS_FILE,
+            output_keys.rows_key(out_dir),
+            lambda: store.consolidate(out_dir),
+            root=out_dir,
+        )
+        unchanged = [] if remade else [store.RESULTS_FILE]
         recording = None
         if recorder is not None:
             try:  # a recording is a view, never fatal to the results ...
-                recording = merge_run_recordings(recorder, out_dir)
+                recording, remade = merge_run_recordings(recorder, out_dir)
+                unchanged += [] if remade or recording is None else [recording.name]
             except OSError:
                 raise  # ... but a full or read-only disk is said (rows kept; resume merges)
             except Exception:  # noqa: BLE001, S110
@@ -166,6 +179,7 @@ def run_sweep(
         recording,
         stale={} if "stale" in plan.rerun or fresh else plan.stale,
         unfinished=unfinished,
+        unchanged=unchanged,
     )
 
 

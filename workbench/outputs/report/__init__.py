@@ -69,7 +69,12 @@ from workbench.outputs.report.figures import (
 )
 from workbench.outputs.report.page import LIBRARIES, library_versions, machine_description
 from workbench.outputs.report.tables import latex_table, markdown_table, write_table
-from workbench.outputs.report.writer import SeriesLoader, report_directory, write_report
+from workbench.outputs.report.writer import (
+    SeriesLoader,
+    current_report,
+    report_directory,
+    write_report,
+)
 
 __all__ = [
     "DRIFT_QUANTITIES",
@@ -84,6 +89,7 @@ __all__ = [
     "PairStyles",
     "SeriesLoader",
     "cheapest_pairs",
+    "current_report",
     "drift_figure",
     "drift_runs",
     "drift_table",

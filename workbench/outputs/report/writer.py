@@ -61,6 +61,7 @@ from workbench.outputs.report.pool import (
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
 from workbench.outputs.report.traits import problem_traits
+from workbench.runs import output_keys
 from workbench.runs.progress import progress_bar
 
 SeriesLoader = Callable[[str], pd.DataFrame | None]
@@ -252,11 +253,50 @@ def report_directory(
 
     if command is None:
         command = shlex.join(["workbench", "report", str(source), "--out", str(target)])
+    index = target / "index.html"
+    key = report_key(source, stale, cost) if source.is_dir() else None
+    output_keys.forget(index)
     plan = load_plan(directory)
-    return write_report(
+    index = write_report(
         frame, series_loader, target, command, progress=progress, cost=cost, plan=plan,
         paper=paper,
     )  # fmt: skip
+    if key is not None:
+        output_keys.remember(index, key, root=target)
+    return index
+
+
+def report_key(
+    results_dir: str | os.PathLike[str],
+    stale: Mapping[str, str] | None = None,
+    cost: str | None = None,
+) -> str:
+    """What a report of the results directory is made from: its rows' content
+    (:func:`workbench.runs.output_keys.rows_key`; a run's series is rewritten only with
+    its row), the stale rows, the cost measure and the report's code."""
+    return output_keys.key_of(
+        output_keys.rows_key(results_dir),
+        repr(sorted((stale or {}).items())),
+        str(cost),
+        output_keys.source_key("workbench.outputs.report"),
+    )
+
+
+def current_report(
+    results_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str] | None = None,
+    *,
+    stale: Mapping[str, str] | None = None,
+    cost: str | None = None,
+) -> Path | None:
+    """The ``index.html`` of the report of ``results_dir`` (in ``out_dir``, default
+    ``<results_dir>/report``) if :func:`report_directory` made it from the same inputs
+    (:func:`report_key`), else None: a resume with nothing new keeps the report."""
+    source = Path(results_dir)
+    if not source.is_dir():
+        return None
+    index = (Path(out_dir) if out_dir is not None else source / "report") / "index.html"
+    return index if output_keys.is_current(index, report_key(source, stale, cost)) else None
 
 
 def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> Overview:

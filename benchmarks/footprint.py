@@ -1,0 +1,232 @@
+"""Footprint of a sweep's outputs (issue 35): the merge's memory and a no-op resume's time.
+
+Run: ``python -m benchmarks.footprint [N_MERGE ...] [--resume N_RUNS]`` (defaults: merges
+of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load 8 on
+2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it).
+
+1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
+   shapes and joint frames, 200 poses, 5 series a run) are merged into one file in a fresh
+   process, by the streaming merge of :func:`workbench.outputs.recording.merge_recordings`
+   ("after") and by the merge it replaced ("before": every chunk kept in one in-memory
+   binary stream until the file is written). Columns: the process's peak RSS during the
+   merge (VmHWM, reset when the merge starts: Linux) and its growth over the RSS at that
+   start (imports done), CPU seconds, the merged file's and the inputs' sizes.
+2. No-op resume: a sweep of N_RUNS tiny runs (simple pendulum, minimal-ode, DOP853 and
+   RK45 at N_RUNS/2 tolerances) is run, then run again with nothing to do: "after" as is,
+   "before" with the outputs' keys removed first (``*.inputs``: then the results table, the
+   recording and the report are remade, as before keys existed; the code is otherwise
+   this one's, e.g. the producer's cheaper distribution lookup helps both). Wall and CPU
+   seconds of the command (its workers included), the peak RSS of its largest process,
+   and how many outputs it said were unchanged (of recording and report).
+
+Prints the table and the load average; writes ``benchmarks/results/footprint.csv``.
+On a shared machine wall times mean little: compare CPU seconds and memory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+
+RESULTS = Path(__file__).parent / "results"
+FRAMES = 200  # poses a run, as SweepRecorder
+
+
+# ---- merge ------------------------------------------------------------------------------
+
+
+class _Observables:
+    body_names = ("arm", "tip")
+
+    def poses_along(self, times: np.ndarray, q: np.ndarray) -> np.ndarray:
+        half = 0.5 * times
+        arm = np.stack([0 * times, 0 * times, 0 * times, np.cos(half), 0 * times, 0 * times,
+                        np.sin(half)], axis=1)  # fmt: skip
+        tip = np.stack([np.cos(times), np.sin(times), 0 * times, 1 + 0 * times, 0 * times,
+                        0 * times, 0 * times], axis=1)  # fmt: skip
+        return np.stack([arm, tip], axis=1)
+
+
+def _equations() -> SimpleNamespace:
+    from workbench.model import Frame, Model, Shape
+
+    model = Model("benchmark-arm", kind="spatial")
+    model.add_body(
+        "arm",
+        1.0,
+        inertia=(1.0, 1.0, 1.0),
+        shapes=[Shape("box", (1.0, 0.1, 0.1), Frame.at(0.5, 0, 0)), Shape("cylinder", (0.05, 0.2))],
+    )
+    model.add_point_mass("tip", 0.5, shapes=[Shape("sphere", (0.05,))])
+    model.add_joint("hinge", "revolute", "ground", "arm")
+    model.add_joint("slide", "prismatic", "arm", "tip", parent_frame=Frame.at(1.0, 0, 0))
+    return SimpleNamespace(model=model, observables=_Observables(), nq=2)
+
+
+def write_run_recordings(directory: Path, n: int) -> list[Path]:
+    """``n`` per-run recordings, as a sweep's worker writes them (one sink, a file a run)."""
+    from workbench.outputs.recording import SweepRecorder
+
+    sink, equations = SweepRecorder(), _equations()
+    times = np.linspace(0.0, 10.0, 1001)
+    files = []
+    for index in range(n):
+        rtol = 10 ** (-3 - 6 * index / max(n - 1, 1))
+        spec = SimpleNamespace(
+            problem="arm", formalism="minimal-ode", integrator="dop853", rtol=rtol,
+            run_id=f"run{index:05d}",
+        )  # fmt: skip
+        series = pd.DataFrame({"run_id": spec.run_id, "t": times} | {
+            quantity: rtol * (1 + index) * times
+            for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err")
+        })  # fmt: skip
+        trajectory = SimpleNamespace(times=times, y=np.zeros((len(times), 4)))
+        sink.begin_file(directory / f"{spec.run_id}.rrd")
+        sink.log_run(spec, equations, None, trajectory, series)
+        files.append(sink.end_file())
+    return files
+
+
+def merge_before(files: list[Path], target: Path) -> Path:
+    """The merge this module replaced: every chunk in one in-memory binary stream."""
+    from workbench.outputs.recording import RerunSink
+
+    sink = RerunSink()
+    for file in files:
+        sink.add_recording(file)
+    return sink.save(target)
+
+
+def _merge_child(method: str, directory: str, n: int) -> None:
+    """In a fresh process: merge the first ``n`` files, print the measures as JSON."""
+    import rerun  # noqa: F401 - imported before the baseline, as in a sweep
+
+    from workbench.outputs.recording import merge_recordings
+
+    files = sorted(Path(directory).glob("run*.rrd"))[:n]
+    Path("/proc/self/clear_refs").write_text("5")  # the peak (VmHWM) restarts from here
+    baseline = _status_kib("VmRSS")
+    started = time.process_time()
+    merge = merge_recordings if method == "after" else merge_before
+    target = merge(files, Path(directory) / f"merged-{method}-{n}.rrd")
+    peak = _status_kib("VmHWM")
+    print(json.dumps({
+        "peak_rss_mib": peak / 1024, "growth_mib": (peak - baseline) / 1024,
+        "cpu_s": time.process_time() - started, "size_mib": target.stat().st_size / 2**20,
+        "inputs_mib": sum(f.stat().st_size for f in files) / 2**20,
+    }))  # fmt: skip
+    target.unlink()
+
+
+def _status_kib(field: str) -> int:
+    """A field of /proc/self/status in KiB (Linux)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1])
+    raise RuntimeError(f"no {field} in /proc/self/status")
+
+
+def merge_rows(counts: list[int]) -> list[dict]:
+    rows = []
+    with tempfile.TemporaryDirectory() as directory:
+        write_run_recordings(Path(directory), max(counts))
+        for n in counts:
+            for method in ("before", "after"):
+                command = [sys.executable, "-m", "benchmarks.footprint", "--merge-child",
+                           method, directory, str(n)]  # fmt: skip
+                done = subprocess.run(command, capture_output=True, text=True, check=True)
+                measured = json.loads(done.stdout.strip().splitlines()[-1])
+                rows.append({"measure": "merge", "n": n, "code": method} | measured)
+                rows[-1]["load_1min"] = os.getloadavg()[0]
+                print(rows[-1], flush=True)
+    return rows
+
+
+# ---- no-op resume -----------------------------------------------------------------------
+
+
+def resume_spec(out: Path, n_runs: int) -> str:
+    tolerances = ", ".join(f"{t:.6e}" for t in np.logspace(-3, -8, max(1, n_runs // 2)))
+    return (
+        f'out = "{out.as_posix()}"\ntolerances = [{tolerances}]\n'
+        'problems = ["simple-pendulum"]\nformalisms = ["minimal-ode"]\n'
+        'integrators = ["scipy-dop853", "scipy-rk45"]\n'
+    )
+
+
+def _sweep(spec: Path) -> dict:
+    """Run ``workbench sweep SPEC`` (2 workers, 1 timed sample a run) from a fresh process
+    of this module, so that the peak RSS is this command's: its measures."""
+    command = [sys.executable, "-m", "benchmarks.footprint", "--sweep-child", str(spec)]
+    done = subprocess.run(command, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _sweep_child(spec: str) -> None:
+    workbench = Path(sys.executable).with_name("workbench")
+    started = time.perf_counter()
+    done = subprocess.run(
+        [str(workbench), "sweep", spec, "-j", "2", "--repeats", "1"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    print(json.dumps({
+        "wall_s": time.perf_counter() - started,
+        "cpu_s": used.ru_utime + used.ru_stime,  # the command and its workers
+        "peak_rss_mib": used.ru_maxrss / 1024,  # its largest process
+        "kept": done.stdout.count("(unchanged"),  # outputs said unchanged
+    }))  # fmt: skip
+
+
+def resume_rows(n_runs: int) -> list[dict]:
+    rows = []
+    with tempfile.TemporaryDirectory() as directory:
+        out = Path(directory) / "out"
+        spec = Path(directory) / "spec.toml"
+        spec.write_text(resume_spec(out, n_runs))
+        first = _sweep(spec)
+        print(f"first sweep of {n_runs} runs: {first['wall_s']:.1f} s", flush=True)
+        for code in ("before", "after"):
+            if code == "before":
+                for key in out.rglob("*.inputs"):
+                    key.unlink()
+            row = {"measure": "no-op resume", "n": n_runs, "code": code} | _sweep(spec)
+            rows.append(row | {"load_1min": os.getloadavg()[0]})
+            print(rows[-1], flush=True)
+    return rows
+
+
+def main(argv: list[str]) -> pd.DataFrame:
+    if argv[:1] == ["--sweep-child"]:
+        _sweep_child(argv[1])
+        return pd.DataFrame()
+    if argv[:1] == ["--merge-child"]:
+        _merge_child(argv[1], argv[2], int(argv[3]))
+        return pd.DataFrame()
+    n_runs = 100
+    if "--resume" in argv:
+        at = argv.index("--resume")
+        n_runs = int(argv[at + 1])
+        argv = argv[:at] + argv[at + 2 :]
+    counts = [int(a) for a in argv] or [100, 1000]
+    print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    table = pd.DataFrame(merge_rows(counts) + resume_rows(n_runs))
+    RESULTS.mkdir(exist_ok=True)
+    table.to_csv(RESULTS / "footprint.csv", index=False)
+    with pd.option_context("display.width", 200, "display.max_columns", 20):
+        print(table.round(2).to_string(index=False))
+    return table
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,89 @@
+"""A resume with nothing to do keeps the results table, the merged recording and the report
+(issue 35.3): they are remade only when their inputs changed (workbench.runs.output_keys)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from tests.test_sweep import spec_text
+from workbench.outputs.report import current_report
+from workbench.runs import output_keys, store
+
+FALLING = '["test-falling"]'  # an analytic reference: no reference pipeline to run
+
+
+@pytest.fixture(autouse=True)
+def fresh_workers(monkeypatch):
+    """Workers started by spawn, as in tests/test_resume.py (they import the plugins anew)."""
+    import multiprocessing
+
+    from workbench.runs import local_pool
+
+    monkeypatch.setattr(local_pool, "_context", lambda: multiprocessing.get_context("spawn"))
+
+
+def identity(path: Path) -> tuple[int, int]:
+    """(inode, modification time in ns): a file replaced or rewritten changes one of them."""
+    stat = path.stat()
+    return stat.st_ino, stat.st_mtime_ns
+
+
+def test_a_resume_with_nothing_to_do_keeps_recording_and_report(
+    fake_plugins, tmp_path, monkeypatch
+) -> None:
+    from workbench.cli import app
+
+    out = tmp_path / "out"
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text(out, '["test-rk45"]', problems=FALLING))
+    monkeypatch.setattr("sys.argv", ["workbench", "sweep", str(spec)])
+    outputs = [out / "recording.rrd", out / "report" / "index.html", out / store.RESULTS_FILE]
+
+    def sweep() -> str:
+        result = CliRunner().invoke(app, ["sweep", str(spec)])
+        assert result.exit_code == 0, result.output
+        return result.output
+
+    first = sweep()
+    assert "unchanged" not in first
+    before = [identity(path) for path in outputs]
+
+    again = sweep()  # every row done and whole: nothing is remade, and it says so
+    assert [identity(path) for path in outputs] == before
+    assert "report: " in again and "index.html (unchanged: made from the same rows)" in again
+    assert "recording.rrd (unchanged: made from the same runs; workbench view" in again
+
+    row = next((out / store.RUNS_DIR).glob("*.json"))
+    row.unlink()  # its run is done again: new inputs for every output
+    redone = sweep()
+    assert "1 runs in" in redone and "unchanged" not in redone
+    after = [identity(path) for path in outputs]
+    assert all(new != old for new, old in zip(after, before, strict=True))
+
+
+def test_the_report_key_follows_the_rows_stale_marks_and_cost(tmp_path) -> None:
+    """The key is of the rows' content, not their times: a row rewritten with the same
+    bytes keeps the report, one byte changed, a stale mark or another cost remakes it."""
+    runs = tmp_path / store.RUNS_DIR
+    runs.mkdir()
+    (runs / "a.json").write_text('{"run_id": "a", "status": "ok"}')
+    index = tmp_path / "report" / "index.html"
+    index.parent.mkdir()
+    index.write_text("<html></html>")
+    from workbench.outputs.report.writer import report_key
+
+    output_keys.remember(index, report_key(tmp_path))
+    assert current_report(tmp_path) == index
+    os.utime(runs / "a.json", ns=(0, 0))  # touched, same content
+    assert current_report(tmp_path) == index
+    assert current_report(tmp_path, stale={"a": "plugin changed"}) is None
+    assert current_report(tmp_path, cost="n_rhs") is None
+    (runs / "a.json").write_text('{"run_id": "a", "status": "failed"}')
+    assert current_report(tmp_path) is None
+    (runs / "a.json").write_text('{"run_id": "a", "status": "ok"}')
+    index.unlink()  # the output itself gone: remade whatever its key says
+    assert current_report(tmp_path) is None

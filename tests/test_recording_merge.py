@@ -1,0 +1,100 @@
+"""Merging the per-run recordings of a sweep (issue 35.2): the merged file holds every run's
+chunks, and the merge's memory does not grow with the number of runs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+import rerun as rr
+
+from tests.test_recording import _args, fake_run
+from workbench.outputs.recording import RerunSink, merge_recordings, split_entity_path
+
+
+def write_runs(directory: Path, n: int) -> list[Path]:
+    """``n`` per-run recordings as a sweep's worker writes them (one sink, a file a run)."""
+    sink, files = RerunSink(), []
+    for index in range(n):
+        sink.begin_file(directory / f"run{index:04d}.rrd")
+        sink.log_run(*_args(fake_run(10 ** (-3 - 6 * index / n), n=1000)))
+        files.append(sink.end_file())
+    return files
+
+
+def run_chunks(path: Path) -> Counter:
+    """(entity path, rows) of each chunk of a run (recording properties left out)."""
+    return Counter(
+        (chunk.entity_path, chunk.num_rows)
+        for chunk in rr.chunk.RrdReader(path).stream().to_chunks()
+        if split_entity_path(chunk.entity_path)[:1] == ["runs"]
+    )
+
+
+def test_the_merged_recording_holds_every_runs_chunks(tmp_path) -> None:
+    files = write_runs(tmp_path, 5)
+    merged = merge_recordings(files, tmp_path / "merged.rrd")
+    expected = sum((run_chunks(file) for file in files), Counter())
+    # the problem's view coordinates, logged by every run, are kept once a run as before
+    assert run_chunks(merged) == expected
+    assert len({path for path, _ in expected if "/series/ref_err" in path}) == 5
+    assert rr.chunk.RrdReader(merged).blueprints()  # the blueprint joins at the end
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [f.name for f in files] + ["merged.rrd"]
+    )  # no temporary file left
+
+
+def test_a_merge_on_a_full_disk_is_an_oserror_and_leaves_nothing(tmp_path, monkeypatch) -> None:
+    import errno
+    import shutil
+    from collections import namedtuple
+
+    files = write_runs(tmp_path, 2)
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(10**9, 10**9, 1000))
+    with pytest.raises(OSError) as raised:
+        merge_recordings(files, tmp_path / "merged.rrd")
+    assert raised.value.errno == errno.ENOSPC and "MiB needed to merge" in str(raised.value)
+    assert not (tmp_path / "merged.rrd").exists() and len(list(tmp_path.iterdir())) == 2
+
+
+MERGE_CHILD = """
+import json, sys
+from pathlib import Path
+import rerun
+from workbench.outputs.recording import merge_recordings
+
+def status(field):
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) * 1024
+
+files = sorted(Path(sys.argv[1]).glob("run*.rrd"))[: int(sys.argv[2])]
+Path("/proc/self/clear_refs").write_text("5")  # the peak restarts here
+start = status("VmRSS")
+merge_recordings(files, Path(sys.argv[1]) / "merged.rrd")
+print(json.dumps({"growth": status("VmHWM") - start,
+                  "inputs": sum(f.stat().st_size for f in files)}))
+"""
+
+
+@pytest.mark.skipif(
+    not Path("/proc/self/clear_refs").exists(), reason="measures the peak RSS of Linux"
+)
+def test_the_merge_memory_does_not_grow_with_the_runs(tmp_path) -> None:
+    """The peak memory of a merge of 200 runs exceeds that of 50 by far less than the
+    150 runs' bytes (the merge that kept every chunk until the end grew by about 4x them)."""
+    write_runs(tmp_path, 200)
+
+    def merge(n: int) -> dict[str, int]:
+        command = [sys.executable, "-c", MERGE_CHILD, str(tmp_path), str(n)]
+        done = subprocess.run(command, capture_output=True, text=True, check=True, timeout=600)
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    few, many = merge(50), merge(200)
+    assert many["inputs"] > 3.5 * few["inputs"]
+    assert many["growth"] - few["growth"] < 0.5 * (many["inputs"] - few["inputs"])
