@@ -300,3 +300,22 @@ def test_the_cache_keeps_the_most_recently_used_libraries_within_its_limit(cache
     assert removed == 2
     assert {p.name for p in cache.glob("*.so")} == {paths[0].name, paths[3].name}
     assert compiled.cache_size() == (2, paths[0].stat().st_size + paths[3].stat().st_size)
+
+
+def test_the_cache_command_shows_and_clears_the_compiled_libraries(cache):
+    from typer.testing import CliRunner
+
+    from workbench.cli import app
+
+    x = ca.SX.sym("x")
+    for k in range(2):
+        compiled.compile_function(ca.Function(f"g{k}", [x], [x + k]))
+    runner = CliRunner()
+    shown = runner.invoke(app, ["cache", "info"])
+    assert shown.exit_code == 0 and "2 compiled libraries" in shown.output
+    assert str(cache) in shown.output.replace("\n", "")
+    kept = runner.invoke(app, ["cache", "clear"], input="n\n")
+    assert kept.exit_code == 1 and len(list(cache.glob("*.so"))) == 2
+    cleared = runner.invoke(app, ["cache", "clear", "--yes"])
+    assert cleared.exit_code == 0 and "removed 2 compiled libraries" in cleared.output
+    assert list(cache.glob("*.so")) == []

@@ -2,10 +2,10 @@
 
 ``app`` holds what every command shares (one-line errors, exit code 2 on bad input, the
 console); ``plugins`` (list, describe, new), ``runs`` (run, sweep, results, reference) and
-``outputs`` (report, view) add their commands to it when imported here.
+``outputs`` (report, view, paper) and ``cache`` (info, clear) add their commands to it when imported here.
 """
 
-from workbench.cli import outputs, plugins, runs  # noqa: F401 - register the commands
+from workbench.cli import cache, outputs, plugins, runs  # noqa: F401 - register the commands
 from workbench.cli.app import app, main
 
 __all__ = ["app", "main"]
