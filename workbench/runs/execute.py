@@ -417,6 +417,10 @@ def execute_run(
                 row["notes"] = "; ".join(
                     filter(None, [row.get("notes", ""), state.get("notes", ""), switched])
                 )
+                own = "; ".join(getattr(trajectory, "warnings", None) or [])
+                if own:  # the integrator's own (e.g. the accuracy asked was not attempted)
+                    found = "; ".join(filter(None, [row.get("warnings", ""), own]))
+                    row["warnings"] = one_line_text(found)
                 if samples.difference:  # the samples did not time the same work
                     found = "; ".join(filter(None, [row.get("warnings", ""), samples.difference]))
                     row["warnings"] = one_line_text(f"not reproducible: {found}")
