@@ -234,7 +234,10 @@ def _branch_columns(equations: Any, times: np.ndarray, q: np.ndarray,
     constraints = constraints_of(equations)
     if constraints is None or (charts and len({id(c) for c in charts[: len(times)]}) > 1):
         return {"branch_left_at": math.nan, "branch_distance_max": math.nan}
-    left_at, distance = branch_departure(constraints, np.asarray(times, dtype=float), q)
+    try:
+        left_at, distance = branch_departure(constraints, np.asarray(times, dtype=float), q)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):  # not decided
+        left_at = distance = math.nan
     return {"branch_left_at": left_at, "branch_distance_max": distance}
 
 
