@@ -82,7 +82,8 @@ def test_warnings_are_one_line_and_listed_in_the_schema():
 
     row = run("iftomm-a02", "minimal-ode", "sundials-cvode-bdf", 1e-4, {"index": 1})
     assert "\n" not in row["warnings"]
-    for column in ("warnings", "jacobian_sv_ratio_min", "dof_start", "dof_max",
+    for column in ("warnings", "jacobian_sv_ratio_min", "branch_left_at", "branch_distance_max",
+                   "dof_start", "dof_max",
                    "rotation_defect_max", "reference_accuracy"):  # fmt: skip
         assert column in store.SCHEMA_COLUMNS and column in row
 
