@@ -86,6 +86,7 @@ def test_a_worker_child_keeps_its_equations_and_survives_a_timeout(
     # a hung run is killed at its limit (2 s; a loaded machine is slow, not hung forever)
     row, series = submit(client, hung, 2.0, worker).result(timeout=HUNG)
     assert row["status"] == "timeout" and "time limit of 2 s" in row["message"]
+    assert row["stage"] == "integrate" and "killed in stage 'integrate'" in row["message"]
     assert series is None and not psutil.pid_exists(child)
     row, _ = submit(client, first, HUNG, worker).result(timeout=HUNG)
     assert row["status"] == "ok" and not row["equations_cached"]  # a fresh child

@@ -49,7 +49,13 @@ the difference between the generalized-alpha position q_{n+1} and the second-ord
 predictor q_n + h H (v_n + h/2 v'_n), both O(h^3) accurate locally, so the difference is
 an O(h^3) (conservative) measure of the local error; weighted by atol + rtol |q| (RMS),
 a step is accepted when it is <= 1 and the next step is h * clip(0.9 err^(-1/3), 0.2, 4).
-A Newton failure shrinks the step by 4 (adaptive) or raises (fixed step).
+A Newton failure shrinks the step by 4 (adaptive); with a fixed step it redoes the output
+interval with half the step (at most HALVINGS times), keeps the shorter step and warns in
+the row: on Andrews' squeezer the step rtol 1e-6 asks (1 ms) turns the fastest body by
+too much for Newton near t = 0.025 s (issue 32: hht-alpha and lie-generalized-alpha failed
+there with every formalism; the Arnold-Bruls scaling of the constraint rows is in place).
+When rtol asks a step longer than the output interval, the interval is taken and the row
+warns that the accuracy asked was not attempted (:func:`step_warning`).
 
 Trajectories carry [q, v, lambda] (lambda of every velocity-level constraint row).
 """
@@ -121,6 +127,23 @@ def default_step(times: np.ndarray, step: float | None, rtol: float) -> float:
     return float(min(step_for_tolerance(rtol, ORDER), np.min(np.diff(times))))
 
 
+def step_warning(times: np.ndarray, step: float | None, rtol: float) -> str:
+    """The row's warning when rtol did not set the step: the step rtol asks
+    (:func:`step_for_tolerance`) is longer than the output interval, so the interval was
+    taken instead, the same step as at a tighter rtol ('' otherwise)."""
+    interval = float(np.min(np.diff(times))) if len(times) > 1 else math.inf
+    if step is not None or not step_for_tolerance(rtol, ORDER) > interval * (1 + 1e-9):
+        return ""
+    return (
+        f"the accuracy asked was not attempted: rtol {rtol:g} asks a step of "
+        f"{step_for_tolerance(rtol, ORDER):.3g} s, longer than the output interval "
+        f"{interval:.3g} s, which was taken instead (as at a tighter rtol)"
+    )
+
+
+HALVINGS = 10  # a fixed step halved at most this often after Newton failures (1/1024)
+
+
 def is_identity_kinematics(mech: Any, t: float, q: np.ndarray, nv: int) -> bool:
     """True if q' = v (H = identity, f = 0) at q and at a perturbed q and time."""
     if q.size != nv:
@@ -170,6 +193,9 @@ class GeneralizedAlpha(Integrator):
         h = default_step(times, options.step, task.rtol)
         if not options.adaptive:
             stats.fixed_step = h
+            trajectory.warnings.extend(filter(None, [step_warning(times, options.step,
+                                                                  task.rtol)]))  # fmt: skip
+        halvings = 0
         h_min = 1e-14 * max(1.0, abs(times[-1]))
         try:
             for t_out in times[1:]:
@@ -204,16 +230,38 @@ class GeneralizedAlpha(Integrator):
                                     f"at t = {t:.6g}"
                                 )
                 else:
-                    n_steps = max(1, math.ceil((t_out - t) / h - 1e-9))
-                    h_interval = (t_out - t) / n_steps
-                    t_start = t
-                    for k in range(n_steps):
+                    # Newton fails when a step is too long for the motion (Andrews'
+                    # squeezer at 1 ms near t = 0.025 s): the interval is redone with
+                    # half the step, kept for the rest of the run and said in the row
+                    t_start, start = t, state
+                    while True:
+                        n_steps = max(1, math.ceil((t_out - t_start) / h - 1e-9))
+                        h_interval = (t_out - t_start) / n_steps
+                        t, state = t_start, start
                         try:
-                            state = self._step(state, t, h_interval, stats)
+                            for k in range(n_steps):
+                                state = self._step(state, t, h_interval, stats)
+                                stats.n_steps += 1
+                                t = t_start + (k + 1) * h_interval
                         except _NewtonFailure as failure:
-                            raise IntegrationError(str(failure)) from None
-                        stats.n_steps += 1
-                        t = t_start + (k + 1) * h_interval
+                            stats.n_rejected += 1
+                            halvings += 1
+                            if halvings > HALVINGS:
+                                raise IntegrationError(
+                                    f"{failure} after {HALVINGS} halvings of the step: the "
+                                    "trajectory had left the motion at the longer steps; set "
+                                    "a shorter step or adaptive=True"
+                                ) from None
+                            h = h_interval / 2
+                            stats.fixed_step = min(stats.fixed_step, h)
+                            continue
+                        break
+                    if halvings and not any("halved" in w for w in trajectory.warnings):
+                        trajectory.warnings.append(
+                            f"step halved: Newton failed near t = {t_out:.6g} s at the step "
+                            f"rtol asked (the motion is too fast for it; fixed_step_s is the "
+                            "shortest step taken)"
+                        )
                     t = float(t_out)
                 rows.append(np.concatenate([state.q, state.v, state.lam]))
                 reached.append(float(t_out))

@@ -46,7 +46,11 @@ from workbench.equations.initial import accelerations
 from workbench.errors import ConfigError, IntegrationError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators.generalized_alpha import default_step, is_identity_kinematics
+from workbench.plugins.integrators.generalized_alpha import (
+    default_step,
+    is_identity_kinematics,
+    step_warning,
+)
 
 
 @dataclass(frozen=True)
@@ -94,6 +98,8 @@ class VariationalMidpoint(Integrator):
         rows, reached = [np.concatenate([q, v, lam])], [t]
         step = default_step(times, task.options.step, task.rtol)
         self.stats.fixed_step = step
+        trajectory.warnings.extend(filter(None, [step_warning(times, task.options.step,
+                                                              task.rtol)]))  # fmt: skip
         lam_position = np.zeros(self.nc)
         try:
             for t_out in times[1:]:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 
 from workbench.equations import Equations
 from workbench.errors import IntegrationError
@@ -21,7 +22,7 @@ from workbench.mechanics.kinematics import (
     initial_joint_values,
     normalize_quaternions,
 )
-from workbench.numerics.linalg import gauss_newton, independent_columns
+from workbench.numerics.linalg import gauss_newton, independent_columns, independent_rows
 
 
 @dataclass
@@ -36,6 +37,7 @@ class InitialState:
     multipliers: np.ndarray
     q_joint: np.ndarray
     v_joint: np.ndarray
+    acceleration_solve: str = ""  # how v' was solved (:func:`solve_accelerations`)
 
     def y0(self, equations: Equations, form: str) -> np.ndarray:
         """Initial state vector of ``form`` ([q, v, (lambda), (mu)])."""
@@ -79,8 +81,13 @@ def _dependent_columns(jacobian: np.ndarray, fixed: list[int]) -> np.ndarray:
 
 
 def project_joint_state(
-    kinematics: TreeKinematics, problem: Any, t0: float, q: np.ndarray, v: np.ndarray,
-    tolerance: float = 1e-12, max_iterations: int = 50,
+    kinematics: TreeKinematics,
+    problem: Any,
+    t0: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    tolerance: float = 1e-12,
+    max_iterations: int = 50,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Project (q (nq), v (nv)) onto g(t0, q) = 0 and W v + w = 0, independent ones fixed.
 
@@ -89,10 +96,12 @@ def project_joint_state(
     ``independent_coordinates``) to max |g| <= ``tolerance``; velocities by one
     least-squares solve in the dependent velocities.
     """
-    g_function = kinematics.function("closure", [kinematics.closure_constraints,
-                                                 kinematics.closure_jacobian], with_v=False)
-    w_function = kinematics.function("velocity", [kinematics.velocity_constraint_matrix,
-                                                  kinematics.velocity_constraint_bias])
+    g_function = kinematics.function(
+        "closure", [kinematics.closure_constraints, kinematics.closure_jacobian], with_v=False
+    )
+    w_function = kinematics.function(
+        "velocity", [kinematics.velocity_constraint_matrix, kinematics.velocity_constraint_bias]
+    )
     fixed = _independent_columns(kinematics, problem, velocities=False)
     if kinematics.closure_constraints.numel():
         columns = np.zeros(0, dtype=int)  # the dependent coordinates, chosen at each iterate
@@ -139,8 +148,9 @@ def project_joint_state(
     return q, v
 
 
-def consistent_initial_state(equations: Equations, problem: Any,
-                             kinematics: TreeKinematics | None = None) -> InitialState:
+def consistent_initial_state(
+    equations: Equations, problem: Any, kinematics: TreeKinematics | None = None
+) -> InitialState:
     """The problem's initial condition as a consistent state of ``equations``."""
     model = equations.model
     kinematics = kinematics or TreeKinematics(model)
@@ -151,32 +161,101 @@ def consistent_initial_state(equations: Equations, problem: Any,
     q_joint, v_joint = project_joint_state(kinematics, problem, t0, q_joint, v_joint)
     q, v = equations.joint_space_map(t0, q_joint, v_joint)
     q, v = np.ravel(q), np.ravel(v)
-    acceleration, multipliers, qdot = accelerations(equations, t0, q, v)
-    return InitialState(t0, q, v, qdot, acceleration, multipliers, q_joint, v_joint)
+    acceleration, multipliers, qdot, method = accelerations_and_method(equations, t0, q, v)
+    return InitialState(t0, q, v, qdot, acceleration, multipliers, q_joint, v_joint, method)
 
 
-def accelerations(equations: Equations, t: float, q: np.ndarray,
-                  v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(v', lambda, q') at a consistent state, from the mechanical form (or the ode form)."""
+def accelerations(
+    equations: Equations, t: float, q: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(v', lambda, q') at a consistent state, from the mechanical form (or the ode form).
+
+    Solved by :func:`solve_accelerations` (the structure's own factorization; how:
+    :func:`accelerations_and_method`).
+    """
+    acceleration, multipliers, qdot, _ = accelerations_and_method(equations, t, q, v)
+    return acceleration, multipliers, qdot
+
+
+def accelerations_and_method(
+    equations: Equations, t: float, q: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """:func:`accelerations` and how they were solved (:func:`solve_accelerations`)."""
     if "mechanical" in equations.forms:
         mech = equations.forms["mechanical"]
         (mass,) = mech.mass(t, q)
         (forces,) = mech.forces(t, q, v)
         (qdot,) = mech.qdot(t, q, v)
         nc = mech.n_constraints
-        if nc == 0:
-            return np.linalg.solve(np.atleast_2d(mass), forces), np.zeros(0), qdot
-        (w_matrix,) = mech.velocity_matrix(t, q)
-        (gamma,) = mech.acceleration_rhs(t, q, v)
-        w_matrix = np.reshape(w_matrix, (nc, -1))
-        nv = v.size
-        kkt = np.block([[np.atleast_2d(mass), w_matrix.T], [w_matrix, np.zeros((nc, nc))]])
-        solution, *_ = np.linalg.lstsq(kkt, np.concatenate([forces, np.ravel(gamma)]),
-                                       rcond=None)
-        return solution[:nv], solution[nv:], qdot
+        w_matrix = np.zeros((0, v.size))
+        gamma = np.zeros(0)
+        if nc:
+            (w_matrix,) = mech.velocity_matrix(t, q)
+            (gamma,) = mech.acceleration_rhs(t, q, v)
+            w_matrix = np.reshape(np.asarray(w_matrix, dtype=float), (nc, -1))
+        acceleration, multipliers, method = solve_accelerations(
+            np.atleast_2d(np.asarray(mass, dtype=float)), np.ravel(forces), w_matrix,
+            np.ravel(gamma))  # fmt: skip
+        return acceleration, multipliers, np.ravel(qdot), method
     (f,) = equations.forms["ode"].rhs(t, np.concatenate([q, v]))
-    return f[q.size:], np.zeros(0), f[: q.size]
+    f = np.ravel(f)
+    return f[q.size :], np.zeros(0), f[: q.size], "ode right-hand side"
 
 
-__all__ = ["InitialState", "accelerations", "consistent_initial_state",
-           "project_joint_state"]
+def solve_accelerations(
+    mass: np.ndarray, forces: np.ndarray, w_matrix: np.ndarray, gamma: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """(v' (nv), lambda (nc), method) of [M W^T; W 0] [v'; lambda] = [Q; gamma].
+
+    The factorization matches the structure: Cholesky of M (SPD) and of the Schur
+    complement W M^-1 W^T when W has full row rank; LU of M, or of the whole KKT matrix,
+    when M is not SPD but the system is regular; least squares (minimum norm) only when
+    the system is rank-deficient (redundant constraint rows), which ``method`` then says.
+    A least-squares solve of a regular system loses 1.5-2 digits and breaks the exact
+    symmetry of a symmetric motion.
+    """
+    nc, nv = w_matrix.shape[0], mass.shape[0]
+    try:
+        factor = scipy.linalg.cho_factor(mass)
+    except (np.linalg.LinAlgError, ValueError):
+        factor = None
+    full_rank = nc == 0 or len(independent_rows(w_matrix)) == nc
+    if factor is not None and full_rank:
+        if nc == 0:
+            return scipy.linalg.cho_solve(factor, forces), np.zeros(0), "cholesky of M"
+        m_inv_wt = scipy.linalg.cho_solve(factor, w_matrix.T)  # M^-1 W^T (nv, nc)
+        m_inv_q = scipy.linalg.cho_solve(factor, forces)
+        schur = w_matrix @ m_inv_wt
+        schur = (schur + schur.T) / 2  # symmetric to the last bit
+        try:
+            multipliers = scipy.linalg.cho_solve(
+                scipy.linalg.cho_factor(schur), w_matrix @ m_inv_q - gamma
+            )
+        except np.linalg.LinAlgError:
+            pass  # W M^-1 W^T numerically singular: the KKT solve below
+        else:
+            return m_inv_q - m_inv_wt @ multipliers, multipliers, "cholesky of M and W M^-1 W^T"
+    kkt = np.block([[mass, w_matrix.T], [w_matrix, np.zeros((nc, nc))]])
+    rhs = np.concatenate([forces, gamma])
+    if full_rank:
+        lu, pivots = scipy.linalg.lu_factor(kkt, check_finite=True)
+        if np.min(np.abs(np.diag(lu))) > 1e-13 * np.max(np.abs(np.diag(lu))):
+            solution = scipy.linalg.lu_solve((lu, pivots), rhs)
+            return solution[:nv], solution[nv:], "LU of the KKT matrix"
+    solution, _, rank, _ = np.linalg.lstsq(kkt, rhs, rcond=None)
+    return (
+        solution[:nv],
+        solution[nv:],
+        f"least squares: the KKT matrix is rank-deficient (rank {rank} of {nv + nc}; "
+        f"W has {len(independent_rows(w_matrix))} independent rows of {nc})",
+    )
+
+
+__all__ = [
+    "InitialState",
+    "accelerations",
+    "accelerations_and_method",
+    "consistent_initial_state",
+    "project_joint_state",
+    "solve_accelerations",
+]

@@ -72,6 +72,7 @@ class Trajectory:
     message: str = ""
     t_reached: float = math.nan
     stats: SolverStats = field(default_factory=SolverStats)
+    warnings: list[str] = field(default_factory=list)  # for the row's ``warnings``
 
 
 @dataclass

@@ -29,8 +29,17 @@ Columns (:data:`AUDIT_COLUMNS`):
 - ``formalism_notes``: the formalism's own notes (``Equations.notes``).
 - ``reference_accuracy``: the relative accuracy the reference states for itself.
 
-Warnings (column ``warnings``, "; "-separated, one line): a singular passage (ratio below
-SINGULAR_RATIO; for a fixed velocity partition, a singular partition), a change of DOF
+- ``branch_left_at``: the first output time at which the run is off the assembly branch
+  it started on (:mod:`workbench.runs.branch`: the branch followed by continuation, not a
+  threshold on sampled singular values, so it does not depend on where the samples fall);
+  NaN when it stays on it. ``branch_distance_max``: the distance from that branch there
+  (or the largest along a run that stays); NaN both when the branch was not followed (no
+  position constraints, or the coordinates changed chart).
+
+Warnings (column ``warnings``, "; "-separated, one line): a run that left its assembly
+branch; a singular passage (ratio below SINGULAR_RATIO) only where the branch could not
+be followed (a passage alone is no error: the exact motion of IFToMM A02 passes through
+singular points); for a fixed velocity partition, a singular partition; a change of DOF
 along the run, a rotation defect beyond ROTATION_FACTOR
 times rtol, constraint rows removed by the formalism (a note that begins "removed"), an
 energy error beyond ENERGY_FACTOR times rtol for a conservative problem, and an end error
@@ -48,6 +57,7 @@ from scipy.optimize import minimize_scalar
 
 from workbench.equations.evaluate import FastFunction, evaluate_along
 from workbench.numerics.linalg import independent_rows
+from workbench.runs.branch import branch_departure, constraints_of
 
 SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
 PARTITION_NOTE = "fixed velocity partition"  # how a formalism's notes declare one
@@ -62,6 +72,8 @@ AUDIT_COLUMNS = [
     "warnings",
     "jacobian_sv_ratio_min",
     "jacobian_sv_ratio_at",
+    "branch_left_at",
+    "branch_distance_max",
     "dof_start",
     "dof_max",
     "rotation_defect_max",
@@ -96,6 +108,7 @@ def health_audit(
         ),
         "formalism_notes": "; ".join(" ".join(str(n).split()) for n in equations.notes),
     }
+    row.update(_branch_columns(equations, times, q, charts))
     mechanical = equations.forms.get("mechanical")
     if mechanical is None or len(times) == 0:
         return row
@@ -175,7 +188,14 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
             f"dependent velocities lost rank near t = {at:.4g} s (sigma_min(W_d)/sigma_max(W) "
             f"{ratio:.1e}); the formalism keeps one partition for the run, digits are lost there"
         )
-    elif ratio < SINGULAR_RATIO:
+    elif math.isfinite(audit.get("branch_left_at", math.nan)):
+        found.append(
+            f"left its assembly branch at a singular configuration: at t = "
+            f"{audit['branch_left_at']:.4g} s the configuration is "
+            f"{audit.get('branch_distance_max', math.nan):.2g} away from the branch it started "
+            f"on (followed by continuation), the run may follow another mechanism's motion"
+        )
+    elif ratio < SINGULAR_RATIO and not math.isfinite(audit.get("branch_distance_max", math.nan)):
         found.append(
             f"singular passage: the constraint Jacobian lost rank near t = {at:.4g} s "
             f"(sigma_min/sigma_max {ratio:.1e}), the run may have changed assembly branch"
@@ -205,6 +225,20 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
             f"{accuracy:.1e}: scd capped at {-math.log10(accuracy):.2f}"
         )
     return [" ".join(w.replace(";", ",").split()) for w in found]  # "; " separates them
+
+
+def _branch_columns(equations: Any, times: np.ndarray, q: np.ndarray,
+                     charts: list[Any] | None) -> dict[str, float]:  # fmt: skip
+    """``branch_left_at`` and ``branch_distance_max`` (:mod:`workbench.runs.branch`): NaN
+    both when not followed (no position constraints; coordinates changed chart)."""
+    constraints = constraints_of(equations)
+    if constraints is None or (charts and len({id(c) for c in charts[: len(times)]}) > 1):
+        return {"branch_left_at": math.nan, "branch_distance_max": math.nan}
+    try:
+        left_at, distance = branch_departure(constraints, np.asarray(times, dtype=float), q)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):  # not decided
+        left_at = distance = math.nan
+    return {"branch_left_at": left_at, "branch_distance_max": distance}
 
 
 def _singular_value_ratio(matrix: np.ndarray, rank: int) -> float:

@@ -48,6 +48,7 @@ from workbench.runs.run_log import (
     store_log,
     write_log,
 )
+from workbench.runs.run_progress import progress_columns, progress_path, read_progress
 from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
@@ -224,8 +225,12 @@ class _Child:
                 reason = self._stopped() if message else timeout_message(limit)
                 self._kill()  # a row it wrote before dying or running out of time stands
             row = store.read_row(store.row_path(self.out, spec.run_id))
-            if row is None and message is None:
-                row = status_row(spec, "timeout", reason)
+            if row is None and message is None:  # where the killed run was (run_progress)
+                where, clause = progress_columns(
+                    read_progress(progress_path(self.out, spec.run_id))
+                )
+                reason = f"{reason}; {clause}" if clause else reason
+                row = status_row(spec, "timeout", reason, **where)
                 return row | {LOG_TEXT: raw_text(self.out, spec.run_id)}, None
             if row is None and message[0] == "error":
                 row = status_row(spec, "failed", message[2])

@@ -59,6 +59,7 @@ from workbench.runs.environment import environment
 from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
+from workbench.runs.run_progress import PROGRESS
 from workbench.runs.store import SCHEMA_VERSION, STATE_PREFIX, empty_series
 from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
 from workbench.runs.worker_env import threads_in_force, worker_threads
@@ -256,6 +257,7 @@ class _Stages:
 
     def start(self, name: str) -> None:
         self.current, self.running = name, True
+        PROGRESS.enter(name)
         self._wall, self._cpu = time.perf_counter(), time.process_time()
         self._compile = compiled.STATS.seconds
 
@@ -330,6 +332,7 @@ def execute_run(
     integration is timed (:class:`~workbench.runs.timing.Timing`; default its defaults).
     """
     timing = timing or Timing()
+    PROGRESS.begin_run()
     load_avg = machine_load()
     stages = _Stages()
     row = base_row(spec)
@@ -377,9 +380,13 @@ def execute_run(
                 initial = cached_initial_state(spec, equations, problem)
                 y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
                 stages.stop()
+                solve_note = getattr(initial, "acceleration_solve", "")
+                if solve_note.startswith("least squares"):  # a rank-deficient system
+                    state["notes"] = f"initial accelerations by {solve_note}"
 
                 stages.current = "integrate"
                 times = problem.sample_times()
+                PROGRESS.watch_times(equations, form, times[-1])
 
                 def solve() -> Any:
                     if getattr(equations, "atlas", None) is not None:
@@ -397,7 +404,9 @@ def execute_run(
                 _record_trajectory(row, trajectory)
 
                 stages.start("metrics")
+                PROGRESS.enter("reference")
                 reference = _reference(spec, problem, times, reference_dir)
+                PROGRESS.enter("metrics")
                 row["reference_s"] = reference.seconds
                 metric_row, series = metrics_module.trajectory_metrics(
                     spec.run_id,
@@ -416,7 +425,13 @@ def execute_run(
                     series = pd.concat([series, state_columns(equations, form, states)], axis=1)
                 atlas = getattr(equations, "atlas", None)
                 switched = switch_note(atlas, trajectory) if atlas is not None else ""
-                row["notes"] = "; ".join(filter(None, [row.get("notes", ""), switched]))
+                row["notes"] = "; ".join(
+                    filter(None, [row.get("notes", ""), state.get("notes", ""), switched])
+                )
+                own = "; ".join(getattr(trajectory, "warnings", None) or [])
+                if own:  # the integrator's own (e.g. the accuracy asked was not attempted)
+                    found = "; ".join(filter(None, [row.get("warnings", ""), own]))
+                    row["warnings"] = one_line_text(found)
                 if samples.difference:  # the samples did not time the same work
                     found = "; ".join(filter(None, [row.get("warnings", ""), samples.difference]))
                     row["warnings"] = one_line_text(f"not reproducible: {found}")

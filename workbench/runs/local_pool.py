@@ -36,6 +36,7 @@ from workbench.plugin.local_modules import import_plugin_modules, imported_from_
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run
 from workbench.runs.run_log import CapturedOutput, raw_path, write_log
+from workbench.runs.run_progress import ProgressWriter, progress_path
 from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
@@ -95,7 +96,8 @@ def _worker_main(
             sink = _begin_recording(recorder, sink, Path(out), spec.run_id)
             try:
                 capture = CapturedOutput(raw_path(Path(out), spec.run_id))
-                with capture:  # the run's stdout/stderr (C's too) to its bounded log
+                progress = ProgressWriter(progress_path(Path(out), spec.run_id))
+                with capture, progress:  # output to its bounded log; progress for a timeout
                     result = execute_run(
                         spec, sink=sink, reference_dir=references, timing=Timing.from_dict(timing)
                     )

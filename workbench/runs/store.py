@@ -109,6 +109,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("warnings", "what the health audit found wrong ('; '-separated, one line; empty: nothing)"),
     ("jacobian_sv_ratio_min", "smallest sigma_min/sigma_max of the constraint Jacobian W"),
     ("jacobian_sv_ratio_at", "time of that smallest ratio (s)"),
+    ("branch_left_at", "first output time off the assembly branch the run started on (s)"),
+    ("branch_distance_max", "distance from that branch there, or the most of a run on it"),
     ("dof_start", "nv - rank W at the start"),
     ("dof_max", "the most nv - rank W along the output times"),
     ("rotation_defect_max", "largest |R^T R - I| of the body rotations (0: orthonormal)"),

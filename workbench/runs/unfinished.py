@@ -22,6 +22,7 @@ from workbench.errors import WorkbenchError
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, status_row
 from workbench.runs.run_log import salvage_log
+from workbench.runs.run_progress import progress_columns, progress_path, read_progress
 
 # signals that end a process from outside (not a crash of the code it was running)
 KILL_SIGNALS = (signal.SIGKILL, signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
@@ -79,5 +80,7 @@ def record_unfinished(
     if written is not None:
         return written
     log = salvage_log(out, spec.run_id)  # what the killed run printed, bounded
-    store.write_run(out, status_row(spec, status, message, log=log), None)
+    where, clause = progress_columns(read_progress(progress_path(out, spec.run_id)))
+    message = f"{message}; {clause}" if clause else message
+    store.write_run(out, status_row(spec, status, message, log=log, **where), None)
     return status
