@@ -198,7 +198,10 @@ def _migrate_6_to_7(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def _migrate_7_to_8(row: dict[str, Any]) -> dict[str, Any]:
-    unrecorded = dict.fromkeys(("integrate_cpu_s_min", "integrate_cpu_s_max"), math.nan)
+    unrecorded = dict.fromkeys(
+        ("integrate_cpu_s_min", "integrate_cpu_s_max", "branch_left_at", "branch_distance_max"),
+        math.nan,
+    )  # CPU-time samples' interval and the branch audit: neither existed before schema 8
     return row | {"schema_version": 8} | unrecorded
 
 
