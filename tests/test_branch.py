@@ -39,16 +39,17 @@ def branch_defect(equations, q: np.ndarray, n: int) -> np.ndarray:
     return np.maximum(cranks.max(axis=1), couplers.max(axis=1))
 
 
-def rows(n: int, formalism: str, options: dict, rtol: float, span: float):
+def rows(n: int, formalism: str, options: dict, rtol: float, span: float,
+         sample_counts=(50, 200, 1000), perturbations=(0.0, 1e-12, -1e-12)):  # fmt: skip
     """(max branch defect, warnings) for each sample count and perturbation of the start."""
     problem = get_problem("iftomm-a02")({"n": n})
     equations = get_formalism(formalism)().build(problem.model(), options)
     start = consistent_initial_state(equations, problem)
     integrator = get_integrator("scipy-dop853")()
     reference = ReferencePoses("analytic", None, "not needed: the geometry is the oracle")
-    for samples in (50, 200, 1000):
+    for samples in sample_counts:
         times = np.linspace(0.0, span, samples)
-        for perturbation in (0.0, 1e-12, -1e-12):
+        for perturbation in perturbations:
             y0 = start.y0(equations, "ode") * (1 + perturbation)
             trajectory = integrator.solve(equations, y0, start.yp0(equations, "ode"), times,
                                           rtol, rtol * 1e-3, integrator.parse_options({}),
@@ -90,10 +91,12 @@ def test_two_windows_warned_exactly_when_they_leave_the_branch(formalism, option
     assert sum(a + b for a, b in counted) >= 9  # most of the 18 rows are one or the other
 
 
-@pytest.mark.slow  # 18 DOP853 runs of 81 joint coordinates: 14.5 min at load 12 on 2 cores
+@pytest.mark.slow  # 8 DOP853 runs of 81 joint coordinates (18 took 14.5 min at load 12)
 def test_forty_windows_warned_exactly_when_they_leave_the_branch() -> None:
     """N = 40 (the benchmark's case): over 3 s (several singular passages) at rtol 1e-6,
-    over the first passage (1 s) at rtol 1e-11."""
-    left, stayed = check(rows(40, "recursive", {"index": 1}, 1e-6, 3.0))
-    a, b = check(rows(40, "recursive", {"index": 1}, 1e-11, 1.0))
-    assert left + a + stayed + b >= 9
+    over the first passage (1 s) at rtol 1e-11; 50 and 1000 samples, the start as given
+    and perturbed by 1e-12 (the N = 2 tests take every combination)."""
+    cases = {"sample_counts": (50, 1000), "perturbations": (0.0, 1e-12)}
+    left, stayed = check(rows(40, "recursive", {"index": 1}, 1e-6, 3.0, **cases))
+    a, b = check(rows(40, "recursive", {"index": 1}, 1e-11, 1.0, **cases))
+    assert left + a + stayed + b >= 4  # most of the 8 rows are one or the other
