@@ -1,4 +1,4 @@
-"""Commands that show results: ``workbench report`` and ``view``."""
+"""Commands that show results: ``workbench report``, ``paper`` and ``view``."""
 
 from __future__ import annotations
 
@@ -10,58 +10,76 @@ import typer
 
 from workbench.cli.app import app, refuse_short_out
 
+ResultsArgument = Annotated[
+    str,
+    typer.Argument(
+        metavar="RESULTS",
+        help="A results directory (the output of `workbench sweep`) or a results.parquet.",
+    ),
+]
+CostOption = Annotated[
+    str | None,
+    typer.Option(
+        "--cost",
+        help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
+        "(default), integrate_wall or n_rhs.",
+    ),
+]
+WaitOption = Annotated[
+    bool, typer.Option("--wait", help="If RESULTS is in use (a sweep), wait for it.")
+]
 
-@app.command("report")
-def report(
+
+def _write_report(
     ctx: typer.Context,
-    results_path: Annotated[
-        str,
-        typer.Argument(
-            metavar="RESULTS",
-            help="A results directory (the output of `workbench sweep`) or a results.parquet.",
-        ),
-    ],
-    out: Annotated[
-        str | None,
-        typer.Option("--out", help="Report directory (default: RESULTS/report)."),
-    ] = None,
-    old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
-    cost: Annotated[
-        str | None,
-        typer.Option(
-            "--cost",
-            help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
-            "(default), integrate_wall or n_rhs.",
-        ),
-    ] = None,
-    wait: Annotated[
-        bool, typer.Option("--wait", help="If RESULTS is in use (a sweep), wait for it.")
-    ] = False,
-) -> None:
-    """Write an HTML report (figures, tables as CSV/Markdown/LaTeX) of a results directory."""
+    results_path: str,
+    out: str | None,
+    cost: str | None,
+    wait: bool,
+    command: str,
+    paper: Any = None,
+) -> Any:
+    """The report of RESULTS (under its lock when it is a folder: not while a sweep writes
+    it, no link in it), its warnings one line each on stderr; returns its index.html."""
     import warnings
 
     from workbench.cli.app import on_interrupt
     from workbench.outputs.report import report_directory
     from workbench.outputs.report.cost import check_cost
 
-    refuse_short_out(old_out, "report")
     check_cost(cost)  # before anything is read
-    if os.path.isdir(results_path):  # not while a sweep writes it; no link in it
+    if os.path.isdir(results_path):
         from workbench.cli.runs import hold_out_lock
 
         hold_out_lock(ctx, results_path, wait)
-
     on_interrupt(
-        lambda: f"the results in {results_path} are untouched, the report is unfinished; "
-        f"run `workbench report {' '.join(sys.argv[2:]) or results_path}` again"
+        lambda: f"the results in {results_path} are untouched, the {command} is unfinished; "
+        f"run `workbench {command} {' '.join(sys.argv[2:]) or results_path}` again"
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        index = report_directory(results_path, out, cost=cost)
+        index = report_directory(results_path, out, cost=cost, paper=paper)
     for warning in caught:
         typer.echo(f"warning: {warning.message}", err=True)
     typer.echo(f"report: {index}")
+    return index
+
+
+@app.command("report")
+def report(
+    ctx: typer.Context,
+    results_path: ResultsArgument,
+    out: Annotated[
+        str | None,
+        typer.Option("--out", help="Report directory (default: RESULTS/report)."),
+    ] = None,
+    old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
+    cost: CostOption = None,
+    wait: WaitOption = False,
+) -> None:
+    """Write an HTML report (figures, tables as CSV/Markdown/LaTeX) of a results directory."""
+    refuse_short_out(old_out, "report")
+    _write_report(ctx, results_path, out, cost, wait, "report")
 
 
 LOCAL_ONLY = "127.0.0.1"
@@ -71,49 +89,24 @@ LOCAL_ONLY = "127.0.0.1"
 
 @app.command("paper")
 def paper(
-    results_path: Annotated[
-        str,
-        typer.Argument(
-            metavar="RESULTS",
-            help="A results directory (the output of `workbench sweep`) or a results.parquet.",
-        ),
-    ],
+    ctx: typer.Context,
+    results_path: ResultsArgument,
     out: Annotated[
         str | None,
         typer.Option("--out", help="Paper directory (default: RESULTS/paper)."),
     ] = None,
-    cost: Annotated[
-        str | None,
-        typer.Option(
-            "--cost", help="Cost measure: integrate_cpu (default), integrate_wall or n_rhs."
-        ),
-    ] = None,
+    cost: CostOption = None,
+    wait: WaitOption = False,
 ) -> None:
     """Write a paper folder: main.tex with the report's LaTeX tables and PDF figures, which
     a document can also \\input and include one by one; compiled when pdflatex is there."""
-    import warnings
     from pathlib import Path
 
-    from workbench.cli.app import on_interrupt
-    from workbench.outputs.report import report_directory
-    from workbench.outputs.report.cost import check_cost
     from workbench.outputs.report.paper import MAIN, compile_paper, pdflatex
 
-    check_cost(cost)
     source = Path(results_path)
     folder = Path(out) if out else (source if source.is_dir() else source.parent) / "paper"
-    on_interrupt(
-        lambda: (
-            f"the results in {results_path} are untouched, the paper is unfinished; "
-            f"run `workbench paper {' '.join(sys.argv[2:]) or results_path}` again"
-        )
-    )
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        index = report_directory(results_path, folder / "report", cost=cost, paper=folder)
-    for warning in caught:
-        typer.echo(f"warning: {warning.message}", err=True)
-    typer.echo(f"report: {index}")
+    _write_report(ctx, results_path, str(folder / "report"), cost, wait, "paper", folder)
     main = folder / MAIN
     if pdflatex() is None:
         typer.echo(f"paper: {main} (pdflatex not found; compile with `pdflatex {MAIN}` there)")
