@@ -211,6 +211,12 @@ class _Child:
                 message += f": {lines.splitlines()[-1]}"
         return message
 
+    def _unfinished_row(self, spec: RunSpec, status: str, reason: str) -> dict[str, Any]:
+        """The row of a run whose child stopped without one: where it was (its stage, the
+        time reached; :mod:`workbench.runs.run_progress`), as the local pool says it."""
+        where, clause = progress_columns(read_progress(progress_path(self.out, spec.run_id)))
+        return status_row(spec, status, f"{reason}; {clause}" if clause else reason, **where)
+
     def run(self, spec: RunSpec, limit: float) -> tuple[dict[str, Any], Any]:
         """(row, series or None) of one run within ``limit`` seconds; on a timeout or a
         crash the child is gone (:attr:`alive` False) and the row says so;
@@ -226,11 +232,7 @@ class _Child:
                 self._kill()  # a row it wrote before dying or running out of time stands
             row = store.read_row(store.row_path(self.out, spec.run_id))
             if row is None and message is None:  # where the killed run was (run_progress)
-                where, clause = progress_columns(
-                    read_progress(progress_path(self.out, spec.run_id))
-                )
-                reason = f"{reason}; {clause}" if clause else reason
-                row = status_row(spec, "timeout", reason, **where)
+                row = self._unfinished_row(spec, "timeout", reason)
                 return row | {LOG_TEXT: raw_text(self.out, spec.run_id)}, None
             if row is None and message[0] == "error":
                 row = status_row(spec, "failed", message[2])
@@ -238,7 +240,7 @@ class _Child:
             if row is None:  # it died without writing the run's row
                 if killed_from_outside(self.process.returncode):
                     raise InfrastructureError(f"run {spec.run_id}: {reason}")
-                row = status_row(spec, "failed", reason)
+                row = self._unfinished_row(spec, "failed", reason)
                 return row | {LOG_TEXT: raw_text(self.out, spec.run_id)}, None
             if row.get("log"):  # returned with the row; store_log writes it beside the row
                 row[LOG_TEXT] = (self.out / row["log"]).read_text("utf-8", "replace")
