@@ -48,6 +48,16 @@ from workbench.runs.run_log import (
     store_log,
     write_log,
 )
+from workbench.runs.shipping import (
+    REFERENCE_FILES,
+    keep_references,
+    new_references,
+    pack_modules,
+    pack_references,
+    unpack_modules,
+    unpack_references,
+    worker_reference_dir,
+)
 from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
@@ -302,18 +312,27 @@ def run_on_worker_child(
     reference_dir: str,
     sys_path: list[str],
     timing: dict[str, Any] | None = None,
+    modules: dict[str, Any] | None = None,
+    references: dict[str, bytes] | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """A Dask task: run one spec in a long-lived child of this worker: (row, series or None).
 
     Takes an idle child made for the same plugins and paths (or starts one), and gives it
     back after the run unless the run killed it (timeout, crash). The child's start-up is
-    outside the run's time limit, as in the local pool."""
-    setting = (
-        tuple(plugins),
-        tuple(sys_path),
-        reference_dir if os.path.isdir(reference_dir) else None,
-        tuple(sorted((timing or {}).items())),
-    )
+    outside the run's time limit, as in the local pool. ``modules`` and ``references``
+    (given by :func:`run_dask`; :mod:`workbench.runs.shipping`): the local plugin modules'
+    files and the problem's computed references, shipped from the client, so this worker
+    reads none of the client's folders; the references computed here go back in the row
+    (:data:`~workbench.runs.shipping.REFERENCE_FILES`)."""
+    shipped = modules is not None or references is not None
+    if shipped:
+        plugins = unpack_modules(list(plugins), modules or {})
+        folder = worker_reference_dir(reference_dir)
+        unpack_references(folder, references or {})
+        here: str | None = str(folder)
+    else:
+        here = reference_dir if os.path.isdir(reference_dir) else None
+    setting = (tuple(plugins), tuple(sys_path), here, tuple(sorted((timing or {}).items())))
     _import_plugins(setting[0], setting[1])
     with _IDLE_LOCK:
         child = next((c for c in _IDLE if c.setting == setting and c.alive), None)
@@ -329,6 +348,10 @@ def run_on_worker_child(
     if child.alive:
         with _IDLE_LOCK:
             _IDLE.append(child)
+    if shipped:
+        computed = new_references(folder, str(spec_data.get("problem", "")), references or {})
+        if computed:
+            result[0][REFERENCE_FILES] = computed
     return result
 
 
@@ -384,6 +407,7 @@ def run_dask(
             "give the address a `dask scheduler` prints (tcp://host:port)"
         ) from None
     reference_dir = str((out / "references").resolve())
+    shipped: dict[str | None, tuple[list[str], Any]] = {}  # problem -> files, their future
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}
@@ -401,9 +425,24 @@ def run_dask(
             where = {} if worker is None else {"workers": [worker], "allow_other_workers": True}
             executors[worker] = client.get_executor(pure=False, **where)
         future = executors[worker].submit(
-            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths, timed
-        )
+            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths, timed,
+            ship(None), ship(spec.problem),
+        )  # fmt: skip
         futures[future] = (spec, worker)
+
+    def ship(problem: str | None) -> Any:
+        """The local plugin modules' files (``problem`` None, read once) or the problem's
+        computed references in ``OUT/references``, scattered once (sent once a worker)."""
+        if problem is None and None in shipped:
+            return shipped[None][1]
+        packed = pack_modules(plugins) if problem is None else pack_references(
+            Path(reference_dir), problem
+        )  # fmt: skip
+        names = sorted(packed)
+        if problem not in shipped or shipped[problem][0] != names:
+            future = client.scatter([packed], hash=True, timeout=LOST_AFTER_S)[0]
+            shipped[problem] = (names, future)
+        return shipped[problem][1]
 
     def fill() -> None:
         """Give each worker thread up to DEPTH runs, chosen as the local pool chooses
@@ -463,6 +502,9 @@ def run_dask(
                     else:
                         give_up(spec, _lost_message(error))
                     continue
+                returned = row.pop(REFERENCE_FILES, None)
+                if returned:  # computed by a worker: kept, and shipped with the later runs
+                    keep_references(Path(reference_dir), returned)
                 store_log(out, row)
                 store.write_run(out, row, series, states)
                 record(row.get("status", "failed"))

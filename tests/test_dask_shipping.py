@@ -1,0 +1,116 @@
+"""A Dask cluster without a shared file system (issue 35.5): the local plugin module and the
+computed references travel with the work. The workers start in an empty folder, the
+specification's folder is renamed away once the client has read the module, and the
+module records every import: the workers import their own copy, the rows equal the local
+pool's, and a reference the client already holds is read, not computed, by the workers."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.test_local_plugins import HELPER, spec_text
+from workbench.plugin import local_modules
+from workbench.plugin.registry import REGISTRY
+from workbench.runs import shipping, store
+from workbench.runs.sweep import load_spec, run_sweep
+from workbench.runs.timing import TIMING_COLUMNS
+
+distributed = pytest.importorskip("distributed")
+
+RECORDING = """
+import os
+with open({log!r}, "a") as log:  # every import of this module: which process, which file
+    log.write(f"{{os.getpid()}} {{__file__}}\\n")
+"""
+
+
+@pytest.fixture
+def isolated(tmp_path, monkeypatch):
+    """A specification with its helper in ``spec/``, run from ``client/``; the registry and
+    sys.modules restored afterwards."""
+    folder = tmp_path / "spec"
+    folder.mkdir()
+    log = tmp_path / "imports.log"
+    (folder / "helper.py").write_text(RECORDING.format(log=str(log)) + HELPER)
+    (tmp_path / "client").mkdir()
+    monkeypatch.chdir(tmp_path / "client")
+    monkeypatch.delenv(local_modules.NO_LOCAL_PLUGINS_VARIABLE, raising=False)
+    REGISTRY.discover()
+    for kind, entries in REGISTRY.entries.items():
+        monkeypatch.setitem(REGISTRY.entries, kind, dict(entries))
+    yield folder, log
+    sys.modules.pop("helper", None)
+    local_modules._FROM_FILES.pop("helper", None)
+
+
+def sweep(folder: Path, out: Path, scheduler: str | None = None) -> None:
+    spec = folder / f"{out.name}.toml"
+    text = spec_text(out, tolerances="[1e-4, 1e-6]", integrators='["rk4", "scipy-rk45"]')
+    spec.write_text(text)
+    run_sweep(load_spec(spec), scheduler=scheduler, show_progress=False)
+
+
+def comparable(out: Path):
+    frame = store.load_results(out).set_index("run_id").sort_index()
+    frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
+    timings = {"equations_cached", *TIMING_COLUMNS}
+    return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
+
+
+def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeypatch) -> None:
+    folder, log = isolated
+    sweep(folder, tmp_path / "local")  # the local pool's rows, as before
+    away = tmp_path / "away"
+    packed = shipping.pack_modules
+
+    def pack_then_hide(plugins):  # read by the client, then gone for everybody
+        result = packed(plugins)
+        folder.rename(away)
+        return result
+
+    before = len(log.read_text().splitlines())  # the local pool's imports
+    for name in ("workers", "workers-tmp"):
+        (tmp_path / name).mkdir()
+    monkeypatch.chdir(tmp_path / "workers")  # the workers start in an empty folder
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "workers-tmp"))  # their copies go there
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as cluster:
+        monkeypatch.chdir(tmp_path / "client")
+        monkeypatch.setattr(shipping, "pack_modules", pack_then_hide)
+        monkeypatch.setattr("workbench.runs.dask_pool.pack_modules", pack_then_hide)
+        sweep(folder, tmp_path / "dask", cluster.scheduler_address)
+        # the reference a worker computed came back to the client
+        returned = sorted(p.name for p in (tmp_path / "dask" / "references").iterdir())
+        assert [Path(name).suffix for name in returned] == [".json", ".parquet"]
+        # a second sweep whose OUT holds that reference already (another OUT: the workers'
+        # own copies of the first sweep's references are not used)
+        away.rename(folder)
+        shutil.copytree(tmp_path / "dask" / "references", tmp_path / "known" / "references")
+        sweep(folder, tmp_path / "known", cluster.scheduler_address)
+    local = comparable(tmp_path / "local")
+    assert len(local) == 4 and set(local["status"]) == {"ok"}
+    assert set(local["reference"].str.split(":").str[0]) == {"computed"}
+    for name in ("dask", "known"):
+        other = comparable(tmp_path / name)
+        assert list(other.index) == list(local.index)
+        different = [
+            c
+            for c in local.columns
+            if not ((local[c] == other[c]) | (local[c].isna() & other[c].isna())).all()
+        ]
+        assert different == [], local[different].compare(other[different]).to_string()
+    known = store.load_results(tmp_path / "known")
+    assert known["reference"].str.contains(r"\(read from ").all(), known["reference"].tolist()
+    # the workers imported their own copy of the module, never the client's file
+    imports = [line.split(" ", 1) for line in log.read_text().splitlines()[before:]]
+    copies = str(tmp_path / "workers-tmp" / "workbench-plugins-")
+    assert imports and all(file.startswith(copies) for _pid, file in imports), imports
