@@ -20,6 +20,7 @@ from workbench.runs.sweep import load_spec, run_sweep
 from workbench.runs.timing import TIMING_COLUMNS
 
 distributed = pytest.importorskip("distributed")
+dask = pytest.importorskip("dask")
 
 RECORDING = """
 import os
@@ -77,7 +78,8 @@ def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeyp
         (tmp_path / name).mkdir()
     monkeypatch.chdir(tmp_path / "workers")  # the workers start in an empty folder
     monkeypatch.setenv("TMPDIR", str(tmp_path / "workers-tmp"))  # their copies go there
-    with distributed.LocalCluster(
+    scratch = dask.config.set({"temporary-directory": str(tmp_path / "workers-tmp")})
+    with scratch, distributed.LocalCluster(
         n_workers=2,
         threads_per_worker=1,
         processes=True,
@@ -112,5 +114,6 @@ def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeyp
     assert known["reference"].str.contains(r"\(read from ").all(), known["reference"].tolist()
     # the workers imported their own copy of the module, never the client's file
     imports = [line.split(" ", 1) for line in log.read_text().splitlines()[before:]]
-    copies = str(tmp_path / "workers-tmp" / "workbench-plugins-")
-    assert imports and all(file.startswith(copies) for _pid, file in imports), imports
+    copies = str(tmp_path / "workers-tmp")  # in the Dask workers' scratch folders
+    assert imports, "the workers imported no helper"
+    assert all(f.startswith(copies) and "/workbench-plugins-" in f for _, f in imports), imports

@@ -11,7 +11,7 @@ host cannot see. So the client reads them and sends their bytes:
   there under the same name, so the runs are the same;
 * :func:`pack_references`: the computed references of a problem already in
   ``OUT/references``; the worker writes them into its own reference folder
-  (:func:`worker_reference_dir`, shared by the workers of a host), where the runs read
+  (:func:`worker_reference_dir`, in the Dask worker's scratch folder), where the runs read
   them instead of computing them again; a reference a worker computed goes back to the
   client with the row (:func:`new_references`), which keeps it in ``OUT/references`` and
   ships it with the later runs.
@@ -98,9 +98,9 @@ def _write_missing(folder: Path, files: dict[str, bytes]) -> None:
 
 
 def unpack_modules(plugins: list[str], packed: dict[str, Packed]) -> list[str]:
-    """``plugins`` with each shipped module's file replaced by its copy on this host
-    (written once, in a folder named by the files' content), unless this host has the
-    very same files at the client's path (a shared file system, the client's host)."""
+    """``plugins`` with each shipped module's file replaced by this worker's copy (written
+    once, in a folder named by the files' content), unless this host has the very same
+    files at the client's path (a shared file system, the client's host)."""
     unpacked = []
     for text in plugins:
         if text in packed:
@@ -124,7 +124,7 @@ def _resolve(text: str, relative: str, digest: str, files: dict[str, bytes]) -> 
     file = Path(module.file)
     if _same_files(Path(*file.parts[: len(file.parts) - len(Path(relative).parts)]), files):
         return text
-    folder = Path(tempfile.gettempdir()) / f"workbench-plugins-{digest}"
+    folder = scratch() / f"workbench-plugins-{digest}"
     _write_missing(folder, files)
     return PluginModule(module.name, str(folder / relative), module.attribute).text()
 
@@ -150,22 +150,32 @@ def _pair(name: str) -> str:
     return stem + (".json" if suffix == ".parquet" else ".parquet")
 
 
+def scratch() -> Path:
+    """This Dask worker's own folder (removed with the worker), else the temporary folder."""
+    try:
+        from distributed import get_worker
+
+        return Path(get_worker().local_directory)
+    except (ImportError, ValueError):  # not in a Dask worker
+        return Path(tempfile.gettempdir())
+
+
 def worker_reference_dir(client_reference_dir: str) -> Path:
-    """This host's folder for the computed references of the client's ``OUT/references``."""
+    """This worker's folder for the computed references of the client's ``OUT/references``."""
     digest = hashlib.sha256(client_reference_dir.encode()).hexdigest()[:16]
-    folder = Path(tempfile.gettempdir()) / f"workbench-references-{digest}"
+    folder = scratch() / f"workbench-references-{digest}"
     folder.mkdir(exist_ok=True)
     return folder
 
 
 def unpack_references(folder: Path, packed: dict[str, bytes]) -> None:
-    """Write the shipped references this host does not have yet."""
+    """Write the shipped references this worker does not have yet."""
     _write_missing(folder, packed)
 
 
 def new_references(folder: Path, problem_name: str, shipped: dict[str, bytes]) -> dict[str, bytes]:
-    """The references of ``problem_name`` in this host's ``folder`` that were not shipped
-    (computed here, or by another worker of this host): the client keeps them."""
+    """The references of ``problem_name`` in this worker's ``folder`` that were not
+    shipped (computed here): the client keeps them."""
     found = pack_references(folder, problem_name)
     return {name: data for name, data in found.items() if name not in shipped}
 
