@@ -54,6 +54,7 @@ from workbench.runs.shipping import (
     new_references,
     pack_modules,
     pack_references,
+    reference_names,
     unpack_modules,
     unpack_references,
     worker_reference_dir,
@@ -432,14 +433,13 @@ def run_dask(
 
     def ship(problem: str | None) -> Any:
         """The local plugin modules' files (``problem`` None, read once) or the problem's
-        computed references in ``OUT/references``, scattered once (sent once a worker)."""
-        if problem is None and None in shipped:
-            return shipped[None][1]
-        packed = pack_modules(plugins) if problem is None else pack_references(
-            Path(reference_dir), problem
-        )  # fmt: skip
-        names = sorted(packed)
+        computed references in ``OUT/references`` (read again when they change), scattered
+        once: sent once a worker, not with every task."""
+        names = [] if problem is None else reference_names(Path(reference_dir), problem)
         if problem not in shipped or shipped[problem][0] != names:
+            packed = pack_modules(plugins) if problem is None else pack_references(
+                Path(reference_dir), problem
+            )  # fmt: skip
             future = client.scatter([packed], hash=True, timeout=LOST_AFTER_S)[0]
             shipped[problem] = (names, future)
         return shipped[problem][1]

@@ -129,12 +129,17 @@ def _resolve(text: str, relative: str, digest: str, files: dict[str, bytes]) -> 
     return PluginModule(module.name, str(folder / relative), module.attribute).text()
 
 
+def reference_names(reference_dir: Path, problem_name: str) -> list[str]:
+    """The files of the computed references of ``problem_name`` in ``reference_dir``."""
+    try:
+        return sorted(n for n in os.listdir(reference_dir) if _of_problem(n, problem_name))
+    except OSError:
+        return []
+
+
 def pack_references(reference_dir: Path, problem_name: str) -> dict[str, bytes]:
     """The computed references of ``problem_name`` in ``reference_dir`` (file name -> bytes)."""
-    try:
-        names = sorted(n for n in os.listdir(reference_dir) if _of_problem(n, problem_name))
-    except OSError:
-        return {}
+    names = reference_names(reference_dir, problem_name)
     packed = {}
     for name in names:
         try:
