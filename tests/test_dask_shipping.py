@@ -7,6 +7,7 @@ pool's, and a reference the client already holds is read, not computed, by the w
 from __future__ import annotations
 
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -79,13 +80,16 @@ def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeyp
     monkeypatch.chdir(tmp_path / "workers")  # the workers start in an empty folder
     monkeypatch.setenv("TMPDIR", str(tmp_path / "workers-tmp"))  # their copies go there
     scratch = dask.config.set({"temporary-directory": str(tmp_path / "workers-tmp")})
-    with scratch, distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address="127.0.0.1:0",
-    ) as cluster:
+    with (
+        scratch,
+        distributed.LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address="127.0.0.1:0",
+        ) as cluster,
+    ):
         monkeypatch.chdir(tmp_path / "client")
         monkeypatch.setattr(shipping, "pack_modules", pack_then_hide)
         monkeypatch.setattr("workbench.runs.dask_pool.pack_modules", pack_then_hide)
@@ -117,3 +121,43 @@ def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeyp
     copies = str(tmp_path / "workers-tmp")  # in the Dask workers' scratch folders
     assert imports, "the workers imported no helper"
     assert all(f.startswith(copies) and "/workbench-plugins-" in f for _, f in imports), imports
+
+
+def test_a_local_package_and_its_stored_reference_are_shipped(tmp_path, monkeypatch) -> None:
+    """A package beside the specification goes whole (its submodules, a stored reference
+    beside them; not its caches); a host without the client's folder imports the copy in
+    a fresh interpreter, under the same names, and finds the stored reference beside it."""
+    package = tmp_path / "spec" / "my_pkg"
+    (package / "references").mkdir(parents=True)
+    (package / "__pycache__").mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "plugins.py").write_text(HELPER.replace("with_name(", "parent.with_name("))
+    (package / "references" / "downloaded-pendulum.npz").write_bytes(b"stored poses")
+    (package / "__pycache__" / "plugins.cpython.pyc").write_bytes(b"cache")
+    text = f"my_pkg.plugins={package / '__init__.py'}"
+    packed = shipping.pack_modules([text, "workbench.plugins"])
+    (relative, _digest, files) = packed[text]  # an installed module is not shipped
+    assert list(packed) == [text] and relative == "my_pkg/__init__.py"
+    names = ["my_pkg/__init__.py", "my_pkg/plugins.py", "my_pkg/references/downloaded-pendulum.npz"]
+    assert sorted(files) == names
+    assert shipping.unpack_modules([text], packed) == [text]  # the same files here: kept
+    (tmp_path / "spec").rename(tmp_path / "away")
+    monkeypatch.setattr(shipping.tempfile, "tempdir", str(tmp_path / "worker"))
+    shipping._RESOLVED.clear()
+    (copy,) = shipping.unpack_modules([text], packed)
+    assert copy.startswith("my_pkg.plugins=" + str(tmp_path / "worker" / "workbench-plugins-"))
+    code = (
+        "import sys\n"
+        "from workbench.plugin.local_modules import import_plugin_modules\n"
+        "from workbench.plugin.registry import get_problem\n"
+        "import_plugin_modules(sys.argv[1:])\n"
+        "from pathlib import Path\n"
+        "module = sys.modules[get_problem('downloaded-pendulum').__module__]\n"
+        "print(module.__name__, (Path(module.__file__).parent / 'references').is_dir())\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, copy],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["my_pkg.plugins", "True"]
