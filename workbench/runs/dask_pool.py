@@ -434,13 +434,14 @@ def run_dask(
     def ship(problem: str | None) -> Any:
         """The local plugin modules' files (``problem`` None, read once) or the problem's
         computed references in ``OUT/references`` (read again when they change), scattered
-        once: sent once a worker, not with every task."""
+        once: sent to every worker, not with every task (a copy on each, so a lost worker
+        does not take the only one; a task that fails scatters them again)."""
         names = [] if problem is None else reference_names(Path(reference_dir), problem)
         if problem not in shipped or shipped[problem][0] != names:
             packed = pack_modules(plugins) if problem is None else pack_references(
                 Path(reference_dir), problem
             )  # fmt: skip
-            future = client.scatter([packed], hash=True, timeout=LOST_AFTER_S)[0]
+            future = client.scatter([packed], hash=True, broadcast=True, timeout=LOST_AFTER_S)[0]
             shipped[problem] = (names, future)
         return shipped[problem][1]
 
@@ -497,6 +498,7 @@ def run_dask(
                 except Exception as error:  # noqa: BLE001 - lost worker, scheduler, child
                     # not a result of the run: once more, then left without a row
                     failures[spec.run_id] += 1
+                    shipped.clear()  # the data it was given may have gone with its worker
                     if failures[spec.run_id] <= RETRIES:
                         queue.appendleft((equations_key(spec), spec))
                     else:
