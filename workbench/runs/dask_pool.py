@@ -49,6 +49,17 @@ from workbench.runs.run_log import (
     write_log,
 )
 from workbench.runs.run_progress import progress_columns, progress_path, read_progress
+from workbench.runs.shipping import (
+    REFERENCE_FILES,
+    keep_references,
+    new_references,
+    pack_modules,
+    pack_references,
+    reference_names,
+    unpack_modules,
+    unpack_references,
+    worker_reference_dir,
+)
 from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
@@ -309,18 +320,27 @@ def run_on_worker_child(
     reference_dir: str,
     sys_path: list[str],
     timing: dict[str, Any] | None = None,
+    modules: dict[str, Any] | None = None,
+    references: dict[str, bytes] | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """A Dask task: run one spec in a long-lived child of this worker: (row, series or None).
 
     Takes an idle child made for the same plugins and paths (or starts one), and gives it
     back after the run unless the run killed it (timeout, crash). The child's start-up is
-    outside the run's time limit, as in the local pool."""
-    setting = (
-        tuple(plugins),
-        tuple(sys_path),
-        reference_dir if os.path.isdir(reference_dir) else None,
-        tuple(sorted((timing or {}).items())),
-    )
+    outside the run's time limit, as in the local pool. ``modules`` and ``references``
+    (given by :func:`run_dask`; :mod:`workbench.runs.shipping`): the local plugin modules'
+    files and the problem's computed references, shipped from the client, so this worker
+    reads none of the client's folders; the references computed here go back in the row
+    (:data:`~workbench.runs.shipping.REFERENCE_FILES`)."""
+    shipped = modules is not None or references is not None
+    if shipped:
+        plugins = unpack_modules(list(plugins), modules or {})
+        folder = worker_reference_dir(reference_dir)
+        unpack_references(folder, references or {})
+        here: str | None = str(folder)
+    else:
+        here = reference_dir if os.path.isdir(reference_dir) else None
+    setting = (tuple(plugins), tuple(sys_path), here, tuple(sorted((timing or {}).items())))
     _import_plugins(setting[0], setting[1])
     with _IDLE_LOCK:
         child = next((c for c in _IDLE if c.setting == setting and c.alive), None)
@@ -336,6 +356,10 @@ def run_on_worker_child(
     if child.alive:
         with _IDLE_LOCK:
             _IDLE.append(child)
+    if shipped:
+        computed = new_references(folder, str(spec_data.get("problem", "")), references or {})
+        if computed:
+            result[0][REFERENCE_FILES] = computed
     return result
 
 
@@ -391,6 +415,7 @@ def run_dask(
             "give the address a `dask scheduler` prints (tcp://host:port)"
         ) from None
     reference_dir = str((out / "references").resolve())
+    shipped: dict[str | None, tuple[list[str], Any]] = {}  # problem -> files, their future
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}
@@ -408,9 +433,24 @@ def run_dask(
             where = {} if worker is None else {"workers": [worker], "allow_other_workers": True}
             executors[worker] = client.get_executor(pure=False, **where)
         future = executors[worker].submit(
-            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths, timed
-        )
+            run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths, timed,
+            ship(None), ship(spec.problem),
+        )  # fmt: skip
         futures[future] = (spec, worker)
+
+    def ship(problem: str | None) -> Any:
+        """The local plugin modules' files (``problem`` None, read once) or the problem's
+        computed references in ``OUT/references`` (read again when they change), scattered
+        once: sent to every worker, not with every task (a copy on each, so a lost worker
+        does not take the only one; a task that fails scatters them again)."""
+        names = [] if problem is None else reference_names(Path(reference_dir), problem)
+        if problem not in shipped or shipped[problem][0] != names:
+            packed = pack_modules(plugins) if problem is None else pack_references(
+                Path(reference_dir), problem
+            )  # fmt: skip
+            future = client.scatter([packed], hash=True, broadcast=True, timeout=LOST_AFTER_S)[0]
+            shipped[problem] = (names, future)
+        return shipped[problem][1]
 
     def fill() -> None:
         """Give each worker thread up to DEPTH runs, chosen as the local pool chooses
@@ -465,11 +505,15 @@ def run_dask(
                 except Exception as error:  # noqa: BLE001 - lost worker, scheduler, child
                     # not a result of the run: once more, then left without a row
                     failures[spec.run_id] += 1
+                    shipped.clear()  # the data it was given may have gone with its worker
                     if failures[spec.run_id] <= RETRIES:
                         queue.appendleft((equations_key(spec), spec))
                     else:
                         give_up(spec, _lost_message(error))
                     continue
+                returned = row.pop(REFERENCE_FILES, None)
+                if returned:  # computed by a worker: kept, and shipped with the later runs
+                    keep_references(Path(reference_dir), returned)
                 store_log(out, row)
                 store.write_run(out, row, series, states)
                 record(row.get("status", "failed"))

@@ -572,6 +572,12 @@ def _frame_to_poses(frame: pd.DataFrame, n_times: int) -> np.ndarray:
     return values.reshape(n_times, -1, 7)
 
 
+def reference_prefix(problem_name: str) -> str:
+    """The start of a computed reference's file name, then ``-DIGEST.parquet``: a short,
+    plain name (a robot run's name holds its file's folders and options)."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", problem_name)[:60]
+
+
 def computed_reference(
     problem: Any,
     problem_name: str,
@@ -603,8 +609,7 @@ def computed_reference(
     if reference_dir is not None:
         # a robot run's name holds its file's folders and options: keep the file name one
         # short, plain file name (the digest tells the runs apart)
-        plain = re.sub(r"[^A-Za-z0-9._-]", "_", problem_name)[:60]
-        path = Path(reference_dir) / f"{plain}-{digest}.parquet"
+        path = Path(reference_dir) / f"{reference_prefix(problem_name)}-{digest}.parquet"
     started = time.perf_counter()
     lock = file_lock(path.with_suffix(".lock")) if path else contextlib.nullcontext()
     with lock:
