@@ -448,7 +448,10 @@ def run_dask(
             packed = pack_modules(plugins) if problem is None else pack_references(
                 Path(reference_dir), problem
             )  # fmt: skip
-            future = client.scatter([packed], hash=True, broadcast=True, timeout=LOST_AFTER_S)[0]
+            try:
+                future = client.scatter([packed], hash=True, broadcast=True, timeout=SCATTER_S)[0]
+            except Exception:  # noqa: BLE001 - e.g. a lost worker still restarting: one copy
+                future = client.scatter([packed], hash=True, timeout=LOST_AFTER_S)[0]
             shipped[problem] = (names, future)
         return shipped[problem][1]
 
@@ -526,6 +529,7 @@ def run_dask(
 
 WATCH_S = 1.0  # s between looks at the client while no run finishes
 LOST_AFTER_S = 60.0  # s the client may stay disconnected (reconnecting) before it is lost
+SCATTER_S = 10.0  # s a copy to every worker may take before one copy has to do
 CLOSE_S = 10.0  # s to close the client
 
 
