@@ -111,7 +111,7 @@ def local_plugins(sweep: SweepSpec) -> list[str]:
     for run in sweep.runs:
         for kind, name in (("problem", run.problem), ("formalism", run.formalism),
                            ("integrator", run.integrator)):  # fmt: skip
-            module = registry.REGISTRY.entries[kind][name].module
+            module = registry.REGISTRY.get(kind, name).__module__  # a robot file's name too
             here = (kind, name) in REGISTERED_HERE
             if name not in found and (here or not _importable(module)):
                 found.append(name)
