@@ -166,6 +166,8 @@ def test_a_killed_scheduler_ends_the_sweep_with_exit_1_and_a_resume_completes(
         assert f"{left} run(s) could not be completed" in last, stderr
         assert f"the Dask scheduler {address} was lost" in last or "dask task" in last, last
         assert "resume with `workbench sweep" in last
+        client_log = out / "logs" / "dask-client.log"  # distributed's words, kept off stderr
+        assert str(client_log) in last and "distributed" in client_log.read_text(), last
     resumed = subprocess.run(
         [sys.executable, "-m", "workbench", "sweep", str(spec)],
         cwd=REPO, capture_output=True, text=True, timeout=HANG,

@@ -272,6 +272,7 @@ def sweep(
     """
     from workbench.errors import ConfigError
     from workbench.runs import store
+    from workbench.runs.dask_pool import CLIENT_LOG
     from workbench.runs.resume import parse_rerun
     from workbench.runs.sweep import load_spec, run_sweep
     from workbench.runs.sweep_spec import FULL_SUITE
@@ -341,7 +342,12 @@ def sweep(
         runs = ", ".join(named) + (f" and {more} more" if more else "")
         typer.echo(
             f"{len(summary.unfinished)} run(s) could not be completed, not by their own fault "
-            f"(runs {runs}; e.g. run {first}: {why}); they have no row: resume with `{again}`",
+            f"(runs {runs}; e.g. run {first}: {why}); they have no row: resume with `{again}`"
+            + (
+                f" (Dask's own messages: {summary.out / 'logs' / CLIENT_LOG})"
+                if scheduler
+                else ""
+            ),
             err=True,
         )
         raise typer.Exit(1)

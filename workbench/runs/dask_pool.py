@@ -20,6 +20,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import json
+import logging
 import multiprocessing.connection
 import os
 import shutil
@@ -29,12 +30,13 @@ import sys
 import tempfile
 import threading
 from collections import Counter, deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError, one_line
+from workbench.files import make_dirs, open_no_follow
 from workbench.plugin.local_modules import import_plugin_modules
 from workbench.runs import store
 from workbench.runs.execute import RunSpec, equations_key, execute_run, status_row
@@ -400,12 +402,60 @@ def run_dask(
     cluster's worker threads, over all its machines; ``states``: store the trajectories,
     :func:`~workbench.runs.store.write_run`); return the runs left without a row
     (run id -> why): those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
-    import concurrent.futures
-
     try:
-        import distributed
+        import distributed  # noqa: F401 - its loggers exist once it is imported
     except ImportError as error:
         raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
+    with dask_log_in(out):
+        return _run_dask(todo, out, limit, plugins, scheduler, record, timing, states)
+
+
+CLIENT_LOG = "dask-client.log"  # under OUT/logs: what distributed says in the client
+
+
+@contextlib.contextmanager
+def dask_log_in(out: Path) -> Iterator[None]:
+    """Send what distributed logs in this process (a lost connection's traceback at INFO,
+    reconnection attempts) to ``OUT/logs/dask-client.log`` instead of the terminal: the
+    sweep says itself what a lost scheduler or worker means for the runs."""
+    logs = out / "logs"
+    make_dirs(logs, out)
+    fd = open_no_follow(logs / CLIENT_LOG, os.O_WRONLY | os.O_CREAT | os.O_APPEND, out)
+    handler = logging.StreamHandler(os.fdopen(fd, "a", encoding="utf-8"))
+    handler.setFormatter(logging.Formatter("%(asctime)s - %(name)s - %(levelname)s - %(message)s"))
+    loggers = [  # distributed gives each of its loggers (and tornado's) a stderr handler
+        logger
+        for name, logger in logging.Logger.manager.loggerDict.items()
+        if name.split(".")[0] in ("distributed", "tornado")
+        and isinstance(logger, logging.Logger)
+        and (logger.handlers or name == "distributed")
+    ]
+    saved = [(logger, logger.handlers[:], logger.propagate) for logger in loggers]
+    for logger in loggers:
+        logger.handlers[:] = [handler]
+        logger.propagate = False
+    try:
+        yield
+    finally:
+        for logger, handlers, propagate in saved:
+            logger.handlers[:], logger.propagate = handlers, propagate
+        handler.close()
+
+
+def _run_dask(
+    todo: list[RunSpec],
+    out: Path,
+    limit: float,
+    plugins: list[str],
+    scheduler: str,
+    record: Callable[[str], None],
+    timing: Timing | None,
+    states: bool,
+) -> dict[str, str]:
+    import concurrent.futures
+
+    import distributed
+
     try:
         client = distributed.Client(scheduler, timeout="10s")
     except Exception as error:  # noqa: BLE001 - nothing there, or a service that is not Dask
