@@ -151,6 +151,8 @@ def main() -> None:
         for measure, cost, ties in (
             ("CPU median, ties by [min, max]", "integrate_cpu_s", True),
             ("CPU median, no ties", "integrate_cpu_s", False),
+            ("counted work, ties by [min, max]", "work_s", True),
+            ("counted work, no ties", "work_s", False),
             ("wall median, no ties (old)", "integrate_s", False),
         ):
             a = ranking(sweeps[first]["rows"], cost, ties)

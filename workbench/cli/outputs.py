@@ -22,7 +22,8 @@ CostOption = Annotated[
     typer.Option(
         "--cost",
         help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
-        "(default), integrate_wall or n_rhs.",
+        "(default), integrate_wall, n_rhs or work (counted work: evaluations weighted "
+        "by their unit CPU costs, docs/reports.md).",
     ),
 ]
 WaitOption = Annotated[

@@ -10,6 +10,7 @@ its first call and the same arrays are bound to the compiled function's buffer.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import casadi as ca
@@ -137,6 +138,42 @@ class FastFunction:
 
     def __call__(self, *args: object) -> tuple[np.ndarray, ...]:
         return tuple(view.copy() for view in self.into(*args))
+
+    @property
+    def outputs(self) -> tuple[np.ndarray, ...]:
+        """The internal output arrays: the last call's values (overwritten by the next)."""
+        return self._result
+
+    def cpu_per_call(self, batches: int = 5, batch_s: float = 1e-3) -> tuple[float, float]:
+        """Least and greatest CPU seconds of one call, over ``batches`` batches of calls at
+        the last call's arguments, each batch long enough (``batch_s``) for the clock; the
+        calls are not counted in ``n_calls`` (a unit cost of :mod:`counted work
+        <workbench.runs.counted_work>`)."""
+        if self._pending:
+            self.compile()
+        return cpu_per_call(self._evaluate, batches, batch_s)
+
+
+def cpu_per_call(call: Callable[[], object], batches: int, batch_s: float) -> tuple[float, float]:
+    """Least and greatest CPU seconds of ``call()`` over ``batches`` batches, each of as many
+    calls as make it last ``batch_s`` of CPU (doubling from one call)."""
+    clock = time.process_time
+    calls = 1
+    while True:
+        start = clock()
+        for _ in range(calls):
+            call()
+        spent = clock() - start
+        if spent >= batch_s or calls >= 1 << 20:
+            break
+        calls *= 2
+    samples = [spent / calls]
+    for _ in range(batches - 1):
+        start = clock()
+        for _ in range(calls):
+            call()
+        samples.append((clock() - start) / calls)
+    return min(samples), max(samples)
 
     def __getstate__(self) -> dict:
         return {"function": self.function, "compiler": self.compiler}

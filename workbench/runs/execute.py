@@ -61,6 +61,7 @@ from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
 from workbench.runs.run_progress import PROGRESS
 from workbench.runs.store import SCHEMA_VERSION, STATE_PREFIX, empty_series
+from workbench.runs.counted_work import counted_work
 from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
 from workbench.runs.worker_env import threads_in_force, worker_threads
 
@@ -404,6 +405,7 @@ def execute_run(
                 _record_trajectory(row, trajectory)
 
                 stages.start("metrics")
+                row.update(counted_work(equations, form, row))
                 PROGRESS.enter("reference")
                 reference = _reference(spec, problem, times, reference_dir)
                 PROGRESS.enter("metrics")

@@ -11,7 +11,11 @@ Selectable (``workbench report --cost``, :data:`COST_MEASURES`):
 - ``integrate_wall``: wall seconds of the integration, the median of its samples
   (``integrate_s``): what a user waits for on an idle machine;
 - ``n_rhs``: right-hand-side evaluations: independent of the machine, blind to the cost
-  of each evaluation (Jacobians, linear solves).
+  of each evaluation (Jacobians, linear solves);
+- ``work``: counted work (``work_s``, :mod:`workbench.runs.counted_work`): the counts of
+  right-hand sides, Jacobians and LU factorizations weighted by their unit CPU costs,
+  timed in short batches: moves little with the machine's load, but leaves out the
+  integrator's own work between evaluations (step control, a Python loop).
 
 One-off costs (building the equations, compiling C, the consistent initial state, the
 reference) are never in any of them: they have their own columns. Rows written before the
@@ -33,6 +37,7 @@ COST_MEASURES: dict[str, tuple[str, str]] = {
     "integrate_cpu": ("integrate_cpu_s", "integration CPU time [s]"),
     "integrate_wall": ("integrate_s", "integration wall time [s]"),
     "n_rhs": ("n_rhs", "rhs evaluations [-]"),
+    "work": ("work_s", "counted work [s]"),
 }
 DEFAULT_COST = "integrate_cpu"
 # what the default falls back to, in order, for rows that lack the default's column
@@ -62,6 +67,11 @@ class Cost:
         text = f"cost measure: {self.name} (median of the timed samples)"
         if self.key == "n_rhs":
             text = f"cost measure: {self.name}"
+        if self.key == "work":
+            text = (
+                "cost measure: counted work (evaluations and factorizations weighted by "
+                "their unit CPU costs; the integrator's own work left out)"
+            )
         return text + (f"; {self.note}" if self.note else "")
 
 

@@ -43,6 +43,8 @@ def cost_interval(runs: pd.DataFrame, cost: str) -> tuple[pd.Series, pd.Series]:
         scale = value / _column(runs, "integrate_s")
         low = low.fillna(_column(runs, "integrate_s_min") * scale)
         high = high.fillna(_column(runs, "integrate_s_max") * scale)
+    if cost == "work_s":  # its interval comes from the unit costs' batches, not repeats
+        return low, high
     once = _column(runs, "repeats") < 2
     return low.mask(once), high.mask(once)
 
