@@ -12,8 +12,8 @@ import pytest
 from workbench.outputs.report import prepare_results
 from workbench.outputs.report.cost import resolve_cost
 from workbench.outputs.report.ranking import decide
-from workbench.runs import counted_work
 from workbench.plugin import registry
+from workbench.runs import counted_work
 from workbench.runs.execute import (
     RunSpec,
     cached_equations,

@@ -55,13 +55,13 @@ from workbench.errors import one_line, one_line_text
 from workbench.plugin import registry
 from workbench.runs import metrics as metrics_module
 from workbench.runs.charts import integrate_on_charts, switch_note
+from workbench.runs.counted_work import counted_work
 from workbench.runs.environment import environment
 from workbench.runs.producer import producer_columns
 from workbench.runs.references import problem_reference
 from workbench.runs.row_check import STATUSES
 from workbench.runs.run_progress import PROGRESS
 from workbench.runs.store import SCHEMA_VERSION, STATE_PREFIX, empty_series
-from workbench.runs.counted_work import counted_work
 from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
 from workbench.runs.worker_env import threads_in_force, worker_threads
 
