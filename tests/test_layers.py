@@ -27,8 +27,9 @@ LAYERS = [
     "mechanics",
     "equations",
     "plugin",
-    "runs",
-    "testing",  # the conformance kit: runs plugins and compares with the references
+    "execution",  # one run: executed and measured (execute, metrics, references, row schema)
+    "testing",  # the conformance kit: runs plugins, compares them with the references
+    "runs",  # sweeps: spec, pools, the results store, resume
     "outputs",
     "api",  # the public Python API (workbench.run, sweep...): beside the CLI, not under it
     "cli",

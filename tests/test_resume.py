@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 from tests.test_sweep import spec_text
+from workbench.execution import row_schema
 from workbench.runs import store
 from workbench.runs.sweep import parse_spec, run_sweep
 
@@ -160,7 +161,7 @@ def test_rows_of_an_older_schema_have_an_unknown_producer_not_stale(
     sweep_lines(text)
     for path in (tmp_path / "runs").glob("*.json"):  # as schema 3 wrote them
         row = json.loads(path.read_text())
-        for column in [*store.PRODUCER_COLUMNS, "n_samples"]:
+        for column in [*row_schema.PRODUCER_COLUMNS, "n_samples"]:
             row.pop(column)
         path.write_text(json.dumps(row | {"schema_version": 3}))
     again, lines = sweep_lines(text)

@@ -4,7 +4,7 @@ Pareto fronts and the recommendation count as a run's cost.
 Selectable (``workbench report --cost``, :data:`COST_MEASURES`):
 
 - ``integrate_cpu`` (the default): CPU seconds of the integration, the median of its
-  timed samples (``integrate_cpu_s``, :mod:`workbench.runs.timing`). Chosen because the
+  timed samples (``integrate_cpu_s``, :mod:`workbench.execution.timing`). Chosen because the
   workbench runs on shared machines: wall time also counts the time a worker waited for
   a core while other processes ran, CPU time mostly not; and the median of several
   samples is steadier than one;
