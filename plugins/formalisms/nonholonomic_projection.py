@@ -35,14 +35,14 @@ cos(heading)). The equations offer every partition of the same rows of W as a ch
 its conditioning sigma_min(W_d) / sigma_max(W), the state carried from chart to chart
 through v = F s + f, each chart's equations compiled when first used); the run integrates
 chart by chart and restarts on the best one where the current chart degrades
-(:mod:`workbench.execution.charts`; the switches are in the row's ``notes``). Measured on the
+(:mod:`workbench.runs.charts`; the switches are in the row's ``notes``). Measured on the
 knife-edge cart turning through 10 rad: 11.5 correct digits with DOP853 at rtol 1e-12 (one
 partition: 8.7; minimal-ode with multipliers: 13, the reference's cap), 10.9 with CVODE
 Adams (9.4; 11.2), at about 2.3 times the right-hand sides of one partition.
 ``repartition = false`` (or naming ``independent``) keeps one partition for the run: the
 run's audit then reports the least sigma_min(W_d) / sigma_max(W) reached
 (``Equations.partition_matrices``) and warns below
-:data:`workbench.execution.audit.SINGULAR_RATIO` ("singular velocity partition").
+:data:`workbench.runs.audit.SINGULAR_RATIO` ("singular velocity partition").
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ A problem plugin subclasses :class:`Problem` and registers with
    quantities);
 7. optionally give a :meth:`reference`: analytic body poses. Without one, a stored
    trajectory in ``references/`` beside the module (``workbench reference NAME``) is used,
-   else a computed one: that choice is made by :mod:`workbench.execution.references`;
+   else a computed one: that choice is made by :mod:`workbench.runs.references`;
 8. optionally implement :meth:`unavailable`: when the problem needs files from a package
    that is not installed (robot files of an extra), say so there; its runs are then
    ``skipped`` rows with that reason, so a sweep plans the same runs on every install;
@@ -137,7 +137,7 @@ class Problem:
         """Analytic poses, if the problem has them (override this); None otherwise.
 
         A declaration only: the stored and computed references are found by
-        :func:`workbench.execution.references.given_reference` and ``problem_reference``."""
+        :func:`workbench.runs.references.given_reference` and ``problem_reference``."""
         return None
 
     def unavailable(self) -> str | None:
