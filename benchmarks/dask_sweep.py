@@ -28,9 +28,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs.store import load_results
 from workbench.runs.sweep import load_spec, run_sweep
-from workbench.runs.timing import TIMING_COLUMNS
 
 RESULTS = Path(__file__).parent / "results"
 # columns that say where or when a run executed, not what it computed

@@ -17,7 +17,7 @@ nothing is resumed), as a subprocess and measures:
   median integration time, the mean seconds a run spends outside the integrator, and
   the share outside for the runs that integrate for at least 0.1 s. A run's integration
   counts once (its median sample, ``integrate_s``); the extra timed samples
-  (:mod:`workbench.runs.timing`) are reported apart (``repeat_s``, estimated from each
+  (:mod:`workbench.execution.timing`) are reported apart (``repeat_s``, estimated from each
   row's min, median and max) and left out of the workers' time, with the median load
   average the runs saw.
 
@@ -119,7 +119,7 @@ def time_shares(out: Path, jobs: int, runs_phase: float) -> tuple[dict, pd.DataF
         "outside_share_of_cpu": 1 - float(ran.integrate_cpu_s.sum()) / float(ran.cpu_s.sum()),
         # why the share is what it is: many short runs, each with a fixed cost around it
         "median_integrate_s": float(ran.integrate_s.median()),
-        # the integration's extra timed samples (workbench.runs.timing): the integrator
+        # the integration's extra timed samples (workbench.execution.timing): the integrator
         # runs then, but they are not the run's result; neither inside nor outside
         "repeat_s": float(ran.repeat_s.sum()),
         "runs_repeated": int((ran.repeats > 1).sum()),

@@ -5,7 +5,7 @@ Pipelines (``PIPELINES``): lie-generalized-alpha and generalized-alpha on the re
 formalism's index-3 mechanical form (joint space: one quaternion, no constraint) and
 lie-generalized-alpha on absolute-dae (body coordinates, the spherical joint as three
 index-3 constraints); DOP853 on the recursive ode; SUNDIALS IDA on absolute-dae at index 2
-(GGL). Each runs through :func:`workbench.runs.execute.execute_run`, so error, cost and
+(GGL). Each runs through :func:`workbench.execution.execute.execute_run`, so error, cost and
 drift are the result row's: ``err_max`` (largest pose error over the 401 samples against the
 computed reference, m + L rad), ``cpu_s`` (integration CPU seconds), ``invariant_err_max``
 and ``energy_err_max`` (relative), ``rotation_defect_max`` (|p^T p - 1| of the quaternions,
@@ -31,7 +31,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from workbench.runs.execute import RunSpec, execute_run  # noqa: E402
+from workbench.execution.execute import RunSpec, execute_run  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
 FIGURE = Path(__file__).parent.parent / "docs" / "images" / "lie-heavy-top.png"

@@ -9,7 +9,7 @@ output times it measures, once each (wall seconds):
   NaN above PER_SAMPLE_MAX samples, where it takes minutes);
 - ``mapped_s``: the same poses in one mapped call (``Observables.poses_along``, now used);
 - ``max_diff``: the largest difference between the two (they must agree to round-off);
-- ``reference_s``: :func:`workbench.runs.references.computed_reference` end to end
+- ``reference_s``: :func:`workbench.execution.references.computed_reference` end to end
   (integration + poses, in memory, nothing cached), the row's ``reference_s``.
 
 Prints a table and writes ``benchmarks/results/reference_samples.csv``.
@@ -25,8 +25,8 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution import references
 from workbench.plugin import registry
-from workbench.runs import references
 
 RESULTS = Path(__file__).parent / "results"
 PROBLEMS = ["double-pendulum", "four-bar"]

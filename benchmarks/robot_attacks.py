@@ -176,8 +176,8 @@ def count(attack: str, outcomes: list[str], expected: str, happens: str) -> dict
 def unreadable_meshes(base: Path) -> list[str]:
     """Runs of a robot whose mesh cannot be read: 'warned' when the run is ok with a
     warning naming the mesh (a placeholder is drawn), else what happened."""
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
     from workbench.outputs.recording import RerunSink
-    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 
     meshes = {
         "corrupt.stl": b"solid x\nfacet nonsense\n" + bytes(range(256)),

@@ -116,7 +116,7 @@ def kill_tree(pid: int) -> None:
 
 
 def timing_column(name: str) -> bool:
-    from workbench.runs.timing import TIMING_COLUMNS
+    from workbench.execution.timing import TIMING_COLUMNS
 
     return name.endswith("_s") or name in {"equations_cached", "log_s", *TIMING_COLUMNS}
 

@@ -278,8 +278,8 @@ class Logged:
 
 
 def comparable(out: Path) -> pd.DataFrame:
+    from workbench.execution.timing import TIMING_COLUMNS
     from workbench.runs.store import load_results
-    from workbench.runs.timing import TIMING_COLUMNS
 
     frame = load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution.execute import RunSpec, execute_run
+from workbench.execution.metrics import trajectory_metrics
+from workbench.execution.references import ReferencePoses
 from workbench.plugin.registry import get_formalism, get_problem
-from workbench.runs.execute import RunSpec, execute_run
-from workbench.runs.metrics import trajectory_metrics
-from workbench.runs.references import ReferencePoses
 
 
 def run(problem, formalism, integrator, rtol, formalism_options=None, problem_options=None):
@@ -78,19 +78,19 @@ def test_more_digits_than_the_reference_has_are_not_credited():
 
 
 def test_warnings_are_one_line_and_listed_in_the_schema():
-    from workbench.runs import store
+    from workbench.execution import row_schema
 
     row = run("iftomm-a02", "minimal-ode", "sundials-cvode-bdf", 1e-4, {"index": 1})
     assert "\n" not in row["warnings"]
     for column in ("warnings", "jacobian_sv_ratio_min", "branch_left_at", "branch_distance_max",
                    "dof_start", "dof_max",
                    "rotation_defect_max", "reference_accuracy"):  # fmt: skip
-        assert column in store.SCHEMA_COLUMNS and column in row
+        assert column in row_schema.SCHEMA_COLUMNS and column in row
 
 
 def test_each_warning_is_one_item_of_the_list():
     """'; ' separates warnings: no warning may contain it (the report counts their kinds)."""
-    from workbench.runs.audit import audit_warnings
+    from workbench.execution.audit import audit_warnings
 
     audit = {"jacobian_sv_ratio_min": 1e-9, "jacobian_sv_ratio_at": 1.0, "dof_start": 1,
              "dof_max": 3, "rotation_defect_max": 1.0,
@@ -120,7 +120,7 @@ def test_the_audit_of_all_samples_at_once_equals_one_sample_at_a_time(
     """The audit evaluates W (or W_d, or the residual Jacobian) at every output time in one
     mapped call; its columns are bit for bit those of one call per sample, on perturbed
     states whose ratio has local minima (so the refinement runs too)."""
-    from workbench.runs import audit
+    from workbench.execution import audit
 
     problem_ = get_problem(problem)()
     equations = get_formalism(formalism)().build(problem_.model(), options)

@@ -5,7 +5,7 @@ run can go on along another branch (a crank stops, a coupler turns) with status 
 small drift. The warning used to come from the sampled sigma_min/sigma_max of the
 constraint Jacobian against 1e-4: one machine's rounding put the sampled ratio at 4.5e-4
 and the row, 1.6 length scales off, had no warning. Now the audit follows the starting
-branch by continuation (workbench/runs/branch.py). The oracle is the mechanism's own
+branch by continuation (workbench/execution/branch.py). The oracle is the mechanism's own
 geometry: on the parallelogram branch every crank has the angle of crank 0 and every
 coupler translates (joint angle left_i = -pin_{i-1}), modulo 2 pi.
 
@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution.metrics import trajectory_metrics
+from workbench.execution.references import ReferencePoses
 from workbench.plugin.registry import get_formalism, get_integrator, get_problem
-from workbench.runs.metrics import trajectory_metrics
-from workbench.runs.references import ReferencePoses
 
 LEFT, STAYED = 1e-2, 1e-4  # branch defect (|sin| of half an angle) off / on the branch
 WARNING = "left its assembly branch"

@@ -15,11 +15,11 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution.references import given_reference
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
 from workbench.plugin.registry import REGISTRY, get_problem
 from workbench.plugins.formalisms.minimal_ode import MinimalOde
-from workbench.runs.references import given_reference
 
 
 def _has_robot_data() -> bool:

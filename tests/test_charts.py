@@ -1,4 +1,4 @@
-"""workbench.runs.charts: integration chart by chart, on a toy atlas of two charts.
+"""workbench.execution.charts: integration chart by chart, on a toy atlas of two charts.
 
 q turns at a constant rate 1 (q' = v = 1). Chart "c" holds with conditioning |cos q|,
 chart "s" with |sin q| (the two velocity partitions of a knife edge, heading q): each is
@@ -11,8 +11,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from workbench.execution.charts import SWITCH_RATIO, integrate_on_charts
 from workbench.plugin.integrator import SolverStats, Trajectory
-from workbench.runs.charts import SWITCH_RATIO, integrate_on_charts
 
 
 class TwoCharts:

@@ -12,8 +12,8 @@ import pytest
 
 from workbench.equations import compiled
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution.execute import RunSpec, clear_cache, execute_run
 from workbench.plugin.registry import get_formalism, get_problem
-from workbench.runs.execute import RunSpec, clear_cache, execute_run
 
 
 @pytest.fixture(autouse=True)

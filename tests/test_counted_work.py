@@ -1,4 +1,4 @@
-"""Counted work (workbench.runs.counted_work): a run's evaluations weighted by their unit
+"""Counted work (workbench.execution.counted_work): a run's evaluations weighted by their unit
 CPU costs, a cost measure that moves little with the machine's load (issue 33)."""
 
 from __future__ import annotations
@@ -9,18 +9,18 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.outputs.report import prepare_results
-from workbench.outputs.report.cost import resolve_cost
-from workbench.outputs.report.ranking import decide
-from workbench.plugin import registry
-from workbench.runs import counted_work
-from workbench.runs.execute import (
+from workbench.execution import counted_work
+from workbench.execution.execute import (
     RunSpec,
     cached_equations,
     cached_problem_part,
     clear_cache,
     execute_run,
 )
+from workbench.outputs.report import prepare_results
+from workbench.outputs.report.cost import resolve_cost
+from workbench.outputs.report.ranking import decide
+from workbench.plugin import registry
 
 
 def row_of(spec: RunSpec) -> dict:

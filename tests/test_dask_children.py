@@ -16,11 +16,11 @@ from pathlib import Path
 import pytest
 
 from tests.test_sweep import spec_text
+from workbench.execution.run_log import raw_path
+from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs import store
 from workbench.runs.dask_pool import run_on_worker_child
-from workbench.runs.run_log import raw_path
 from workbench.runs.sweep import parse_spec, run_sweep
-from workbench.runs.timing import TIMING_COLUMNS
 from workbench.runs.unfinished import InfrastructureError
 
 distributed = pytest.importorskip("distributed")

@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 
 from tests.test_sweep import spec_text
+from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs import store
-from workbench.runs.timing import TIMING_COLUMNS
 
 pytest.importorskip("distributed")
 

@@ -14,11 +14,11 @@ from pathlib import Path
 import pytest
 
 from tests.test_local_plugins import HELPER, spec_text
+from workbench.execution.timing import TIMING_COLUMNS
 from workbench.plugin import local_modules
 from workbench.plugin.registry import REGISTRY
 from workbench.runs import shipping, store
 from workbench.runs.sweep import load_spec, run_sweep
-from workbench.runs.timing import TIMING_COLUMNS
 
 distributed = pytest.importorskip("distributed")
 dask = pytest.importorskip("dask")

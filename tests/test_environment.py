@@ -9,7 +9,7 @@ import types
 
 import numpy as np
 
-from workbench.runs import environment as env
+from workbench.execution import environment as env
 
 
 def test_distribution_versions_for_a_report() -> None:

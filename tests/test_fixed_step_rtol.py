@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import pytest
 
-from workbench.runs.execute import RunSpec, execute_run
+from workbench.execution.execute import RunSpec, execute_run
 
 
 def andrews(integrator: str, rtol: float) -> dict:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import pytest
 
-from workbench.runs.execute import RunSpec, execute_run
+from workbench.execution.execute import RunSpec, execute_run
 
 
 @pytest.mark.parametrize(

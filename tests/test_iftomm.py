@@ -16,14 +16,14 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from workbench.errors import ConfigError
+from workbench.execution.execute import RunSpec, execute_run
+from workbench.execution.references import read_reference
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
 from workbench.outputs.report.analysis import prepare_results
 from workbench.outputs.report.scorecards import NOT_REACHED, cheapest_meeting, scorecards
 from workbench.plugin.registry import REGISTRY, get_formalism, get_problem
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, execute_run
-from workbench.runs.references import read_reference
 from workbench.runs.sweep_spec import load_spec, parse_spec, suite_names
 
 

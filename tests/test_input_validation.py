@@ -286,8 +286,8 @@ def restore_registry():
 
 
 def test_a_multi_line_skip_reason_is_one_line_in_the_row(restore_registry) -> None:
+    from workbench.execution.execute import RunSpec, execute_run, status_row
     from workbench.plugin.integrator import Integrator
-    from workbench.runs.execute import RunSpec, execute_run, status_row
 
     class Picky(Integrator):
         name = "picky-multi-line"
@@ -358,7 +358,7 @@ def test_run_has_the_sweeps_time_limit_and_kills_at_it() -> None:
 def test_fuzzed_run_command_lines_give_one_line_or_a_row(monkeypatch) -> None:
     """240 seeded `workbench run` command lines: exit 2 with one line, or a printed row."""
     import workbench.runs.dask_pool as dask_pool
-    from workbench.runs.execute import RunSpec, status_row
+    from workbench.execution.execute import RunSpec, status_row
 
     def quick(spec_data, limit, plugins, reference_dir, sys_path, timing=None):
         assert 0 < limit < float("inf")

@@ -281,7 +281,7 @@ def test_dae_keeps_constraints_and_energy(name, slider_crank):
 def test_ida_index_one_leaves_multipliers_out_of_the_error_test():
     """At index 1 lambda follows v' (W v' = gamma), one order less accurate than v under
     BDF; in the error test it forced ~20x more steps on the heavy top (absolute-dae)."""
-    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
 
     def run(**options):
         options = {"max_steps": 3000, **options}
@@ -302,7 +302,7 @@ def test_ida_index_one_leaves_multipliers_out_of_the_error_test():
 def test_casadi_idas_starts_from_the_consistent_derivative(problem, rtol):
     """IDAS is given y'(t0) (init_xdot): without it, it assumed x' = 0 and its error test
     failed at t = 0 from rtol 1e-8 on (issue: trust, item 6)."""
-    from workbench.runs.execute import RunSpec, execute_run
+    from workbench.execution.execute import RunSpec, execute_run
 
     spec = RunSpec(problem, "absolute-dae", "casadi-idas", rtol, rtol * 1e-3,
                    formalism_options={"index": 1})  # fmt: skip

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from workbench.execution.references import Pipeline, solve_poses, stored_reference
 from workbench.plugin.registry import get_problem
 from workbench.problems.ivp_testset import (
     ANDREWS_Q0,
@@ -15,7 +16,6 @@ from workbench.problems.ivp_testset import (
     published,
     significant_digits,
 )
-from workbench.runs.references import Pipeline, solve_poses, stored_reference
 from workbench.testing import check_problem
 
 BEST = Pipeline("minimal-ode", {"index": 1}, "scipy-dop853")
@@ -81,7 +81,7 @@ def test_car_axis_reproduces_the_published_end_state() -> None:
 
 
 def test_mixed_scd_is_the_test_sets_measure_on_pose_components() -> None:
-    from workbench.runs.metrics import mixed_scd
+    from workbench.execution.metrics import mixed_scd
 
     reference = car_axis_poses(0.0, [0.0, 0.5, 1.0, 0.5])
     poses = reference.copy()

@@ -426,7 +426,7 @@ def test_generalized_alpha_follows_the_turntable_2_7_law():
     moving plane. Its centre circles at 2/7 of the plane's rate (the problem's analytic
     reference). Dropping f left generalized-alpha 42 m off (a Newton failure, or ok with
     hundreds of metres on other settings); with it the error is second order in h."""
-    from workbench.runs.execute import RunSpec, execute_run
+    from workbench.execution.execute import RunSpec, execute_run
 
     errors = []
     for step in (2e-3, 1e-3):
@@ -447,7 +447,7 @@ def test_projection_in_the_mass_metric_with_point_masses(problem):
     """Absolute coordinates give a point mass no rotational inertia, so M is singular; the
     mass-metric projection goes through [M B^T; B 0], nonsingular because the joints fix
     those directions (it raised LinAlgError at t = 0 when it solved with M alone)."""
-    from workbench.runs.execute import RunSpec, execute_run
+    from workbench.execution.execute import RunSpec, execute_run
 
     spec = RunSpec(
         problem, "absolute-dae", "projected", 1e-8, 1e-11,

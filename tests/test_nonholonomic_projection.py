@@ -171,7 +171,7 @@ def test_closed_loop_projection_matches_minimal_ode() -> None:
 
 def knife_edge_run(formalism: str, options: dict, integrator: str = "sundials-cvode-adams",
                    rtol: float = 1e-12):  # fmt: skip
-    from workbench.runs.execute import RunSpec, execute_run
+    from workbench.execution.execute import RunSpec, execute_run
 
     spec = RunSpec("knife-edge-cart", formalism, integrator, rtol, rtol / 100, {}, options)
     return execute_run(spec).row
@@ -229,9 +229,9 @@ def test_chart_by_chart_integration_adds_up_segments() -> None:
     """The run's solver statistics are the sums over the segments the integrator solved;
     a sample is kept once, in the chart it was computed in, and carries over through the
     full velocities v = F s + f at every switch (the constraint holds to round-off)."""
+    from workbench.execution.charts import SWITCH_RATIO, integrate_on_charts
+    from workbench.execution.execute import RunSpec, cached_equations, cached_initial_state
     from workbench.plugin.registry import get_integrator, get_problem
-    from workbench.runs.charts import SWITCH_RATIO, integrate_on_charts
-    from workbench.runs.execute import RunSpec, cached_equations, cached_initial_state
 
     problem = get_problem("knife-edge-cart")()
     spec = RunSpec("knife-edge-cart", "nonholonomic-projection", "scipy-dop853", 1e-10, 1e-12)

@@ -13,8 +13,8 @@ from typer.testing import CliRunner
 
 from tests.test_sweep import spec_text
 from workbench import cli, files
+from workbench.execution.run_log import CapturedOutput, bounded, salvage_log, write_log
 from workbench.runs import store
-from workbench.runs.run_log import CapturedOutput, bounded, salvage_log, write_log
 from workbench.runs.sweep import parse_spec, run_sweep
 
 # (what the link is planted as, relative to OUT); {id} is a run id of the sweep

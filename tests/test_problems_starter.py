@@ -8,11 +8,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from workbench.execution.references import given_reference
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.mechanics.topology import analyze
 from workbench.plugin.registry import get_problem
 from workbench.problems import heavy_top, simple_pendulum
-from workbench.runs.references import given_reference
 
 STARTERS = {
     # name: (dof, loops)

@@ -10,6 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from workbench.cli import app
+from workbench.execution.execute import RunSpec
 from workbench.plugin.registry import get_problem
 from workbench.runs.estimate import (
     Costs,
@@ -19,7 +20,6 @@ from workbench.runs.estimate import (
     run_seconds,
     shipped_tables,
 )
-from workbench.runs.execute import RunSpec
 from workbench.runs.sweep_spec import DEFAULT_SUITE, load_spec
 
 QUICK_RUNS = 6 * 3 * 3 * 2  # problems x formalisms x integrators x tolerances
@@ -65,8 +65,8 @@ def test_a_suite_plans_the_same_runs_without_the_robots_extra(monkeypatch, tmp_p
     """Without example-robot-data (simulated where its problems look for it) the full suite
     plans the same runs, and the robots' runs become skipped rows naming the install."""
     pytest.importorskip("workbench.problems.robots", reason="example-robot-data missing")
+    from workbench.execution.execute import execute_run
     from workbench.problems import robots
-    from workbench.runs.execute import execute_run
 
     counts = {}
     for installed in (True, False):

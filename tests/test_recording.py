@@ -236,7 +236,7 @@ def test_entity_paths_escape_and_split() -> None:
 
 def test_sink_in_the_runner(tmp_path: Path) -> None:
     """A real run: the runner calls log_run after the metrics."""
-    from workbench.runs.execute import RunSpec, execute_run, normalized_spec
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
 
     sink = RerunSink()
     spec = normalized_spec(

@@ -8,8 +8,8 @@ import pytest
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.equations.observables import Observables
+from workbench.execution import references
 from workbench.plugin import registry
-from workbench.runs import references
 
 CASES = [  # (problem, formalism, options): planar and spatial, tree, loop, nonholonomic
     ("double-pendulum", "minimal-ode", {"index": 1}),

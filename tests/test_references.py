@@ -17,10 +17,8 @@ from typer.testing import CliRunner
 
 from workbench import cli
 from workbench.equations.initial import consistent_initial_state
-from workbench.numerics.geometry import length_scale, pose_error
-from workbench.plugin.registry import get_formalism, get_problem, list_plugins
-from workbench.runs.execute import RunSpec, execute_run, normalized_spec
-from workbench.runs.references import (
+from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+from workbench.execution.references import (
     AGREEMENT_THRESHOLD,
     Pipeline,
     compute_reference,
@@ -30,6 +28,8 @@ from workbench.runs.references import (
     read_reference,
     solve_poses,
 )
+from workbench.numerics.geometry import length_scale, pose_error
+from workbench.plugin.registry import get_formalism, get_problem, list_plugins
 
 REPO = Path(__file__).resolve().parents[1]
 DIRECTORY = REPO / "problems" / "references"
@@ -184,7 +184,7 @@ def test_unknown_problem_from_the_shell() -> None:
 
 def test_disagreeing_pipelines_name_the_disagreement() -> None:
     """At a loose tolerance the two pipelines differ: the error says by how much, where."""
-    from workbench.runs.references import ReferenceDisagreement
+    from workbench.execution.references import ReferenceDisagreement
 
     with pytest.raises(ReferenceDisagreement, match=r"disagree by .* m .* at t = .* on body"):
         compute_reference("double-pendulum", rtol=1e-4, samples=11)
@@ -218,7 +218,7 @@ def test_a_reference_without_orientation_measures_positions() -> None:
 
 
 def test_options_or_times_not_stored_fall_back_to_a_computed_reference(tmp_path: Path) -> None:
-    from workbench.runs.references import problem_reference
+    from workbench.execution.references import problem_reference
 
     problem = get_problem("planar-chain")({"n_links": 2})
     assert given_reference(problem) is None  # stored for the default options only
@@ -368,7 +368,7 @@ def test_stored_references_state_their_first_pipelines_accuracy() -> None:
     """Every stored file records how its accuracy was estimated, and the runner states it
     (never below the round-off of double-precision poses); references made through heyoka
     state 1e-13 or better where the motion allows."""
-    from workbench.runs.references import ROUND_OFF_ACCURACY
+    from workbench.execution.references import ROUND_OFF_ACCURACY
 
     for path in STORED:
         meta = read_reference(path).metadata
@@ -399,7 +399,7 @@ def test_computed_reference_states_a_measured_accuracy(tmp_path: Path) -> None:
 
 def test_a_pipeline_that_cannot_compute_gives_way_to_the_next() -> None:
     from workbench.errors import ConfigError
-    from workbench.runs.references import solve_first_available
+    from workbench.execution.references import solve_first_available
 
     problem = get_problem("simple-pendulum")()
     times = np.linspace(0.0, 1.0, 5)

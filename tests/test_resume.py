@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 from tests.test_sweep import spec_text
+from workbench.execution import row_schema
 from workbench.runs import store
 from workbench.runs.sweep import parse_spec, run_sweep
 
@@ -152,6 +153,40 @@ def test_a_fixed_plugin_makes_its_rows_stale_and_rerun_stale_redoes_them(
     assert "resuming: 2 of 2 done (0 stale)" in lines
 
 
+def test_a_producer_does_not_depend_on_where_the_plugin_file_lies(tmp_path) -> None:
+    """Moving files (as the split of runs/ into execution/ did) makes no row stale: a
+    producer hashes the modules of a plugin's class hierarchy by name and source, never by
+    path; an edited source does change it."""
+    import importlib
+    import sys
+
+    from workbench.execution.producer import plugin_producer
+
+    source = "from workbench.plugin.formalism import Formalism\n\n\nclass Moved(Formalism):\n"
+    producers, files = [], []
+    for folder, body in [
+        ("here", "    pass\n"),
+        ("there/deeper", "    pass\n"),
+        ("edited", "    x = 1\n"),
+    ]:
+        directory = tmp_path / folder
+        directory.mkdir(parents=True)
+        (directory / "moved_plugin.py").write_text(source + body)
+        sys.path.insert(0, str(directory))
+        sys.modules.pop("moved_plugin", None)
+        importlib.invalidate_caches()
+        try:
+            module = importlib.import_module("moved_plugin")
+            files.append(module.__file__)
+            producers.append(plugin_producer(module.Moved))  # reads sys.modules' file
+        finally:
+            sys.path.remove(str(directory))
+            sys.modules.pop("moved_plugin", None)
+    assert len(set(files)) == 3  # three files, each imported from its own folder
+    assert producers[0].startswith("sha256:")
+    assert producers[0] == producers[1] != producers[2]
+
+
 def test_rows_of_an_older_schema_have_an_unknown_producer_not_stale(
     fake_plugins,
     tmp_path,
@@ -160,7 +195,7 @@ def test_rows_of_an_older_schema_have_an_unknown_producer_not_stale(
     sweep_lines(text)
     for path in (tmp_path / "runs").glob("*.json"):  # as schema 3 wrote them
         row = json.loads(path.read_text())
-        for column in [*store.PRODUCER_COLUMNS, "n_samples"]:
+        for column in [*row_schema.PRODUCER_COLUMNS, "n_samples"]:
             row.pop(column)
         path.write_text(json.dumps(row | {"schema_version": 3}))
     again, lines = sweep_lines(text)

@@ -189,8 +189,8 @@ def test_without_example_robot_data_the_robots_say_how_to_install_them(monkeypat
     the pip command. The missing package is simulated where the problems look for it."""
     pytest.importorskip("workbench.problems.robots", reason="example-robot-data missing")
     from workbench.errors import ModelError
+    from workbench.execution.execute import RunSpec, execute_run
     from workbench.problems import robots
-    from workbench.runs.execute import RunSpec, execute_run
 
     assert robots.UR5().unavailable() is None  # installed: it runs
     monkeypatch.setattr(robots, "_ROBOTS", None)  # what the module keeps without the package

@@ -8,9 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from workbench.runs import store
-from workbench.runs.execute import RunSpec, normalized_spec
-from workbench.runs.run_log import (
+from workbench.execution.execute import RunSpec, normalized_spec
+from workbench.execution.run_log import (
     KEEP_BYTES,
     LOG_TEXT,
     CapturedOutput,
@@ -19,6 +18,7 @@ from workbench.runs.run_log import (
     salvage_log,
     store_log,
 )
+from workbench.runs import store
 
 ROOT = Path(__file__).resolve().parents[1]
 # what tests/noisy_plugins.py's test-noisy writes first and last (not imported here:

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from workbench.execution import references, row_schema
+from workbench.execution.execute import RunSpec, execute_run, normalized_spec
 from workbench.numerics import geometry
-from workbench.runs import references, store
-from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 
 
 def spec(
@@ -91,9 +91,10 @@ def test_closed_loop_drift_and_energy_with_inline_rk4(fake_plugins, tmp_path) ->
     assert fine.row["energy_err_max"] < coarse.row["energy_err_max"]
     assert fine.row["drift_pos_max"] < 1e-5 and fine.row["energy_err_max"] < 1e-4
     series = fine.series
-    n = len(store.SERIES_COLUMNS)  # then the trajectory's states (tests/test_trajectory_store.py)
-    assert list(series.columns[:n]) == store.SERIES_COLUMNS
-    assert all(c.startswith(store.STATE_PREFIX) for c in series.columns[n:])
+    # then the trajectory's states (tests/test_trajectory_store.py)
+    n = len(row_schema.SERIES_COLUMNS)
+    assert list(series.columns[:n]) == row_schema.SERIES_COLUMNS
+    assert all(c.startswith(row_schema.STATE_PREFIX) for c in series.columns[n:])
     assert len(series) == 26 and (series["run_id"] == fine.row["run_id"]).all()
     assert series["drift_pos"].iloc[0] < 1e-10 and series["energy_err"].iloc[0] == 0
 
@@ -191,8 +192,8 @@ def test_pose_error_and_length_scale() -> None:
 def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch) -> None:
     """The worker's equations cache is bounded (least recently used out): a reused entry
     is the same object, an evicted one is built again."""
+    from workbench.execution import execute as runs
     from workbench.plugin.registry import get_problem
-    from workbench.runs import execute as runs
 
     runs.clear_cache()
     monkeypatch.setattr(runs, "EQUATIONS_CACHE_SIZE", 2)
@@ -214,8 +215,8 @@ def test_initial_state_is_computed_once_per_cached_equations() -> None:
     for every integrator and tolerance, equal to a fresh computation, and consistent
     (closure residual of the four-bar ~ 0); other equations get their own."""
     from workbench.equations.initial import consistent_initial_state
+    from workbench.execution import execute as runs
     from workbench.plugin.registry import get_problem
-    from workbench.runs import execute as runs
 
     runs.clear_cache()
     specs = [

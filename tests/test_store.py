@@ -10,9 +10,11 @@ import pandas as pd
 import pytest
 
 import workbench
+from workbench import files
 from workbench.errors import ConfigError
+from workbench.execution import row_schema
+from workbench.execution.row_schema import SERIES_COLUMNS
 from workbench.runs import store
-from workbench.runs.store import SERIES_COLUMNS
 
 
 def row(run_id: str, **extra) -> dict:
@@ -49,14 +51,14 @@ def test_write_run_leaves_no_temporary_files(tmp_path) -> None:
 
 def test_failed_write_leaves_no_temporary_file(tmp_path) -> None:
     with pytest.raises(TypeError):
-        store.write_json_atomic({"run_id": object()}, tmp_path / "x.json")
+        files.write_json_atomic({"run_id": object()}, tmp_path / "x.json")
     assert list(tmp_path.iterdir()) == []
 
 
 def test_load_results_schema_and_the_top_level_export(tmp_path) -> None:
     store.write_run(tmp_path, row("a" * 16, custom=3), series("a" * 16))
     frame = workbench.load_results(tmp_path)
-    assert list(frame.columns[: len(store.SCHEMA_COLUMNS)]) == store.SCHEMA_COLUMNS
+    assert list(frame.columns[: len(row_schema.SCHEMA_COLUMNS)]) == row_schema.SCHEMA_COLUMNS
     assert frame.loc[0, "custom"] == 3 and math.isnan(frame.loc[0, "scd"])
     for column in [
         "run_id",
@@ -87,7 +89,7 @@ def test_load_results_schema_and_the_top_level_export(tmp_path) -> None:
     path = store.consolidate(tmp_path)
     again = workbench.load_results(path)
     assert list(again["run_id"]) == list(frame["run_id"])
-    assert list(again.columns[: len(store.SCHEMA_COLUMNS)]) == store.SCHEMA_COLUMNS
+    assert list(again.columns[: len(row_schema.SCHEMA_COLUMNS)]) == row_schema.SCHEMA_COLUMNS
     assert len(workbench.load_series(tmp_path, "a" * 16)) == 2
     assert len(store.load_series(tmp_path)) == 2
 
@@ -122,12 +124,12 @@ def write_row_file(out, data: dict) -> None:
 
 
 def test_rows_are_written_with_the_current_schema_version(tmp_path) -> None:
-    from workbench.runs.execute import RunSpec, status_row
+    from workbench.execution.execute import RunSpec, status_row
 
     spec = RunSpec("p", "f", "i", 1e-6, 1e-9)
     store.write_run(tmp_path, status_row(spec, "timeout", "too slow"), None)
     written = json.loads(store.row_path(tmp_path, spec.run_id).read_text())
-    assert written["schema_version"] == store.SCHEMA_VERSION == 9
+    assert written["schema_version"] == row_schema.SCHEMA_VERSION == 9
     frame = store.load_results(tmp_path)
     assert frame.loc[0, "schema_version"] == 9 and frame.attrs["migrated"] == []
 
@@ -166,7 +168,7 @@ def test_a_schema_6_row_gets_the_repeated_timing_as_not_measured(tmp_path) -> No
     assert loaded["schema_version"] == 9 and loaded["integrate_s"] == 0.25
     new = ["integrate_s_min", "integrate_s_max", "integrate_cpu_s", "repeats", "load_avg"]
     assert all(np.isnan(loaded[column]) for column in [*new, "workers"])
-    assert store.MIGRATIONS[6](row("f" * 16, schema_version=6)).keys() >= {*new, "workers"}
+    assert row_schema.MIGRATIONS[6](row("f" * 16, schema_version=6)).keys() >= {*new, "workers"}
 
 
 def test_a_schema_7_row_gets_the_cpu_interval_as_not_measured(tmp_path) -> None:
@@ -187,7 +189,7 @@ def test_a_schema_8_row_gets_the_counted_work_as_not_measured(tmp_path) -> None:
 
 
 def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
-    write_row_file(tmp_path, row("c" * 16, schema_version=store.SCHEMA_VERSION + 1))
+    write_row_file(tmp_path, row("c" * 16, schema_version=row_schema.SCHEMA_VERSION + 1))
     newer = str(store.row_path(tmp_path, "c" * 16))
     with pytest.raises(ConfigError, match="upgrade the workbench") as error:
         store.load_results(tmp_path)
@@ -197,7 +199,7 @@ def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
     with pytest.raises(ConfigError, match="upgrade the workbench"):
         store.completed_run_ids(tmp_path)
     parquet = tmp_path / "new.parquet"
-    pd.DataFrame([row("d" * 16, schema_version=store.SCHEMA_VERSION + 1)]).to_parquet(parquet)
+    pd.DataFrame([row("d" * 16, schema_version=row_schema.SCHEMA_VERSION + 1)]).to_parquet(parquet)
     with pytest.raises(ConfigError, match=f"{parquet}.*upgrade the workbench"):
         store.load_results(parquet)
 
@@ -205,16 +207,16 @@ def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
 def test_mixed_directories(tmp_path) -> None:
     # old and current rows load together, all in the current schema
     write_row_file(tmp_path, row("a" * 16))
-    write_row_file(tmp_path, row("b" * 16, schema_version=store.SCHEMA_VERSION))
+    write_row_file(tmp_path, row("b" * 16, schema_version=row_schema.SCHEMA_VERSION))
     frame = store.load_results(tmp_path)
     assert list(frame["schema_version"]) == [9, 9]
     assert frame.attrs["migrated"] == [str(store.row_path(tmp_path, "a" * 16))]
     for run_id in ("a" * 16, "b" * 16):  # an ok row is done with its series only
-        store.write_parquet_atomic(series(run_id), store.series_path(tmp_path, run_id))
+        files.write_parquet_atomic(series(run_id), store.series_path(tmp_path, run_id))
     assert store.completed_run_ids(tmp_path) == {"a" * 16, "b" * 16}
     # one newer row refuses the whole directory (no silently partial results), naming it
     for run_id in ("c" * 16, "d" * 16):
-        write_row_file(tmp_path, row(run_id, schema_version=store.SCHEMA_VERSION + 1))
+        write_row_file(tmp_path, row(run_id, schema_version=row_schema.SCHEMA_VERSION + 1))
     with pytest.raises(ConfigError, match="and 1 other row file") as error:
         store.load_results(tmp_path)
     assert str(store.row_path(tmp_path, "c" * 16)) in str(error.value)

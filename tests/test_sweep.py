@@ -17,10 +17,11 @@ from typer.testing import CliRunner
 
 from workbench.cli import app
 from workbench.errors import ConfigError
+from workbench.execution import row_schema
+from workbench.execution.worker_env import worker_threads
 from workbench.plugin.registry import REGISTRY
 from workbench.runs import store
 from workbench.runs.sweep import load_spec, parse_spec, run_sweep
-from workbench.runs.worker_env import worker_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -135,7 +136,7 @@ def test_misbehaving_plugins_give_rows_and_the_sweep_completes(fake_plugins, tmp
     assert (tmp_path / "results.parquet").is_file() and not list(tmp_path.rglob("*.tmp"))
     environment = json.loads((tmp_path / store.ENVIRONMENT_FILE).read_text())
     assert environment["distributions"]["mbs-workbench"] == frame["version_workbench"].iloc[0]
-    assert set(frame["schema_version"]) == {store.SCHEMA_VERSION}
+    assert set(frame["schema_version"]) == {row_schema.SCHEMA_VERSION}
     # the rows the parent wrote (timeout, died) name the workers' threads, not its own
     assert set(frame["threads"]) == {worker_threads()}
     # every ok row has its series
@@ -443,7 +444,7 @@ def test_workers_take_runs_of_the_equations_they_built() -> None:
     worker is on, so each model is built by about one worker; nothing lost or repeated."""
     from collections import deque
 
-    from workbench.runs.execute import RunSpec, equations_key
+    from workbench.execution.execute import RunSpec, equations_key
     from workbench.runs.local_pool import _take_next
 
     runs = [

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
+from workbench.execution.execute import RunSpec
 from workbench.runs import store
-from workbench.runs.execute import RunSpec
 from workbench.runs.local_pool import run_local
 
 LIMIT = 4.0  # s: the run below needs minutes (2000 s of pendulum at rtol 1e-10 by Radau)

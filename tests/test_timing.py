@@ -1,5 +1,5 @@
 """Cost a reader can trust: repeated timing of the integration, the report's cost measure
-and its warning about a crowded machine (workbench.runs.timing, outputs.report.cost)."""
+and its warning about a crowded machine (workbench.execution.timing, outputs.report.cost)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,10 @@ from typer.testing import CliRunner
 
 from workbench.cli import app
 from workbench.errors import ConfigError
+from workbench.execution.execute import RunSpec, execute_run
+from workbench.execution.row_check import row_defects
+from workbench.execution.row_schema import SCHEMA_COLUMNS
+from workbench.execution.timing import Samples, Timing, integrate_repeated, oversubscribed
 from workbench.outputs.report import write_report
 from workbench.outputs.report.analysis import (
     cheapest_pairs,
@@ -20,11 +24,7 @@ from workbench.outputs.report.analysis import (
     prepare_results,
 )
 from workbench.outputs.report.cost import resolve_cost
-from workbench.runs.execute import RunSpec, execute_run
-from workbench.runs.row_check import row_defects
-from workbench.runs.store import SCHEMA_COLUMNS
 from workbench.runs.sweep_spec import parse_spec
-from workbench.runs.timing import Samples, Timing, integrate_repeated, oversubscribed
 
 
 def pendulum(rtol: float = 1e-6) -> RunSpec:

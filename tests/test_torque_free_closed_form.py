@@ -9,6 +9,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution.references import Pipeline, given_reference, solve_poses
 from workbench.numerics.geometry import rotation_angle
 from workbench.numerics.rotations import quaternion_to_matrix
 from workbench.plugin.registry import get_formalism, get_problem
@@ -18,7 +19,6 @@ from workbench.problems.ch4_gyros import (
     torque_free_body_rates,
     torque_free_quaternions,
 )
-from workbench.runs.references import Pipeline, given_reference, solve_poses
 
 TIMES = np.linspace(0.0, 5.0, 51)
 

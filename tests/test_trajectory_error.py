@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from workbench.runs.execute import RunSpec, execute_run
+from workbench.execution.execute import RunSpec, execute_run
 
 
 def test_l2_error_is_the_rms_of_the_series_and_fixed_step_follows_rtol(tmp_path) -> None:

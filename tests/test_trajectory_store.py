@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from workbench.errors import ConfigError
+from workbench.execution import row_schema
+from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+from workbench.execution.timing import Timing
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 from workbench.runs.sweep import run_sweep
 from workbench.runs.sweep_spec import parse_spec
-from workbench.runs.timing import Timing
 
 
 class Keep:
@@ -57,9 +58,9 @@ def test_stored_trajectory_is_what_the_integrator_returned(
     np.testing.assert_array_equal(trajectory[names].to_numpy(), returned)
     # the series without states is the one it was; with them, the trajectory's columns too
     series = store.load_series(tmp_path, spec.run_id)
-    assert list(series.columns) == store.SERIES_COLUMNS
+    assert list(series.columns) == row_schema.SERIES_COLUMNS
     full = store.load_series(tmp_path, spec.run_id, states=True)
-    assert [c.removeprefix(store.STATE_PREFIX) for c in full.columns[7:]] == names
+    assert [c.removeprefix(row_schema.STATE_PREFIX) for c in full.columns[7:]] == names
     # a multiplier keeps a loop closed: it is not zero on a moving slider-crank
     if multipliers:
         assert np.abs(trajectory[lambdas].to_numpy()).max() > 1e-3
@@ -81,11 +82,11 @@ def test_a_sweep_stores_trajectories_unless_switched_off(fake_plugins, tmp_path)
     (run_id,) = store.load_results(on)["run_id"]
     trajectory = store.load_trajectory(on, run_id)
     assert list(trajectory.columns) == ["t", "pivot", "pivot.v"] and len(trajectory) == 41
-    assert list(store.load_series(off, run_id, states=True).columns) == store.SERIES_COLUMNS
+    assert list(store.load_series(off, run_id, states=True).columns) == row_schema.SERIES_COLUMNS
     with pytest.raises(ConfigError, match="no stored trajectory.*store_trajectories = false"):
         store.load_trajectory(off, run_id)
     # the series of all runs never carries states (their names differ from run to run)
-    assert list(store.load_series(on).columns) == store.SERIES_COLUMNS
+    assert list(store.load_series(on).columns) == row_schema.SERIES_COLUMNS
     # a resumed sweep finds both stores whole
     assert store.completed_run_ids(on) == store.completed_run_ids(off) == {run_id}
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from tests.test_recording import read_chunks
+from workbench.execution.execute import RunSpec, execute_run, normalized_spec
 from workbench.outputs.recording import RerunSink
-from workbench.runs.execute import RunSpec, execute_run, normalized_spec
 
 pytest.importorskip("trimesh", reason="trimesh reads meshes (a dependency of yourdfpy)")
 

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from workbench.execution.worker_env import LIBRARY_VARIABLES, THREADS_VARIABLE
 from workbench.runs import store
-from workbench.runs.worker_env import LIBRARY_VARIABLES, THREADS_VARIABLE
 
 ROOT = Path(__file__).resolve().parents[1]
 # Radau's complex LU (LAPACK through OpenBLAS): with 1 and 2 BLAS threads this run's
@@ -31,7 +31,7 @@ def environment(threads: str | None) -> dict[str, str]:
 def test_pinned_process_limits_loaded_blas_to_one_thread() -> None:
     code = (
         "import numpy, scipy.linalg\n"
-        "from workbench.runs.worker_env import pin_threads, threads_in_force\n"
+        "from workbench.execution.worker_env import pin_threads, threads_in_force\n"
         "before = threads_in_force(); pin_threads()\n"
         "print(before, threads_in_force())\n"
     )

@@ -21,15 +21,19 @@ link anywhere under a folder before a command writes into it. A link refused is 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import secrets
 import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from workbench.errors import ConfigError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TEMPORARY_NAME = re.compile(r"^\..+\.\d+-[0-9a-f]{8}\.tmp$")  # what atomic_write creates
 
@@ -210,6 +214,44 @@ def file_lock(path: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+# ---- whole files of JSON, Parquet or text (the results store, references) --------------
+
+
+def write_json_atomic(
+    data: dict[str, Any], path: Path, durable: bool = True, root: Path | None = None
+) -> None:
+    """``data`` as one whole JSON file (NumPy scalars as numbers, inf and NaN kept);
+    ``root``: the output folder ``path`` is in (no link followed below it)."""
+    text = json.dumps(_jsonable(data), indent=1, allow_nan=True)
+    write = lambda name: Path(name).write_text(text, encoding="utf-8")  # noqa: E731
+    atomic_write(path, write, durable, root=root)
+
+
+def write_parquet_atomic(frame: pd.DataFrame, path: Path, root: Path | None = None) -> None:
+    """``frame`` (a pandas DataFrame, index dropped) as one whole Parquet file."""
+    atomic_write(path, lambda name: frame.to_parquet(name, index=False), root=root)
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON values (NumPy scalars to Python; inf and NaN kept, JSON5 style)."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):
+        return value.item()
+    return value
+
+
+def write_text_atomic(text: str, path: Path, root: Path | None = None) -> None:
+    """``text`` as one whole UTF-8 file."""
+
+    def write(name: str) -> None:
+        with open(name, "w", encoding="utf-8") as out:
+            out.write(text)
+
+    atomic_write(path, write, root=root)
+
 
 __all__ = [
     "TEMPORARY_NAME",
@@ -223,4 +265,7 @@ __all__ = [
     "remove_file",
     "remove_temporaries",
     "user_cache_dir",
+    "write_json_atomic",
+    "write_parquet_atomic",
+    "write_text_atomic",
 ]

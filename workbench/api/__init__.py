@@ -2,8 +2,9 @@
 
 ``workbench.run``, ``workbench.sweep``, ``workbench.describe``, ``workbench.load_results``
 and the registry's list (``workbench.list_plugins(kind)``),
-a thin layer beside the CLI over the same calls (``workbench.runs``). Everything here
-is also importable from ``workbench`` itself, lazily (``import workbench`` stays cheap).
+a thin layer beside the CLI over the same calls (``workbench.execution`` for one run,
+``workbench.runs`` for sweeps). Everything here is also importable from ``workbench``
+itself, lazily (``import workbench`` stays cheap).
 """
 
 from workbench.api.catalog import Description, describe, list_plugins

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.runs.store import SERIES_COLUMNS, STATE_PREFIX
+from workbench.execution.row_schema import SERIES_COLUMNS, STATE_PREFIX
 
 # the row's columns a result shows first (its HTML and its repr)
 HEADLINE = [
@@ -32,7 +32,7 @@ HEADLINE = [
 @dataclass
 class Result:
     """One run: ``row`` (a pandas Series, the columns of
-    ``workbench.runs.store.SCHEMA``), ``series`` (drift, energy and error at every output
+    ``workbench.execution.row_schema.SCHEMA``), ``series`` (drift, energy and error at every output
     sample) and ``trajectory`` (time ``t`` in s and every named coordinate, velocity and
     multiplier). ``equations`` and ``problem`` are the objects the run used (None if it
     stopped before building them)."""

@@ -10,11 +10,11 @@ import pandas as pd
 
 from workbench.api.result import Result
 from workbench.errors import ConfigError
+from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+from workbench.execution.timing import DEFAULT_REPEAT_BUDGET, DEFAULT_REPEATS, Timing
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, execute_run, normalized_spec
-from workbench.runs.timing import DEFAULT_REPEAT_BUDGET, DEFAULT_REPEATS, Timing
 
 # (kind, name) of the classes registered here, not by importing their module: a worker
 # process that imports the module does not find them (workbench.api.sweeps runs them here)

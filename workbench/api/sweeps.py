@@ -18,16 +18,17 @@ from typing import Any
 
 import pandas as pd
 
+from workbench import files
 from workbench.api.runs import REGISTERED_HERE, plugin_name
 from workbench.errors import ConfigError
+from workbench.execution.environment import sweep_environment
+from workbench.execution.execute import execute_run
+from workbench.execution.timing import Timing
 from workbench.plugin import registry
 from workbench.runs import store
-from workbench.runs.environment import sweep_environment
-from workbench.runs.execute import execute_run
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep import run_sweep
 from workbench.runs.sweep_spec import SUITE_NAME, SweepSpec, parse_spec, suite_text
-from workbench.runs.timing import Timing
 
 KINDS = {"problems": "problem", "formalisms": "formalism", "integrators": "integrator"}
 
@@ -138,8 +139,8 @@ def run_here(sweep: SweepSpec, progress: Callable[[int, int], Any] | None, fresh
     todo = plan_resume(sweep.runs, out, frozenset(), fresh).todo
     (out / store.RUNS_DIR).mkdir(parents=True, exist_ok=True)
     (out / "references").mkdir(exist_ok=True)
-    store.write_json_atomic(sweep_environment(), out / store.ENVIRONMENT_FILE)
-    store.write_text_atomic(sweep.text, out / "sweep.toml")
+    files.write_json_atomic(sweep_environment(), out / store.ENVIRONMENT_FILE)
+    files.write_text_atomic(sweep.text, out / "sweep.toml")
     timing = Timing(sweep.repeats, sweep.repeat_budget)
     for done, spec in enumerate(todo, 1):
         result = execute_run(spec, reference_dir=out / "references", timing=timing)

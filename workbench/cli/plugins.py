@@ -158,7 +158,7 @@ def _problem_table(problem: Any) -> Table:
         invariant.name for invariant in problem.invariants()
     ]
     table.add_row("invariants", ", ".join(invariants) or "none")
-    from workbench.runs.references import given_reference
+    from workbench.execution.references import given_reference
 
     reference = given_reference(problem)
     table.add_row("reference", reference.kind if reference is not None else "none")

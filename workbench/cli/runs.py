@@ -11,15 +11,15 @@ from rich.table import Table
 from workbench.cli.app import app, console, option_value, refuse_short_out
 from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
-from workbench.plugin import registry
-from workbench.plugin.options import option_fields
-from workbench.runs.timing import (
+from workbench.execution.timing import (
     DEFAULT_REPEAT_BUDGET,
     DEFAULT_REPEATS,
     Timing,
     check_budget,
     check_repeats,
 )
+from workbench.plugin import registry
+from workbench.plugin.options import option_fields
 
 
 def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
@@ -121,11 +121,11 @@ def run(
     from pathlib import Path
 
     from workbench.errors import ConfigError
+    from workbench.execution.execute import RunSpec, normalized_spec
+    from workbench.execution.run_log import store_log
     from workbench.files import make_dirs
     from workbench.runs import store
     from workbench.runs.dask_pool import run_in_subprocess
-    from workbench.runs.execute import RunSpec, normalized_spec
-    from workbench.runs.run_log import store_log
 
     if not (0 < time_limit < float("inf")):
         raise ConfigError(f"--time-limit must be a finite number of seconds > 0, not {time_limit}")
@@ -498,6 +498,56 @@ def reference_command(
     ] = False,
 ) -> None:
     """Compute body poses with two independent pipelines; if they agree, store them."""
-    from workbench.runs.references import run_command
+    _store_references(console(), problem, every, rtol, samples, out)
 
-    run_command(console(), problem, every, rtol, samples, out)
+
+def _store_references(
+    out: Any,
+    problem: str | None,
+    every: bool,
+    rtol: float,
+    samples: int | None,
+    directory: str | None,
+) -> list[Any]:
+    """``workbench reference``: compute, check and write (the paths written); a rich
+    progress bar on stderr and a table of the agreement on ``out`` (a rich Console). Raises
+    ReferenceDisagreement at the end if any problem's pipelines disagreed (the others are
+    written)."""
+    from workbench.execution.references import (
+        ReferenceDisagreement,
+        compute_reference,
+        reference_names,
+        write_reference,
+    )
+    from workbench.runs.progress import progress_bar
+
+    names = reference_names(problem, every)
+    table = Table(title="stored references", title_justify="left")
+    for column in ("problem", "A (stored)", "B", "agreement / L", "at", "seconds", "file"):
+        table.add_column(column, overflow="fold")
+    written, failures = [], []
+    with progress_bar("references", 2 * len(names)) as bar:  # two pipelines a problem
+        for name in names:
+            try:
+                stored = compute_reference(name, rtol, samples, progress=bar.step)
+            except ReferenceDisagreement as error:
+                failures.append(str(error))
+                table.add_row(name, "", "", "disagree", "", "", str(error))
+                continue
+            path = write_reference(stored, directory)
+            written.append(path)
+            agreed, (first, second) = stored.metadata["agreement"], stored.metadata["pipelines"]
+            table.add_row(
+                name,
+                first["label"],
+                second["label"],
+                f"{agreed['relative']:.2g}",
+                f"t={agreed['at_time_s']:g} s {agreed['body']}",
+                f"{sum(p['build_s'] + p['integrate_s'] for p in (first, second)):.1f}",
+                str(path),
+            )
+    out.width = max(out.width, 160)  # a wide table: let a narrow terminal wrap it
+    out.print(table)
+    if failures:
+        raise ReferenceDisagreement(" | ".join(failures))
+    return written

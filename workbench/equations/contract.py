@@ -179,7 +179,7 @@ class Equations:
     # the run's audit reports where sigma_min(W_d) / sigma_max(W) falls (digits are lost)
     partition_matrices: Any = None
     # an :class:`Atlas` when these coordinates hold only near part of the motion (a velocity
-    # partition): the run then integrates chart by chart (workbench.runs.charts)
+    # partition): the run then integrates chart by chart (workbench.execution.charts)
     atlas: Any = None
     # slices of q holding Euler parameters (4 each): they stay on the unit sphere only as
     # well as the integrator keeps them there; the rotations built from them are

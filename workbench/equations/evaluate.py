@@ -148,7 +148,7 @@ class FastFunction:
         """Least and greatest CPU seconds of one call, over ``batches`` batches of calls at
         the last call's arguments, each batch long enough (``batch_s``) for the clock; the
         calls are not counted in ``n_calls`` (a unit cost of :mod:`counted work
-        <workbench.runs.counted_work>`)."""
+        <workbench.execution.counted_work>`)."""
         if self._pending:
             self.compile()
         return cpu_per_call(self._evaluate, batches, batch_s)

@@ -1,9 +1,9 @@
 """Rerun recordings of runs: bodies moving in 3D beside their drift and energy error.
 
-:class:`RerunSink` is the runner's log sink (stage 5 of :mod:`workbench.runs.execute`): the runner
-calls ``sink.log_run(spec, equations, problem, trajectory, series)`` after the metrics, and
-``sink.save(path)`` writes every logged run and a blueprint to one ``.rrd`` file. Open it
-with ``workbench view PATH`` (or ``rerun PATH``).
+:class:`RerunSink` is the runner's log sink (stage 5 of :mod:`workbench.execution.execute`):
+the runner calls ``sink.log_run(spec, equations, problem, trajectory, series)`` after the
+metrics, and ``sink.save(path)`` writes every logged run and a blueprint to one ``.rrd``
+file. Open it with ``workbench view PATH`` (or ``rerun PATH``).
 
 Entity layout of one run (``<run>`` = ``runs/<problem>/<formalism>/<integrator>/rtol=<r>``,
 each plugin with its options if it has any: ``rk4[step=0.01]``)::

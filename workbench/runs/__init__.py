@@ -1,1 +1,1 @@
-"""runs."""
+"""runs: sweeps of many runs (docs/architecture.md, "The layers")."""

@@ -36,12 +36,8 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError, one_line
-from workbench.files import make_dirs, open_no_follow
-from workbench.plugin.local_modules import import_plugin_modules
-from workbench.runs import store
-from workbench.runs.execute import RunSpec, equations_key, execute_run, status_row
-from workbench.runs.local_pool import Keyed, _take_next
-from workbench.runs.run_log import (
+from workbench.execution.execute import RunSpec, equations_key, execute_run, status_row
+from workbench.execution.run_log import (
     LOG_TEXT,
     CapturedOutput,
     log_path,
@@ -50,7 +46,13 @@ from workbench.runs.run_log import (
     store_log,
     write_log,
 )
-from workbench.runs.run_progress import progress_columns, progress_path, read_progress
+from workbench.execution.run_progress import progress_columns, progress_path, read_progress
+from workbench.execution.timing import Timing
+from workbench.execution.worker_env import pin_threads, thread_environment
+from workbench.files import make_dirs, open_no_follow
+from workbench.plugin.local_modules import import_plugin_modules
+from workbench.runs import store
+from workbench.runs.local_pool import Keyed, _take_next
 from workbench.runs.shipping import (
     REFERENCE_FILES,
     keep_references,
@@ -62,7 +64,6 @@ from workbench.runs.shipping import (
     unpack_references,
     worker_reference_dir,
 )
-from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
     InfrastructureError,
@@ -70,7 +71,6 @@ from workbench.runs.unfinished import (
     killed_from_outside,
     timeout_message,
 )
-from workbench.runs.worker_env import pin_threads, thread_environment
 
 
 def run_in_subprocess(
@@ -226,7 +226,7 @@ class _Child:
 
     def _unfinished_row(self, spec: RunSpec, status: str, reason: str) -> dict[str, Any]:
         """The row of a run whose child stopped without one: where it was (its stage, the
-        time reached; :mod:`workbench.runs.run_progress`), as the local pool says it."""
+        time reached; :mod:`workbench.execution.run_progress`), as the local pool says it."""
         where, clause = progress_columns(read_progress(progress_path(self.out, spec.run_id)))
         return status_row(spec, status, f"{reason}; {clause}" if clause else reason, **where)
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
-from workbench.runs.execute import RunSpec
+from workbench.execution.execute import RunSpec
 
 LONG_S = 300.0  # a sweep estimated longer than this is said to be long (5 min)
 ROUGH_SHARE = 0.1  # more runs than this share without a measured cost: a rough estimate

@@ -30,14 +30,15 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
+from workbench.execution.execute import RunSpec, equations_key, execute_run
+from workbench.execution.run_log import CapturedOutput, raw_path, write_log
+from workbench.execution.run_progress import ProgressWriter, progress_path
+from workbench.execution.timing import Timing
+from workbench.execution.worker_env import pin_threads
 from workbench.files import check_no_links, make_dirs
 from workbench.plugin import registry
 from workbench.plugin.local_modules import import_plugin_modules, imported_from_file
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, equations_key, execute_run
-from workbench.runs.run_log import CapturedOutput, raw_path, write_log
-from workbench.runs.run_progress import ProgressWriter, progress_path
-from workbench.runs.timing import Timing
 from workbench.runs.unfinished import (
     RETRIES,
     died_message,
@@ -47,7 +48,6 @@ from workbench.runs.unfinished import (
     timeout_message,
     written_status,
 )
-from workbench.runs.worker_env import pin_threads
 
 
 def _worker_main(
@@ -230,8 +230,8 @@ def _take_next(queue: deque[Keyed], own: tuple[str, ...] | None, others: set) ->
 # imported in the parent before forking workers, so a worker starts in milliseconds
 # instead of importing CasADi, SciPy, SUNDIALS, pandas and the plugins
 WORKER_MODULES = (
-    "workbench.runs.execute",
-    "workbench.runs.metrics",
+    "workbench.execution.execute",
+    "workbench.execution.metrics",
     "workbench.equations.initial",
     "workbench.runs.store",
 )

@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from workbench.execution import row_schema
 from workbench.files import atomic_write
 from workbench.runs import store
 
@@ -37,7 +38,7 @@ def key_of(*parts: str) -> str:
 def rows_key(out: str | os.PathLike[str]) -> str:
     """The content of the row files of ``out`` (``runs/*.json``, names and bytes) and the
     row schema this code reads."""
-    digest = hashlib.sha256(f"schema {store.SCHEMA_VERSION}\0".encode())
+    digest = hashlib.sha256(f"schema {row_schema.SCHEMA_VERSION}\0".encode())
     for path in sorted((Path(out) / store.RUNS_DIR).glob("*.json")):
         with contextlib.suppress(OSError):  # gone meanwhile: left out, so the key differs
             data = path.read_bytes()

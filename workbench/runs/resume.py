@@ -3,7 +3,7 @@
 A run counts as done only if its row and series are whole
 (:func:`workbench.runs.store.check_rows`); a broken one is named in one line and redone.
 A done row whose producer differs from this process's
-(:func:`workbench.runs.producer.stale_reason`) is *stale*. By default a stale row is kept
+(:func:`workbench.execution.producer.stale_reason`) is *stale*. By default a stale row is kept
 and the sweep says so loudly (a stale row is still a measurement, of other code, and a
 long sweep should not silently start over because a plugin's comment changed); the
 report marks it stale. ``rerun`` redoes the done rows of the named kinds
@@ -21,9 +21,9 @@ from pathlib import Path
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.execution.execute import RunSpec
+from workbench.execution.producer import stale_reason, unknown_producer
 from workbench.runs import store
-from workbench.runs.execute import RunSpec
-from workbench.runs.producer import stale_reason, unknown_producer
 
 RERUN_KINDS = ("failed", "timeout", "skipped", "stale")
 SHOWN = 10  # broken or stale runs named one a line; the rest counted

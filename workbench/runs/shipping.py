@@ -27,9 +27,9 @@ import re
 import tempfile
 from pathlib import Path
 
+from workbench.execution.references import reference_prefix
 from workbench.files import atomic_write
 from workbench.plugin.local_modules import PluginModule
-from workbench.runs.references import reference_prefix
 
 REFERENCE_FILES = "reference_files"  # a row's key carrying references a worker computed
 _SUFFIXES = (".parquet", ".json")  # a computed reference's poses and description

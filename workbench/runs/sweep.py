@@ -27,18 +27,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from workbench import files
 from workbench.errors import ConfigError
+from workbench.execution.environment import sweep_environment
+from workbench.execution.timing import Timing, check_budget, check_repeats
 from workbench.files import make_dirs
 from workbench.runs import output_keys, store
 from workbench.runs.dask_pool import run_dask
-from workbench.runs.environment import sweep_environment
 from workbench.runs.estimate import estimate_lines, known_costs
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
-from workbench.runs.timing import Timing, check_budget, check_repeats
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
 
@@ -95,7 +96,7 @@ def run_sweep(
     ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
     runs (:func:`workbench.runs.resume.plan_resume`); ``say`` receives the one-line
     findings of the resume (default: printed on stderr). ``repeats`` and ``repeat_budget``
-    override the specification's timing of each integration (:mod:`workbench.runs.timing`).
+    override the specification's timing of each integration (:mod:`workbench.execution.timing`).
 
     ``out`` is locked while the sweep runs (:func:`workbench.runs.out_lock.out_lock`):
     OutputBusyError if another process holds it, or with ``wait`` wait for it.
@@ -127,9 +128,9 @@ def run_sweep(
         make_dirs(out_dir / "references", out_dir)
         # the machine that starts the sweep (with Dask, the client; rows name their workers)
         environment = sweep_environment()
-        store.write_json_atomic(environment, out_dir / store.ENVIRONMENT_FILE, root=out_dir)
+        files.write_json_atomic(environment, out_dir / store.ENVIRONMENT_FILE, root=out_dir)
         if sweep.text:
-            store.write_text_atomic(sweep.text, out_dir / "sweep.toml", root=out_dir)
+            files.write_text_atomic(sweep.text, out_dir / "sweep.toml", root=out_dir)
         store.write_plan(out_dir, (spec.run_id for spec in sweep.runs), sweep.source)
         counts: Counter = Counter()
         states = sweep.store_trajectories

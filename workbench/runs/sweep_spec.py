@@ -68,6 +68,13 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError, PluginError, one_line
+from workbench.execution.execute import RunSpec, problem_span
+from workbench.execution.timing import (
+    DEFAULT_REPEAT_BUDGET,
+    DEFAULT_REPEATS,
+    budget_problem,
+    repeats_problem,
+)
 from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.local_modules import (
@@ -76,13 +83,6 @@ from workbench.plugin.local_modules import (
     stderr_line,
 )
 from workbench.plugin.registry import Kind
-from workbench.runs.execute import RunSpec, problem_span
-from workbench.runs.timing import (
-    DEFAULT_REPEAT_BUDGET,
-    DEFAULT_REPEATS,
-    budget_problem,
-    repeats_problem,
-)
 
 DEFAULT_OUT = "reports/latest"
 

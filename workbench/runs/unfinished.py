@@ -19,10 +19,10 @@ import signal
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
+from workbench.execution.execute import RunSpec, status_row
+from workbench.execution.run_log import salvage_log
+from workbench.execution.run_progress import progress_columns, progress_path, read_progress
 from workbench.runs import store
-from workbench.runs.execute import RunSpec, status_row
-from workbench.runs.run_log import salvage_log
-from workbench.runs.run_progress import progress_columns, progress_path, read_progress
 
 # signals that end a process from outside (not a crash of the code it was running)
 KILL_SIGNALS = (signal.SIGKILL, signal.SIGTERM, signal.SIGHUP, signal.SIGINT)

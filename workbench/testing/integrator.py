@@ -35,13 +35,13 @@ import numpy as np
 from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equations
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import one_line
+from workbench.execution.references import given_reference
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Model
 from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.formalism import ConstraintOptions
 from workbench.plugin.integrator import Integrator
 from workbench.plugin.registry import get_formalism
-from workbench.runs.references import given_reference
 from workbench.testing.common import check_structure, problem_instances, resolve_plugin
 from workbench.testing.report import ConformanceReport
 

@@ -17,11 +17,11 @@ import numpy as np
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import one_line
+from workbench.execution.references import given_reference
 from workbench.mechanics.forces import is_conservative_model
 from workbench.numerics.geometry import length_scale, pose_error
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import get_formalism
-from workbench.runs.references import given_reference
 from workbench.testing.common import PLACEHOLDER, check_structure, resolve_plugin
 from workbench.testing.report import ConformanceReport
 from workbench.testing.states import energy_scale, tight_run

@@ -152,5 +152,6 @@ def central_difference(function: Any, x: np.ndarray, step: float = 1e-6) -> np.n
 
 
 def energy_scale(energies: np.ndarray) -> float:
-    """The energy present in the motion (as in :mod:`workbench.runs.metrics`): T0 + |V0|, max T."""
+    """The energy present in the motion (as in :mod:`workbench.execution.metrics`): T0 + |V0|,
+    max T."""
     return max(energies[0, 0] + abs(energies[0, 1]), float(np.max(energies[:, 0])), 1e-300)

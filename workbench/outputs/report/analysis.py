@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import ConfigError
+from workbench.execution.timing import TIMING_COLUMNS
 from workbench.outputs.report.ranking import cheapest_table
 from workbench.outputs.report.trust import ok_runs, warned
-from workbench.runs.timing import TIMING_COLUMNS
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
 TARGET_SCD: tuple[float, ...] = (2.0, 4.0, 6.0, 8.0, 10.0)
@@ -270,10 +270,10 @@ def run_environment(runs: pd.DataFrame) -> list[str]:
 
 def oversubscription_warning(runs: pd.DataFrame) -> str:
     """A warning for the top of the page when runs were timed with more workers than the
-    machine had idle cores (:func:`workbench.runs.timing.oversubscribed`: from each row's
+    machine had idle cores (:func:`workbench.execution.timing.oversubscribed`: from each row's
     load average, workers and CPUs), so their times include waiting for a core; '' if
     none was (or nothing was recorded)."""
-    from workbench.runs.timing import oversubscribed
+    from workbench.execution.timing import oversubscribed
 
     columns = ("load_avg", "workers", "cpu_count")
     if runs.empty or not all(c in runs for c in columns):

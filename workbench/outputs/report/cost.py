@@ -4,7 +4,7 @@ Pareto fronts and the recommendation count as a run's cost.
 Selectable (``workbench report --cost``, :data:`COST_MEASURES`):
 
 - ``integrate_cpu`` (the default): CPU seconds of the integration, the median of its
-  timed samples (``integrate_cpu_s``, :mod:`workbench.runs.timing`). Chosen because the
+  timed samples (``integrate_cpu_s``, :mod:`workbench.execution.timing`). Chosen because the
   workbench runs on shared machines: wall time also counts the time a worker waited for
   a core while other processes ran, CPU time mostly not; and the median of several
   samples is steadier than one;
@@ -12,7 +12,7 @@ Selectable (``workbench report --cost``, :data:`COST_MEASURES`):
   (``integrate_s``): what a user waits for on an idle machine;
 - ``n_rhs``: right-hand-side evaluations: independent of the machine, blind to the cost
   of each evaluation (Jacobians, linear solves);
-- ``work``: counted work (``work_s``, :mod:`workbench.runs.counted_work`): the counts of
+- ``work``: counted work (``work_s``, :mod:`workbench.execution.counted_work`): the counts of
   right-hand sides, Jacobians and LU factorizations weighted by their unit CPU costs,
   timed in short batches: moves little with the machine's load, but leaves out the
   integrator's own work between evaluations (step control, a Python loop).

@@ -18,12 +18,12 @@ from typing import Any
 import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
 
+from workbench.execution.environment import cpu_model, distribution_versions
 from workbench.outputs.report.analysis import run_environment
 from workbench.outputs.report.cost import Cost, resolve_cost
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.scorecards import Scorecard
 from workbench.outputs.report.tables import shows_index, table_cells
-from workbench.runs.environment import cpu_model, distribution_versions
 
 TEMPLATE = "report.html.j2"
 LIBRARIES: tuple[str, ...] = (

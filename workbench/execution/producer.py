@@ -9,7 +9,7 @@ A run's id hashes its configuration only; the code that ran it is recorded besid
   checkout), and ``name==version`` of the distribution for modules installed in
   site-packages (a third-party plugin installed from a wheel);
 - the key library versions, already columns of every row
-  (:func:`workbench.runs.environment.environment`): :data:`LIBRARY_COLUMNS`.
+  (:func:`workbench.execution.environment.environment`): :data:`LIBRARY_COLUMNS`.
 
 :func:`stale_reason` compares a stored row with what this process would write for the
 same run. Python's own version and the machine are not compared (a patch release of
@@ -31,8 +31,8 @@ import sysconfig
 from pathlib import Path
 from typing import Any
 
+from workbench.execution.environment import environment
 from workbench.plugin import registry
-from workbench.runs.environment import environment
 
 UNKNOWN = "unknown"
 PLUGIN_COLUMNS = {

@@ -53,14 +53,13 @@ import pandas as pd
 
 from workbench.equations.initial import consistent_initial_state
 from workbench.errors import ConfigError, IntegrationError, WorkbenchError
-from workbench.files import atomic_write, file_lock
+from workbench.execution.charts import integrate_on_charts
+from workbench.execution.environment import environment
+from workbench.files import atomic_write, file_lock, write_json_atomic, write_parquet_atomic
 from workbench.numerics.geometry import length_scale, rotation_angle
 from workbench.plugin import registry
 from workbench.plugin.options import options_dict
 from workbench.plugin.problem import Reference
-from workbench.runs.charts import integrate_on_charts
-from workbench.runs.environment import environment
-from workbench.runs.store import write_json_atomic, write_parquet_atomic
 
 BUILTIN_PLUGINS = "workbench.plugins"  # the package whose reference_pipelines.toml is read
 
@@ -697,51 +696,3 @@ def reference_names(problem: str | None, every: bool) -> list[str]:
         if info.plugin().reference() is None:  # not analytic
             names.append(info.name)
     return names
-
-
-def run_command(
-    out: Any,
-    problem: str | None,
-    every: bool,
-    rtol: float,
-    samples: int | None,
-    directory: str | None,
-    threshold: float = AGREEMENT_THRESHOLD,
-) -> list[Path]:
-    """``workbench reference``: compute, check and write; a rich progress bar on stderr and a
-    table of the agreement on ``out`` (a rich Console). Raises ReferenceDisagreement at the
-    end if any problem's pipelines disagreed (the others are written)."""
-    from rich.table import Table
-
-    from workbench.runs.progress import progress_bar
-
-    names = reference_names(problem, every)
-    table = Table(title="stored references", title_justify="left")
-    for column in ("problem", "A (stored)", "B", "agreement / L", "at", "seconds", "file"):
-        table.add_column(column, overflow="fold")
-    written, failures = [], []
-    with progress_bar("references", 2 * len(names)) as bar:  # two pipelines a problem
-        for name in names:
-            try:
-                stored = compute_reference(name, rtol, samples, threshold, progress=bar.step)
-            except ReferenceDisagreement as error:
-                failures.append(str(error))
-                table.add_row(name, "", "", "disagree", "", "", str(error))
-                continue
-            path = write_reference(stored, directory)
-            written.append(path)
-            agreed, (first, second) = stored.metadata["agreement"], stored.metadata["pipelines"]
-            table.add_row(
-                name,
-                first["label"],
-                second["label"],
-                f"{agreed['relative']:.2g}",
-                f"t={agreed['at_time_s']:g} s {agreed['body']}",
-                f"{sum(p['build_s'] + p['integrate_s'] for p in (first, second)):.1f}",
-                str(path),
-            )
-    out.width = max(out.width, 160)  # a wide table: let a narrow terminal wrap it
-    out.print(table)
-    if failures:
-        raise ReferenceDisagreement(" | ".join(failures))
-    return written

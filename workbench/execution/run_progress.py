@@ -102,7 +102,7 @@ class ProgressWriter:
 
 def progress_path(out: Path, run_id: str) -> Path:
     """Where a running run's progress is kept (beside its raw log)."""
-    from workbench.runs.run_log import raw_path
+    from workbench.execution.run_log import raw_path
 
     raw = raw_path(Path(out), run_id)
     return raw.with_name(raw.name.replace(".raw", ".progress"))

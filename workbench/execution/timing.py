@@ -43,7 +43,7 @@ DEFAULT_REPEATS = 3
 DEFAULT_REPEAT_BUDGET = 3.0  # CPU s of integration a run may spend on its samples
 MAX_REPEATS = 1000
 
-# the row columns this module fills (see workbench.runs.store.SCHEMA)
+# the row columns this module fills (see workbench.execution.row_schema.SCHEMA)
 TIMING_COLUMNS = (
     "integrate_s",
     "integrate_s_min",

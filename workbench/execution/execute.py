@@ -18,13 +18,13 @@ a column (MuJoCo-style pipeline stages):
    first run of a (problem, formalism) in a worker and about 0 for the others;
 3. **integrate** — ``Integrator.solve`` at the problem's output times, segment by
    segment on a better chart where the equations' coordinates degrade when they offer an
-   atlas (:mod:`workbench.runs.charts`; the switches in ``notes``), repeated as the
-   :class:`~workbench.runs.timing.Timing` allows (``integrate_s``: the median sample;
-   min, max, CPU median, load and workers beside it, see :mod:`workbench.runs.timing`;
+   atlas (:mod:`workbench.execution.charts`; the switches in ``notes``), repeated as the
+   :class:`~workbench.execution.timing.Timing` allows (``integrate_s``: the median sample;
+   min, max, CPU median, load and workers beside it, see :mod:`workbench.execution.timing`;
    ``wall_s`` and ``cpu_s`` count the median once); a failed trajectory makes the row
    ``failed`` with its message and ``t_reached``, and the metrics are still taken over
    the part that was reached;
-4. **metrics** — :mod:`workbench.runs.metrics` (``metrics_s``; obtaining the reference is
+4. **metrics** — :mod:`workbench.execution.metrics` (``metrics_s``; obtaining the reference is
    timed apart as ``reference_s``);
    The series also carries the trajectory: the states at the same samples, one column
    ``state:<name>`` each (:func:`state_columns`; the store can leave them out);
@@ -52,18 +52,18 @@ import pandas as pd
 
 from workbench.equations import compiled
 from workbench.errors import one_line, one_line_text
+from workbench.execution import metrics as metrics_module
+from workbench.execution.charts import integrate_on_charts, switch_note
+from workbench.execution.counted_work import counted_work
+from workbench.execution.environment import environment
+from workbench.execution.producer import producer_columns
+from workbench.execution.references import problem_reference
+from workbench.execution.row_check import STATUSES
+from workbench.execution.row_schema import SCHEMA_VERSION, STATE_PREFIX, empty_series
+from workbench.execution.run_progress import PROGRESS
+from workbench.execution.timing import Samples, Timing, integrate_repeated, machine_load
+from workbench.execution.worker_env import threads_in_force, worker_threads
 from workbench.plugin import registry
-from workbench.runs import metrics as metrics_module
-from workbench.runs.charts import integrate_on_charts, switch_note
-from workbench.runs.counted_work import counted_work
-from workbench.runs.environment import environment
-from workbench.runs.producer import producer_columns
-from workbench.runs.references import problem_reference
-from workbench.runs.row_check import STATUSES
-from workbench.runs.run_progress import PROGRESS
-from workbench.runs.store import SCHEMA_VERSION, STATE_PREFIX, empty_series
-from workbench.runs.timing import Samples, Timing, integrate_repeated, machine_load
-from workbench.runs.worker_env import threads_in_force, worker_threads
 
 
 def canonical_json(value: Any) -> str:
@@ -115,7 +115,8 @@ class RunSpec:
 
 @dataclass
 class RunResult:
-    """A result row (see :data:`workbench.runs.store.SCHEMA`) and the run's time series."""
+    """A result row (see :data:`workbench.execution.row_schema.SCHEMA`) and the run's time
+    series."""
 
     row: dict[str, Any]
     series: pd.DataFrame
@@ -330,7 +331,7 @@ def execute_run(
 
     ``reference_dir``: where computed references are cached on disk (usually
     ``<out>/references``); None keeps them in memory only. ``timing``: how often the
-    integration is timed (:class:`~workbench.runs.timing.Timing`; default its defaults).
+    integration is timed (:class:`~workbench.execution.timing.Timing`; default its defaults).
     """
     timing = timing or Timing()
     PROGRESS.begin_run()

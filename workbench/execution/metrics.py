@@ -4,7 +4,7 @@ Everything is measured on formalism-neutral observables (``Equations.observables
 problem's output times, so two formalisms are compared on the same footing.
 
 **Reference** (column ``reference_kind``): ``analytic``, ``stored``, ``computed`` or
-``none``, chosen by :func:`workbench.runs.references.problem_reference`.
+``none``, chosen by :func:`workbench.execution.references.problem_reference`.
 
 **Pose error** at one output time: the largest over bodies of ``|dr| + L |dtheta|`` (m),
 with ``dr`` the error of the body frame's origin, ``dtheta`` the angle of the relative
@@ -46,10 +46,10 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import Equations, SampledObservables
+from workbench.execution.audit import MEASURE, audit_warnings, health_audit
+from workbench.execution.references import ReferencePoses
+from workbench.execution.row_schema import SERIES_COLUMNS
 from workbench.numerics.geometry import length_scale, pose_error
-from workbench.runs.audit import MEASURE, audit_warnings, health_audit
-from workbench.runs.references import ReferencePoses
-from workbench.runs.store import SERIES_COLUMNS
 
 # ---- the metrics ---------------------------------------------------------------------
 
@@ -107,9 +107,9 @@ def trajectory_metrics(
     ``y`` (n, >= nq + nv) in the layout [q, v, ...]; ``complete``: the run reached the end
     time (else the end error and scd are NaN). ``reference.poses`` covers all the problem's
     output times; the first ``len(times)`` are used. ``rtol``: the run's tolerance, against
-    which the health audit (:mod:`workbench.runs.audit`) judges drift and energy.
+    which the health audit (:mod:`workbench.execution.audit`) judges drift and energy.
     ``charts``: the chart of each sample when the run changed chart
-    (:mod:`workbench.runs.charts`); each sample is measured with its chart's equations.
+    (:mod:`workbench.execution.charts`); each sample is measured with its chart's equations.
     """
     nq, nv = equations.nq, equations.nv
     n = len(times)

@@ -17,7 +17,7 @@ Columns (:data:`AUDIT_COLUMNS`):
   block W_d of W for dependent velocities (``Equations.partition_matrices``, a note
   beginning with PARTITION_NOTE): sigma_min(W_d) / sigma_max(W) instead, found the same
   way, each sample in the partition it was computed in when the run changed partition
-  (``Equations.atlas``, :mod:`workbench.runs.charts`). NaN without constraints.
+  (``Equations.atlas``, :mod:`workbench.execution.charts`). NaN without constraints.
 - ``dof_start``, ``dof_max``: nv - rank W at the start and the most along the output
   times (rank by :func:`workbench.numerics.linalg.independent_rows`, the algorithm every
   formalism and ``describe`` use).
@@ -30,7 +30,7 @@ Columns (:data:`AUDIT_COLUMNS`):
 - ``reference_accuracy``: the relative accuracy the reference states for itself.
 
 - ``branch_left_at``: the first output time at which the run is off the assembly branch
-  it started on (:mod:`workbench.runs.branch`: the branch followed by continuation, not a
+  it started on (:mod:`workbench.execution.branch`: the branch followed by continuation, not a
   threshold on sampled singular values, so it does not depend on where the samples fall);
   NaN when it stays on it. ``branch_distance_max``: the distance from that branch there
   (or the largest along a run that stays); NaN both when the branch was not followed (no
@@ -56,8 +56,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from workbench.equations.evaluate import FastFunction, evaluate_along
+from workbench.execution.branch import branch_departure, constraints_of
 from workbench.numerics.linalg import independent_rows
-from workbench.runs.branch import branch_departure, constraints_of
 
 SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
 PARTITION_NOTE = "fixed velocity partition"  # how a formalism's notes declare one
@@ -229,7 +229,7 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
 
 def _branch_columns(equations: Any, times: np.ndarray, q: np.ndarray,
                      charts: list[Any] | None) -> dict[str, float]:  # fmt: skip
-    """``branch_left_at`` and ``branch_distance_max`` (:mod:`workbench.runs.branch`): NaN
+    """``branch_left_at`` and ``branch_distance_max`` (:mod:`workbench.execution.branch`): NaN
     both when not followed (no position constraints; coordinates changed chart)."""
     constraints = constraints_of(equations)
     if constraints is None or (charts and len({id(c) for c in charts[: len(times)]}) > 1):

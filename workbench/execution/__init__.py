@@ -1,0 +1,1 @@
+"""execution: one run, executed and measured (docs/architecture.md, "The layers")."""
