@@ -50,6 +50,10 @@ SERIES_QUANTITIES: tuple[str, ...] = ("drift_pos", "drift_vel", "drift_nh", "ene
 TIMELINE = "sim_time"
 APPLICATION_ID = "mbs-workbench"
 RECORDING_FILE = "recording.rrd"
+MODEL_PART = "model"
+"""``runs/<problem>/model/...``: what the runs of a model share, stored once (its meshes)."""
+INSTANCE_RUNS = "instance_runs"
+"""The component (static, on a shared mesh entity) naming the run of each instance pose."""
 SHAPE_ENTITIES = {
     "box": "boxes",
     "cylinder": "cylinders",
@@ -150,6 +154,12 @@ class RerunSink:
         self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
         self.run_warnings: list[str] = []  # of the last run logged (for its row)
         self._batches_cache: dict[str, list[tuple[str, list[Any]]]] = {}
+        # per model key: mesh entity below the run -> (body, position, 3x3 incl. scale)
+        self._mesh_places: dict[str, dict[str, tuple[str, np.ndarray, np.ndarray]]] = {}
+        # shared entities logged to the current file (-> the file copied from, when merging)
+        self._shared_logged: dict[str, str] = {}
+        # shared mesh entity -> run path -> (times s, translations (n, 3), mat3x3 (n, 9))
+        self.instances: dict[str, dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -176,22 +186,40 @@ class RerunSink:
         self.recording.log(entity_path("runs", parts[1]), view_coordinates(model), static=True)
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
         key = f"{spec.problem} {options} {model.name}"
-        self._log_geometry(path, model, key)
+        shared = entity_path("runs", parts[1], MODEL_PART)
+        self._log_geometry(path, shared, model, key)
         self.run_warnings = list(self._geometry_warnings.get(key, []))
-        self._log_poses(path, equations, trajectory)
+        self._log_poses(path, equations, trajectory, shared, key)
         self._log_series(path, series, label, run_id)
         return path
 
-    def _log_geometry(self, path: str, model: Any, key: str) -> None:
+    def _log_geometry(self, path: str, shared: str, model: Any, key: str) -> None:
+        """Shapes and joint frames below the run; a mesh once per model and file, static,
+        below ``shared`` (``runs/<problem>/model``), drawn at each run's body poses by
+        instance poses (:meth:`_log_poses`): a robot's meshes are most of its bytes."""
         # the archetypes' component batches, made once per model: ``log`` of an archetype
         # makes them again at every call (a third of its cost)
         if key not in self._batches_cache:
+            entries = self._geometry(model, key)
+            places = self._mesh_places.get(key, {})
             self._batches_cache[key] = [
-                (relative, [batch for each in archetypes for batch in each.as_component_batches()])
-                for relative, archetypes in self._geometry(model, key)
+                (
+                    relative,
+                    [  # a shared mesh is placed by its instance poses, not a transform
+                        batch
+                        for each in (archetypes[1:] if relative in places else archetypes)
+                        for batch in each.as_component_batches()
+                    ],
+                )
+                for relative, archetypes in entries
             ]
+        places = self._mesh_places.get(key, {})
         for relative, batches in self._batches_cache[key]:
-            self.recording.log(f"{path}/{relative}", batches, static=True)
+            if relative not in places:
+                self.recording.log(f"{path}/{relative}", batches, static=True)
+            elif f"{shared}/{relative}" not in self._shared_logged:
+                self._shared_logged[f"{shared}/{relative}"] = ""
+                self.recording.log(f"{shared}/{relative}", batches, static=True)
 
     def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
         """(entity path below the run, archetypes) of the shapes and joint frames; made
@@ -212,6 +240,9 @@ class RerunSink:
                 entries.append((f"{body_path}/meshes/{index}", archetypes))
                 if warning:
                     warnings.append(f"body {name!r}: {warning}")
+                else:  # drawn once per model at every run's pose (_log_geometry)
+                    place = (name, shape.frame.position, shape.frame.rotation @ np.diag(shape.size))
+                    self._mesh_places.setdefault(key, {})[f"{body_path}/meshes/{index}"] = place
         axis_length = 0.3 * _model_scale(model)
         for joint in model.joints.values():
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
@@ -225,7 +256,9 @@ class RerunSink:
         self._geometry_cache[key] = entries
         return entries
 
-    def _log_poses(self, path: str, equations: Any, trajectory: Any) -> None:
+    def _log_poses(
+        self, path: str, equations: Any, trajectory: Any, shared: str = "", key: str = ""
+    ) -> None:
         import rerun as rr
 
         times = np.asarray(trajectory.times, dtype=float).reshape(-1)
@@ -243,6 +276,17 @@ class RerunSink:
                 columns=rr.Transform3D.columns(
                     translation=poses[:, b, :3], quaternion=quaternion_xyzw(poses[:, b, 3:])
                 ),
+            )
+        bodies = {name: b for b, name in enumerate(equations.observables.body_names)}
+        for relative, (body, position, matrix) in self._mesh_places.get(key, {}).items():
+            if body not in bodies:
+                continue
+            pose = poses[:, bodies[body]]
+            rotation = _rotation_matrices(pose[:, 3:])  # (n, 3, 3)
+            self.instances.setdefault(f"{shared}/{relative}", {})[path] = (
+                times[rows],
+                (pose[:, :3] + rotation @ np.asarray(position, dtype=float)).astype(np.float32),
+                (rotation @ np.asarray(matrix, dtype=float)).reshape(-1, 9).astype(np.float32),
             )
 
     def _log_series(
@@ -323,6 +367,7 @@ class RerunSink:
         if target.is_dir() or target.suffix != ".rrd":
             target = target / RECORDING_FILE
         stream = self.recording.binary_stream()
+        self.send_instances()
         self.recording.send_blueprint(self.blueprint(), make_active=False, make_default=True)
         data = stream.read() or b""
         self.recording.disconnect()
@@ -339,6 +384,8 @@ class RerunSink:
         self._file = Path(path)
         self.runs.clear()
         self.quantities.clear()
+        self.instances.clear()
+        self._shared_logged.clear()
 
     def end_file(self) -> Path | None:
         """Write what was logged since :meth:`begin_file` to its file (atomically: a
@@ -348,30 +395,80 @@ class RerunSink:
         self._stream = None
         if stream is None:
             return None
+        self.send_instances()
         data = stream.read()
         if not self.runs:
             return None
         atomic_write(target, lambda temporary: Path(temporary).write_bytes(data), durable=False)
         return target
 
+    def send_instances(self) -> None:
+        """Log the instance poses gathered for each shared mesh (every run's pose of the
+        mesh's body, a row a sample time of the longest run; a run without a sample there
+        holds its latest pose) and, static beside them, which run each instance is."""
+        import rerun as rr
+
+        for entity, by_run in self.instances.items():
+            runs = list(by_run)
+            grid = max((by_run[run][0] for run in runs), key=len)
+            if len(grid) == 0:
+                continue
+            translations, matrices = [], []
+            for run in runs:
+                times, translation, matrix = by_run[run]
+                at = np.clip(np.searchsorted(times, grid, side="right") - 1, 0, len(times) - 1)
+                translations.append(translation[at])
+                matrices.append(matrix[at])
+            # (samples, runs, 3 or 9): one row a sample time, an instance a run
+            translation = np.stack(translations, axis=1).reshape(-1, 3)
+            matrix = np.stack(matrices, axis=1).reshape(-1, 9)
+            self.recording.log(entity, rr.AnyValues(**{INSTANCE_RUNS: runs}), static=True)
+            self.recording.send_columns(
+                entity,
+                indexes=[rr.TimeColumn(TIMELINE, duration=grid)],
+                columns=rr.InstancePoses3D.columns(translations=translation, mat3x3=matrix).partition(
+                    [len(runs)] * len(grid)
+                ),
+            )
+        self.instances.clear()
+
     # -- several files into one -----------------------------------------------------------
     def add_recording(self, path: str | Path) -> list[str]:
         """Copy the runs of a saved recording (e.g. one a worker wrote) into this one.
 
         Returns the run paths found. Lets a sweep log each run in its worker process to
-        its own file and merge them at the end (see :func:`merge_recordings`).
+        its own file and merge them at the end (see :func:`merge_recordings`). A run
+        already added (from a newer file) is left out; an entity shared by runs (a
+        problem's view coordinates, a model's meshes) is copied from the first file that
+        has it; the instance poses of shared meshes are gathered, to be written by
+        :meth:`send_instances`.
         """
         import rerun as rr
 
-        found = []
+        found: list[str] = []
+        known = set(self.runs)
+        poses: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        named: dict[str, list[str]] = {}  # shared mesh entity -> run of each instance
         for chunk in rr.chunk.RrdReader(path).stream().to_chunks():
-            parts = split_entity_path(chunk.entity_path)
-            if parts[:1] != ["runs"] or (len(parts) < 6 and len(parts) != 2):
+            entity = chunk.entity_path
+            parts = split_entity_path(entity)
+            if parts[:1] != ["runs"]:
                 continue  # recording properties and anything not a run or a problem
-            if len(parts) == 2:  # the problem's view coordinates
-                self.recording.send_chunks(chunk)
+            if len(parts) == 2 or (len(parts) > 2 and parts[2] == MODEL_PART):
+                shared = entity_path(*parts)
+                batch = chunk.to_record_batch()
+                if INSTANCE_RUNS in batch.schema.names:
+                    named[shared] = [str(run) for run in batch.column(INSTANCE_RUNS)[0].as_py()]
+                elif not chunk.is_static:
+                    poses.setdefault(shared, []).append(_instance_poses(batch))
+                elif self._shared_logged.setdefault(shared, str(path)) == str(path):
+                    self.recording.send_chunks(chunk)  # the first file's copy only
+                continue
+            if len(parts) < 6:
                 continue
             run = entity_path(*parts[:5])
+            if run in known:
+                continue  # a newer file has this run
             if run not in self.runs:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
@@ -379,7 +476,40 @@ class RerunSink:
             if len(parts) == 7 and parts[5] == "series" and parts[6] in SERIES_QUANTITIES:
                 self.quantities.add(parts[6])
             self.recording.send_chunks(chunk)
+        for shared, pieces in poses.items():
+            runs = named.get(shared) or found[:1]  # a run's own file names none: its run
+            times = np.concatenate([piece[0] for piece in pieces])
+            order = np.argsort(times, kind="stable")
+            translation = np.concatenate([piece[1] for piece in pieces])[order]
+            matrix = np.concatenate([piece[2] for piece in pieces])[order]
+            if translation.shape[1] != len(runs):
+                continue  # not written by this module: left out
+            gathered = self.instances.setdefault(shared, {})
+            for k, run in enumerate(runs):
+                if run not in known and run not in gathered:
+                    gathered[run] = (times[order], translation[:, k], matrix[:, k])
         return found
+
+
+def _instance_poses(batch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times s, translations (rows, instances, 3), mat3x3 (rows, instances, 9)) of a chunk
+    of InstancePoses3D rows that all have the same number of instances."""
+    import pyarrow as pa
+
+    times = batch.column(TIMELINE).cast(pa.int64()).to_numpy() / 1e9
+    columns = []
+    for name, width in (("InstancePoses3D:translations", 3), ("InstancePoses3D:mat3x3", 9)):
+        column = batch.column(name)
+        values = np.asarray(column.flatten().flatten(), dtype=np.float32)
+        columns.append(values.reshape(len(times), -1, width))
+    return times, columns[0], columns[1]
+
+
+def _rotation_matrices(scalar_first: np.ndarray) -> np.ndarray:
+    """(n, 4) Euler parameters -> (n, 3, 3) rotation matrices."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(quaternion_xyzw(scalar_first)).as_matrix()
 
 
 def split_entity_path(path: str) -> list[str]:
@@ -388,13 +518,21 @@ def split_entity_path(path: str) -> list[str]:
     return [re.sub(r"\\(.)", r"\1", part) for part in parts if part]
 
 
-def merge_recordings(files: Iterable[str | Path], target: str | Path) -> Path:
+def merge_recordings(
+    files: Iterable[str | Path], target: str | Path, keep_existing: bool = False
+) -> Path:
     """Merge saved recordings (one per run or per worker) into one file with a blueprint;
     ``target``: a ``.rrd`` file or a directory (then its ``recording.rrd``).
+    ``keep_existing``: an existing ``target`` is merged in too, its runs that ``files``
+    hold again left out (they were redone): a sweep merges only its new runs' files.
 
-    The memory it takes does not grow with the number of files: each file's chunks are
-    streamed through Rerun's file sink into a temporary file beside ``target`` and flushed
-    before the next file is read; the temporary file is renamed over ``target`` at the end.
+    Each model's meshes are stored once, drawn at every run's body poses by instance
+    poses (:meth:`RerunSink.send_instances`, written at the end: the one part of the merge
+    held in memory, about 48 bytes a pose of a meshed body).
+    The memory it takes does not otherwise grow with the number of files: each file's
+    chunks are streamed through Rerun's file sink into a temporary file beside ``target``
+    and flushed before the next file is read; the temporary file is synced and renamed over
+    ``target`` at the end, so that the inputs can then be removed.
     The file has no footer (a manifest of its chunks for random access, which the viewer,
     reading the whole file, does not need): the sink would keep that manifest in memory,
     about 9 KiB a chunk, 1.8x the file's size (rerun-sdk 0.41; ``rerun rrd optimize``
@@ -407,21 +545,32 @@ def merge_recordings(files: Iterable[str | Path], target: str | Path) -> Path:
     if target.is_dir() or target.suffix != ".rrd":
         target = target / RECORDING_FILE
     target.parent.mkdir(parents=True, exist_ok=True)
-    check_free_space(target, sum(file.stat().st_size for file in files))
+    inputs = files + ([target] if keep_existing and target.is_file() else [])
+    check_free_space(target, sum(file.stat().st_size for file in inputs))
     sink = RerunSink()
 
     def write(temporary: str) -> None:
         with _stderr_silenced():  # rerun's warning that a file without footer exists
             sink.recording.save(temporary, write_footer=False)
-        for file in files:
+        for file in inputs:  # the newest first: a run is taken from the first file with it
             sink.add_recording(file)
             _flush(sink.recording, target)  # this file's chunks leave memory now
+        sink.send_instances()
         sink.recording.send_blueprint(sink.blueprint(), make_active=False, make_default=True)
         _flush(sink.recording, target)
-        sink.recording.disconnect()  # the footer; the file is whole
+        sink.recording.disconnect()  # the file is whole
 
-    atomic_write(target, write, durable=False)
+    atomic_write(target, write, durable=True)
+    _sync_directory(target.parent)  # the rename too: the inputs may be removed after it
     return target
+
+
+def _sync_directory(directory: Path) -> None:
+    descriptor = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
 
 
 FLUSH_TIMEOUT = 600.0
@@ -622,4 +771,5 @@ class SweepRecorder(RerunSink):
 
     @staticmethod
     def merge(files: Iterable[str | Path], out: str | Path) -> Path:
-        return merge_recordings(files, Path(out) / RECORDING_FILE)
+        """Merge the runs' files into ``<out>/recording.rrd``, keeping the runs it has."""
+        return merge_recordings(files, Path(out) / RECORDING_FILE, keep_existing=True)
