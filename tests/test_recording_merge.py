@@ -67,7 +67,10 @@ MERGE_CHILD = """
 import json, sys
 from pathlib import Path
 import rerun
+from workbench.outputs import recording
 from workbench.outputs.recording import merge_recordings
+
+recording.FOOTER_INPUT_LIMIT = int(sys.argv[3])  # a footer's manifest is held to the end
 
 def status(field):
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -91,11 +94,14 @@ def test_the_merge_memory_does_not_grow_with_the_runs(tmp_path) -> None:
     150 runs' bytes (the merge that kept every chunk until the end grew by about 4x them)."""
     write_runs(tmp_path, 200)
 
-    def merge(n: int) -> dict[str, int]:
-        command = [sys.executable, "-c", MERGE_CHILD, str(tmp_path), str(n)]
+    def merge(n: int, footer_limit: int = 0) -> dict[str, int]:
+        command = [sys.executable, "-c", MERGE_CHILD, str(tmp_path), str(n), str(footer_limit)]
         done = subprocess.run(command, capture_output=True, text=True, check=True, timeout=600)
         return json.loads(done.stdout.strip().splitlines()[-1])
 
     few, many = merge(50), merge(200)
     assert many["inputs"] > 3.5 * few["inputs"]
     assert many["growth"] - few["growth"] < 0.5 * (many["inputs"] - few["inputs"])
+    # with a footer (small merges) the manifest grows with the chunks: about 2x the inputs
+    footer = merge(200, footer_limit=2**40)
+    assert footer["growth"] < 2.5 * footer["inputs"]

@@ -37,6 +37,7 @@ import json
 import os
 import re
 import uuid
+import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -433,8 +434,9 @@ class RerunSink:
         self.instances.clear()
 
     # -- several files into one -----------------------------------------------------------
-    def add_recording(self, path: str | Path) -> list[str]:
-        """Copy the runs of a saved recording (e.g. one a worker wrote) into this one.
+    def add_recording(self, path: str | Path, only_run: str | None = None) -> list[str]:
+        """Copy the runs of a saved recording (e.g. one a worker wrote) into this one;
+        ``only_run``: that run's path only (with what it shares with others).
 
         Returns the run paths found. Lets a sweep log each run in its worker process to
         its own file and merge them at the end (see :func:`merge_recordings`). A run
@@ -449,11 +451,16 @@ class RerunSink:
         known = set(self.runs)
         poses: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
         named: dict[str, list[str]] = {}  # shared mesh entity -> run of each instance
-        for chunk in rr.chunk.RrdReader(path).stream().to_chunks():
+        with warnings.catch_warnings():  # a large merged file has no footer, by design
+            warnings.filterwarnings("ignore", message="RRD file has no footer")
+            reader = rr.chunk.RrdReader(path)
+        for chunk in reader.stream():  # one chunk at a time (to_chunks: a list of all)
             entity = chunk.entity_path
             parts = split_entity_path(entity)
             if parts[:1] != ["runs"]:
                 continue  # recording properties and anything not a run or a problem
+            if only_run is not None and parts[1:2] != split_entity_path(only_run)[1:2]:
+                continue  # another problem's
             if len(parts) == 2 or (len(parts) > 2 and parts[2] == MODEL_PART):
                 shared = entity_path(*parts)
                 batch = chunk.to_record_batch()
@@ -467,8 +474,8 @@ class RerunSink:
             if len(parts) < 6:
                 continue
             run = entity_path(*parts[:5])
-            if run in known:
-                continue  # a newer file has this run
+            if run in known or (only_run is not None and run != only_run):
+                continue  # a newer file has this run, or another run
             if run not in self.runs:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
@@ -486,9 +493,38 @@ class RerunSink:
                 continue  # not written by this module: left out
             gathered = self.instances.setdefault(shared, {})
             for k, run in enumerate(runs):
+                if only_run is not None and run != only_run:
+                    continue
                 if run not in known and run not in gathered:
                     gathered[run] = (times[order], translation[:, k], matrix[:, k])
         return found
+
+
+def run_path_of_row(row: dict[str, Any]) -> str:
+    """The entity path of a result row's run (its options as dicts or JSON text)."""
+    from types import SimpleNamespace
+
+    fields = dict(row)
+    for kind in ("problem", "formalism", "integrator"):
+        options = fields.get(f"{kind}_options") or {}
+        fields[f"{kind}_options"] = json.loads(options) if isinstance(options, str) else options
+    return entity_path(*run_parts(SimpleNamespace(**fields)))
+
+
+def extract_run(recording: str | Path, run: str, target: str | Path) -> Path:
+    """Write the run with entity path ``run`` (:func:`run_parts`) of a merged recording to
+    its own file ``target``, as the run's file was before the merge (its robot's meshes,
+    drawn at its poses, included): to look at one run of a large sweep.
+    ConfigError if ``recording`` has no such run."""
+    from workbench.errors import ConfigError
+
+    sink = RerunSink()
+    if not sink.add_recording(recording, only_run=run):
+        raise ConfigError(
+            f"{recording} has no run {run}: give a run id of this sweep that logged "
+            "a recording (`workbench results` lists them)"
+        )
+    return sink.save(target)
 
 
 def _instance_poses(batch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -533,10 +569,12 @@ def merge_recordings(
     chunks are streamed through Rerun's file sink into a temporary file beside ``target``
     and flushed before the next file is read; the temporary file is synced and renamed over
     ``target`` at the end, so that the inputs can then be removed.
-    The file has no footer (a manifest of its chunks for random access, which the viewer,
-    reading the whole file, does not need): the sink would keep that manifest in memory,
-    about 9 KiB a chunk, 1.8x the file's size (rerun-sdk 0.41; ``rerun rrd optimize``
-    adds one to a copy).
+    The file has a footer (a manifest of its chunks, which ``rerun rrd verify`` and random
+    access need) when its inputs are at most :data:`FOOTER_INPUT_LIMIT` bytes: Rerun's
+    file sink keeps that manifest in memory until the end, about 2x the inputs' size
+    (13 KiB a chunk; rerun-sdk 0.41, docs/performance.md), and a larger file goes without
+    (the viewer and Python's streaming reader read it whole; ``rerun rrd migrate`` adds
+    one to a copy).
     Rerun's file sink blocks forever on a full disk (rerun-sdk 0.41, see
     :meth:`RerunSink.save`), so the free space is checked first (:func:`check_free_space`).
     """
@@ -546,12 +584,13 @@ def merge_recordings(
         target = target / RECORDING_FILE
     target.parent.mkdir(parents=True, exist_ok=True)
     inputs = files + ([target] if keep_existing and target.is_file() else [])
-    check_free_space(target, sum(file.stat().st_size for file in inputs))
+    input_bytes = sum(file.stat().st_size for file in inputs)
+    check_free_space(target, input_bytes)
     sink = RerunSink()
 
     def write(temporary: str) -> None:
         with _stderr_silenced():  # rerun's warning that a file without footer exists
-            sink.recording.save(temporary, write_footer=False)
+            sink.recording.save(temporary, write_footer=input_bytes <= FOOTER_INPUT_LIMIT)
         for file in inputs:  # the newest first: a run is taken from the first file with it
             sink.add_recording(file)
             _flush(sink.recording, target)  # this file's chunks leave memory now
@@ -573,6 +612,9 @@ def _sync_directory(directory: Path) -> None:
         os.close(descriptor)
 
 
+FOOTER_INPUT_LIMIT = 128 * 2**20
+"""Inputs (bytes) up to which a merged recording gets a footer: its manifest then takes
+at most about 256 MiB while the merge runs."""
 FLUSH_TIMEOUT = 600.0
 """Seconds a flush of the merge's file sink may take before the merge is given up."""
 FREE_SPACE_MARGIN = 1.25
