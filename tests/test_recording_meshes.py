@@ -103,7 +103,10 @@ def test_a_models_mesh_is_stored_once_however_many_runs_use_it(tmp_path: Path) -
     # and the run's own entities keep its shapes and poses
     paths = {chunk.entity_path for chunk in chunks_of(merged)}
     for k in range(3, 9):
-        assert {f"/{run_path(10.0**-k)}/bodies/arm", f"/{run_path(10.0**-k)}/bodies/arm/boxes"} <= paths
+        assert {
+            f"/{run_path(10.0**-k)}/bodies/arm",
+            f"/{run_path(10.0**-k)}/bodies/arm/boxes",
+        } <= paths
 
 
 def test_a_sweep_keeps_one_copy_and_redone_runs_replace_theirs(tmp_path: Path) -> None:
@@ -130,3 +133,38 @@ def test_a_sweep_keeps_one_copy_and_redone_runs_replace_theirs(tmp_path: Path) -
         and chunk.entity_path.endswith("/ref_err")
     ]
     assert sorted(series) == sorted(f"/{run_path(r)}/series/ref_err" for r in (1e-3, 1e-4, 1e-5))
+
+
+def test_view_opens_one_run_of_a_sweeps_recording(tmp_path: Path, monkeypatch) -> None:
+    """``workbench view OUT --run ID``: the run copied out of the merged recording, its
+    robot with it; an unknown id is one line naming where the ids are."""
+    import subprocess
+
+    from typer.testing import CliRunner
+
+    from workbench.cli import app
+    from workbench.runs import store
+
+    equations = meshed_equations(tmp_path)
+    out = tmp_path / "out"
+    (out / RECORDINGS_DIR).mkdir(parents=True)
+    write_run_files(out / RECORDINGS_DIR, [1e-3, 1e-4], equations)
+    merge_run_recordings(SweepRecorder, out)
+    spec = fake_run(1e-4)[0]
+    row = {"run_id": "abc", "problem": spec.problem, "formalism": spec.formalism,
+           "integrator": spec.integrator, "rtol": spec.rtol, "problem_options": "{}"}  # fmt: skip
+    store.write_json_atomic(row, store.row_path(out, "abc"), root=out)
+    monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("DISPLAY", ":0")
+    started: list = []
+    monkeypatch.setattr(subprocess, "Popen", lambda args, **kwargs: started.append(args))
+    outcome = CliRunner().invoke(app, ["view", str(out), "--run", "abc"])
+    assert outcome.exit_code == 0, outcome.output
+    one = Path(started[0][-1])
+    runs, _times, translations = instances(one)
+    assert runs == [run_path(1e-4)] and translations.shape[1] == 1 and mesh_bytes(one)[0] == 1
+    assert {
+        c.entity_path.split("/series/")[0] for c in chunks_of(one) if "/series/" in c.entity_path
+    } == {"/" + run_path(1e-4)}
+    unknown = CliRunner().invoke(app, ["view", str(out), "--run", "nope"])
+    assert unknown.exit_code == 2 and "error: no run 'nope'" in unknown.output

@@ -53,8 +53,10 @@ def _write_report(
 
         hold_out_lock(ctx, results_path, wait)
     on_interrupt(
-        lambda: f"the results in {results_path} are untouched, the {command} is unfinished; "
-        f"run `workbench {command} {' '.join(sys.argv[2:]) or results_path}` again"
+        lambda: (
+            f"the results in {results_path} are untouched, the {command} is unfinished; "
+            f"run `workbench {command} {' '.join(sys.argv[2:]) or results_path}` again"
+        )
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

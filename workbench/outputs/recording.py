@@ -427,9 +427,9 @@ class RerunSink:
             self.recording.send_columns(
                 entity,
                 indexes=[rr.TimeColumn(TIMELINE, duration=grid)],
-                columns=rr.InstancePoses3D.columns(translations=translation, mat3x3=matrix).partition(
-                    [len(runs)] * len(grid)
-                ),
+                columns=rr.InstancePoses3D.columns(
+                    translations=translation, mat3x3=matrix
+                ).partition([len(runs)] * len(grid)),
             )
         self.instances.clear()
 

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import ConfigError
-from workbench.files import make_dirs
+from workbench.files import make_dirs, sync_file_system
 from workbench.runs import output_keys, store
 from workbench.runs.dask_pool import run_dask
 from workbench.runs.environment import sweep_environment
@@ -149,9 +149,18 @@ def run_sweep(
             else:
                 tick = lambda: advance(None)  # noqa: E731
                 unfinished = run_local(
-                    todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing,
+                    todo,
+                    out_dir,
+                    limit,
+                    sweep.plugins,
+                    jobs,
+                    record,
+                    tick,
+                    recorder,
+                    timing,
                     states,
                 )
+        sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
         results, remade = output_keys.remake(
