@@ -238,13 +238,14 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
                 measured = _sweep(spec, checkout)
                 results = pd.read_parquet(out / "results.parquet")
                 recording = out / "recording.rrd"
+                size = recording.stat().st_size if recording.exists() else 0
                 on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
             integration = float(results["integrate_cpu_s"].sum())
             row = {"measure": "tiny runs", "n": n, "code": code} | measured | {
                 "runs_per_s": n / measured["wall_s"],
                 "integration_cpu_ms": 1000 * integration / n,
                 "outside_cpu_ms": 1000 * (measured["cpu_s"] - integration) / n,
-                "size_mib": recording.stat().st_size / 2**20 if recording.exists() else 0.0,
+                "size_mib": size / 2**20,
                 "rrd_on_disk_mib": on_disk / 2**20,
                 "load_1min": os.getloadavg()[0],
                 "_cpu_outside_s": measured["cpu_s"] - integration,
