@@ -70,12 +70,12 @@ def instances(path: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(run of each instance, times, translations (times, runs, 3)) of the shared mesh."""
     runs, times, translations = [], [], []
     for chunk in chunks_of(path):
+        if chunk.entity_path == f"/{MESH}/{INSTANCE_RUNS}":
+            runs = chunk.to_record_batch().column(INSTANCE_RUNS)[0].as_py()
         if chunk.entity_path != "/" + MESH:
             continue
         batch = chunk.to_record_batch()
-        if INSTANCE_RUNS in batch.schema.names:
-            runs = batch.column(INSTANCE_RUNS)[0].as_py()
-        elif "InstancePoses3D:translations" in batch.schema.names:
+        if "InstancePoses3D:translations" in batch.schema.names:
             times.append(batch.column("sim_time").cast("int64").to_numpy() / 1e9)
             translations += batch.column("InstancePoses3D:translations").to_pylist()
     return runs, np.concatenate(times), np.array(translations)

@@ -54,7 +54,9 @@ RECORDING_FILE = "recording.rrd"
 MODEL_PART = "model"
 """``runs/<problem>/model/...``: what the runs of a model share, stored once (its meshes)."""
 INSTANCE_RUNS = "instance_runs"
-"""The component (static, on a shared mesh entity) naming the run of each instance pose."""
+"""The component naming the run of each instance pose of a shared mesh entity; static, on
+its child entity of that name (a chunk of its own: Rerun's batcher may join static rows
+of one entity into one chunk, and the mesh must be copied without it)."""
 SHAPE_ENTITIES = {
     "box": "boxes",
     "cylinder": "cylinders",
@@ -423,7 +425,9 @@ class RerunSink:
             # (samples, runs, 3 or 9): one row a sample time, an instance a run
             translation = np.stack(translations, axis=1).reshape(-1, 3)
             matrix = np.stack(matrices, axis=1).reshape(-1, 9)
-            self.recording.log(entity, rr.AnyValues(**{INSTANCE_RUNS: runs}), static=True)
+            self.recording.log(
+                f"{entity}/{INSTANCE_RUNS}", rr.AnyValues(**{INSTANCE_RUNS: runs}), static=True
+            )
             self.recording.send_columns(
                 entity,
                 indexes=[rr.TimeColumn(TIMELINE, duration=grid)],
@@ -463,11 +467,11 @@ class RerunSink:
                 continue  # another problem's
             if len(parts) == 2 or (len(parts) > 2 and parts[2] == MODEL_PART):
                 shared = entity_path(*parts)
-                batch = chunk.to_record_batch()
-                if INSTANCE_RUNS in batch.schema.names:
-                    named[shared] = [str(run) for run in batch.column(INSTANCE_RUNS)[0].as_py()]
+                if parts[-1] == INSTANCE_RUNS:  # which run each instance of the parent is
+                    runs = chunk.to_record_batch().column(INSTANCE_RUNS)[0].as_py()
+                    named[entity_path(*parts[:-1])] = [str(run) for run in runs]
                 elif not chunk.is_static:
-                    poses.setdefault(shared, []).append(_instance_poses(batch))
+                    poses.setdefault(shared, []).append(_instance_poses(chunk.to_record_batch()))
                 elif self._shared_logged.setdefault(shared, str(path)) == str(path):
                     self.recording.send_chunks(chunk)  # the first file's copy only
                 continue
