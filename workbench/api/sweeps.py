@@ -20,6 +20,7 @@ import pandas as pd
 
 from workbench.api.runs import REGISTERED_HERE, plugin_name
 from workbench.errors import ConfigError
+from workbench.files import sync_file_system
 from workbench.plugin import registry
 from workbench.runs import store
 from workbench.runs.environment import sweep_environment
@@ -147,6 +148,7 @@ def run_here(sweep: SweepSpec, progress: Callable[[int, int], Any] | None, fresh
         store.write_run(out, result.row, result.series, sweep.store_trajectories)
         if progress is not None:
             progress(done, len(todo))
+    sync_file_system(out)  # the rows and series, written without a sync each
     store.consolidate(out)
 
 
