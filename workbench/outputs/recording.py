@@ -15,6 +15,13 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/series/<quantity>            Scalars on ``sim_time``: drift_pos, drift_vel,
                                        drift_nh, energy_err, ref_err
 
+and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
+
+    runs/<problem>/model/bodies/<body>/meshes/<i>   the mesh (Asset3D / Mesh3D), static, and
+                                       InstancePoses3D on ``sim_time``: that body's pose in
+                                       every run (an instance a run), so each run is drawn
+    .../meshes/<i>/instance_runs       which run each instance is (static)
+
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
 x, y, z, w). Runs logged twice under the same path (same keys, other options) get the
@@ -27,6 +34,8 @@ worker keeps one sink for all its runs and writes a file a run with
 :meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: one recording stream given a
 new in-memory binary stream a run (written to the run's file at its end), because a new
 recording stream a run leaks memory in rerun-sdk (docs/performance.md has the figures).
+:func:`merge_recordings` adds those files to the sweep's one ``recording.rrd`` (after
+which the sweep removes them) and :func:`extract_run` copies one run back out of it.
 """
 
 from __future__ import annotations
