@@ -60,9 +60,10 @@ def tree_memory(root: psutil.Process) -> tuple[int, int]:
     return pss, rss
 
 
-def run_sweep_command(out: Path, jobs: int | None) -> dict:
-    """Run ``workbench sweep --out OUT`` and sample its memory; returns the measurements."""
-    command = [sys.executable, "-m", "workbench", "sweep", "full", "--out", str(out)]
+def run_sweep_command(out: Path, jobs: int | None, suite: str = "full") -> dict:
+    """Run ``workbench sweep SUITE --out OUT`` and sample its memory; returns the
+    measurements."""
+    command = [sys.executable, "-m", "workbench", "sweep", suite, "--out", str(out)]
     if jobs:
         command += ["--jobs", str(jobs)]
     started = time.perf_counter()
@@ -150,13 +151,16 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
                                      description=__doc__)  # fmt: skip
     parser.add_argument("--jobs", type=int, default=None, help="workers (default: the spec's)")
     parser.add_argument("--out", type=Path, default=None, help="keep the sweep here")
+    parser.add_argument(
+        "--suite", default="full", help="another suite or spec file (default: full)"
+    )
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="default-sweep-") as scratch:
         out = args.out or Path(scratch) / "sweep"
         if out.exists() and any(out.iterdir()):
             raise SystemExit(f"{out} is not empty: the benchmark needs a sweep from scratch")
-        measured = run_sweep_command(out, args.jobs)
-        jobs = args.jobs or int(re.search(r"jobs\s*=\s*(\d+)", _spec_text()).group(1))
+        measured = run_sweep_command(out, args.jobs, args.suite)
+        jobs = args.jobs or int(re.search(r"jobs\s*=\s*(\d+)", _spec_text(args.suite)).group(1))
         shares, per_formalism = time_shares(out, jobs, measured["runs_phase_s"])
     print(measured.pop("output").strip())
     row = {**measured, **shares, "load_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
@@ -179,10 +183,12 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     return table
 
 
-def _spec_text() -> str:
+def _spec_text(suite: str = "full") -> str:
     from workbench.runs.sweep_spec import FULL_SUITE, suite_text
 
-    return suite_text(FULL_SUITE)  # the default sweep before the quick suite
+    if Path(suite).is_file():
+        return Path(suite).read_text()
+    return suite_text(FULL_SUITE if suite == "full" else suite)  # full: the former default
 
 
 if __name__ == "__main__":

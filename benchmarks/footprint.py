@@ -2,7 +2,9 @@
 
 Run: ``python -m benchmarks.footprint [N_MERGE ...] [--resume N_RUNS]`` (defaults: merges
 of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load 8 on
-2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it).
+2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it), or
+``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3.
+(``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
    shapes and joint frames, 200 poses, 5 series a run) are merged into one file in a fresh
@@ -19,7 +21,12 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
    seconds of the command (its workers included), the peak RSS of its largest process,
    and how many outputs it said were unchanged (of recording and report).
 
-Prints the table and the load average; writes ``benchmarks/results/footprint.csv``.
+3. Tiny runs (:func:`tiny_rows`): runs/s and the CPU a run spends outside its
+   integration on 2 workers, before and after; the recording's size and the ``.rrd``
+   bytes left on disk.
+
+Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
+(``footprint-tiny.csv`` for 3).
 On a shared machine wall times mean little: compare CPU seconds and memory.
 """
 
@@ -164,20 +171,23 @@ def resume_spec(out: Path, n_runs: int) -> str:
     )
 
 
-def _sweep(spec: Path) -> dict:
+def _sweep(spec: Path, code: str = "") -> dict:
     """Run ``workbench sweep SPEC`` (2 workers, 1 timed sample a run) from a fresh process
-    of this module, so that the peak RSS is this command's: its measures."""
-    command = [sys.executable, "-m", "benchmarks.footprint", "--sweep-child", str(spec)]
+    of this module, so that the peak RSS is this command's: its measures. ``code``: a
+    checkout whose ``workbench`` runs it (``python -m workbench`` in that folder)."""
+    command = [sys.executable, "-m", "benchmarks.footprint", "--sweep-child", str(spec), code]
     done = subprocess.run(command, capture_output=True, text=True, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _sweep_child(spec: str) -> None:
-    workbench = Path(sys.executable).with_name("workbench")
+def _sweep_child(spec: str, code: str = "") -> None:
+    workbench = [sys.executable, "-m", "workbench"] if code else [
+        str(Path(sys.executable).with_name("workbench"))
+    ]  # fmt: skip
     started = time.perf_counter()
     done = subprocess.run(
-        [str(workbench), "sweep", spec, "-j", "2", "--repeats", "1"],
-        capture_output=True, text=True, check=True,
+        [*workbench, "sweep", spec, "-j", "2", "--repeats", "1"],
+        capture_output=True, text=True, check=True, cwd=code or None,
     )  # fmt: skip
     used = resource.getrusage(resource.RUSAGE_CHILDREN)
     print(json.dumps({
@@ -206,10 +216,69 @@ def resume_rows(n_runs: int) -> list[dict]:
     return rows
 
 
+# ---- many tiny runs ---------------------------------------------------------------------
+
+
+def tiny_rows(counts: list[int], before: str) -> list[dict]:
+    """A sweep of N tiny runs (:func:`resume_spec`: simple pendulum, 10 s, DOP853 / RK45 at
+    loose tolerances) with this code ("after") and, given a checkout, with its code
+    ("before"): runs/s over the command's wall time, and the CPU a run spends outside its
+    integration, (the command's CPU, workers included, minus the rows' integration CPU) / N,
+    which counts the sweep's fixed costs too (start-up, report, recording merge) - the
+    difference between two N removes them ("marginal")."""
+    rows = []
+    for n in counts:
+        for code, checkout in (("before", before), ("after", "")):
+            if code == "before" and not before:
+                continue
+            with tempfile.TemporaryDirectory() as directory:
+                out = Path(directory) / "out"
+                spec = Path(directory) / "spec.toml"
+                spec.write_text(resume_spec(out, n))
+                measured = _sweep(spec, checkout)
+                results = pd.read_parquet(out / "results.parquet")
+                recording = out / "recording.rrd"
+                size = recording.stat().st_size if recording.exists() else 0
+                on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
+            integration = float(results["integrate_cpu_s"].sum())
+            row = {"measure": "tiny runs", "n": n, "code": code} | measured | {
+                "runs_per_s": n / measured["wall_s"],
+                "integration_cpu_ms": 1000 * integration / n,
+                "outside_cpu_ms": 1000 * (measured["cpu_s"] - integration) / n,
+                "size_mib": size / 2**20,
+                "rrd_on_disk_mib": on_disk / 2**20,
+                "load_1min": os.getloadavg()[0],
+                "_cpu_outside_s": measured["cpu_s"] - integration,
+            }  # fmt: skip
+            rows.append(row)
+            print({k: v for k, v in row.items() if not k.startswith("_")}, flush=True)
+    for code in ("before", "after"):
+        mine = sorted((r for r in rows if r["code"] == code), key=lambda r: r["n"])
+        for small, large in zip(mine, mine[1:], strict=False):
+            large["marginal_outside_cpu_ms"] = (
+                1000
+                * (large["_cpu_outside_s"] - small["_cpu_outside_s"])
+                / (large["n"] - small["n"])
+            )
+    for row in rows:
+        row.pop("_cpu_outside_s")
+    return rows
+
+
 def main(argv: list[str]) -> pd.DataFrame:
     if argv[:1] == ["--sweep-child"]:
-        _sweep_child(argv[1])
+        _sweep_child(argv[1], argv[2] if len(argv) > 2 else "")
         return pd.DataFrame()
+    if "--tiny" in argv:  # --tiny N [N ...] [--before CHECKOUT]: the tiny-runs measure only
+        before = argv[argv.index("--before") + 1] if "--before" in argv else ""
+        counts = [int(a) for a in argv[argv.index("--tiny") + 1 :] if a.isdigit()]
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        table = pd.DataFrame(tiny_rows(counts, before))
+        RESULTS.mkdir(exist_ok=True)
+        table.to_csv(RESULTS / "footprint-tiny.csv", index=False)
+        with pd.option_context("display.width", 250, "display.max_columns", 30):
+            print(table.round(2).to_string(index=False))
+        return table
     if argv[:1] == ["--merge-child"]:
         _merge_child(argv[1], argv[2], int(argv[3]))
         return pd.DataFrame()

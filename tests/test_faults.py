@@ -68,14 +68,10 @@ def test_enospc_while_merging_the_recording_is_raised_and_resume_finishes_it(
     tmp_path, monkeypatch
 ) -> None:
     """ENOSPC injected in the writer of workbench.files.atomic_write: the sweep raises it
-    (the CLI makes it one line) instead of hiding it, the rows stay, no temporary is
-    left; the next sweep, with room, writes the recording."""
+    (the CLI makes it one line) instead of hiding it, the rows and the runs' own
+    recordings stay, no temporary is left; the next sweep, with room, merges them."""
     sweep = parse_spec(SPEC)
     out = tmp_path / "out"
-    first = run_sweep(sweep, out=out, show_progress=False, recorder=SweepRecorder)
-    assert first.counts["ok"] == 2 and first.recording is not None
-    first.recording.unlink()
-    rows = snapshot(out / "runs")
     real_atomic_write = files.atomic_write
 
     def full_disk(path, write, durable=True):
@@ -83,19 +79,21 @@ def test_enospc_while_merging_the_recording_is_raised_and_resume_finishes_it(
             Path(temporary).write_bytes(b"\0" * 1000)
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), temporary)
 
-        real_atomic_write(path, half_then_enospc, durable)
+        merge = Path(path).name == RECORDING_FILE  # the runs' own files are written
+        real_atomic_write(path, half_then_enospc if merge else write, durable)
 
     monkeypatch.setattr(recording_module, "atomic_write", full_disk)
     with pytest.raises(OSError) as raised:
         run_sweep(sweep, out=out, show_progress=False, recorder=SweepRecorder)
     assert raised.value.errno == errno.ENOSPC
-    assert snapshot(out / "runs") == rows
+    assert len(snapshot(out / "runs")) == 2 and len(list((out / "recordings").iterdir())) == 2
     assert not (out / RECORDING_FILE).exists() and temporaries(out) == []
 
     monkeypatch.setattr(recording_module, "atomic_write", real_atomic_write)
     again = run_sweep(sweep, out=out, show_progress=False, recorder=SweepRecorder)
     assert again.already_done == 2 and again.recording == out / RECORDING_FILE
     assert len(SweepRecorder().add_recording(again.recording)) == 2
+    assert list((out / "recordings").iterdir()) == []  # merged: one copy on disk
 
 
 @pytest.fixture
@@ -142,16 +140,16 @@ def test_a_full_disk_ends_the_sweep_with_one_line_and_resume_finishes(small_disk
     out = small_disk / "out"
     done = workbench("sweep", str(spec), "--out", str(out))
     assert done.returncode == 0, done.stderr
-    (out / RECORDING_FILE).unlink()
-    rows = snapshot(out / "runs")
-    filler = fill(small_disk, leave=100_000)  # the results table fits, not the recording
+    merged = (out / RECORDING_FILE).read_bytes()
+    # room for the redone runs' rows and recordings, not for a merge (check_free_space)
+    filler = fill(small_disk, leave=400_000)
 
-    full = workbench("sweep", str(spec), "--out", str(out))
+    full = workbench("sweep", str(spec), "--out", str(out), "--fresh")
     assert full.returncode == 2
     line = one_error_line(full.stderr)
     assert "No space left on device" in line and str(out) in line
-    assert snapshot(out / "runs") == rows
-    assert not (out / RECORDING_FILE).exists() and temporaries(out) == []
+    assert len(snapshot(out / "runs")) == 2 and len(list((out / "recordings").iterdir())) == 2
+    assert (out / RECORDING_FILE).read_bytes() == merged and temporaries(out) == []
 
     filler.unlink()
     stale = out / f".{RECORDING_FILE}.12345-deadbeef.tmp"  # a writer killed mid-write
@@ -160,7 +158,7 @@ def test_a_full_disk_ends_the_sweep_with_one_line_and_resume_finishes(small_disk
     assert resumed.returncode == 0, resumed.stderr
     assert "2 already done" in resumed.stdout
     assert len(SweepRecorder().add_recording(out / RECORDING_FILE)) == 2
-    assert temporaries(out) == []
+    assert temporaries(out) == [] and list((out / "recordings").iterdir()) == []
 
 
 # -- OS errors at the command line -----------------------------------------------------

@@ -39,7 +39,8 @@ def test_the_merged_recording_holds_every_runs_chunks(tmp_path) -> None:
     files = write_runs(tmp_path, 5)
     merged = merge_recordings(files, tmp_path / "merged.rrd")
     expected = sum((run_chunks(file) for file in files), Counter())
-    # the problem's view coordinates, logged by every run, are kept once a run as before
+    # the problem's view coordinates, logged by every run, are kept once
+    expected[("/runs/fake-problem", 1)] = 1
     assert run_chunks(merged) == expected
     assert len({path for path, _ in expected if "/series/ref_err" in path}) == 5
     assert rr.chunk.RrdReader(merged).blueprints()  # the blueprint joins at the end
@@ -66,7 +67,10 @@ MERGE_CHILD = """
 import json, sys
 from pathlib import Path
 import rerun
+from workbench.outputs import recording
 from workbench.outputs.recording import merge_recordings
+
+recording.FOOTER_INPUT_LIMIT = int(sys.argv[3])  # a footer's manifest is held to the end
 
 def status(field):
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -90,11 +94,14 @@ def test_the_merge_memory_does_not_grow_with_the_runs(tmp_path) -> None:
     150 runs' bytes (the merge that kept every chunk until the end grew by about 4x them)."""
     write_runs(tmp_path, 200)
 
-    def merge(n: int) -> dict[str, int]:
-        command = [sys.executable, "-c", MERGE_CHILD, str(tmp_path), str(n)]
+    def merge(n: int, footer_limit: int = 0) -> dict[str, int]:
+        command = [sys.executable, "-c", MERGE_CHILD, str(tmp_path), str(n), str(footer_limit)]
         done = subprocess.run(command, capture_output=True, text=True, check=True, timeout=600)
         return json.loads(done.stdout.strip().splitlines()[-1])
 
     few, many = merge(50), merge(200)
     assert many["inputs"] > 3.5 * few["inputs"]
     assert many["growth"] - few["growth"] < 0.5 * (many["inputs"] - few["inputs"])
+    # with a footer (small merges) the manifest grows with the chunks: about 2x the inputs
+    footer = merge(200, footer_limit=2**40)
+    assert footer["growth"] < 2.5 * footer["inputs"]

@@ -193,7 +193,7 @@ def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
     newer = str(store.row_path(tmp_path, "c" * 16))
     with pytest.raises(ConfigError, match="upgrade the workbench") as error:
         store.load_results(tmp_path)
-    newest = f"schema version {store.SCHEMA_VERSION + 1}"
+    newest = f"schema version {row_schema.SCHEMA_VERSION + 1}"
     assert newer in str(error.value) and newest in str(error.value)
     # a resumed sweep refuses too (it would add rows of an older schema)
     with pytest.raises(ConfigError, match="upgrade the workbench"):

@@ -24,6 +24,7 @@ from workbench.errors import ConfigError
 from workbench.execution.environment import sweep_environment
 from workbench.execution.execute import execute_run
 from workbench.execution.timing import Timing
+from workbench.files import sync_file_system
 from workbench.plugin import registry
 from workbench.runs import store
 from workbench.runs.resume import plan_resume
@@ -148,6 +149,7 @@ def run_here(sweep: SweepSpec, progress: Callable[[int, int], Any] | None, fresh
         store.write_run(out, result.row, result.series, sweep.store_trajectories)
         if progress is not None:
             progress(done, len(todo))
+    sync_file_system(out)  # the rows and series, written without a sync each
     store.consolidate(out)
 
 

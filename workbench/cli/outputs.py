@@ -54,8 +54,10 @@ def _write_report(
 
         hold_out_lock(ctx, results_path, wait)
     on_interrupt(
-        lambda: f"the results in {results_path} are untouched, the {command} is unfinished; "
-        f"run `workbench {command} {' '.join(sys.argv[2:]) or results_path}` again"
+        lambda: (
+            f"the results in {results_path} are untouched, the {command} is unfinished; "
+            f"run `workbench {command} {' '.join(sys.argv[2:]) or results_path}` again"
+        )
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -139,11 +141,17 @@ def view(
     grpc_port: Annotated[
         int, typer.Option("--grpc-port", help="With --web: its gRPC port.")
     ] = 9876,
+    run: Annotated[
+        str | None,
+        typer.Option("--run", help="Only this run (its id) of a sweep's recording."),
+    ] = None,
 ) -> None:
     """Open a Rerun recording in the Rerun viewer (or say how, when there is no display).
 
     With --web it is served to a browser on this machine only (127.0.0.1) unless --bind
     names another address: a recording is data a network should not read by default.
+    With --run, the run is copied out of the sweep's recording into a file of its own
+    (in the workbench's cache folder), which is opened.
     """
     import os
     import shlex
@@ -162,6 +170,8 @@ def view(
             f"no recording at {recording}: give a .rrd file written by RerunSink.save "
             "(e.g. the recording.rrd of a sweep's output directory)"
         )
+    if run is not None:
+        recording = one_run_recording(recording, run)
     viewer = rerun_command(shutil.which)
     rerun = shlex.join(viewer)
     if web:
@@ -186,6 +196,26 @@ def view(
             f"`{rerun} {shlex.quote(str(recording))}` yourself"
         ) from None
     typer.echo(f"opened {recording} in the Rerun viewer")
+
+
+def one_run_recording(recording: Any, run_id: str) -> Any:
+    """The file of one run (id ``run_id``) of the sweep whose recording is ``recording``,
+    copied out of it into the cache folder; ConfigError naming what is missing."""
+    from workbench.errors import ConfigError
+    from workbench.files import user_cache_dir
+    from workbench.outputs.recording import extract_run, run_path_of_row
+    from workbench.runs import store
+
+    row_file = store.row_path(recording.parent, run_id)
+    row = store.read_row(row_file) if row_file.is_file() else None
+    if row is None:
+        raise ConfigError(
+            f"no run {run_id!r} in {recording.parent}: give a run id from "
+            f"`workbench results {recording.parent}` (its run_id column)"
+        )
+    target = user_cache_dir() / "views" / f"{run_id}.rrd"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    return extract_run(recording, run_path_of_row(row), target)
 
 
 def rerun_command(which: Any) -> list[str]:

@@ -241,10 +241,14 @@ def migrate_row(row: dict[str, Any], source: str | os.PathLike[str]) -> dict[str
 
 
 def empty_series(run_id: str) -> pd.DataFrame:
-    """A time series with no rows (skipped and failed-before-integration runs)."""
-    return pd.DataFrame({c: pd.Series(dtype="float64") for c in SERIES_COLUMNS}).assign(
-        run_id=pd.Series(dtype="object")
-    )[SERIES_COLUMNS]
+    """A time series with no rows (skipped and failed-before-integration runs); a copy of
+    one made once (making it took 1.6 ms, a run's start)."""
+    return _EMPTY_SERIES.copy()
+
+
+_EMPTY_SERIES = pd.DataFrame({c: pd.Series(dtype="float64") for c in SERIES_COLUMNS}).assign(
+    run_id=pd.Series(dtype="object")
+)[SERIES_COLUMNS]
 
 
 __all__ = [

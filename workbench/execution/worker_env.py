@@ -12,6 +12,7 @@ the libraries already loaded. Each row records the count in force (``threads``).
 from __future__ import annotations
 
 import os
+import sys
 
 THREADS_VARIABLE = "WORKBENCH_THREADS"
 DEFAULT_THREADS = 1
@@ -47,6 +48,7 @@ def pin_threads(threads: int | None = None) -> int:
     (default :func:`worker_threads`); returns the count."""
     count = worker_threads() if threads is None else threads
     os.environ.update(thread_environment(count))
+    _threads_seen.clear()
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # only the variables: right for libraries not loaded yet
@@ -55,9 +57,24 @@ def pin_threads(threads: int | None = None) -> int:
     return count
 
 
+_threads_seen: dict[int, int | None] = {}  # modules loaded -> threads_in_force()
+
+
 def threads_in_force() -> int | None:
     """The most threads any loaded BLAS/OpenMP library may use now (threadpoolctl), else
-    what ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS`` say; None when nothing says."""
+    what ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS`` say; None when nothing says.
+
+    Asked again only when modules were imported since (a new library may come with
+    them) or :func:`pin_threads` was called: threadpoolctl reads the process's loaded
+    libraries each time, 5 ms, more than a tiny run's integration (docs/performance.md)."""
+    loaded = len(sys.modules)
+    if loaded not in _threads_seen:
+        _threads_seen.clear()
+        _threads_seen[loaded] = _threads_now()
+    return _threads_seen[loaded]
+
+
+def _threads_now() -> int | None:
     try:
         from threadpoolctl import threadpool_info
     except ImportError:

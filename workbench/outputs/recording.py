@@ -15,6 +15,13 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/series/<quantity>            Scalars on ``sim_time``: drift_pos, drift_vel,
                                        drift_nh, energy_err, ref_err
 
+and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
+
+    runs/<problem>/model/bodies/<body>/meshes/<i>   the mesh (Asset3D / Mesh3D), static, and
+                                       InstancePoses3D on ``sim_time``: that body's pose in
+                                       every run (an instance a run), so each run is drawn
+    .../meshes/<i>/instance_runs       which run each instance is (static)
+
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
 x, y, z, w). Runs logged twice under the same path (same keys, other options) get the
@@ -27,6 +34,8 @@ worker keeps one sink for all its runs and writes a file a run with
 :meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: one recording stream given a
 new in-memory binary stream a run (written to the run's file at its end), because a new
 recording stream a run leaks memory in rerun-sdk (docs/performance.md has the figures).
+:func:`merge_recordings` adds those files to the sweep's one ``recording.rrd`` (after
+which the sweep removes them) and :func:`extract_run` copies one run back out of it.
 """
 
 from __future__ import annotations
@@ -37,6 +46,7 @@ import json
 import os
 import re
 import uuid
+import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -50,6 +60,12 @@ SERIES_QUANTITIES: tuple[str, ...] = ("drift_pos", "drift_vel", "drift_nh", "ene
 TIMELINE = "sim_time"
 APPLICATION_ID = "mbs-workbench"
 RECORDING_FILE = "recording.rrd"
+MODEL_PART = "model"
+"""``runs/<problem>/model/...``: what the runs of a model share, stored once (its meshes)."""
+INSTANCE_RUNS = "instance_runs"
+"""The component naming the run of each instance pose of a shared mesh entity; static, on
+its child entity of that name (a chunk of its own: Rerun's batcher may join static rows
+of one entity into one chunk, and the mesh must be copied without it)."""
 SHAPE_ENTITIES = {
     "box": "boxes",
     "cylinder": "cylinders",
@@ -150,6 +166,12 @@ class RerunSink:
         self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
         self.run_warnings: list[str] = []  # of the last run logged (for its row)
         self._batches_cache: dict[str, list[tuple[str, list[Any]]]] = {}
+        # per model key: mesh entity below the run -> (body, position, 3x3 incl. scale)
+        self._mesh_places: dict[str, dict[str, tuple[str, np.ndarray, np.ndarray]]] = {}
+        # shared entities logged to the current file (-> the file copied from, when merging)
+        self._shared_logged: dict[str, str] = {}
+        # shared mesh entity -> run path -> (times s, translations (n, 3), mat3x3 (n, 9))
+        self.instances: dict[str, dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
 
     # -- logging --------------------------------------------------------------------------
     def log_run(
@@ -176,22 +198,40 @@ class RerunSink:
         self.recording.log(entity_path("runs", parts[1]), view_coordinates(model), static=True)
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
         key = f"{spec.problem} {options} {model.name}"
-        self._log_geometry(path, model, key)
+        shared = entity_path("runs", parts[1], MODEL_PART)
+        self._log_geometry(path, shared, model, key)
         self.run_warnings = list(self._geometry_warnings.get(key, []))
-        self._log_poses(path, equations, trajectory)
+        self._log_poses(path, equations, trajectory, shared, key)
         self._log_series(path, series, label, run_id)
         return path
 
-    def _log_geometry(self, path: str, model: Any, key: str) -> None:
+    def _log_geometry(self, path: str, shared: str, model: Any, key: str) -> None:
+        """Shapes and joint frames below the run; a mesh once per model and file, static,
+        below ``shared`` (``runs/<problem>/model``), drawn at each run's body poses by
+        instance poses (:meth:`_log_poses`): a robot's meshes are most of its bytes."""
         # the archetypes' component batches, made once per model: ``log`` of an archetype
         # makes them again at every call (a third of its cost)
         if key not in self._batches_cache:
+            entries = self._geometry(model, key)
+            places = self._mesh_places.get(key, {})
             self._batches_cache[key] = [
-                (relative, [batch for each in archetypes for batch in each.as_component_batches()])
-                for relative, archetypes in self._geometry(model, key)
+                (
+                    relative,
+                    [  # a shared mesh is placed by its instance poses, not a transform
+                        batch
+                        for each in (archetypes[1:] if relative in places else archetypes)
+                        for batch in each.as_component_batches()
+                    ],
+                )
+                for relative, archetypes in entries
             ]
+        places = self._mesh_places.get(key, {})
         for relative, batches in self._batches_cache[key]:
-            self.recording.log(f"{path}/{relative}", batches, static=True)
+            if relative not in places:
+                self.recording.log(f"{path}/{relative}", batches, static=True)
+            elif f"{shared}/{relative}" not in self._shared_logged:
+                self._shared_logged[f"{shared}/{relative}"] = ""
+                self.recording.log(f"{shared}/{relative}", batches, static=True)
 
     def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
         """(entity path below the run, archetypes) of the shapes and joint frames; made
@@ -212,6 +252,9 @@ class RerunSink:
                 entries.append((f"{body_path}/meshes/{index}", archetypes))
                 if warning:
                     warnings.append(f"body {name!r}: {warning}")
+                else:  # drawn once per model at every run's pose (_log_geometry)
+                    place = (name, shape.frame.position, shape.frame.rotation @ np.diag(shape.size))
+                    self._mesh_places.setdefault(key, {})[f"{body_path}/meshes/{index}"] = place
         axis_length = 0.3 * _model_scale(model)
         for joint in model.joints.values():
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
@@ -225,7 +268,9 @@ class RerunSink:
         self._geometry_cache[key] = entries
         return entries
 
-    def _log_poses(self, path: str, equations: Any, trajectory: Any) -> None:
+    def _log_poses(
+        self, path: str, equations: Any, trajectory: Any, shared: str = "", key: str = ""
+    ) -> None:
         import rerun as rr
 
         times = np.asarray(trajectory.times, dtype=float).reshape(-1)
@@ -243,6 +288,17 @@ class RerunSink:
                 columns=rr.Transform3D.columns(
                     translation=poses[:, b, :3], quaternion=quaternion_xyzw(poses[:, b, 3:])
                 ),
+            )
+        bodies = {name: b for b, name in enumerate(equations.observables.body_names)}
+        for relative, (body, position, matrix) in self._mesh_places.get(key, {}).items():
+            if body not in bodies:
+                continue
+            pose = poses[:, bodies[body]]
+            rotation = _rotation_matrices(pose[:, 3:])  # (n, 3, 3)
+            self.instances.setdefault(f"{shared}/{relative}", {})[path] = (
+                times[rows],
+                (pose[:, :3] + rotation @ np.asarray(position, dtype=float)).astype(np.float32),
+                (rotation @ np.asarray(matrix, dtype=float)).reshape(-1, 9).astype(np.float32),
             )
 
     def _log_series(
@@ -323,6 +379,7 @@ class RerunSink:
         if target.is_dir() or target.suffix != ".rrd":
             target = target / RECORDING_FILE
         stream = self.recording.binary_stream()
+        self.send_instances()
         self.recording.send_blueprint(self.blueprint(), make_active=False, make_default=True)
         data = stream.read() or b""
         self.recording.disconnect()
@@ -339,6 +396,8 @@ class RerunSink:
         self._file = Path(path)
         self.runs.clear()
         self.quantities.clear()
+        self.instances.clear()
+        self._shared_logged.clear()
 
     def end_file(self) -> Path | None:
         """Write what was logged since :meth:`begin_file` to its file (atomically: a
@@ -348,30 +407,88 @@ class RerunSink:
         self._stream = None
         if stream is None:
             return None
+        self.send_instances()
         data = stream.read()
         if not self.runs:
             return None
         atomic_write(target, lambda temporary: Path(temporary).write_bytes(data), durable=False)
         return target
 
+    def send_instances(self) -> None:
+        """Log the instance poses gathered for each shared mesh (every run's pose of the
+        mesh's body, a row a sample time of the longest run; a run without a sample there
+        holds its latest pose) and, static beside them, which run each instance is."""
+        import rerun as rr
+
+        for entity, by_run in self.instances.items():
+            runs = list(by_run)
+            grid = max((by_run[run][0] for run in runs), key=len)
+            if len(grid) == 0:
+                continue
+            translations, matrices = [], []
+            for run in runs:
+                times, translation, matrix = by_run[run]
+                at = np.clip(np.searchsorted(times, grid, side="right") - 1, 0, len(times) - 1)
+                translations.append(translation[at])
+                matrices.append(matrix[at])
+            # (samples, runs, 3 or 9): one row a sample time, an instance a run
+            translation = np.stack(translations, axis=1).reshape(-1, 3)
+            matrix = np.stack(matrices, axis=1).reshape(-1, 9)
+            self.recording.log(
+                f"{entity}/{INSTANCE_RUNS}", rr.AnyValues(**{INSTANCE_RUNS: runs}), static=True
+            )
+            self.recording.send_columns(
+                entity,
+                indexes=[rr.TimeColumn(TIMELINE, duration=grid)],
+                columns=rr.InstancePoses3D.columns(
+                    translations=translation, mat3x3=matrix
+                ).partition([len(runs)] * len(grid)),
+            )
+        self.instances.clear()
+
     # -- several files into one -----------------------------------------------------------
-    def add_recording(self, path: str | Path) -> list[str]:
-        """Copy the runs of a saved recording (e.g. one a worker wrote) into this one.
+    def add_recording(self, path: str | Path, only_run: str | None = None) -> list[str]:
+        """Copy the runs of a saved recording (e.g. one a worker wrote) into this one;
+        ``only_run``: that run's path only (with what it shares with others).
 
         Returns the run paths found. Lets a sweep log each run in its worker process to
-        its own file and merge them at the end (see :func:`merge_recordings`).
+        its own file and merge them at the end (see :func:`merge_recordings`). A run
+        already added (from a newer file) is left out; an entity shared by runs (a
+        problem's view coordinates, a model's meshes) is copied from the first file that
+        has it; the instance poses of shared meshes are gathered, to be written by
+        :meth:`send_instances`.
         """
         import rerun as rr
 
-        found = []
-        for chunk in rr.chunk.RrdReader(path).stream().to_chunks():
-            parts = split_entity_path(chunk.entity_path)
-            if parts[:1] != ["runs"] or (len(parts) < 6 and len(parts) != 2):
+        found: list[str] = []
+        known = set(self.runs)
+        poses: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        named: dict[str, list[str]] = {}  # shared mesh entity -> run of each instance
+        with warnings.catch_warnings():  # a large merged file has no footer, by design
+            warnings.filterwarnings("ignore", message="RRD file has no footer")
+            reader = rr.chunk.RrdReader(path)
+        for chunk in reader.stream():  # one chunk at a time (to_chunks: a list of all)
+            entity = chunk.entity_path
+            parts = split_entity_path(entity)
+            if parts[:1] != ["runs"]:
                 continue  # recording properties and anything not a run or a problem
-            if len(parts) == 2:  # the problem's view coordinates
-                self.recording.send_chunks(chunk)
+            if only_run is not None and parts[1:2] != split_entity_path(only_run)[1:2]:
+                continue  # another problem's
+            if len(parts) == 2 or (len(parts) > 2 and parts[2] == MODEL_PART):
+                shared = entity_path(*parts)
+                if parts[-1] == INSTANCE_RUNS:  # which run each instance of the parent is
+                    runs = chunk.to_record_batch().column(INSTANCE_RUNS)[0].as_py()
+                    named[entity_path(*parts[:-1])] = [str(run) for run in runs]
+                elif not chunk.is_static:
+                    poses.setdefault(shared, []).append(_instance_poses(chunk.to_record_batch()))
+                elif self._shared_logged.setdefault(shared, str(path)) == str(path):
+                    self.recording.send_chunks(chunk)  # the first file's copy only
+                continue
+            if len(parts) < 6:
                 continue
             run = entity_path(*parts[:5])
+            if run in known or (only_run is not None and run != only_run):
+                continue  # a newer file has this run, or another run
             if run not in self.runs:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
@@ -379,7 +496,69 @@ class RerunSink:
             if len(parts) == 7 and parts[5] == "series" and parts[6] in SERIES_QUANTITIES:
                 self.quantities.add(parts[6])
             self.recording.send_chunks(chunk)
+        for shared, pieces in poses.items():
+            runs = named.get(shared) or found[:1]  # a run's own file names none: its run
+            times = np.concatenate([piece[0] for piece in pieces])
+            order = np.argsort(times, kind="stable")
+            translation = np.concatenate([piece[1] for piece in pieces])[order]
+            matrix = np.concatenate([piece[2] for piece in pieces])[order]
+            if translation.shape[1] != len(runs):
+                continue  # not written by this module: left out
+            gathered = self.instances.setdefault(shared, {})
+            for k, run in enumerate(runs):
+                if only_run is not None and run != only_run:
+                    continue
+                if run not in known and run not in gathered:
+                    gathered[run] = (times[order], translation[:, k], matrix[:, k])
         return found
+
+
+def run_path_of_row(row: dict[str, Any]) -> str:
+    """The entity path of a result row's run (its options as dicts or JSON text)."""
+    from types import SimpleNamespace
+
+    fields = dict(row)
+    for kind in ("problem", "formalism", "integrator"):
+        options = fields.get(f"{kind}_options") or {}
+        fields[f"{kind}_options"] = json.loads(options) if isinstance(options, str) else options
+    return entity_path(*run_parts(SimpleNamespace(**fields)))
+
+
+def extract_run(recording: str | Path, run: str, target: str | Path) -> Path:
+    """Write the run with entity path ``run`` (:func:`run_parts`) of a merged recording to
+    its own file ``target``, as the run's file was before the merge (its robot's meshes,
+    drawn at its poses, included): to look at one run of a large sweep.
+    ConfigError if ``recording`` has no such run."""
+    from workbench.errors import ConfigError
+
+    sink = RerunSink()
+    if not sink.add_recording(recording, only_run=run):
+        raise ConfigError(
+            f"{recording} has no run {run}: give a run id of this sweep that logged "
+            "a recording (`workbench results` lists them)"
+        )
+    return sink.save(target)
+
+
+def _instance_poses(batch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times s, translations (rows, instances, 3), mat3x3 (rows, instances, 9)) of a chunk
+    of InstancePoses3D rows that all have the same number of instances."""
+    import pyarrow as pa
+
+    times = batch.column(TIMELINE).cast(pa.int64()).to_numpy() / 1e9
+    columns = []
+    for name, width in (("InstancePoses3D:translations", 3), ("InstancePoses3D:mat3x3", 9)):
+        column = batch.column(name)
+        values = np.asarray(column.flatten().flatten(), dtype=np.float32)
+        columns.append(values.reshape(len(times), -1, width))
+    return times, columns[0], columns[1]
+
+
+def _rotation_matrices(scalar_first: np.ndarray) -> np.ndarray:
+    """(n, 4) Euler parameters -> (n, 3, 3) rotation matrices."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(quaternion_xyzw(scalar_first)).as_matrix()
 
 
 def split_entity_path(path: str) -> list[str]:
@@ -388,17 +567,27 @@ def split_entity_path(path: str) -> list[str]:
     return [re.sub(r"\\(.)", r"\1", part) for part in parts if part]
 
 
-def merge_recordings(files: Iterable[str | Path], target: str | Path) -> Path:
+def merge_recordings(
+    files: Iterable[str | Path], target: str | Path, keep_existing: bool = False
+) -> Path:
     """Merge saved recordings (one per run or per worker) into one file with a blueprint;
     ``target``: a ``.rrd`` file or a directory (then its ``recording.rrd``).
+    ``keep_existing``: an existing ``target`` is merged in too, its runs that ``files``
+    hold again left out (they were redone): a sweep merges only its new runs' files.
 
-    The memory it takes does not grow with the number of files: each file's chunks are
-    streamed through Rerun's file sink into a temporary file beside ``target`` and flushed
-    before the next file is read; the temporary file is renamed over ``target`` at the end.
-    The file has no footer (a manifest of its chunks for random access, which the viewer,
-    reading the whole file, does not need): the sink would keep that manifest in memory,
-    about 9 KiB a chunk, 1.8x the file's size (rerun-sdk 0.41; ``rerun rrd optimize``
-    adds one to a copy).
+    Each model's meshes are stored once, drawn at every run's body poses by instance
+    poses (:meth:`RerunSink.send_instances`, written at the end: the one part of the merge
+    held in memory, about 48 bytes a pose of a meshed body).
+    The memory it takes does not otherwise grow with the number of files: the files'
+    chunks are streamed through Rerun's file sink into a temporary file beside ``target``,
+    flushed after each :data:`FLUSH_BYTES` of inputs; the temporary file is synced and renamed over
+    ``target`` at the end, so that the inputs can then be removed.
+    The file has a footer (a manifest of its chunks, which ``rerun rrd verify`` and random
+    access need) when its inputs are at most :data:`FOOTER_INPUT_LIMIT` bytes: Rerun's
+    file sink keeps that manifest in memory until the end, about 2x the inputs' size
+    (13 KiB a chunk; rerun-sdk 0.41, docs/performance.md), and a larger file goes without
+    (the viewer and Python's streaming reader read it whole; ``rerun rrd migrate`` adds
+    one to a copy).
     Rerun's file sink blocks forever on a full disk (rerun-sdk 0.41, see
     :meth:`RerunSink.save`), so the free space is checked first (:func:`check_free_space`).
     """
@@ -407,23 +596,45 @@ def merge_recordings(files: Iterable[str | Path], target: str | Path) -> Path:
     if target.is_dir() or target.suffix != ".rrd":
         target = target / RECORDING_FILE
     target.parent.mkdir(parents=True, exist_ok=True)
-    check_free_space(target, sum(file.stat().st_size for file in files))
+    inputs = files + ([target] if keep_existing and target.is_file() else [])
+    input_bytes = sum(file.stat().st_size for file in inputs)
+    check_free_space(target, input_bytes)
     sink = RerunSink()
 
     def write(temporary: str) -> None:
         with _stderr_silenced():  # rerun's warning that a file without footer exists
-            sink.recording.save(temporary, write_footer=False)
-        for file in files:
+            sink.recording.save(temporary, write_footer=input_bytes <= FOOTER_INPUT_LIMIT)
+        pending = 0  # bytes read since the last flush
+        for file in inputs:  # the newest first: a run is taken from the first file with it
             sink.add_recording(file)
-            _flush(sink.recording, target)  # this file's chunks leave memory now
+            pending += file.stat().st_size
+            if pending >= FLUSH_BYTES:  # these files' chunks leave memory now
+                _flush(sink.recording, target)
+                pending = 0
+        sink.send_instances()
         sink.recording.send_blueprint(sink.blueprint(), make_active=False, make_default=True)
         _flush(sink.recording, target)
-        sink.recording.disconnect()  # the footer; the file is whole
+        sink.recording.disconnect()  # the file is whole
 
-    atomic_write(target, write, durable=False)
+    atomic_write(target, write, durable=True)
+    _sync_directory(target.parent)  # the rename too: the inputs may be removed after it
     return target
 
 
+def _sync_directory(directory: Path) -> None:
+    descriptor = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
+FOOTER_INPUT_LIMIT = 128 * 2**20
+"""Inputs (bytes) up to which a merged recording gets a footer: its manifest then takes
+at most about 256 MiB while the merge runs."""
+FLUSH_BYTES = 16 * 2**20
+"""The merge flushes its file sink after this many bytes of inputs (a flush a file took
+2.7 ms: 27 s for 10,000 runs)."""
 FLUSH_TIMEOUT = 600.0
 """Seconds a flush of the merge's file sink may take before the merge is given up."""
 FREE_SPACE_MARGIN = 1.25
@@ -622,4 +833,5 @@ class SweepRecorder(RerunSink):
 
     @staticmethod
     def merge(files: Iterable[str | Path], out: str | Path) -> Path:
-        return merge_recordings(files, Path(out) / RECORDING_FILE)
+        """Merge the runs' files into ``<out>/recording.rrd``, keeping the runs it has."""
+        return merge_recordings(files, Path(out) / RECORDING_FILE, keep_existing=True)

@@ -35,7 +35,7 @@ from workbench.execution.run_log import CapturedOutput, raw_path, write_log
 from workbench.execution.run_progress import ProgressWriter, progress_path
 from workbench.execution.timing import Timing
 from workbench.execution.worker_env import pin_threads
-from workbench.files import check_no_links, make_dirs
+from workbench.files import check_no_links, make_dirs, remove_file
 from workbench.plugin import registry
 from workbench.plugin.local_modules import import_plugin_modules, imported_from_file
 from workbench.runs import store
@@ -139,22 +139,23 @@ def _end_recording(sink: Any) -> None:
 
 def merge_run_recordings(recorder: Any, out: Path) -> tuple[Path | None, bool]:
     """Merge the per-run recordings of ``out`` into one file (``recorder.merge``):
-    (its path or None, merged now). With ``recorder.merged_file``, a merged file made from
-    the same run files by the same recorder code is kept (:mod:`workbench.runs.output_keys`)."""
-    from workbench.runs import output_keys
-
-    files = sorted((out / RECORDINGS_DIR).glob(f"*.{recorder.suffix}"))
-    if not files:
-        return None, False
-    check_no_links(out / RECORDINGS_DIR, out)  # read and written below out, never through
-    check_no_links(out / "recording.rrd", out)  # a link (workbench.files)
+    (its path or None, merged now). With ``recorder.merged_file`` the merge adds the runs'
+    files to that file (runs redone replace their old copy) and the files are removed once
+    the merged file is durable, so the disk holds one copy; a crash before that leaves
+    them for the next merge. Without new files the merged file is kept as it is."""
+    directory = out / RECORDINGS_DIR
+    files = sorted(directory.glob(f"*.{recorder.suffix}")) if directory.is_dir() else []
     merged = getattr(recorder, "merged_file", None)
-    if merged is None:
-        return recorder.merge(files, out), True
-    key = output_keys.key_of(
-        output_keys.files_key(files), output_keys.source_key(recorder.__module__)
-    )
-    return output_keys.remake(out / merged, key, lambda: recorder.merge(files, out), root=out)
+    if not files:
+        kept = out / merged if merged is not None else None
+        return (kept if kept is not None and kept.is_file() else None), False
+    check_no_links(directory, out)  # read and written below out, never through
+    check_no_links(out / "recording.rrd", out)  # a link (workbench.files)
+    path = recorder.merge(files, out)
+    if merged is not None:
+        for file in files:  # in the merged file now (synced to disk by the merge)
+            remove_file(file, out)
+    return path, True
 
 
 def exit_with_parent(parent_pid: int | None = None, scratch: Path | None = None) -> None:

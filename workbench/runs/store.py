@@ -83,16 +83,18 @@ def write_run(
     ``states``: keep the trajectory's state columns in the series (False: drift, energy
     and error only, as before trajectories were stored).
 
-    The series is synced to disk before the row is renamed into place; the row itself is
-    not: after a machine crash a row lost or left corrupt reads as not done
-    (:func:`read_row`), so the run is simply run again (and two syncs a run made two
-    workers wait on each other's journal commits).
+    Neither is synced to disk here: after a machine crash a row lost or left corrupt reads
+    as not done (:func:`read_row`), and so does a row whose series is not whole (its
+    footer and sample count: :func:`workbench.execution.row_check.series_defect`), so the run is
+    simply run again; the sweep syncs the output folder's file system once at its end
+    (:func:`workbench.files.sync_file_system`). A sync a run cost 2-5 ms, more than a tiny
+    run's integration, and made the workers wait on each other's journal commits.
     """
     run_id = row["run_id"]
     if series is not None:
         if not states:
             series = series[[c for c in series.columns if not c.startswith(STATE_PREFIX)]]
-        write_parquet_atomic(series, series_path(out, run_id), root=Path(out))
+        write_parquet_atomic(series, series_path(out, run_id), root=Path(out), durable=False)
     write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out))
 
 

@@ -31,7 +31,7 @@ from workbench import files
 from workbench.errors import ConfigError
 from workbench.execution.environment import sweep_environment
 from workbench.execution.timing import Timing, check_budget, check_repeats
-from workbench.files import make_dirs
+from workbench.files import make_dirs, sync_file_system
 from workbench.runs import output_keys, store
 from workbench.runs.dask_pool import run_dask
 from workbench.runs.estimate import estimate_lines, known_costs
@@ -150,9 +150,18 @@ def run_sweep(
             else:
                 tick = lambda: advance(None)  # noqa: E731
                 unfinished = run_local(
-                    todo, out_dir, limit, sweep.plugins, jobs, record, tick, recorder, timing,
+                    todo,
+                    out_dir,
+                    limit,
+                    sweep.plugins,
+                    jobs,
+                    record,
+                    tick,
+                    recorder,
+                    timing,
                     states,
                 )
+        sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
         results, remade = output_keys.remake(

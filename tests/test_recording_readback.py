@@ -1,0 +1,77 @@
+"""A sweep's merged recording reads back (issue 35.3): Rerun's own check (``rerun rrd
+verify``) passes, and Python's reader reads it whole within 2x its size in memory."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import rerun as rr
+
+from workbench.cli.outputs import rerun_command
+from workbench.outputs.recording import RECORDING_FILE, SweepRecorder, merge_recordings
+from workbench.runs.sweep import parse_spec, run_sweep
+
+SPEC = (
+    'problems = ["simple-pendulum"]\nformalisms = ["minimal-ode"]\n'
+    'integrators = ["scipy-dop853", "scipy-rk45"]\ntolerances = [1e-4, 1e-6]\n'
+)
+
+
+def test_a_sweeps_recording_passes_rerun_rrd_verify(tmp_path: Path) -> None:
+    rerun = rerun_command(shutil.which)
+    try:
+        usable = subprocess.run([*rerun, "--version"], capture_output=True, timeout=300)
+    except OSError as error:
+        pytest.skip(f"no rerun command ({error})")
+    if usable.returncode != 0:
+        pytest.skip("the rerun command of rerun-sdk does not start here")
+    summary = run_sweep(
+        parse_spec(SPEC), out=tmp_path / "out", show_progress=False, recorder=SweepRecorder
+    )
+    assert summary.counts["ok"] == 4 and summary.recording == tmp_path / "out" / RECORDING_FILE
+    verified = subprocess.run(
+        [*rerun, "rrd", "verify", str(summary.recording)], capture_output=True, text=True,
+        timeout=600,
+    )  # fmt: skip
+    assert verified.returncode == 0, verified.stdout + verified.stderr
+
+
+READ_CHILD = """
+import json, sys
+from pathlib import Path
+import rerun as rr
+
+def status(field):
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) * 1024
+
+Path("/proc/self/clear_refs").write_text("5")  # the peak restarts here
+start = status("VmRSS")
+rows = sum(chunk.to_record_batch().num_rows  # a chunk at a time, as the merge reads
+           for chunk in rr.chunk.RrdReader(sys.argv[1]).stream())
+print(json.dumps({"growth": status("VmHWM") - start, "rows": rows}))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/clear_refs").exists(), reason="Linux's peak RSS")
+def test_pythons_reader_reads_a_merged_recording_within_twice_its_size(tmp_path: Path) -> None:
+    from benchmarks.footprint import write_run_recordings
+
+    files = write_run_recordings(tmp_path, 150)  # about 20 MB merged
+    merged = merge_recordings(files, tmp_path / "merged.rrd")  # with its footer (manifest)
+    assert rr.chunk.RrdReader(merged).store() is not None  # which only a footer allows
+    child = tmp_path / "read.py"
+    child.write_text(READ_CHILD)
+    done = subprocess.run(
+        [sys.executable, str(child), str(merged)], capture_output=True, text=True, timeout=600,
+        check=True,
+    )  # fmt: skip
+    measured = json.loads(done.stdout.strip().splitlines()[-1])
+    assert measured["rows"] > 150 * 200  # every run's poses at least: it read it all
+    assert measured["growth"] < 2 * merged.stat().st_size, measured
