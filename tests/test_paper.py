@@ -13,14 +13,15 @@ import os
 import re
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
 from tests.test_report import synthetic_results, synthetic_series
 from workbench.cli import app
 from workbench.outputs.report import write_report
-from workbench.outputs.report.paper import MAIN, compile_paper, pdflatex
-from workbench.outputs.report.tables import latex_escape
+from workbench.outputs.report.paper import MAIN, PREAMBLE, compile_paper, pdflatex
+from workbench.outputs.report.tables import latex_escape, latex_table
 
 WIDEST_OVERFULL_PT = 10.0
 
@@ -50,9 +51,7 @@ def wide_results():
 
 def test_comparisons_print_as_mathematics() -> None:
     """'>=' under the default font encoding prints as '¿='."""
-    assert latex_escape("scd >= 8, a < b, x != y") == (
-        r"scd $\geq$ 8, a \textless{} b, x $\neq$ y"
-    )
+    assert latex_escape("scd >= 8, a < b, x != y") == (r"scd $\geq$ 8, a \textless{} b, x $\neq$ y")
     assert latex_escape("12 \N{MICRO SIGN}s") == r"12 $\mu$s"
 
 
@@ -77,6 +76,30 @@ def test_the_paper_of_a_sweep_of_42_pairs_fits_the_page(tmp_path: Path) -> None:
     log = (paper / "main.log").read_text(encoding="utf-8", errors="replace")
     assert "Undefined control sequence" not in log and "Missing character" not in log
     assert "Float too large" not in log
+
+
+def test_a_long_table_with_many_notes_breaks_across_pages_within_the_width(
+    tmp_path: Path,
+) -> None:
+    """The full sweep's status table (a longtable, 30 problems) and its 22 reasons: the
+    reasons sat in a minipage of the line's width, indented 15 pt and 118 pt too high."""
+    needs_pdflatex()
+    table = pd.DataFrame(
+        {"problem": [f"problem-{k}" for k in range(60)],
+         "reasons": [", ".join(f"[{j}]" for j in range(1, 1 + k % 5)) for k in range(60)]}
+    )  # fmt: skip
+    notes = [
+        f"[{k}] skipped: " + "a reason of some length, " * 8 + f"({k} runs)" for k in range(40)
+    ]
+    text = latex_table(table, caption="status", notes=notes)
+    assert r"\begin{longtable}" in text
+    (tmp_path / "t.tex").write_text(text, encoding="utf-8")
+    main = tmp_path / MAIN
+    main.write_text(PREAMBLE + "\\begin{document}\n\\input{t}\n\\end{document}\n", encoding="utf-8")
+    compiled = compile_paper(main)
+    assert compiled.pdf is not None, compiled.log_tail
+    log = (tmp_path / "main.log").read_text(encoding="utf-8", errors="replace")
+    assert "Overfull" not in log, log[-3000:]
 
 
 def test_workbench_paper_of_a_small_sweep_compiles(tmp_path: Path) -> None:

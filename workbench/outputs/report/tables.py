@@ -393,10 +393,12 @@ def latex_table(
                 f"\\begin{{tabular}}{{{align}}}", r"\toprule", header, r"\midrule", *body,
                 r"\bottomrule", r"\end{tabular}",
             ]))  # fmt: skip
+    # plain paragraphs, not indented: a minipage could not break across pages (118 pt
+    # too high under the full sweep's status table) and took the paragraph's indent
     notes_text = [
-        r"\par\smallskip\begin{minipage}{\linewidth}\raggedright",
+        r"\par\smallskip{\raggedright\setlength{\parindent}{0pt}",
         *(latex_escape(note) + r"\par" for note in notes),
-        r"\end{minipage}",
+        "}",
     ] if notes else []  # fmt: skip
     if caption is None:
         return "\n\\par\\medskip\n".join(blocks) + "\n" + "\n".join(notes_text)
