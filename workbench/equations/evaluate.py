@@ -5,11 +5,15 @@ the dynamics of a small mechanism (docs/performance.md). :class:`FastFunction` b
 preallocated NumPy arrays to a ``Function.buffer()`` once and evaluates into them. Outputs
 are dense (the builder must ``densify`` them: buffers hold only structural nonzeros). With
 an active :class:`~workbench.equations.compiled.Compiler` the Function is compiled to C at
-its first call and the same arrays are bound to the compiled function's buffer.
+its first call and the same arrays are bound to the compiled function's buffer; under
+``compile = "auto"`` only if that repays, else it counts its VM calls and is compiled once
+they have (:mod:`workbench.equations.compile_policy`).
 """
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable
 
 import casadi as ca
@@ -31,6 +35,7 @@ class FastFunction:
         self.compiler = compiler if compiler is not None and compiler.active else None
         self.name = function.name()
         self.n_calls = 0
+        self.calls_left = math.inf  # compile=auto, in the VM: calls until compiling repays
         self._inputs = []
         for i in range(function.n_in()):
             sparsity = function.sparsity_in(i)
@@ -110,12 +115,59 @@ class FastFunction:
         self._evaluate()
 
     def compile(self) -> bool:
-        """Compile now (normally done at the first call); True if evaluation runs C."""
+        """Compile now (normally done at the first call; compile=auto: if that repays);
+        True if evaluation runs C."""
         if self._pending:
             self._pending = False
             assert self.compiler is not None
-            self._bind(self.compiler.load(self.function) or self.function)
+            if self.compiler.mode == "auto":
+                self._bind(self.function)
+                loaded, calls_left = self.compiler.decide(self.function, self._vm_seconds)
+                if loaded is not None:
+                    self._bind(loaded)
+                elif math.isfinite(calls_left):
+                    self._count_vm_calls(calls_left)
+            else:
+                self._bind(self.compiler.load(self.function) or self.function)
         return self.evaluated is not self.function
+
+    def _vm_seconds(self) -> float:
+        """CPU seconds of one VM call at the current inputs (at least 3 calls, about 1 ms)."""
+        calls, start = 0, time.process_time()
+        while calls < 3 or (calls < 1000 and time.process_time() - start < 1e-3):
+            self._evaluate()
+            calls += 1
+        return (time.process_time() - start) / calls
+
+    def _count_vm_calls(self, calls_left: float) -> None:
+        """compile=auto: evaluate in the VM and compile after ``calls_left`` more calls."""
+        assert self.compiler is not None
+        self.calls_left = calls_left
+        self.compiler.waiting.append(self)
+        vm_evaluate = self._evaluate
+
+        def counting_evaluate() -> None:  # an ``into`` kept by a caller may still call it
+            self.calls_left -= 1
+            if self.calls_left >= 0:
+                vm_evaluate()
+                return
+            if self.evaluated is self.function:
+                self.tier_up(f"compiled after {self.n_calls + 1:,} calls")
+            self._evaluate()
+
+        self._evaluate = counting_evaluate
+        self.into = self._specialized_into()  # type: ignore[method-assign]
+
+    def tier_up(self, how: str) -> None:
+        """compile=auto: compile now (its VM calls have repaid it, or will)."""
+        assert self.compiler is not None
+        if self in self.compiler.waiting:
+            self.compiler.waiting.remove(self)
+        loaded = self.compiler.load(self.function)
+        self._bind(loaded or self.function)
+        self.calls_left = -1.0 if loaded is not None else math.inf  # inf: VM for good
+        if loaded is not None:
+            self.compiler.in_c[self.name] = how
 
     def into(self, *args: object) -> tuple[np.ndarray, ...]:
         """Evaluate at ``args``; returns the internal output arrays (see the class)."""

@@ -299,6 +299,7 @@ def build_equations(
         joint_space_map=dense_function("joint_space_map", map_inputs, map_outputs),
         notes=list(notes or []),
         compile_warnings=compiler.warnings,
+        compiler=compiler,
         quaternion_slices=list(
             quaternion_slices
             if quaternion_slices is not None
