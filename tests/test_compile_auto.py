@@ -35,13 +35,14 @@ def test_a_run_expecting_many_evaluations_compiles_at_the_first_call():
     equations.compiler.expect(1e12)
     rhs = equations.forms["ode"].rhs
     value = rhs(*ARGS)[0]
-    assert rhs.compile() and equations.compiler.in_c == {"ode_rhs": "compiled (expected evaluations)"}
+    assert rhs.compile() and equations.compiler.in_c == {"ode_rhs": "compiled"}
     np.testing.assert_allclose(value, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
     assert "in C ode_rhs" in equations.compiler.summary()
 
 
 def test_a_short_run_stays_in_the_vm_and_compiles_once_its_calls_repay(monkeypatch):
     monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 50.0)
+    monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 50)
     expected = chain("none").forms["ode"].rhs(*ARGS)[0]
     equations = chain("auto")
     equations.compiler.expect(10)  # fewer than the 50 calls that repay
@@ -54,7 +55,8 @@ def test_a_short_run_stays_in_the_vm_and_compiles_once_its_calls_repay(monkeypat
         kept(*ARGS)
     assert not rhs.compile() and rhs.calls_left == 0
     value = kept(*ARGS)[0].copy()  # the 51st call compiles and evaluates C
-    assert rhs.compile() and equations.compiler.in_c == {"ode_rhs": "compiled after 51 calls"}
+    assert rhs.compile()
+    assert equations.compiler.in_c == {"ode_rhs": "compiled after 51 calls in the VM"}
     np.testing.assert_allclose(value, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
     np.testing.assert_allclose(kept(*ARGS)[0], expected, rtol=1e-12, atol=1e-15)
     assert equations.compiler.waiting == []
@@ -71,12 +73,13 @@ def test_a_later_run_expecting_more_compiles_what_repays(monkeypatch):
     assert rhs.compile() and equations.compiler.waiting == []
 
 
-def test_a_cached_library_is_loaded_whatever_the_run_expects():
+def test_a_cached_library_is_loaded_by_a_run_too_short_to_repay_a_compile(monkeypatch):
     first = chain("jit")
     first.forms["ode"].rhs(*ARGS)
     clear_cache()
+    monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 1e15)
     equations = chain("auto")
-    equations.compiler.expect(0)
+    equations.compiler.expect(1e9)
     rhs = equations.forms["ode"].rhs
     rhs(*ARGS)
     assert rhs.compile() and equations.compiler.in_c == {"ode_rhs": "cached"}
@@ -130,7 +133,7 @@ def test_a_long_run_compiles_and_a_trivially_short_one_does_not(tmp_path, monkey
     assert compile_policy.expected_evaluations(2.0, 1e-6) < 1e4
     monkeypatch.setattr(compile_policy, "EVALUATIONS_PER_SECOND", 1e9)  # a very long run
     long = execute_run(spec, reference_dir=tmp_path).row
-    assert long["status"] == "ok" and "ode_rhs (compiled (expected evaluations))" in long["notes"]
+    assert long["status"] == "ok" and "ode_rhs (compiled)" in long["notes"]
     assert long["compile_s"] > 0 and long["n_rhs"] == short["n_rhs"]
 
 
@@ -138,6 +141,10 @@ def test_expected_evaluations_grow_with_span_and_tolerance():
     e = compile_policy.expected_evaluations
     assert e(2.0, 1e-7) > e(2.0, 1e-4) > e(1.0, 1e-4) > 0 == e(0.0, 1e-4)
     assert compile_policy.calls_to_repay(0.0, 1000) == float("inf")
+    # a compile repays only calls that take longer in the VM than it costs
+    repay = compile_policy.calls_to_repay(1e-4, 100_000)
+    assert repay * 1e-4 > compile_policy.compile_cpu_estimate(100_000)
+    assert compile_policy.worth_a_look(repay, 1e-4) and not compile_policy.worth_a_look(10, 1e-4)
 
 
 def test_the_compile_stage_takes_this_process_cpu_not_the_compilers_wall_time(monkeypatch):

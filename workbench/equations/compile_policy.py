@@ -6,7 +6,8 @@ CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP
 low end, so that a compile is not bought on hope). Measured figures: docs/performance.md.
 
 A function is compiled when its library is already in the cache (loading costs
-milliseconds), or when the run's expected evaluations (:func:`expected_evaluations`, from
+milliseconds; looking costs generating its C, done only for calls that take longer than
+that, :func:`worth_a_look`), or when the run's expected evaluations (:func:`expected_evaluations`, from
 the problem's span and the tolerance) times the saving a call exceed the compile's
 estimated CPU; otherwise it stays in the VM and is compiled once its calls (counted over
 every run of the same equations in the process) have spent in the VM what the compile
@@ -24,6 +25,9 @@ COMPILE_CPU_S_PER_BYTE = 3.0e-6
 """CPU a byte of generated C (measured 2.7-3.1 s a megabyte between 0.16 and 0.5 MB)."""
 COMPILED_SPEEDUP = 2.0
 """VM time / compiled time a call assumed before compiling (measured 1.1-12.7)."""
+LOOK_CPU_S = 0.02
+"""CPU of generating a function's C to look it up in the cache (measured 9-37 ms for
+0.13-0.5 MB of C): not spent on calls that take less in the VM altogether."""
 EVALUATIONS_PER_SECOND = 300.0
 """Right-hand-side evaluations a second of simulated time at rtol 1e-4 (the quick suite's
 non-stiff runs: 130-650)."""
@@ -45,6 +49,11 @@ def calls_to_repay(vm_seconds: float, code_bytes: int) -> float:
     """Calls after which compiling has paid for itself (inf for a free VM call)."""
     saving = saving_per_call(vm_seconds)
     return compile_cpu_estimate(code_bytes) / saving if saving > 0 else math.inf
+
+
+def worth_a_look(calls: float, vm_seconds: float) -> bool:
+    """Whether ``calls`` VM calls take long enough to look for (or make) their C."""
+    return calls * vm_seconds >= LOOK_CPU_S
 
 
 def expected_evaluations(span: float, rtol: float) -> float:

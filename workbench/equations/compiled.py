@@ -298,6 +298,7 @@ class Compiler:
     expected_calls: float = 0.0
     in_c: dict[str, str] = field(default_factory=dict)  # name -> how it came to run in C
     waiting: list[Any] = field(default_factory=list)  # auto: FastFunctions still in the VM
+    generated: dict[str, Generated] = field(default_factory=dict)  # auto: C not yet compiled
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -311,7 +312,8 @@ class Compiler:
 
     def __getstate__(self) -> dict:
         return {"mode": self.mode, "flags": self.flags, "warnings": list(self.warnings),
-                "expected_calls": self.expected_calls, "in_c": {}, "waiting": []}  # fmt: skip
+                "expected_calls": self.expected_calls, "in_c": {}, "waiting": [],
+                "generated": {}}  # fmt: skip
 
     @classmethod
     def from_options(cls, options: Any) -> Compiler:
@@ -346,32 +348,38 @@ class Compiler:
 
     def expect(self, calls: float) -> None:
         """compile=auto: a run is about to make about ``calls`` evaluations; a function
-        still in the VM whose remaining calls to repay are fewer is compiled now."""
+        still in the VM that they would repay is compiled now."""
         self.expected_calls = calls
         for fast in list(self.waiting):
-            if calls >= fast.calls_left:
-                fast.tier_up("compiled (expected evaluations)")
+            fast.reconsider(calls, "for a run expecting more calls")
 
-    def decide(self, function: ca.Function, vm_seconds: Any) -> tuple[ca.Function | None, float]:
-        """compile=auto at a function's first call: (its compiled C or None, the calls
-        after which compiling repays). ``vm_seconds()`` measures a VM call (seconds)."""
-        from workbench.equations.compile_policy import calls_to_repay
+    def decide(
+        self, function: ca.Function, vm_seconds: float, calls: float
+    ) -> tuple[ca.Function | None, float]:
+        """compile=auto: (the compiled ``function`` or None, the calls that would repay its
+        compile) for ``calls`` calls that each take ``vm_seconds`` in the VM. Its C is
+        generated (which the cache is keyed by; kept for the next decision) only when the
+        calls take more than generating costs (:func:`~workbench.equations.compile_policy.worth_a_look`)."""
+        from workbench.equations.compile_policy import calls_to_repay, worth_a_look
 
         name = function.name()
+        generated = self.generated.get(name)
+        if generated is None and not worth_a_look(calls, vm_seconds):
+            return None, calls_to_repay(vm_seconds, 0)
         with counted():
             try:
-                generated = generate(function, self.flags)
-                if generated.path.exists():
-                    self.in_c[name] = "cached"
-                    return load_generated(generated), 0.0
-                repay = calls_to_repay(vm_seconds(), len(generated.code))
-                if self.expected_calls < repay:
+                if generated is None:
+                    generated = self.generated[name] = generate(function, self.flags)
+                repay = calls_to_repay(vm_seconds, len(generated.code))
+                cached = generated.path.exists()
+                if not cached and calls < repay:
                     return None, repay
                 loaded = load_generated(generated)
             except RuntimeError as error:
                 self._failed(function, error)
                 return None, float("inf")
-        self.in_c[name] = "compiled (expected evaluations)"
+        del self.generated[name]
+        self.in_c[name] = "cached" if cached else "compiled"
         return loaded, 0.0
 
     def summary(self) -> str:
