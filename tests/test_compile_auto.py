@@ -90,7 +90,7 @@ def test_a_compile_failure_stays_in_the_vm_with_a_note(monkeypatch, tmp_path):
     equations = chain("auto")
     equations.compiler.expect(1e12)
     rhs = equations.forms["ode"].rhs
-    with pytest.warns(compiled.CompileWarning, match="compile=auto: ode_rhs stays in the CasADi VM"):
+    with pytest.warns(compiled.CompileWarning, match="compile=auto: ode_rhs stays in the CasADi"):
         value = rhs(*ARGS)[0]
     assert not rhs.compile() and np.all(np.isfinite(value))
 

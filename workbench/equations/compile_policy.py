@@ -7,12 +7,13 @@ low end, so that a compile is not bought on hope). Measured figures: docs/perfor
 
 A function is compiled when its library is already in the cache (loading costs
 milliseconds; looking costs generating its C, done only for calls that take longer than
-that, :func:`worth_a_look`), or when the run's expected evaluations (:func:`expected_evaluations`, from
-the problem's span and the tolerance) times the saving a call exceed the compile's
-estimated CPU; otherwise it stays in the VM and is compiled once its calls (counted over
-every run of the same equations in the process) have spent in the VM what the compile
-would cost (:func:`calls_to_repay`): the rent-or-buy rule, which pays at most twice the
-best choice made with hindsight, whatever the number of calls turns out to be.
+that, :func:`worth_a_look`), or when the run's expected evaluations
+(:func:`expected_evaluations`, from the problem's span and the tolerance) times the
+saving a call exceed the compile's estimated CPU. Otherwise it stays in the VM and is
+compiled once its calls (counted over every run of the same equations in the process)
+have spent in the VM what the compile would cost (:func:`calls_to_repay`): the
+rent-or-buy rule, which pays at most twice the best choice made with hindsight, whatever
+the number of calls turns out to be.
 """
 
 from __future__ import annotations

@@ -359,7 +359,7 @@ class Compiler:
         """compile=auto: (the compiled ``function`` or None, the calls that would repay its
         compile) for ``calls`` calls that each take ``vm_seconds`` in the VM. Its C is
         generated (which the cache is keyed by; kept for the next decision) only when the
-        calls take more than generating costs (:func:`~workbench.equations.compile_policy.worth_a_look`)."""
+        calls take more than generating it costs (``compile_policy.worth_a_look``)."""
         from workbench.equations.compile_policy import calls_to_repay, worth_a_look
 
         name = function.name()

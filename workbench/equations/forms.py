@@ -244,11 +244,13 @@ def build_equations(
 
         inputs, outputs, jacobian = ode_graphs(compiler.mode == "jit")
         # compile=auto: the VM keeps LAPACK's LU, C gets the QR that it can generate
-        c_graphs = ode_graphs(True) if compiler.mode == "auto" and _kkt_solve_differs(system) else None
+        both = compiler.mode == "auto" and _kkt_solve_differs(system)
+        c_graphs = ode_graphs(True) if both else None
         forms["ode"] = OdeForm(
             rhs=hot("ode_rhs", inputs, outputs, c_graphs[:2] if c_graphs else None),
-            jacobian=lazy_hot("ode_jac", inputs, jacobian,
-                              (c_graphs[0], c_graphs[2]) if c_graphs else None),  # fmt: skip
+            jacobian=lazy_hot(
+                "ode_jac", inputs, jacobian, (c_graphs[0], c_graphs[2]) if c_graphs else None
+            ),
             n=nq + nv,
         )
 
