@@ -64,6 +64,7 @@ def test_a_short_run_stays_in_the_vm_and_compiles_once_its_calls_repay(monkeypat
 
 def test_a_later_run_expecting_more_compiles_what_repays(monkeypatch):
     monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 1e4)
+    monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 1e4)
     equations = chain("auto")
     equations.compiler.expect(100)
     rhs = equations.forms["ode"].rhs

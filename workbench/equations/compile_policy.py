@@ -5,9 +5,9 @@ at ``-O1``) and saves a part of each call (compiled C ran 1.1-12.7x faster than 
 CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP`, a
 low end, so that a compile is not bought on hope). Measured figures: docs/performance.md.
 
-A function is compiled when its library is already in the cache (loading costs
-milliseconds; looking costs generating its C, done only for calls that take longer than
-that, :func:`worth_a_look`), or when the run's expected evaluations
+A function is compiled when its calls would save more than the smallest compile costs
+(:func:`worth_a_look`) and its library is already in the cache (loading costs
+milliseconds), or when the run's expected evaluations
 (:func:`expected_evaluations`, from the problem's span and the tolerance) times the
 saving a call exceed the compile's estimated CPU. Otherwise it stays in the VM and is
 compiled once its calls (counted over every run of the same equations in the process)
@@ -26,9 +26,6 @@ COMPILE_CPU_S_PER_BYTE = 3.0e-6
 """CPU a byte of generated C (measured 2.7-3.1 s a megabyte between 0.16 and 0.5 MB)."""
 COMPILED_SPEEDUP = 2.0
 """VM time / compiled time a call assumed before compiling (measured 1.1-12.7)."""
-LOOK_CPU_S = 0.02
-"""CPU of generating a function's C to look it up in the cache (measured 9-37 ms for
-0.13-0.5 MB of C): not spent on calls that take less in the VM altogether."""
 EVALUATIONS_PER_SECOND = 300.0
 """Right-hand-side evaluations a second of simulated time at rtol 1e-4 (the quick suite's
 non-stiff runs: 130-650)."""
@@ -53,8 +50,10 @@ def calls_to_repay(vm_seconds: float, code_bytes: int) -> float:
 
 
 def worth_a_look(calls: float, vm_seconds: float) -> bool:
-    """Whether ``calls`` VM calls take long enough to look for (or make) their C."""
-    return calls * vm_seconds >= LOOK_CPU_S
+    """Whether ``calls`` VM calls save enough compiled to repay the smallest compile, so
+    that generating their C (seconds for a large Jacobian; the cache is keyed by it) to
+    look for it in the cache, or to compile it, is not wasted on a short run."""
+    return calls * saving_per_call(vm_seconds) >= COMPILE_CPU_FIXED_S
 
 
 def expected_evaluations(span: float, rtol: float) -> float:
