@@ -26,6 +26,9 @@ COMPILE_CPU_S_PER_BYTE = 3.0e-6
 """CPU a byte of generated C (measured 2.7-3.1 s a megabyte between 0.16 and 0.5 MB)."""
 COMPILED_SPEEDUP = 2.0
 """VM time / compiled time a call assumed before compiling (measured 1.1-12.7)."""
+GENERATE_VM_CALLS = 500.0
+"""Generating a function's C costs about this many of its VM calls (measured 420-630 on
+right-hand sides of 0.13-0.5 MB of C; a large MX Jacobian took seconds)."""
 EVALUATIONS_PER_SECOND = 300.0
 """Right-hand-side evaluations a second of simulated time at rtol 1e-4 (the quick suite's
 non-stiff runs: 130-650)."""
@@ -44,16 +47,19 @@ def saving_per_call(vm_seconds: float) -> float:
 
 
 def calls_to_repay(vm_seconds: float, code_bytes: int) -> float:
-    """Calls after which compiling has paid for itself (inf for a free VM call)."""
+    """Calls after which compiling (generating the C included) has paid for itself (inf
+    for a free VM call); ``code_bytes`` 0: before the C is generated."""
     saving = saving_per_call(vm_seconds)
-    return compile_cpu_estimate(code_bytes) / saving if saving > 0 else math.inf
+    cost = compile_cpu_estimate(code_bytes) + GENERATE_VM_CALLS * vm_seconds
+    return cost / saving if saving > 0 else math.inf
 
 
 def worth_a_look(calls: float, vm_seconds: float) -> bool:
-    """Whether ``calls`` VM calls save enough compiled to repay the smallest compile, so
-    that generating their C (seconds for a large Jacobian; the cache is keyed by it) to
-    look for it in the cache, or to compile it, is not wasted on a short run."""
-    return calls * saving_per_call(vm_seconds) >= COMPILE_CPU_FIXED_S
+    """Whether ``calls`` VM calls save enough compiled to repay generating their C (to
+    look for it in the cache, which is keyed by it) and the smallest compile, so that
+    neither is wasted on a short run."""
+    generating = GENERATE_VM_CALLS * vm_seconds
+    return calls * saving_per_call(vm_seconds) >= COMPILE_CPU_FIXED_S + generating
 
 
 def expected_evaluations(span: float, rtol: float) -> float:
