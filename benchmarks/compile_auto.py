@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     parser.add_argument("--suite", default="quick")
     parser.add_argument("--time-limit", type=float, default=30.0)
     parser.add_argument("--analyze", nargs=3, type=Path, metavar=("NONE", "COLD", "WARM"))
+    parser.add_argument("--keep", type=Path, help="keep the three sweeps in this directory")
     args = parser.parse_args(argv)
     if args.analyze:
         table = analyze(args.analyze)
@@ -77,7 +78,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
         from workbench.runs.sweep_spec import suite_text
 
         with tempfile.TemporaryDirectory() as work:
-            work_dir = Path(work)
+            work_dir = args.keep or Path(work)
+            work_dir.mkdir(parents=True, exist_ok=True)
             vm_spec = work_dir / "vm.toml"
             vm_options = 'options = { index = 1, compile = "none" }'
             text = suite_text(args.suite).replace("options = { index = 1 }", vm_options)
