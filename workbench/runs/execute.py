@@ -9,10 +9,12 @@ a column (MuJoCo-style pipeline stages):
    from this process's cache keyed by (problem, problem options, formalism, formalism
    options); finally ``Integrator.incompatibility`` may refuse them. A refusal makes the
    row ``skipped`` with the reason in ``message``. With the formalism option
-   ``compile = "jit"`` the seconds spent generating, compiling and loading C (at the first
-   call of each function, usually in the integrate stage) are taken out of the stage
-   they fall in and reported as ``compile_s``; why something was not compiled (no C
-   compiler) is added to ``message``;
+   ``compile = "jit"`` or ``"auto"`` the seconds spent generating, compiling and loading C
+   (at the first call of each function, or for "auto" once its calls repay it: usually
+   in the integrate stage) are taken out of the stage they fall in and reported as
+   ``compile_s``; why something was not compiled (no C compiler) is added to
+   ``message``, what "auto" ran in C to ``notes``; before the initial state, "auto" is
+   told the evaluations the run expects (:func:`expect_evaluations`);
 2. **initial state** — :func:`~workbench.equations.initial.consistent_initial_state` (``init_s``),
    kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
    first run of a (problem, formalism) in a worker and about 0 for the others;
