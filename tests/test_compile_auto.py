@@ -169,3 +169,17 @@ def test_a_sweep_compiles_automatically_unless_told_otherwise():
     runs = parse_spec(text).runs
     options = {run.formalism: run.formalism_options["compile"] for run in runs}
     assert options == {"recursive": "auto", "minimal-ode": "none"}
+
+
+def test_the_vm_keeps_lapack_lu_and_c_gets_a_graph_it_can_be_generated_for():
+    """A KKT system solved numerically (absolute coordinates): LAPACK's LU, faster in the
+    VM, cannot be generated as C, so "auto" builds the QR graph beside it for C."""
+    problem = get_problem("slider-crank")({})
+    auto = {"compile": "auto", "index": 1}
+    equations = get_formalism("absolute-dae")().build(problem.model(), auto)
+    rhs = equations.forms["ode"].rhs
+    assert rhs.for_c is not rhs.function
+    assert "#error" in compiled.generate_c(compiled.exported(rhs.function))  # LapackLu
+    assert "#error" not in compiled.generate_c(compiled.exported(rhs.for_c))
+    plain = get_formalism("absolute-dae")().build(problem.model(), {**auto, "compile": "none"})
+    assert plain.forms["ode"].rhs.for_c is plain.forms["ode"].rhs.function
