@@ -12,6 +12,13 @@ the benchmark gives one (10-90 % of the interleaved repeats for forward dynamics
 95 % bootstrap interval of the median for whole simulations), the target, and the
 verdict: met, met at the median but not over the interval, missed by value / target,
 or not measured (with the benchmark's reason, e.g. N = 500's Pinocchio memory).
+Then the targets of issue 36, each with its figure or "not measured": forward dynamics
+over processes from ``python -m benchmarks.peers_pyperf`` (the range over pairs of
+processes; the verdict holds its upper end to the target), the quick suite in the VM
+against ``compile = "auto"`` from ``python -m benchmarks.compile_auto``, whole
+simulations against the best Python-driven peer and the all-compiled anchor. Those two
+benchmarks run alone (about 20 and 4 minutes on a busy machine), not in ``python -m
+benchmarks``.
 """
 
 from __future__ import annotations
@@ -35,6 +42,8 @@ def verdict(value: float, target: float, low: float = NAN, high: float = NAN, mo
     target is an upper bound (<=), else a lower bound (>=)."""
     if pd.isna(value):
         return "not measured"
+    if pd.isna(target):
+        return "measured (no target)"
     sign = 1 if most else -1
     within = sign * (value - target) <= 0
     worst = high if most else low
@@ -127,21 +136,81 @@ def targets() -> list[Row]:
     return rows
 
 
-def summary() -> None:
-    rows = targets()
-    if not rows:
-        print(f"no results in {RESULTS}: run `python -m benchmarks` first")
-        return
-    print("issue targets (value [interval]; verdict):")
+def issue36_targets() -> list[Row]:
+    """The targets of issue 36, each measured or "not measured" (the reason in its note)."""
+    rows: list[Row] = []
+    timed = RESULTS / "peers_pyperf.csv"  # python -m benchmarks.peers_pyperf
+    if timed.exists():
+        for row in pd.read_csv(timed).to_dict("records"):
+            what = f"random tree N = {row['name']}" if row["kind"] == "random" else row["name"]
+            bound = 0.3 if row["kind"] == "robots" else 0.8 if int(row["name"]) >= 200 else 0.5
+            rows.append(Row(
+                f"forward dynamics, {what}, jit / pin.aba (pyperf, CPU)", row["ratio_median"],
+                bound, low=row["ratio_min"], high=row["ratio_max"],
+                interval=f"all pairs of {row['processes']} processes",
+                note=f"held to the upper end; load {row['load1_before']:.0f}-"
+                f"{row['load1_after']:.0f}",
+            ))  # fmt: skip
+    else:
+        rows.append(Row("forward dynamics vs pin.aba over processes (pyperf)", NAN, 0.5,
+                        note="run python -m benchmarks.peers_pyperf"))  # fmt: skip
+    rows.append(Row("the same on a second machine with another cache", NAN, 0.5,
+                    note="one machine only"))  # fmt: skip
+    auto = RESULTS / "compile_auto.csv"  # python -m benchmarks.compile_auto
+    if auto.exists():
+        table = pd.read_csv(auto).set_index("variant")
+        none, cold, warm = (table.loc[v] for v in ("none", "auto cold", "auto warm"))
+        load = f"load {cold.get('load1_before', NAN):.0f}-{warm.get('load1_after', NAN):.0f}"
+        rows.append(Row("quick sweep, integration CPU, compile=auto (warm) / none",
+                        warm.integrate_cpu_s / none.integrate_cpu_s, NAN,
+                        note=f"{warm.integrate_cpu_s:.1f} s / {none.integrate_cpu_s:.1f} s over "
+                        f"{int(none.ok_in_all)} runs; {load}"))  # fmt: skip
+        if not pd.isna(cold.get("cpu_s", NAN)):
+            rows.append(Row("quick sweep, CPU of all processes, auto cold / none",
+                            cold.cpu_s / none.cpu_s, NAN,
+                            note=f"cold {cold.cpu_s:.0f} s, warm {warm.cpu_s:.0f} s, "
+                            f"none {none.cpu_s:.0f} s"))  # fmt: skip
+    else:
+        rows.append(Row("quick sweep, integration CPU, compile=auto / none", NAN, NAN,
+                        note="run python -m benchmarks.compile_auto"))  # fmt: skip
+    sim = RESULTS / "simulation_targets.csv"  # python -m benchmarks.simulation
+    best = pd.read_csv(sim).query("pair == 'b'") if sim.exists() else pd.DataFrame()
+    for case in ("chain", "tree", "ur5"):
+        found = best[best["case"] == case] if len(best) else best
+        if len(found):
+            row = found.iloc[0]
+            rows.append(Row(f"whole simulation, {case}, best of ours / best Python-driven peer",
+                            row.ratio, 0.5, low=row.low, high=row.high, interval="95 % CI",
+                            note=f"{row.ours} / {row.peer}; load {row.load_1min:.1f}"))  # fmt: skip
+        else:
+            rows.append(Row(f"whole simulation, {case}, best of ours / best peer", NAN, 0.5,
+                            note="run python -m benchmarks.simulation"))  # fmt: skip
+        rows.append(Row(f"whole simulation, {case}, ours / all-compiled anchor", NAN, 1.5,
+                        note="the anchor (pin ABA + CVODE in C) is not built yet"))  # fmt: skip
+    return rows
+
+
+def print_rows(rows: list[Row]) -> None:
     for row in rows:
         interval = ""
         if not (pd.isna(row.low) or pd.isna(row.high)):
             interval = f" [{row.low:.2f}, {row.high:.2f}] ({row.interval})"
-        bound = f"{'<=' if row.most else '>='} {row.bound:g}"
+        bound = "none" if pd.isna(row.bound) else f"{'<=' if row.most else '>='} {row.bound:g}"
         value = "n/a" if pd.isna(row.value) else f"{row.value:.2f}"
         line = f"- {row.target}: {value}{interval}, target {bound}: "
         line += verdict(row.value, row.bound, row.low, row.high, row.most)
         print(line + (f" ({row.note})" if row.note else ""))
+
+
+def summary() -> None:
+    rows = targets()
+    if not rows:
+        print(f"no results in {RESULTS}: run `python -m benchmarks` first")
+    else:
+        print("issue targets (value [interval]; verdict):")
+        print_rows(rows)
+    print("issue 36 targets (value [interval]; verdict):")
+    print_rows(issue36_targets())
     calls = RESULTS / "overhead.csv"
     if calls.exists():
         frame = pd.read_csv(calls)

@@ -1,4 +1,4 @@
-"""``workbench cache``: the compiled-library cache that ``compile = "jit"`` fills.
+"""``workbench cache``: the compiled-library cache that ``compile = "jit"`` or ``"auto"`` fills.
 
 Compiled equations are kept on disk (``$WORKBENCH_CACHE``, else ~/.cache/mbs-workbench),
 shared by workers and sweeps, trimmed to ``$WORKBENCH_CACHE_LIMIT_MB``
@@ -13,7 +13,7 @@ import typer
 
 from workbench.cli.app import app
 
-cache_app = typer.Typer(help="The cache of compiled equations (compile = \"jit\").")
+cache_app = typer.Typer(help="The cache of compiled equations (compile = jit or auto).")
 app.add_typer(cache_app, name="cache")
 
 
@@ -42,8 +42,12 @@ def clear(
     from workbench.equations import compiled
 
     count, size = compiled.cache_size()
-    if count and not yes and not typer.confirm(
-        f"remove {count} compiled libraries ({_megabytes(size)}) from {compiled.cache_dir()}?"
+    if (
+        count
+        and not yes
+        and not typer.confirm(
+            f"remove {count} compiled libraries ({_megabytes(size)}) from {compiled.cache_dir()}?"
+        )
     ):
         raise typer.Exit(1)
     removed = compiled.clear_cache()

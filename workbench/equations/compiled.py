@@ -21,6 +21,8 @@ solves use CasADi's own LDL^T and QR, which it can), evaluation stays in the vir
 machine and a warning naming the compiler's own error is recorded
 (:attr:`Compiler.warnings`) for the run's message. Seconds spent generating, compiling
 and loading are counted in :data:`STATS`, so the runner can report them as their own stage.
+``compile = "auto"`` compiles only what repays its compile
+(:mod:`workbench.equations.compile_policy`).
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ import casadi as ca
 
 from workbench.files import atomic_write, file_lock, user_cache_dir
 
-MODES = ("none", "jit")
+MODES = ("none", "jit", "auto")
 DEFAULT_FLAGS = "-O1"
 SYMBOL_PREFIX = "wb_"  # generated C symbols never clash with libc/libm (gamma, j0, y1, ...)
 
@@ -56,12 +58,14 @@ class CompileWarning(UserWarning):
 
 @dataclass
 class CompileStats:
-    """Process-wide counters: libraries compiled, loaded (compiled or from the cache) and
-    seconds spent generating C, compiling and loading."""
+    """Process-wide counters: libraries compiled, loaded (compiled or from the cache),
+    wall seconds spent generating C, compiling and loading, and of those the CPU seconds
+    of this process (the compiler itself runs in a child process)."""
 
     compiled: int = 0
     loaded: int = 0
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
 
 
 STATS = CompileStats()
@@ -202,42 +206,77 @@ def build_library(code: str, flags: str, compiler: str, path: Path) -> None:
     STATS.compiled += 1
 
 
+@dataclass
+class Generated:
+    """The C of a Function, ready to compile: the exported Function (its symbol's name),
+    the code and the library's cache path (``path.exists()``: compiled before)."""
+
+    function: ca.Function
+    code: str
+    path: Path
+    compiler: str
+    flags: str
+
+
+@contextlib.contextmanager
+def counted() -> Any:
+    """Count the wall and CPU time of the block in :data:`STATS` (the compile stage)."""
+    wall, cpu_start = time.perf_counter(), time.process_time()
+    try:
+        yield
+    finally:
+        STATS.seconds += time.perf_counter() - wall
+        STATS.cpu_seconds += time.process_time() - cpu_start
+
+
+def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
+    """The C of ``function`` and where its library is cached (call inside :func:`counted`).
+
+    Raises RuntimeError if there is no C compiler or CasADi cannot generate C for the graph.
+    """
+    compiler = c_compiler()
+    if compiler is None:
+        raise RuntimeError(f"no C compiler ({os.environ.get('CC') or 'cc'} not found)")
+    function = exported(function)
+    code = generate_c(function)
+    if "#error" in code:  # e.g. LAPACK's LU: CasADi writes an #error, not C for it
+        cause = next(line for line in code.splitlines() if "#error" in line).strip()
+        raise RuntimeError(f"CasADi cannot generate C for it: {cause}")
+    return Generated(function, code, library_path(code, flags, compiler, function.name()),
+                     compiler, flags)  # fmt: skip
+
+
+def load_generated(generated: Generated) -> ca.Function:
+    """The library of ``generated`` loaded with ``casadi.external``, compiled first unless
+    cached (call inside :func:`counted`). Raises RuntimeError if the compiler fails."""
+    path = generated.path
+    if not path.exists():
+        with file_lock(path.with_suffix(".lock")):  # one process compiles, others wait
+            if not path.exists():
+                build_library(generated.code, generated.flags, generated.compiler, path)
+                trim_cache(keep=path)
+    with contextlib.suppress(OSError):
+        os.utime(path)  # last use, for trim_cache
+    # finite differences where a CasADi solver needs derivatives (Newton in CVODES)
+    loaded = ca.external(generated.function.name(), str(path), {"enable_fd": True})
+    STATS.loaded += 1
+    return loaded
+
+
 def compile_function(function: ca.Function, flags: str = DEFAULT_FLAGS) -> ca.Function:
     """``function`` as compiled C loaded with ``casadi.external`` (from the cache if there).
 
     Raises RuntimeError if there is no C compiler, CasADi cannot generate C for the graph,
     or the compiler fails.
     """
-    compiler = c_compiler()
-    if compiler is None:
-        raise RuntimeError(f"no C compiler ({os.environ.get('CC') or 'cc'} not found)")
-    start = time.perf_counter()
-    try:
-        function = exported(function)
-        code = generate_c(function)
-        if "#error" in code:  # e.g. LAPACK's LU: CasADi writes an #error, not C for it
-            cause = next(line for line in code.splitlines() if "#error" in line).strip()
-            raise RuntimeError(f"CasADi cannot generate C for it: {cause}")
-        path = library_path(code, flags, compiler, function.name())
-        if not path.exists():
-            with file_lock(path.with_suffix(".lock")):  # one process compiles, others wait
-                if not path.exists():
-                    build_library(code, flags, compiler, path)
-                    trim_cache(keep=path)
-        with contextlib.suppress(OSError):
-            os.utime(path)  # last use, for trim_cache
-        # finite differences where a CasADi solver needs derivatives (Newton in CVODES)
-        loaded = ca.external(function.name(), str(path), {"enable_fd": True})
-        STATS.loaded += 1
-        return loaded
-    finally:
-        STATS.seconds += time.perf_counter() - start
+    with counted():
+        return load_generated(generate(function, flags))
 
 
 @dataclass
 class Compiler:
-    """How the equations of one build are evaluated: ``mode`` "none" or "jit", C compiler
-    ``flags``; ``warnings`` collects why something stayed in the virtual machine.
+    """How the equations of one build are evaluated: ``mode`` "none", "jit" or "auto", C
+    compiler ``flags``; ``warnings`` collects why something stayed in the virtual machine.
 
     Part of the plugin API: what a formalism needs to honour its ``compile`` option.
     :func:`~workbench.equations.build_joint_space_equations` makes one from the options; a
@@ -245,22 +284,36 @@ class Compiler:
     ``compiler=Compiler.from_options(options)`` (options with the fields of
     :class:`workbench.plugin.formalism.CompileOptions`), and every function of its forms
     and observables is then compiled (:meth:`load`) or kept in the virtual machine with a
-    warning that reaches the run's message. ``mode`` "jit" without a C compiler falls back
-    to "none" with a warning."""
+    warning that reaches the run's message. ``mode`` "jit" or "auto" without a C compiler
+    falls back to "none" with a warning.
+
+    "auto" compiles a function at its first call when that repays
+    (:mod:`workbench.equations.compile_policy`): its library is cached, or the evaluations
+    the run expects (:meth:`expect`, set by the runner) save more than the compile costs;
+    else it runs in the VM until its calls have spent what the compile would cost."""
 
     mode: str = "none"
     flags: str = DEFAULT_FLAGS
     warnings: list[str] = field(default_factory=list)
+    expected_calls: float = 0.0
+    in_c: dict[str, str] = field(default_factory=dict)  # name -> how it came to run in C
+    waiting: list[Any] = field(default_factory=list)  # auto: FastFunctions still in the VM
+    generated: dict[str, Generated] = field(default_factory=dict)  # auto: C not yet compiled
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"compile must be one of {', '.join(MODES)}, not {self.mode!r}")
-        if self.mode == "jit" and c_compiler() is None:
+        if self.mode != "none" and c_compiler() is None:
             self.warn(
-                f"compile=jit: no C compiler ({os.environ.get('CC') or 'cc'} not found); "
-                "evaluating in the CasADi virtual machine (compile=none)"
+                f"compile={self.mode}: no C compiler ({os.environ.get('CC') or 'cc'} not "
+                "found); evaluating in the CasADi virtual machine (compile=none)"
             )
             self.mode = "none"
+
+    def __getstate__(self) -> dict:
+        return {"mode": self.mode, "flags": self.flags, "warnings": list(self.warnings),
+                "expected_calls": self.expected_calls, "in_c": {}, "waiting": [],
+                "generated": {}}  # fmt: skip
 
     @classmethod
     def from_options(cls, options: Any) -> Compiler:
@@ -271,7 +324,8 @@ class Compiler:
 
     @property
     def active(self) -> bool:
-        return self.mode == "jit"
+        """Functions may run compiled (the graphs are built so that C can be generated)."""
+        return self.mode != "none"
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -281,11 +335,63 @@ class Compiler:
     def load(self, function: ca.Function) -> ca.Function | None:
         """The compiled ``function``, or None (with a warning) if it cannot be compiled."""
         try:
-            return compile_function(function, self.flags)
+            loaded = compile_function(function, self.flags)
         except RuntimeError as error:
-            text = str(error).strip().splitlines()[0] if str(error).strip() else "error"
-            self.warn(f"compile=jit: {function.name()} stays in the CasADi VM ({text})")
+            self._failed(function, error)
             return None
+        self.in_c.setdefault(function.name(), "compiled")
+        return loaded
+
+    def _failed(self, function: ca.Function, error: Exception) -> None:
+        text = str(error).strip().splitlines()[0] if str(error).strip() else "error"
+        self.warn(f"compile={self.mode}: {function.name()} stays in the CasADi VM ({text})")
+
+    def expect(self, calls: float) -> None:
+        """compile=auto: a run is about to make about ``calls`` evaluations; a function
+        still in the VM that they would repay is compiled now."""
+        self.expected_calls = calls
+        for fast in list(self.waiting):
+            fast.reconsider(calls, "for a run expecting more calls")
+
+    def decide(
+        self, function: ca.Function, vm_seconds: float, calls: float
+    ) -> tuple[ca.Function | None, float]:
+        """compile=auto: (the compiled ``function`` or None, the calls that would repay its
+        compile) for ``calls`` calls that each take ``vm_seconds`` in the VM. Its C is
+        generated (which the cache is keyed by; kept for the next decision) only when the
+        calls take more than generating it costs (``compile_policy.worth_a_look``)."""
+        from workbench.equations.compile_policy import calls_to_repay, worth_a_look
+
+        name = function.name()
+        generated = self.generated.get(name)
+        if generated is None and not worth_a_look(calls, vm_seconds):
+            return None, calls_to_repay(vm_seconds, 0)
+        with counted():
+            try:
+                if generated is None:
+                    generated = self.generated[name] = generate(function, self.flags)
+                repay = calls_to_repay(vm_seconds, len(generated.code))
+                cached = generated.path.exists()
+                if not cached and calls < repay:
+                    return None, repay
+                loaded = load_generated(generated)
+            except RuntimeError as error:
+                self._failed(function, error)
+                return None, float("inf")
+        del self.generated[name]
+        self.in_c[name] = "cached" if cached else "compiled"
+        return loaded, 0.0
+
+    def summary(self) -> str:
+        """compile=auto: which functions run in C and which in the VM (for a row's notes)."""
+        if self.mode != "auto":
+            return ""
+        in_c = ", ".join(f"{name} ({how})" for name, how in sorted(self.in_c.items()))
+        vm = len(self.waiting)
+        parts = [f"in C {in_c}" if in_c else "",
+                 f"{vm} function{'s' * (vm != 1)} in the VM (too few calls to repay a compile)"
+                 if vm else ""]  # fmt: skip
+        return "compile=auto: " + "; ".join(filter(None, parts)) if any(parts) else ""
 
 
 DEFAULT_CACHE_LIMIT_MB = 2048

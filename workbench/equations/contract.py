@@ -174,6 +174,7 @@ class Equations:
     notes: list[str] = field(default_factory=list)
     stiffness_hint: str = ""
     compile_warnings: list[str] = field(default_factory=list)  # see workbench.equations.compiled
+    compiler: Any = None  # the Compiler of its functions (compile=auto: Compiler.expect)
     # (t, q) -> (W_d, W): a formalism that solves a fixed block W_d (m, m) of its velocity
     # constraints W (m, nv) for dependent velocities (a velocity partition) offers it, so
     # the run's audit reports where sigma_min(W_d) / sigma_max(W) falls (digits are lost)

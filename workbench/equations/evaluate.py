@@ -5,11 +5,14 @@ the dynamics of a small mechanism (docs/performance.md). :class:`FastFunction` b
 preallocated NumPy arrays to a ``Function.buffer()`` once and evaluates into them. Outputs
 are dense (the builder must ``densify`` them: buffers hold only structural nonzeros). With
 an active :class:`~workbench.equations.compiled.Compiler` the Function is compiled to C at
-its first call and the same arrays are bound to the compiled function's buffer.
+its first call and the same arrays are bound to the compiled function's buffer; under
+``compile = "auto"`` only if that repays, else it counts its VM calls and is compiled once
+they have (:mod:`workbench.equations.compile_policy`).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -27,11 +30,18 @@ class FastFunction:
     returns the internal arrays themselves (overwritten by the next call).
     """
 
-    def __init__(self, function: ca.Function, compiler: Compiler | None = None) -> None:
+    def __init__(
+        self, function: ca.Function, compiler: Compiler | None = None,
+        for_c: ca.Function | None = None,
+    ) -> None:  # fmt: skip
         self.function = function  # the symbolic Function (CasADi integrators, pickling)
+        self.for_c = for_c if for_c is not None else function  # the graph compiled to C
         self.compiler = compiler if compiler is not None and compiler.active else None
         self.name = function.name()
         self.n_calls = 0
+        self.calls_left = math.inf  # compile=auto, in the VM: calls until compiling repays
+        self.vm_calls = 0  # compile=auto: calls made in the VM
+        self.vm_seconds = 0.0  # compile=auto: CPU of a VM call, measured at the first
         self._inputs = []
         for i in range(function.n_in()):
             sparsity = function.sparsity_in(i)
@@ -111,12 +121,68 @@ class FastFunction:
         self._evaluate()
 
     def compile(self) -> bool:
-        """Compile now (normally done at the first call); True if evaluation runs C."""
+        """Compile now (normally done at the first call; compile=auto: if that repays);
+        True if evaluation runs C."""
         if self._pending:
             self._pending = False
             assert self.compiler is not None
-            self._bind(self.compiler.load(self.function) or self.function)
+            if self.compiler.mode == "auto":
+                self._bind(self.function)
+                self.vm_seconds = self._vm_seconds()
+                self._watch_vm_calls()
+                self.reconsider(self.compiler.expected_calls, "")
+            else:
+                self._bind(self.compiler.load(self.for_c) or self.function)
         return self.evaluated is not self.function
+
+    def _vm_seconds(self) -> float:
+        """CPU seconds of one VM call at the current inputs (at least 3 calls, about 1 ms)."""
+        calls, start = 0, time.process_time()
+        while calls < 3 or (calls < 1000 and time.process_time() - start < 1e-3):
+            self._evaluate()
+            calls += 1
+        return (time.process_time() - start) / calls
+
+    def reconsider(self, calls: float, how: str) -> None:
+        """compile=auto: compile now if ``calls`` VM calls (expected, or made) repay it;
+        else count calls until they would (rent or buy)."""
+        assert self.compiler is not None
+        loaded, repay = self.compiler.decide(self.for_c, self.vm_seconds, calls)
+        if loaded is not None:
+            if self in self.compiler.waiting:
+                self.compiler.waiting.remove(self)
+            self._bind(loaded)
+            self.compiler.in_c[self.name] += f" {how}" if how else ""
+            self.calls_left = -1.0
+        elif not math.isfinite(repay):  # it cannot be compiled: the VM for good
+            if self in self.compiler.waiting:
+                self.compiler.waiting.remove(self)
+            self.calls_left = math.inf
+        else:
+            if self not in self.compiler.waiting:
+                self.compiler.waiting.append(self)
+            self.calls_left = repay - self.vm_calls
+
+    def _watch_vm_calls(self) -> None:
+        """compile=auto: evaluate in the VM, counting calls; reconsider when they repay."""
+        vm_evaluate = self._evaluate
+
+        def counting_evaluate() -> None:  # an ``into`` kept by a caller may still call it
+            self.calls_left -= 1
+            if self.calls_left >= 0:
+                self.vm_calls += 1
+                vm_evaluate()
+                return
+            if self.evaluated is self.function:  # its calls have repaid a compile
+                self.reconsider(self.vm_calls + 1, f"after {self.vm_calls + 1:,} calls in the VM")
+            if self.evaluated is self.function:  # still not: the code is larger than assumed
+                self.vm_calls += 1
+                vm_evaluate()
+            else:
+                self._evaluate()
+
+        self._evaluate = counting_evaluate
+        self.into = self._specialized_into()  # type: ignore[method-assign]
 
     def into(self, *args: object) -> tuple[np.ndarray, ...]:
         """Evaluate at ``args``; returns the internal output arrays (see the class)."""
@@ -176,10 +242,11 @@ def cpu_per_call(call: Callable[[], object], batches: int, batch_s: float) -> tu
     return min(samples), max(samples)
 
     def __getstate__(self) -> dict:
-        return {"function": self.function, "compiler": self.compiler}
+        for_c = self.for_c if self.for_c is not self.function else None
+        return {"function": self.function, "compiler": self.compiler, "for_c": for_c}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["function"], state.get("compiler"))  # type: ignore[misc]
+        self.__init__(state["function"], state.get("compiler"), state.get("for_c"))  # type: ignore[misc]
 
 
 def dense_function(
@@ -189,15 +256,20 @@ def dense_function(
     input_names: list[str] | None = None,
     output_names: list[str] | None = None,
     compiler: Compiler | None = None,
+    for_c: tuple[list, list] | None = None,
 ) -> FastFunction:
     """Build a CasADi Function with dense outputs and wrap it for fast evaluation
-    (compiled to C on first use if ``compiler`` is active)."""
-    outputs = [ca.densify(o) for o in outputs]
-    if input_names and output_names:
-        function = ca.Function(name, inputs, outputs, input_names, output_names)
-    else:
-        function = ca.Function(name, inputs, outputs)
-    return FastFunction(function, compiler)
+    (compiled to C on first use if ``compiler`` is active). ``for_c``: (inputs, outputs)
+    of another graph of the same function to compile (one CasADi can generate C for)."""
+
+    def function_of(inputs: list, outputs: list) -> ca.Function:
+        outputs = [ca.densify(o) for o in outputs]
+        if input_names and output_names:
+            return ca.Function(name, inputs, outputs, input_names, output_names)
+        return ca.Function(name, inputs, outputs)
+
+    c_function = function_of(*for_c) if for_c is not None else None
+    return FastFunction(function_of(inputs, outputs), compiler, c_function)
 
 
 class LazyFunction:
@@ -249,10 +321,17 @@ class LazyFunction:
 
 
 def lazy_dense_function(
-    name: str, inputs: list, outputs: Callable[[], list], compiler: Compiler | None = None
-) -> LazyFunction:
-    """:func:`dense_function` deferred until first use; ``outputs`` builds the expressions."""
-    return LazyFunction(lambda: dense_function(name, inputs, outputs(), compiler=compiler))
+    name: str, inputs: list, outputs: Callable[[], list], compiler: Compiler | None = None,
+    for_c: tuple[list, Callable[[], list]] | None = None,
+) -> LazyFunction:  # fmt: skip
+    """:func:`dense_function` deferred until first use; ``outputs`` builds the expressions
+    (``for_c``: the inputs and the builder of the graph to compile, if another)."""
+
+    def build() -> FastFunction:
+        c_graph = (for_c[0], for_c[1]()) if for_c is not None else None
+        return dense_function(name, inputs, outputs(), compiler=compiler, for_c=c_graph)
+
+    return LazyFunction(build)
 
 
 def evaluate_along(function: ca.Function, n: int, args: list[np.ndarray],

@@ -76,6 +76,13 @@ def _equilibrated(kkt: Any, method: str) -> tuple[Any, Any]:
     return ca.repmat(scale, 1, kkt.size2()) * kkt, scale
 
 
+def _kkt_solve_differs(system: MechanicalSystem) -> bool:
+    """Whether :func:`_augmented_acceleration` solves [M W^T; W 0] numerically, so that
+    its graph for C (QR) differs from the VM's (LAPACK's LU)."""
+    nv, nc = system.v.numel(), system.n_constraints
+    return nc > 0 and (nv + nc > SYMBOLIC_SOLVE_LIMIT or isinstance(system.q, ca.MX))
+
+
 def _augmented_acceleration(
     system: MechanicalSystem, gamma: Any, compiled: bool = False
 ) -> tuple[Any, Any, Any, Callable[[], Any] | None]:
@@ -164,11 +171,11 @@ def build_equations(
     """
     compiler = compiler if compiler is not None else Compiler()
 
-    def hot(name: str, inputs: list, outputs: list) -> FastFunction:
-        return dense_function(name, inputs, outputs, compiler=compiler)
+    def hot(name: str, inputs: list, outputs: list, for_c: Any = None) -> FastFunction:
+        return dense_function(name, inputs, outputs, compiler=compiler, for_c=for_c)
 
-    def lazy_hot(name: str, inputs: list, outputs: Any) -> Any:
-        return lazy_dense_function(name, inputs, outputs, compiler=compiler)
+    def lazy_hot(name: str, inputs: list, outputs: Any, for_c: Any = None) -> Any:
+        return lazy_dense_function(name, inputs, outputs, compiler=compiler, for_c=for_c)
 
     t, q, v = system.t, system.q, system.v
     nq, nv, nc, m = q.numel(), v.numel(), system.n_constraints, system.n_holonomic
@@ -216,23 +223,34 @@ def build_equations(
 
     # ode form: [q' ; v'] with v' from the (augmented) system
     if ode or nc == 0:
-        accel, _, (t_o, q_o, v_o), accel_jacobian = _augmented_acceleration(
-            system, stabilized, compiler.active
-        )
-        qdot = system.qdot
-        if q_o is not q:
-            qdot = ca.Function("qdot", [t, q, v], [qdot])(t_o, q_o, v_o)
-        y = ca.vertcat(q_o, v_o)
-        f = ca.vertcat(qdot, accel)
 
-        def ode_jacobian() -> list:
-            if accel_jacobian is None:
-                return [ca.jacobian(f, y)]
-            return [ca.vertcat(ca.jacobian(qdot, y), accel_jacobian())]
+        def ode_graphs(for_c: bool) -> tuple[list, list, Callable[[], list]]:
+            """(inputs, [f], Jacobian builder) of the ode right-hand side."""
+            accel, _, (t_o, q_o, v_o), accel_jacobian = _augmented_acceleration(
+                system, stabilized, for_c
+            )
+            qdot = system.qdot
+            if q_o is not q:
+                qdot = ca.Function("qdot", [t, q, v], [qdot])(t_o, q_o, v_o)
+            y = ca.vertcat(q_o, v_o)
+            f = ca.vertcat(qdot, accel)
 
+            def ode_jacobian() -> list:
+                if accel_jacobian is None:
+                    return [ca.jacobian(f, y)]
+                return [ca.vertcat(ca.jacobian(qdot, y), accel_jacobian())]
+
+            return [t_o, y], [f], ode_jacobian
+
+        inputs, outputs, jacobian = ode_graphs(compiler.mode == "jit")
+        # compile=auto: the VM keeps LAPACK's LU, C gets the QR that it can generate
+        both = compiler.mode == "auto" and _kkt_solve_differs(system)
+        c_graphs = ode_graphs(True) if both else None
         forms["ode"] = OdeForm(
-            rhs=hot("ode_rhs", [t_o, y], [f]),
-            jacobian=lazy_hot("ode_jac", [t_o, y], ode_jacobian),
+            rhs=hot("ode_rhs", inputs, outputs, c_graphs[:2] if c_graphs else None),
+            jacobian=lazy_hot(
+                "ode_jac", inputs, jacobian, (c_graphs[0], c_graphs[2]) if c_graphs else None
+            ),
             n=nq + nv,
         )
 
@@ -299,6 +317,7 @@ def build_equations(
         joint_space_map=dense_function("joint_space_map", map_inputs, map_outputs),
         notes=list(notes or []),
         compile_warnings=compiler.warnings,
+        compiler=compiler,
         quaternion_slices=list(
             quaternion_slices
             if quaternion_slices is not None

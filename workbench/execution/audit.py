@@ -351,7 +351,8 @@ def _velocity_matrices(equations: Any, velocity_matrix: Any, times: np.ndarray,
     """W(t, q) (n, nc, nv) at every sample in one mapped call of the symbolic Function, or
     None when the formalism's W runs compiled C (then each sample is evaluated by it, the
     values the integrator saw)."""
-    if getattr(velocity_matrix, "compiler", None) is not None:
+    evaluated = getattr(velocity_matrix, "evaluated", None)
+    if evaluated is not None and evaluated is not velocity_matrix.function:
         return None
     (matrices,) = evaluate_along(velocity_matrix.function, len(times), [times[None], q.T],
                                  _mapped(equations))  # fmt: skip

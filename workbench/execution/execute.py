@@ -9,10 +9,12 @@ a column (MuJoCo-style pipeline stages):
    from this process's cache keyed by (problem, problem options, formalism, formalism
    options); finally ``Integrator.incompatibility`` may refuse them. A refusal makes the
    row ``skipped`` with the reason in ``message``. With the formalism option
-   ``compile = "jit"`` the seconds spent generating, compiling and loading C (at the first
-   call of each function, usually in the integrate stage) are taken out of the stage
-   they fall in and reported as ``compile_s``; why something was not compiled (no C
-   compiler) is added to ``message``;
+   ``compile = "jit"`` or ``"auto"`` the seconds spent generating, compiling and loading C
+   (at the first call of each function, or for "auto" once its calls repay it: usually
+   in the integrate stage) are taken out of the stage they fall in and reported as
+   ``compile_s``; why something was not compiled (no C compiler) is added to
+   ``message``, what "auto" ran in C to ``notes``; before the initial state, "auto" is
+   told the evaluations the run expects (:func:`expect_evaluations`);
 2. **initial state** — :func:`~workbench.equations.initial.consistent_initial_state` (``init_s``),
    kept in the equations cache entry: like ``build_s``, ``init_s`` is the time of the
    first run of a (problem, formalism) in a worker and about 0 for the others;
@@ -154,6 +156,15 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
     )
 
 
+def expect_evaluations(equations: Any, problem: Any, rtol: float) -> None:
+    """Tell compile=auto how many evaluations this run expects (from span and rtol)."""
+    from workbench.equations.compile_policy import expected_evaluations
+
+    compiler = getattr(equations, "compiler", None)
+    if compiler is not None:
+        compiler.expect(expected_evaluations(problem_span(problem), rtol))
+
+
 def problem_span(problem: Any) -> float:
     """The length in seconds of a problem's time span (its output times')."""
     try:
@@ -262,6 +273,7 @@ class _Stages:
         PROGRESS.enter(name)
         self._wall, self._cpu = time.perf_counter(), time.process_time()
         self._compile = compiled.STATS.seconds
+        self._compile_cpu = compiled.STATS.cpu_seconds
 
     def timed(self, solve: Any) -> tuple[Any, float, float]:
         """(solve(), wall s, CPU s) of one sample of the integrate stage, C compilation
@@ -286,11 +298,12 @@ class _Stages:
         )
         self.cpu[self.current] = self.cpu.get(self.current, 0.0) + (time.process_time() - self._cpu)
         compile_s = compiled.STATS.seconds - self._compile  # C compilation in this stage
-        if compile_s > 0:
+        if compile_s > 0:  # CPU: this process's (the C compiler is a child process)
+            compile_cpu = compiled.STATS.cpu_seconds - self._compile_cpu
             self.wall[self.current] -= compile_s
-            self.cpu[self.current] = max(0.0, self.cpu[self.current] - compile_s)
+            self.cpu[self.current] = max(0.0, self.cpu[self.current] - compile_cpu)
             self.wall["compile"] = self.wall.get("compile", 0.0) + compile_s
-            self.cpu["compile"] = self.cpu.get("compile", 0.0) + compile_s
+            self.cpu["compile"] = self.cpu.get("compile", 0.0) + compile_cpu
 
 
 def base_row(spec: RunSpec) -> dict[str, Any]:
@@ -379,6 +392,7 @@ def execute_run(
             else:
                 row["form"] = form
                 stages.start("initial state")
+                expect_evaluations(equations, problem, spec.rtol)
                 initial = cached_initial_state(spec, equations, problem)
                 y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
                 stages.stop()
@@ -457,6 +471,9 @@ def execute_run(
     compile_warnings = getattr(state.get("equations"), "compile_warnings", [])
     if compile_warnings:
         row["message"] = " | ".join(filter(None, [row["message"], *compile_warnings]))
+    compiler = getattr(state.get("equations"), "compiler", None)
+    if compiler is not None and compiler.summary() and row.get("status") != "skipped":
+        row["notes"] = "; ".join(filter(None, [row.get("notes", ""), compiler.summary()]))
     row["build_s"] = stages.wall.get("build", 0.0)
     row["compile_s"] = stages.wall.get("compile", 0.0)
     row["init_s"] = stages.wall.get("initial state", 0.0)

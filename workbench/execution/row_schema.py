@@ -44,7 +44,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("wall_s", "wall time of the run: build_s + compile_s + init_s + integrate_s + metrics_s"),
     ("cpu_s", "CPU time of the same stages"),
     ("build_s", "wall time to build the equations (0 when reused from the worker's cache)"),
-    ("compile_s", "wall time to generate, compile and load C (compile=jit; 0 otherwise)"),
+    ("compile_s", "wall time to generate, compile and load C (compile=jit or auto; else 0)"),
     ("init_s", "wall time of the consistent initial state"),
     ("integrate_s", "wall time of the integration: the median of its timed samples (repeats)"),
     ("metrics_s", "wall time of the metrics (without computing the reference)"),

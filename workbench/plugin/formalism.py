@@ -82,10 +82,12 @@ def model_features(model: Model) -> set[str]:
 @dataclass(frozen=True)
 class CompileOptions:
     """Options of every formalism: how its equations are evaluated in hot loops,
-    ``compile`` = "none" (CasADi virtual machine) or "jit" (C compiled with the machine's
-    compiler and ``compile_flags``, cached on disk; see :mod:`workbench.equations.compiled`)."""
+    ``compile`` = "none" (CasADi virtual machine), "jit" (C compiled with the machine's
+    compiler and ``compile_flags``, cached on disk; see :mod:`workbench.equations.compiled`)
+    or "auto" (C where the run's evaluations repay the compile; a sweep's default, see
+    :mod:`workbench.equations.compile_policy`)."""
 
-    compile: Literal["none", "jit"] = "none"
+    compile: Literal["none", "jit", "auto"] = "none"
     compile_flags: str = "-O1"
 
 

@@ -623,6 +623,8 @@ def _normalized_options(
             instance = plugin(options)
             parsed = instance.options
         else:
+            if kind == "formalism" and "compile" not in options:
+                options = {**options, **_sweep_compile_default(plugin)}
             instance = parsed = plugin.parse_options(options)
     except ConfigError as error:
         raise fail(f"{key}.options", one_line(error, with_type=False)) from None
@@ -630,6 +632,16 @@ def _normalized_options(
         raise fail(f"{key}.options", one_line(error)) from None
     normalized = json.loads(json.dumps(options_dict(parsed), default=_jsonable_value))
     return normalized, instance
+
+
+SWEEP_COMPILE = "auto"
+"""A sweep's formalisms compile where that repays (``compile = "auto"``) unless the
+specification says otherwise: cost figures of code no one would deploy in the VM mislead."""
+
+
+def _sweep_compile_default(plugin: Any) -> dict[str, Any]:
+    """{"compile": SWEEP_COMPILE} for a formalism whose options have ``compile``, else {}."""
+    return {"compile": SWEEP_COMPILE} if "compile" in _option_names(plugin) else {}
 
 
 def _jsonable_value(value: Any) -> Any:
