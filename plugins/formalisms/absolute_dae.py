@@ -301,7 +301,8 @@ class AbsoluteDae(Formalism):
     summary = "Absolute body coordinates (Euler parameters), implicit joint constraints, DAE"
     Options = AbsoluteOptions
     capabilities = frozenset(
-        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic"}
+        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic",
+         "contacts"}
     )
 
     @classmethod

@@ -370,7 +370,8 @@ def execute_run(
             reason = (
                 _form_mismatch(spec, integrator, offered)
                 if form is None
-                else integrator.incompatibility(equations, integrator_options)
+                else integrator.contact_mismatch(equations)
+                or integrator.incompatibility(equations, integrator_options)
             )
             if reason:
                 row.update(status="skipped", message=f"integrator {spec.integrator!r}: {reason}")
