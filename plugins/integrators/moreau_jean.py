@@ -11,7 +11,8 @@ the contacts with g_N(q_m) <= 0 active, and P from Newton's impact law and Coulo
 at velocity level (:func:`_contact.velocity_problem`, proxsuite). Impacts, sticking and
 sliding need no events: the method is first order and takes the same step throughout.
 An impact is counted where a contact closes with an impulse, at the time its gap crosses
-zero by linear interpolation within the step. ``step``: 0 takes it from rtol
+zero by linear interpolation within the step; a slip-to-stick switch where a closed
+contact's friction impulse leaves the edge of its cone (at the step's end). ``step``: 0 takes it from rtol
 (:func:`step_for_tolerance`, order 1).
 """
 
@@ -68,7 +69,10 @@ class MoreauJean(Integrator):
         t, q, v = float(times[0]), task.y0[:nq].copy(), task.y0[nq : nq + nv].copy()
         events: list[float] = []
         penetration, residual, steps = 0.0, 0.0, 0
-        closed = contacts.gaps(t, q)[0].reshape(-1) <= 0
+        touch = 1e-9 * max(1.0, float(np.max(np.abs(q), initial=0.0)))  # a gap of round-off
+        closed = contacts.gaps(t, q)[0].reshape(-1) <= touch
+        stuck = np.zeros(closed.size, dtype=bool)
+        nt, mu = contacts.n_tangent, contacts.friction
         for target in times[1:]:
             while t < target - 1e-12 * max(1.0, abs(target)):
                 h = min(h_max, target - t)
@@ -89,7 +93,17 @@ class MoreauJean(Integrator):
                     g1 = g0 + h * state.w_n[i] @ v  # the gap's path without the impulse
                     fraction = g0 / (g0 - g1) if g0 > 0 and g1 < g0 else 0.0
                     events.append(t + h * min(max(fraction, 0.0), 1.0))
-                closed = pushed
+                # slip to stick: a pushed contact whose friction impulse leaves the cone's
+                # edge and whose sliding velocity vanishes (at the step's end)
+                sticking = np.zeros(active.size, dtype=bool)
+                if solved.normal.size:
+                    p_t = np.abs(solved.tangent.reshape(-1, nt)).max(axis=1)
+                    inside = p_t < mu[active] * solved.normal * (1 - 1e-6)
+                    sticking[np.flatnonzero(active)] = inside & (solved.normal > 0)
+                for i in np.flatnonzero(sticking & ~stuck & closed & pushed):
+                    if mu[i] > 0:
+                        events.append(t + h)
+                closed, stuck = pushed, sticking
                 penetration = max(penetration, float(np.max(-gaps_new, initial=0.0)))
                 t, q, v = t + h, q_new, v_new
                 steps += 1

@@ -419,6 +419,7 @@ def execute_run(
                     reference,
                     spec.rtol,
                     charts=getattr(trajectory, "charts", None),
+                    contact=getattr(trajectory, "contact", None),
                 )
                 row.update(metric_row)
                 states = np.atleast_2d(trajectory.y)[: len(series)]

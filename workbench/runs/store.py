@@ -130,6 +130,11 @@ SCHEMA: list[tuple[str, str]] = [
     ("workers", "worker processes of the sweep running runs at the same time"),
     ("integrate_cpu_s_min", "least CPU time of the integration's timed samples (s)"),
     ("integrate_cpu_s_max", "greatest CPU time of the integration's timed samples (s)"),
+    ("penetration_max", "deepest contact penetration (m; NaN: no contacts)"),
+    ("complementarity_max", "worst relative residual of the contact problems solved"),
+    ("n_events", "impacts and stick/slip switches the contact integrator reported"),
+    ("event_time_err_max", "largest distance of a reference contact event to the run's (s)"),
+    ("energy_balance_err", "energy lost against the restitution and friction laws, relative"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -166,7 +171,10 @@ PLAN_FILE = "plan.json"  # the run ids the last sweep started here planned (load
 #   8  adds integrate_cpu_s_min and integrate_cpu_s_max (the interval of the CPU-time
 #      samples, within which pairs tie) and counts the repeat budget in CPU time; older
 #      rows did not keep them: NaN (a reader falls back to integrate_cpu_s alone)
-SCHEMA_VERSION = 8
+#   9  adds the contact metrics (workbench.runs.contact_metrics): penetration_max,
+#      complementarity_max, n_events, event_time_err_max, energy_balance_err; older rows
+#      had no contacts: NaN
+SCHEMA_VERSION = 9
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -205,6 +213,12 @@ def _migrate_7_to_8(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 8} | unrecorded
 
 
+def _migrate_8_to_9(row: dict[str, Any]) -> dict[str, Any]:
+    columns = ("penetration_max", "complementarity_max", "n_events", "event_time_err_max",
+               "energy_balance_err")  # fmt: skip
+    return row | {"schema_version": 9} | dict.fromkeys(columns, math.nan)
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
@@ -214,6 +228,7 @@ MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     5: _migrate_5_to_6,
     6: _migrate_6_to_7,
     7: _migrate_7_to_8,
+    8: _migrate_8_to_9,
 }
 
 
