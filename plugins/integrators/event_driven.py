@@ -16,7 +16,6 @@ tangent: the sliding direction is a sign).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -153,10 +152,7 @@ class _Phases:
         out_t, out_y, steps = [times[0]], [y.copy()], 0
         for _ in range(task.options.max_events + 1):
             modes, signs = self.choose_modes(t, y)
-            rhs = lambda s, z: np.concatenate(  # noqa: E731
-                [self.mech.qdot(s, z[: self.nq], z[self.nq :])[0].reshape(-1),
-                 self.accelerations(s, z, modes, signs)[0]]
-            )  # fmt: skip
+            rhs = self.right_hand_side(modes, signs)
             wanted = times[(times > t) & (times <= t_end)]
             solution = solve_ivp(
                 rhs, (t, t_end), y, method="DOP853", t_eval=wanted, rtol=task.rtol,
@@ -193,6 +189,15 @@ class _Phases:
             "penetration_max": self.penetration,
             "complementarity_max": self.residual,
         }
+
+    def right_hand_side(self, modes: np.ndarray, signs: np.ndarray) -> Any:
+        """y' = [q', v'] of the smooth phase in ``modes``."""
+
+        def rhs(t: float, y: np.ndarray) -> np.ndarray:
+            qdot = self.mech.qdot(t, y[: self.nq], y[self.nq :])[0].reshape(-1)
+            return np.concatenate([qdot, self.accelerations(t, y, modes, signs)[0]])
+
+        return rhs
 
     def name_of(self) -> str:
         return "event-driven"

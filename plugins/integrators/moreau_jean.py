@@ -12,8 +12,9 @@ at velocity level (:func:`_contact.velocity_problem`, proxsuite). Impacts, stick
 sliding need no events: the method is first order and takes the same step throughout.
 An impact is counted where a contact closes with an impulse, at the time its gap crosses
 zero by linear interpolation within the step; a slip-to-stick switch where a closed
-contact's friction impulse leaves the edge of its cone (at the step's end). ``step``: 0 takes it from rtol
-(:func:`step_for_tolerance`, order 1).
+contact's friction impulse leaves the edge of its cone (at the step's end). ``step``: 0
+takes it from rtol (:func:`step_for_tolerance`, order 1), never longer than an output
+interval.
 """
 
 from __future__ import annotations
@@ -43,7 +44,9 @@ class MoreauJeanOptions:
 
     def __post_init__(self) -> None:
         if not (self.step >= 0 and math.isfinite(self.step)):
-            raise ConfigError(f"step must be a finite number >= 0 s (0: from rtol), not {self.step}")
+            raise ConfigError(
+                f"step must be a finite number >= 0 s (0: from rtol), not {self.step}"
+            )
         if not 0.5 <= self.theta <= 1.0:
             raise ConfigError(f"theta must be in [0.5, 1], not {self.theta}")
 
@@ -63,9 +66,12 @@ class MoreauJean(Integrator):
         equations, options = task.equations, task.options
         mech, contacts = task.form, equations.contacts
         nq, nv = equations.nq, equations.nv
+        times = task.times
+        # the rule's step, never longer than an output interval (the step actually taken)
         h_max = options.step or step_for_tolerance(task.rtol, 1)
+        h_max = min(h_max, float(np.min(np.diff(times))))
         trajectory.stats.fixed_step = h_max
-        times, out = task.times, [task.y0[: nq + nv].copy()]
+        out = [task.y0[: nq + nv].copy()]
         t, q, v = float(times[0]), task.y0[:nq].copy(), task.y0[nq : nq + nv].copy()
         events: list[float] = []
         penetration, residual, steps = 0.0, 0.0, 0

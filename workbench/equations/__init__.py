@@ -4,7 +4,8 @@
 dae and ode forms derived once, for every formalism), ``observables`` (poses, energies and
 residuals measured the same way for all), ``evaluate`` (CasADi functions through
 preallocated buffers), ``compiled`` (the same functions as C), ``initial`` (a consistent
-initial state), ``contacts`` (gaps and contact Jacobians for set-valued forces). Import the contract from here: ``from workbench.equations import Equations``.
+initial state), ``contacts`` (gaps and contact Jacobians for set-valued forces).
+Import the contract from here: ``from workbench.equations import Equations``.
 """
 
 from workbench.equations.contract import (

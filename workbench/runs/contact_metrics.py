@@ -62,7 +62,8 @@ def contact_metrics(
     times = np.asarray(times, dtype=float)
     y = np.atleast_2d(y)[: len(times)]
     own = own or {}
-    gaps = [contacts.gaps(t, s[: equations.nq])[0].reshape(-1) for t, s in zip(times, y)]
+    nq = equations.nq
+    gaps = [contacts.gaps(t, s[:nq])[0].reshape(-1) for t, s in zip(times, y, strict=True)]
     sampled = float(np.max(-np.array(gaps), initial=0.0)) if gaps else math.nan
     row["penetration_max"] = max(sampled, float(own.get("penetration_max", 0.0)))
     row["complementarity_max"] = float(own.get("complementarity_max", math.nan))
