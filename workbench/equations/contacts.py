@@ -11,7 +11,7 @@ t_i (one in a planar model: n x e_z; two in a spatial one):
   U_T = W_T(t, q) v (rows: one a contact; one a contact and tangent), so g_N' = U_N
   (Glocker and Pfeiffer write W_N^T for our W_N);
 * the biases U_N' = W_N v' + wdot_N(t, q, v), U_T' = W_T v' + wdot_T, for the
-  acceleration-level problem of an event-driven scheme;
+  acceleration-level problem between events;
 * the friction cone data: Coulomb's mu_i and Newton's restitution e_i of every contact.
 
 Generalized contact forces are W_N^T lambda_N + W_T^T lambda_T.

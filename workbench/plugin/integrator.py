@@ -202,8 +202,8 @@ class Integrator:
         if getattr(equations, "contacts", None) is not None and not self.contacts:
             return (
                 f"a smooth method; model {equations.model.name!r} has unilateral contacts "
-                "(impacts, friction): use a contact integrator (event-driven, moreau-jean, "
-                "compliant-contact)"
+                "(impacts, friction): use an integrator for contacts (docs/nonsmooth.md; "
+                "`workbench list integrators`)"
             )
         return None
 
