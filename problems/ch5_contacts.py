@@ -20,6 +20,14 @@ s'' = g (sin alpha - mu cos alpha); it sticks at rest iff tan(alpha) <= mu.
 ``-stop``: mu = 0.8 > tan 30 deg, launched down the slope at 2 m/s: it decelerates at
 g (mu cos - sin) = 1.891 m/s^2, stops at t_s = 1.058 s and sticks from then on (a
 slip-to-stick event). t_end = 2 s.
+
+``sliding-sphere`` -- spatial; z up; gravity (0, 0, -9.81). A sphere ``sphere`` (m = 1 kg,
+r = 0.1 m, I = 2/5 m r^2) on a free joint ``free``, resting on the plane z = 0 (contact
+``floor``, restitution 0, Coulomb mu = 0.2), launched along x at v0 = 2 m/s without spin.
+Friction mu m g slows it (x'' = -mu g) and spins it up (omega_y' = 5 mu g / (2 r)) until
+its contact point sticks, at t_r = 2 v0 / (7 mu g) = 0.291 s; from then on it rolls at
+5/7 v0 = 1.429 m/s: the classic billiard-ball result, a slip-to-stick event in a spatial
+contact with two tangents. t_end = 1 s.
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ from workbench.plugin.problem import Problem, Reference
 
 GRAVITY = 9.81  # m/s^2
 BALL_MASS, BALL_RADIUS, BALL_DROP, BALL_RESTITUTION = 1.0, 0.1, 1.0, 0.8
+SPHERE_MASS, SPHERE_RADIUS, SPHERE_FRICTION, SPHERE_SPEED = 1.0, 0.1, 0.2, 2.0
 BLOCK_MASS, BLOCK_HALF_LENGTH, BLOCK_HALF_HEIGHT = 1.0, 0.2, 0.05
 INCLINE = math.radians(30.0)
 
@@ -191,3 +200,65 @@ class InclineBlockStop(InclineBlock):
     summary = "Block launched down a 30 deg incline, mu = 0.8: slides, stops, sticks"
     friction = 0.8
     speed = 2.0
+
+
+@workbench.plugin.registry.problem
+class SlidingSphere(Problem):
+    name = "sliding-sphere"
+    summary = "Sphere launched without spin on a floor, mu = 0.2: slides, then rolls at 5/7 v0"
+    source = "book 5.4.2 (Coulomb friction); the billiard ball's slip-to-roll transition"
+    t_end = 1.0
+    n_samples = 101
+    conservative = False
+
+    def model(self) -> Model:
+        model = Model(self.name, kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
+        inertia = [0.4 * SPHERE_MASS * SPHERE_RADIUS**2] * 3
+        model.add_body("sphere", SPHERE_MASS, inertia=inertia,
+                       shapes=[Shape("sphere", (SPHERE_RADIUS,))])  # fmt: skip
+        model.add_joint("free", "free", "ground", "sphere")
+        model.add_contact("floor", "sphere", radius=SPHERE_RADIUS, friction=SPHERE_FRICTION)
+        return model
+
+    def initial_joint_coordinates(self) -> dict[str, list[float]]:
+        return {"free": [0.0, 0.0, SPHERE_RADIUS, 1.0, 0.0, 0.0, 0.0]}
+
+    def initial_joint_velocities(self) -> dict[str, list[float]]:
+        return {"free": [SPHERE_SPEED, 0.0, 0.0, 0.0, 0.0, 0.0]}
+
+    def roll_time(self) -> float:
+        return 2 * SPHERE_SPEED / (7 * SPHERE_FRICTION * GRAVITY)
+
+    def motion(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(x, x', angle about y, its rate) at ``times`` by Coulomb's law, then rolling."""
+        times = np.asarray(times, dtype=float)
+        deceleration = SPHERE_FRICTION * GRAVITY
+        spin_up = 5 * SPHERE_FRICTION * GRAVITY / (2 * SPHERE_RADIUS)
+        t_r = self.roll_time()
+        tau, after = np.minimum(times, t_r), np.maximum(times - t_r, 0.0)
+        rolling = SPHERE_SPEED - deceleration * t_r  # 5/7 v0
+        x = SPHERE_SPEED * tau - deceleration * tau**2 / 2 + rolling * after
+        angle = spin_up * tau**2 / 2 + rolling / SPHERE_RADIUS * after
+        speed = np.where(times < t_r, SPHERE_SPEED - deceleration * times, rolling)
+        rate = np.where(times < t_r, spin_up * times, rolling / SPHERE_RADIUS)
+        return x, speed, angle, rate
+
+    def contact_events(self) -> np.ndarray:
+        return np.array([self.roll_time()])
+
+    def reference_energy(self, times: np.ndarray) -> np.ndarray:
+        """Kinetic energy plus m g r: friction takes mu m g times the slip distance."""
+        _, speed, _, rate = self.motion(times)
+        inertia = 0.4 * SPHERE_MASS * SPHERE_RADIUS**2
+        potential = SPHERE_MASS * GRAVITY * SPHERE_RADIUS
+        return SPHERE_MASS * speed**2 / 2 + inertia * rate**2 / 2 + potential
+
+    def reference(self) -> Reference:
+        def poses(times: np.ndarray) -> np.ndarray:
+            x, _, angle, _ = self.motion(times)
+            zero = np.zeros_like(x)
+            quaternion = [np.cos(angle / 2), zero, np.sin(angle / 2), zero]
+            position = [x, zero, np.full_like(x, SPHERE_RADIUS)]
+            return np.stack([*position, *quaternion], axis=-1)[:, None, :]
+
+        return Reference("analytic", poses, "Coulomb's law: slides at -mu g, rolls at 5/7 v0")

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from workbench.equations.initial import consistent_initial_state
 from workbench.errors import ModelError, PluginError
 from workbench.model import Model
 from workbench.plugin import registry
@@ -57,6 +58,7 @@ def test_contact_jacobians_are_the_gaps_derivatives(formalism):
     np.testing.assert_allclose(w_t @ slide, [1.0, 1.0], atol=1e-12)
     w_n0 = np.asarray(contacts.normal_jacobian(0.0, q0)[0])
     np.testing.assert_allclose(w_n0 @ slide, [0.0, 0.0], atol=1e-12)
+
 
 @pytest.mark.parametrize(
     ("change", "message"),
@@ -179,3 +181,26 @@ def test_compliant_contact_states_its_stiffness_and_approaches_the_rigid_law():
     _, _, ball = _run("bouncing-ball", "minimal-ode", "compliant-contact", 1e-6, stiffness=1e6)
     expected = bouncing_ball_impacts(2.5, BALL_DROP, BALL_RESTITUTION)
     np.testing.assert_allclose(ball.contact["event_times"][:2], expected[:2], atol=1e-2)
+
+
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+def test_sliding_sphere_rolls_at_five_sevenths(formalism):
+    """Spatial Coulomb friction (two tangents): a sphere launched at v0 without spin slides
+    at -mu g until t_r = 2 v0 / (7 mu g), then rolls at 5/7 v0 (Moreau-Jean, step 1e-4 s)."""
+    problem = registry.get_problem("sliding-sphere")()
+    equations = registry.get_formalism(formalism)().build(problem.model())
+    state = consistent_initial_state(equations, problem)
+    method = registry.get_integrator("moreau-jean")()
+    times = problem.sample_times()
+    trajectory = method.solve(equations, state.y0(equations, "mechanical"), None, times, 1e-6,
+                              1e-9, {"step": 1e-4})  # fmt: skip
+    assert trajectory.success, trajectory.message
+    poses = np.stack([equations.observables.poses(t, y[: equations.nq])
+                      for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+    x, _, _, _ = problem.motion(times)
+    np.testing.assert_allclose(poses[:, 0, 0], x, atol=1e-3)
+    np.testing.assert_allclose(poses[:, 0, 2], 0.1, atol=1e-9)  # stays on the floor
+    speed = (poses[-1, 0, 0] - poses[-11, 0, 0]) / (times[-1] - times[-11])
+    assert speed == pytest.approx(5 / 7 * 2.0, rel=1e-4)
+    (stick,) = trajectory.contact["event_times"]
+    assert stick == pytest.approx(problem.roll_time(), abs=2e-3)

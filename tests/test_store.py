@@ -184,7 +184,8 @@ def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
     newer = str(store.row_path(tmp_path, "c" * 16))
     with pytest.raises(ConfigError, match="upgrade the workbench") as error:
         store.load_results(tmp_path)
-    assert newer in str(error.value) and f"schema version {store.SCHEMA_VERSION + 1}" in str(error.value)
+    message = str(error.value)
+    assert newer in message and f"schema version {store.SCHEMA_VERSION + 1}" in message
     # a resumed sweep refuses too (it would add rows of an older schema)
     with pytest.raises(ConfigError, match="upgrade the workbench"):
         store.completed_run_ids(tmp_path)

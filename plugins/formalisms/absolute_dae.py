@@ -301,9 +301,8 @@ class AbsoluteDae(Formalism):
     summary = "Absolute body coordinates (Euler parameters), implicit joint constraints, DAE"
     Options = AbsoluteOptions
     capabilities = frozenset(
-        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic",
-         "contacts"}
-    )
+        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic"}
+    ) | {"contacts"}  # the contact form comes from build_equations
 
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:

@@ -64,9 +64,8 @@ class MinimalOde(Formalism):
     summary = "Joint coordinates of the spanning tree, mass matrix M(q), O(n^3) (book 10.5)"
     Options = MinimalOptions
     capabilities = frozenset(
-        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic",
-         "contacts"}
-    )
+        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic"}
+    ) | {"contacts"}  # the contact form comes from build_equations
 
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:

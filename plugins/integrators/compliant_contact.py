@@ -119,4 +119,3 @@ class CompliantContact(Integrator):
             "complementarity_max": math.nan,  # no complementarity problem: a force law
             "stiffness": k,
         }
-

@@ -7,9 +7,10 @@ with step h and theta = 1/2,
     M (v_k+1 - v_k) = h Q(t_k, q_k, v_k) + W^T P      (impulses P over the step)
     q_k+1 = q_k + h H (theta v_k+1 + (1 - theta) v_k)
 
-the contacts with g_N(q_m) <= 0 active, and P from Newton's impact law and Coulomb's law
-at velocity level (:func:`_contact.velocity_problem`, proxsuite). Impacts, sticking and
-sliding need no events: the method is first order and takes the same step throughout.
+(Euler parameters renormalized after each step), the contacts with g_N(q_m) <= 0
+active, and P from Newton's impact law and Coulomb's law at velocity level
+(:func:`_contact.velocity_problem`, proxsuite). Impacts, sticking and sliding need no
+events: the method is first order and takes the same step throughout.
 An impact is counted where a contact closes with an impulse, at the time its gap crosses
 zero by linear interpolation within the step; a slip-to-stick switch where a closed
 contact's friction impulse leaves the edge of its cone (at the step's end). ``step``: 0
@@ -91,6 +92,8 @@ class MoreauJean(Integrator):
                 v_new = solved.velocity
                 residual = max(residual, solved.residual)
                 q_new = q + h * kinematics @ (options.theta * v_new + (1 - options.theta) * v)
+                for block in equations.quaternion_slices:  # back onto the unit sphere
+                    q_new[block] /= np.linalg.norm(q_new[block])
                 gaps_new = contacts.gaps(t + h, q_new)[0].reshape(-1)
                 pushed = np.zeros(active.size, dtype=bool)
                 pushed[np.flatnonzero(active)] = solved.normal > 0
