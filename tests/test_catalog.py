@@ -237,7 +237,9 @@ def has_analytic_reference(case: str) -> bool:
 
 
 # a smooth run knows no contact forces: tests/test_nonsmooth.py checks those references
-SMOOTH_ANALYTIC = [n for n in EXPECTED if has_analytic_reference(n) and not make(n).model().contacts]
+SMOOTH_ANALYTIC = [
+    n for n in EXPECTED if has_analytic_reference(n) and not make(n).model().contacts
+]
 
 
 @pytest.mark.parametrize("name", SMOOTH_ANALYTIC)
