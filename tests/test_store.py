@@ -185,7 +185,8 @@ def test_a_schema_8_row_gets_the_counted_work_as_not_measured(tmp_path) -> None:
     write_row_file(tmp_path, row("8" * 16, schema_version=8, n_rhs=120, warnings=""))
     loaded = store.load_results(tmp_path).iloc[0]
     assert loaded["schema_version"] == 9 and loaded["n_rhs"] == 120
-    assert all(np.isnan(loaded[c]) for c in ("work_s", "work_s_min", "work_s_max"))
+    never = ("work_s", "work_s_min", "work_s_max", "penetration_max", "n_events")
+    assert all(np.isnan(loaded[c]) for c in never)
 
 
 def test_a_newer_schema_is_refused_naming_the_file(tmp_path) -> None:
@@ -227,3 +228,13 @@ def test_a_schema_version_that_is_not_one_is_refused(tmp_path, value) -> None:
     write_row_file(tmp_path, row("a" * 16, schema_version=value))
     with pytest.raises(ConfigError, match="is not a schema version"):
         store.load_results(tmp_path)
+
+
+def test_a_schema_8_row_gets_the_contact_metrics_as_not_measured(tmp_path) -> None:
+    # rows before schema 9 had no contacts: their contact columns are NaN, not 0
+    write_row_file(tmp_path, row("8" * 16, schema_version=8, warnings=""))
+    loaded = store.load_results(tmp_path).iloc[0]
+    assert loaded["schema_version"] == 9 and loaded["warnings"] == ""
+    columns = ["penetration_max", "complementarity_max", "n_events", "event_time_err_max",
+               "energy_balance_err"]  # fmt: skip
+    assert all(np.isnan(loaded[column]) for column in columns)

@@ -302,7 +302,7 @@ class AbsoluteDae(Formalism):
     Options = AbsoluteOptions
     capabilities = frozenset(
         {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic"}
-    )
+    ) | {"contacts"}  # the contact form comes from build_equations
 
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:

@@ -65,7 +65,7 @@ class MinimalOde(Formalism):
     Options = MinimalOptions
     capabilities = frozenset(
         {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "nonholonomic"}
-    )
+    ) | {"contacts"}  # the contact form comes from build_equations
 
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:

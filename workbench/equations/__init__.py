@@ -4,12 +4,14 @@
 dae and ode forms derived once, for every formalism), ``observables`` (poses, energies and
 residuals measured the same way for all), ``evaluate`` (CasADi functions through
 preallocated buffers), ``compiled`` (the same functions as C), ``initial`` (a consistent
-initial state). Import the contract from here: ``from workbench.equations import Equations``.
+initial state), ``contacts`` (gaps and contact Jacobians for set-valued forces).
+Import the contract from here: ``from workbench.equations import Equations``.
 """
 
 from workbench.equations.contract import (
     FORMS,
     Atlas,
+    ContactForm,
     DaeForm,
     Equations,
     MechanicalForm,
@@ -34,6 +36,7 @@ __all__ = [
     "FORMS",
     "SYMBOLIC_SOLVE_LIMIT",
     "Atlas",
+    "ContactForm",
     "DaeForm",
     "Equations",
     "MechanicalForm",

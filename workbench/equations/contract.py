@@ -130,6 +130,31 @@ class MechanicalForm:
     rotation_blocks: list[tuple[slice, slice]] = field(default_factory=list)
 
 
+@dataclass
+class ContactForm:
+    """Numeric data of the unilateral contacts (:mod:`workbench.equations.contacts`).
+
+    gaps(t, q) -> g_N (nc); normal_jacobian(t, q) -> W_N (nc, nv) with U_N = W_N v;
+    tangent_jacobian(t, q) -> W_T (nc * n_tangent, nv), contact-major; normal_bias(t, q,
+    v) and tangent_bias(t, q, v) -> wdot with U' = W v' + wdot. ``restitution`` e and
+    ``friction`` mu: one a contact. Contact forces enter as W_N^T lambda_N + W_T^T lambda_T.
+    """
+
+    names: list[str]
+    restitution: np.ndarray
+    friction: np.ndarray
+    n_tangent: int
+    gaps: FastFunction
+    normal_jacobian: FastFunction
+    tangent_jacobian: FastFunction
+    normal_bias: FastFunction
+    tangent_bias: FastFunction
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.names)
+
+
 class Atlas(Protocol):
     """Charts of a formalism whose coordinates (q, v) hold only near part of the motion,
     e.g. minimal velocities v_i of a velocity partition, singular where the block W_d
@@ -186,6 +211,9 @@ class Equations:
     # well as the integrator keeps them there; the rotations built from them are
     # normalized, so the run's audit reads their norm here
     quaternion_slices: list[slice] = field(default_factory=list)
+    # the unilateral contacts' gaps, Jacobians and friction data; None without contacts.
+    # Only integrators that declare ``contacts = True`` may integrate such equations.
+    contacts: ContactForm | None = None
 
     @property
     def nq(self) -> int:

@@ -11,6 +11,8 @@ every body, and calls :func:`build_equations`. The shared code here then derives
   constraints: implicit ODE);
 * the ``ode`` form y' = f(t, y) with df/dy, when there are no constraints or at index 1
   (the augmented system [M W^T; W 0] solved inside f);
+* the contact form (gaps, their Jacobians, friction data) when the model has unilateral
+  contacts (:mod:`workbench.equations.contacts`);
 * formalism-neutral observables: body poses and twists, kinetic and potential energy,
   and residuals of every joint constraint evaluated on the body poses (so drift is
   measured the same way for all formalisms).
@@ -29,6 +31,7 @@ import casadi as ca
 import numpy as np
 
 from workbench.equations.compiled import Compiler
+from workbench.equations.contacts import build_contact_form
 from workbench.equations.contract import (
     DaeForm,
     Equations,
@@ -323,6 +326,7 @@ def build_equations(
             if quaternion_slices is not None
             else [q_slice for q_slice, _ in system.rotation_blocks]
         ),
+        contacts=build_contact_form(model, t, q, v, system.qdot, bodies, hot),
     )
 
 

@@ -385,7 +385,8 @@ def execute_run(
             reason = (
                 _form_mismatch(spec, integrator, offered)
                 if form is None
-                else integrator.incompatibility(equations, integrator_options)
+                else integrator.contact_mismatch(equations)
+                or integrator.incompatibility(equations, integrator_options)
             )
             if reason:
                 row.update(status="skipped", message=f"integrator {spec.integrator!r}: {reason}")
@@ -435,6 +436,7 @@ def execute_run(
                     reference,
                     spec.rtol,
                     charts=getattr(trajectory, "charts", None),
+                    contact=getattr(trajectory, "contact", None),
                 )
                 row.update(metric_row)
                 states = np.atleast_2d(trajectory.y)[: len(series)]

@@ -47,6 +47,7 @@ import pandas as pd
 
 from workbench.equations import Equations, SampledObservables
 from workbench.execution.audit import MEASURE, audit_warnings, health_audit
+from workbench.execution.contact_metrics import contact_metrics
 from workbench.execution.references import ReferencePoses
 from workbench.execution.row_schema import SERIES_COLUMNS
 from workbench.numerics.geometry import length_scale, pose_error
@@ -101,6 +102,7 @@ def trajectory_metrics(
     reference: ReferencePoses,
     rtol: float = math.nan,
     charts: list[Any] | None = None,
+    contact: dict[str, Any] | None = None,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
     """The metric columns of a row and the time series, from states ``y`` at ``times``.
 
@@ -110,6 +112,8 @@ def trajectory_metrics(
     which the health audit (:mod:`workbench.execution.audit`) judges drift and energy.
     ``charts``: the chart of each sample when the run changed chart
     (:mod:`workbench.execution.charts`); each sample is measured with its chart's equations.
+    ``contact``: what a contact integrator measured (``Trajectory.contact``), for the
+    contact columns (:mod:`workbench.execution.contact_metrics`).
     """
     nq, nv = equations.nq, equations.nv
     n = len(times)
@@ -192,7 +196,10 @@ def trajectory_metrics(
         row["scd"] = -math.log10(reference.accuracy)
     if reference.accuracy > 0 and row["scd_mixed"] > -math.log10(reference.accuracy):
         row["scd_mixed"] = -math.log10(reference.accuracy)
-    row.update(audit, warnings="; ".join(found))
+    contact_row, contact_found = contact_metrics(
+        problem, equations, times, y[:n], contact, energy, length
+    )
+    row.update(audit | contact_row, warnings="; ".join(found + contact_found))
     series = pd.DataFrame(
         {
             "run_id": run_id,

@@ -111,6 +111,11 @@ SCHEMA: list[tuple[str, str]] = [
     ("work_s", "counted work: the counts of evaluations weighted by their unit CPU costs (s)"),
     ("work_s_min", "counted work with each unit cost's least timed batch (s; = work_s)"),
     ("work_s_max", "counted work with each unit cost's greatest timed batch (s)"),
+    ("penetration_max", "deepest contact penetration (m; NaN: no contacts)"),
+    ("complementarity_max", "worst relative residual of the contact problems solved"),
+    ("n_events", "impacts and stick/slip switches the contact integrator reported"),
+    ("event_time_err_max", "largest distance of a reference contact event to the run's (s)"),
+    ("energy_balance_err", "energy lost against the restitution and friction laws, relative"),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -142,8 +147,10 @@ UNKNOWN_PRODUCER = "unknown"
 #   8  adds integrate_cpu_s_min and integrate_cpu_s_max (the interval of the CPU-time
 #      samples, within which pairs tie) and counts the repeat budget in CPU time; older
 #      rows did not keep them: NaN (a reader falls back to integrate_cpu_s alone)
-#   9  adds work_s, work_s_min, work_s_max (workbench.execution.counted_work); older rows
-#      did not time unit costs: NaN
+#   9  adds work_s, work_s_min, work_s_max (workbench.execution.counted_work) and the
+#      contact metrics (workbench.execution.contact_metrics): penetration_max,
+#      complementarity_max, n_events, event_time_err_max, energy_balance_err; older rows
+#      did not time unit costs and had no contacts: NaN
 SCHEMA_VERSION = 9
 
 
@@ -184,7 +191,11 @@ def _migrate_7_to_8(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def _migrate_8_to_9(row: dict[str, Any]) -> dict[str, Any]:
-    unrecorded = dict.fromkeys(("work_s", "work_s_min", "work_s_max"), math.nan)
+    unrecorded = dict.fromkeys(
+        ("work_s", "work_s_min", "work_s_max", "penetration_max", "complementarity_max",
+         "n_events", "event_time_err_max", "energy_balance_err"),
+        math.nan,
+    )  # fmt: skip
     return row | {"schema_version": 9} | unrecorded
 
 

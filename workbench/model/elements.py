@@ -285,3 +285,27 @@ class KnifeEdge:
 
 
 NonholonomicConstraint = RollingSphere | RollingDisk | KnifeEdge
+
+
+# ---- unilateral contacts ------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PlaneContact:
+    """A sphere of ``body`` (centre ``point`` in the body frame, ``radius`` >= 0; 0: a point)
+    against a fixed plane through ``plane_point`` with unit outward ``plane_normal``
+    (inertial). Unilateral: the gap g_N = n . (centre - plane_point) - radius stays >= 0.
+
+    ``restitution`` e in [0, 1]: Newton's impact law U_N+ = -e U_N- at a closing contact.
+    ``friction`` mu >= 0: Coulomb's law at the contact point, |lambda_T| <= mu lambda_N,
+    opposing the sliding velocity when it slides (Glocker's set-valued force laws).
+    """
+
+    name: str
+    body: str
+    point: np.ndarray
+    radius: float = 0.0
+    plane_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    plane_normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    restitution: float = 0.0
+    friction: float = 0.0

@@ -42,6 +42,7 @@ from workbench.model.elements import (
     Frame,
     Joint,
     NonholonomicConstraint,
+    PlaneContact,
     Shape,
     real_array,
 )
@@ -61,6 +62,7 @@ class Model:
     joints: dict[str, Joint] = field(default_factory=dict)
     forces: list[ForceElement] = field(default_factory=list)
     nonholonomic: list[NonholonomicConstraint] = field(default_factory=list)
+    contacts: list[PlaneContact] = field(default_factory=list)
     initial_configuration: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -152,6 +154,36 @@ class Model:
         self.nonholonomic.append(constraint)
         return constraint
 
+    def add_contact(
+        self,
+        name: str,
+        body: str,
+        point: Any = (0.0, 0.0, 0.0),
+        radius: float = 0.0,
+        plane_point: Any = (0.0, 0.0, 0.0),
+        plane_normal: Any = None,
+        restitution: float = 0.0,
+        friction: float = 0.0,
+    ) -> PlaneContact:
+        """Add a unilateral contact of a sphere (a point if ``radius`` is 0) of ``body``
+        against a fixed plane (normal default: +y in a planar model, +z in a spatial one)."""
+        self._check_new_name(name)
+        where = f"model {self.name!r}, contact {name!r}"
+        if plane_normal is None:
+            plane_normal = (0.0, 1.0, 0.0) if self.kind == "planar" else (0.0, 0.0, 1.0)
+        contact = PlaneContact(
+            name,
+            body,
+            real_array(point, where, "point").reshape(-1),
+            float(real_array(radius, where, "radius", ())),
+            real_array(plane_point, where, "plane_point").reshape(-1),
+            real_array(plane_normal, where, "plane_normal").reshape(-1),
+            float(real_array(restitution, where, "restitution", ())),
+            float(real_array(friction, where, "friction", ())),
+        )
+        self.contacts.append(contact)
+        return contact
+
     def _add(self, table: dict, name: str, item: Any) -> None:
         self._check_new_name(name)
         table[name] = item
@@ -164,6 +196,7 @@ class Model:
         # dictionary look-ups first: building a 10,000-link chain stays O(n)
         taken = name in self.bodies or name in self.joints
         taken = taken or any(f.name == name for f in self.forces)
+        taken = taken or any(c.name == name for c in self.contacts)
         if taken or any(c.name == name for c in self.nonholonomic):
             raise ModelError(
                 f"model {self.name!r}: duplicate name {name!r}; give every body, joint, "

@@ -3,7 +3,7 @@
 Read from the :class:`~workbench.model.Model` itself rather than from a docstring, so what
 is shown is what the formalisms integrate: gravity; every body's mass, centre of mass and
 inertia; every joint's type, parents, location and axis (and drive); force elements;
-nonholonomic constraints. Each row is ``(element, quantity, value with unit)``.
+nonholonomic constraints and contacts. Each row is ``(element, quantity, value with unit)``.
 """
 
 from __future__ import annotations
@@ -58,6 +58,8 @@ def model_parameters(model: Model) -> list[Row]:
         rows += _force_rows(element, model, planar)
     for constraint in model.nonholonomic:
         rows += _nonholonomic_rows(constraint, planar)
+    for contact in model.contacts:
+        rows.append(_contact_row(contact, planar))
     return rows
 
 
@@ -140,6 +142,17 @@ def _nonholonomic_rows(constraint: Any, planar: bool) -> list[Row]:
                  f"no velocity of {vector(constraint.point, planar)} m along "
                  f"{vector(constraint.direction, planar)}")]  # fmt: skip
     return [(name, type(constraint).__name__, repr(constraint))]
+
+
+def _contact_row(contact: Any, planar: bool) -> Row:
+    shape = f"sphere r {number(contact.radius)} m" if contact.radius else "point"
+    return (
+        contact.name,
+        f"unilateral contact of {contact.body} with a plane",
+        f"{shape} at {vector(contact.point, planar)} m; plane through "
+        f"{vector(contact.plane_point, planar)} m, normal {vector(contact.plane_normal, planar)};"
+        f" restitution e {number(contact.restitution)}, friction mu {number(contact.friction)}",
+    )
 
 
 def _function_name(function: Any) -> str:

@@ -8,8 +8,8 @@ this order, so the first message is the most local one:
    triangle inequality of the principal moments), visual shapes;
 3. every joint: type (and its fit to a planar model), parent and child names, frames
    (finite, orthonormal rotations, planar frames in the x-y plane), axes, drive;
-4. every force element and nonholonomic constraint: names they refer to, finite
-   parameters, signs of stiffness, damping and radii;
+4. every force element, nonholonomic constraint and contact: names they refer to, finite
+   parameters, signs of stiffness, damping and radii, restitution in [0, 1];
 5. the topology: every body is the child of exactly one tree joint and reaches the
    ground through tree joints;
 6. point masses whose joint would let them spin with no rotational inertia.
@@ -36,6 +36,7 @@ from workbench.model.elements import (
     JointForce,
     JointSpringDamper,
     KnifeEdge,
+    PlaneContact,
     RollingDisk,
     RollingSphere,
     SpringDamper,
@@ -79,6 +80,8 @@ def validate_model(model: Model) -> None:
         _check_force(model, element)
     for constraint in model.nonholonomic:
         _check_nonholonomic(model, constraint)
+    for contact in model.contacts:
+        _check_contact(model, contact)
     _check_tree(model)
     _check_point_mass_joints(model)
 
@@ -468,6 +471,33 @@ def _check_nonholonomic(model: Model, constraint: Any) -> None:
                 f"{_where(model, what)}: in a planar model a knife edge's direction must lie "
                 f"in the x-y plane (got {direction.tolist()}); set its z component to 0"
             )
+
+
+def _check_contact(model: Model, contact: Any) -> None:
+    """A PlaneContact: a known body, finite geometry, a unit-able normal (in the x-y plane
+    of a planar model), radius >= 0, restitution in [0, 1], friction >= 0."""
+    what = f"contact {getattr(contact, 'name', contact)!r}"
+    if not isinstance(contact, PlaneContact):
+        raise ModelError(
+            f"{_where(model, what)}: {type(contact).__name__} is not a contact; use PlaneContact"
+        )
+    _known_body(model, what, "body", contact.body, allow_ground=False)
+    _finite_vector(model, what, "point", contact.point)
+    _finite_vector(model, what, "plane_point", contact.plane_point)
+    normal = _check_axis(model, what, "plane_normal", contact.plane_normal)
+    if model.kind == "planar" and abs(normal[2]) > 1e-6:
+        raise ModelError(
+            f"{_where(model, what)}: in a planar model the plane's normal must lie in the x-y "
+            f"plane (got {normal.tolist()}); set its z component to 0"
+        )
+    _check_nonnegative(model, what, "radius", contact.radius)
+    _check_nonnegative(model, what, "friction", contact.friction)
+    restitution = _finite_scalar(model, what, "restitution", contact.restitution)
+    if not 0.0 <= restitution <= 1.0:
+        raise ModelError(
+            f"{_where(model, what)}: restitution must be in [0, 1] (got {restitution}); "
+            "0 is a plastic impact, 1 an elastic one"
+        )
 
 
 # ---- topology ---------------------------------------------------------------------

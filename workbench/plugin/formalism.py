@@ -62,6 +62,7 @@ FEATURES = {
     "nonholonomic": "nonholonomic constraints (rolling, knife edge)",
     "rheonomic": "driven joints (prescribed motion)",
     "point-masses": "point masses",
+    "contacts": "unilateral contacts (PlaneContact)",
 }
 
 
@@ -76,6 +77,8 @@ def model_features(model: Model) -> set[str]:
         features.add("rheonomic")
     if any(b.point_mass for b in model.bodies.values()):
         features.add("point-masses")
+    if model.contacts:
+        features.add("contacts")
     return features
 
 

@@ -6,7 +6,10 @@ An integrator plugin subclasses :class:`Integrator`, registers with
 1. sets ``name``, ``summary`` and ``Options`` (frozen dataclass with defaults);
 2. sets ``accepts``: {form name: highest dae index accepted} — e.g. {"ode": 0},
    {"dae": 2} or {"mechanical": 3}; the runner pairs it only with equations offering one;
-3. optionally overrides :meth:`Integrator.incompatibility` to refuse equations it cannot
+3. sets ``contacts = True`` only if it integrates the unilateral contacts of
+   ``Equations.contacts`` (impacts, friction); a smooth method is never paired with a
+   model that has contacts (it would silently pass through the floor);
+   optionally overrides :meth:`Integrator.incompatibility` to refuse equations it cannot
    handle for a finer reason (e.g. a non-constant mass matrix), returning the reason;
 4. implements :meth:`Integrator.integrate` (task, trajectory) filling
    ``trajectory.y``, ``trajectory.times`` for the output times reached and the counts it
@@ -73,6 +76,10 @@ class Trajectory:
     t_reached: float = math.nan
     stats: SolverStats = field(default_factory=SolverStats)
     warnings: list[str] = field(default_factory=list)  # for the row's ``warnings``
+    # what a contact integrator measured between output times (workbench.execution.contact_metrics):
+    # "event_times" (impacts, stick/slip switches; s), "penetration_max" (m),
+    # "complementarity_max" (the worst residual of its contact problems)
+    contact: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -148,6 +155,7 @@ class Integrator:
     summary: ClassVar[str] = ""
     Options: ClassVar[type] = NoOptions
     accepts: ClassVar[dict[str, int]] = {}
+    contacts: ClassVar[bool] = False
 
     @classmethod
     def parse_options(cls, options: Any = None) -> Any:
@@ -189,6 +197,16 @@ class Integrator:
         """A reason these equations cannot be integrated by this method, or None."""
         return None
 
+    def contact_mismatch(self, equations: Equations) -> str | None:
+        """Why this method cannot take these equations' unilateral contacts, or None."""
+        if getattr(equations, "contacts", None) is not None and not self.contacts:
+            return (
+                f"a smooth method; model {equations.model.name!r} has unilateral contacts "
+                "(impacts, friction): use an integrator for contacts (docs/nonsmooth.md; "
+                "`workbench list integrators`)"
+            )
+        return None
+
     def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
         raise NotImplementedError
 
@@ -216,7 +234,7 @@ class Integrator:
                 f"integrator {self.name!r} accepts {self.accepts} but formalism "
                 f"{equations.formalism!r} offers {offered}"
             )
-        reason = self.incompatibility(equations, options)
+        reason = self.contact_mismatch(equations) or self.incompatibility(equations, options)
         if reason:
             raise PluginError(f"integrator {self.name!r}: {reason}")
         times = np.asarray(times, dtype=float)

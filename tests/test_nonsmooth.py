@@ -1,0 +1,206 @@
+"""Unilateral contacts, impacts and Coulomb friction (docs/nonsmooth.md): the contact form,
+the element's validation, and the three contact integrators against analytic laws."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from workbench.equations.initial import consistent_initial_state
+from workbench.errors import ModelError, PluginError
+from workbench.model import Model
+from workbench.plugin import registry
+from workbench.problems.ch5_contacts import (
+    BALL_DROP,
+    BALL_RADIUS,
+    BALL_RESTITUTION,
+    GRAVITY,
+    INCLINE,
+    bouncing_ball_impacts,
+)
+
+
+def _run(problem_name: str, formalism: str, integrator: str, rtol: float, **options):
+    problem = registry.get_problem(problem_name)()
+    equations = registry.get_formalism(formalism)().build(problem.model())
+    q0 = problem.initial_joint_coordinates()["free"]
+    v0 = problem.initial_joint_velocities().get("free", [0.0, 0.0, 0.0])
+    y0 = np.concatenate([q0, v0])
+    method = registry.get_integrator(integrator)()
+    trajectory = method.solve(equations, y0, None, problem.sample_times(), rtol, rtol * 1e-3,
+                              options or None)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    return problem, equations, trajectory
+
+
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+def test_contact_jacobians_are_the_gaps_derivatives(formalism):
+    """W_N v is dg_N/dt along q' = H v (central differences), for a tilted block's corners."""
+    problem = registry.get_problem("incline-block-slide")()
+    equations = registry.get_formalism(formalism)().build(problem.model())
+    contacts, mech = equations.contacts, equations.forms["mechanical"]
+    rng = np.random.default_rng(1)
+    q, v = rng.normal(size=3), rng.normal(size=3)
+    h = 1e-6
+    qdot = mech.qdot(0.0, q, v)[0].reshape(-1)
+    fd = (contacts.gaps(0.0, q + h * qdot)[0] - contacts.gaps(0.0, q - h * qdot)[0]) / (2 * h)
+    w_n = contacts.normal_jacobian(0.0, q)[0]
+    np.testing.assert_allclose(np.asarray(w_n) @ v, np.asarray(fd).reshape(-1), atol=1e-8)
+    # a pure slide along the slope (cos a, sin a) at the start: U_T = its speed, U_N = 0
+    q0 = np.array(problem.initial_joint_coordinates()["free"])
+    slide_rate = np.array([math.cos(INCLINE), math.sin(INCLINE), 0.0])  # (x, y, angle)'
+    kinematics = np.asarray(mech.kinematics(0.0, q0)[0])
+    slide = np.linalg.lstsq(kinematics, slide_rate, rcond=None)[0]
+    np.testing.assert_allclose(np.asarray(contacts.gaps(0.0, q0)[0]).reshape(-1), 0, atol=1e-15)
+    w_t = np.asarray(contacts.tangent_jacobian(0.0, q0)[0])
+    np.testing.assert_allclose(w_t @ slide, [1.0, 1.0], atol=1e-12)
+    w_n0 = np.asarray(contacts.normal_jacobian(0.0, q0)[0])
+    np.testing.assert_allclose(w_n0 @ slide, [0.0, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"restitution": 1.5}, "restitution must be in"),
+        ({"friction": -0.1}, "friction must be >= 0"),
+        ({"radius": -1.0}, "radius must be >= 0"),
+        ({"body": "nobody"}, "is not a body"),
+        ({"plane_normal": (0.0, 0.0, 1.0)}, "x-y plane"),
+    ],
+)
+def test_contact_validation_names_the_fault(change, message):
+    model = Model("m", kind="planar")
+    model.add_body("ball", 1.0, inertia=0.1)
+    model.add_joint("free", "planar", "ground", "ball")
+    model.add_contact("floor", **({"body": "ball"} | change))
+    with pytest.raises(ModelError, match=message):
+        model.validate()
+
+
+def test_smooth_integrators_refuse_contacts():
+    problem = registry.get_problem("bouncing-ball")()
+    equations = registry.get_formalism("minimal-ode")().build(problem.model())
+    with pytest.raises(PluginError, match="unilateral contacts"):
+        registry.get_integrator("scipy-dop853")().solve(
+            equations, np.array([0, 1.1, 0, 0, 0, 0.0]), None, np.array([0, 1.0]), 1e-6, 1e-9
+        )
+
+
+def _ball_height(equations, trajectory):
+    return trajectory.y[:, 1] - BALL_RADIUS  # both formalisms: q = (x, y, angle)
+
+
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+def test_event_driven_ball_follows_newtons_law(formalism):
+    """Impact times t_k and apex heights h0 e^(2k): the geometric series of Newton's law."""
+    problem, equations, trajectory = _run("bouncing-ball", formalism, "event-driven", 1e-10)
+    expected = bouncing_ball_impacts(problem.t_end, BALL_DROP, BALL_RESTITUTION)
+    events = np.array(trajectory.contact["event_times"])
+    assert events.size == expected.size == 4
+    np.testing.assert_allclose(events, expected, atol=1e-8)
+    # apex after the k-th impact: the speed leaving it is e^k v_1
+    v_1 = GRAVITY * expected[0]
+    for k, t_k in enumerate(expected[:-1], start=1):
+        apex_time = t_k + BALL_RESTITUTION**k * v_1 / GRAVITY
+        index = np.argmin(np.abs(trajectory.times - apex_time))
+        apex = BALL_DROP * BALL_RESTITUTION ** (2 * k)
+        flight = apex - GRAVITY * (trajectory.times[index] - apex_time) ** 2 / 2
+        assert _ball_height(equations, trajectory)[index] == pytest.approx(flight, abs=1e-7)
+    assert trajectory.contact["penetration_max"] < 1e-9
+
+
+def test_moreau_jean_ball_converges_to_newtons_law():
+    """First order in the step: impact times within a few steps, no energy gained."""
+    problem, _, trajectory = _run("bouncing-ball", "minimal-ode", "moreau-jean", 1e-6,
+                                  step=2e-4)  # fmt: skip
+    expected = bouncing_ball_impacts(problem.t_end, BALL_DROP, BALL_RESTITUTION)
+    events = np.array(trajectory.contact["event_times"])
+    assert events.size == expected.size
+    np.testing.assert_allclose(events, expected, atol=5e-3)
+    assert trajectory.contact["complementarity_max"] < 1e-6
+    # the apex after the first impact: h0 e^2 within the step's error
+    first_flight = trajectory.times > expected[0]
+    apex = trajectory.y[first_flight, 1].max() - BALL_RADIUS
+    assert apex == pytest.approx(BALL_DROP * BALL_RESTITUTION**2, abs=2e-3)
+
+
+def _slope_distance(trajectory):
+    start = trajectory.y[0, :2]
+    up = np.array([math.cos(INCLINE), math.sin(INCLINE)])
+    return -(trajectory.y[:, :2] - start) @ up
+
+
+@pytest.mark.parametrize("integrator", ["event-driven", "moreau-jean"])
+def test_block_slides_with_coulomb_acceleration(integrator):
+    """mu = 0.3 < tan 30 deg: s = g (sin a - mu cos a) t^2 / 2, the block stays on the slope."""
+    options = {"step": 1e-3} if integrator == "moreau-jean" else {}
+    problem, _, trajectory = _run("incline-block-slide", "absolute-dae", integrator, 1e-8,
+                                  **options)  # fmt: skip
+    acceleration = GRAVITY * (math.sin(INCLINE) - 0.3 * math.cos(INCLINE))
+    expected = acceleration * trajectory.times**2 / 2
+    tolerance = 1e-8 if integrator == "event-driven" else 1e-2
+    np.testing.assert_allclose(_slope_distance(trajectory), expected, atol=tolerance)
+    # no tipping (Moreau-Jean's first step turns the block by 1.3e-5 rad, then holds it)
+    np.testing.assert_allclose(trajectory.y[:, 2], INCLINE, atol=tolerance * 1e-2)
+
+
+@pytest.mark.parametrize("integrator", ["event-driven", "moreau-jean"])
+def test_block_stops_then_sticks(integrator):
+    """mu = 0.8 > tan 30 deg, launched at 2 m/s: decelerates at g (mu cos a - sin a), sticks
+    at t_s = 2 / that, and stays (the slip-to-stick transition)."""
+    options = {"step": 1e-3} if integrator == "moreau-jean" else {}
+    problem, _, trajectory = _run("incline-block-stop", "minimal-ode", integrator, 1e-8,
+                                  **options)  # fmt: skip
+    deceleration = GRAVITY * (0.8 * math.cos(INCLINE) - math.sin(INCLINE))
+    t_stop = 2.0 / deceleration
+    (stick,) = problem.contact_events()
+    assert stick == pytest.approx(t_stop)
+    events = np.array(trajectory.contact["event_times"])
+    assert np.min(np.abs(events - t_stop)) < (1e-8 if integrator == "event-driven" else 3e-3)
+    s = _slope_distance(trajectory)
+    after = trajectory.times >= t_stop + 0.01
+    np.testing.assert_allclose(s[after], 2.0 * t_stop / 2, atol=1e-7 if integrator ==
+                               "event-driven" else 5e-3)  # fmt: skip
+    before = trajectory.times < t_stop
+    tau = trajectory.times[before]
+    np.testing.assert_allclose(s[before], 2.0 * tau - deceleration * tau**2 / 2,
+                               atol=1e-8 if integrator == "event-driven" else 5e-3)  # fmt: skip
+
+
+def test_compliant_contact_states_its_stiffness_and_approaches_the_rigid_law():
+    """A penalty contact penetrates about m g / k at rest and rebounds with e."""
+    problem, _, trajectory = _run("incline-block-slide", "minimal-ode", "compliant-contact",
+                                  1e-6, stiffness=1e6)  # fmt: skip
+    acceleration = GRAVITY * (math.sin(INCLINE) - 0.3 * math.cos(INCLINE))
+    np.testing.assert_allclose(_slope_distance(trajectory), acceleration *
+                               trajectory.times**2 / 2, atol=1e-4)  # fmt: skip
+    static = GRAVITY * math.cos(INCLINE) / 1e6  # m g cos a / k shared by two corners (m = 1)
+    assert trajectory.contact["penetration_max"] < 2 * static
+    _, _, ball = _run("bouncing-ball", "minimal-ode", "compliant-contact", 1e-6, stiffness=1e6)
+    expected = bouncing_ball_impacts(2.5, BALL_DROP, BALL_RESTITUTION)
+    np.testing.assert_allclose(ball.contact["event_times"][:2], expected[:2], atol=1e-2)
+
+
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+def test_sliding_sphere_rolls_at_five_sevenths(formalism):
+    """Spatial Coulomb friction (two tangents): a sphere launched at v0 without spin slides
+    at -mu g until t_r = 2 v0 / (7 mu g), then rolls at 5/7 v0 (Moreau-Jean, step 1e-4 s)."""
+    problem = registry.get_problem("sliding-sphere")()
+    equations = registry.get_formalism(formalism)().build(problem.model())
+    state = consistent_initial_state(equations, problem)
+    method = registry.get_integrator("moreau-jean")()
+    times = problem.sample_times()
+    trajectory = method.solve(equations, state.y0(equations, "mechanical"), None, times, 1e-6,
+                              1e-9, {"step": 1e-4})  # fmt: skip
+    assert trajectory.success, trajectory.message
+    poses = np.stack([equations.observables.poses(t, y[: equations.nq])
+                      for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+    x, _, _, _ = problem.motion(times)
+    np.testing.assert_allclose(poses[:, 0, 0], x, atol=1e-3)
+    np.testing.assert_allclose(poses[:, 0, 2], 0.1, atol=1e-9)  # stays on the floor
+    speed = (poses[-1, 0, 0] - poses[-11, 0, 0]) / (times[-1] - times[-11])
+    assert speed == pytest.approx(5 / 7 * 2.0, rel=1e-4)
+    (stick,) = trajectory.contact["event_times"]
+    assert stick == pytest.approx(problem.roll_time(), abs=2e-3)

@@ -1,0 +1,88 @@
+"""The contact form: what a formalism hands an integrator for set-valued contact forces.
+
+Written once here, next to the smooth forms (:mod:`workbench.equations.forms`), from the
+symbolic body states every formalism gives :func:`~workbench.equations.forms.build_equations`,
+so every formalism that calls it offers the same contact data in its own coordinates.
+For each :class:`~workbench.model.PlaneContact` i, with unit plane normal n_i and tangents
+t_i (one in a planar model: n x e_z; two in a spatial one):
+
+* the gap g_N,i(t, q) = n_i . (centre - plane point) - radius (>= 0: no penetration);
+* the local velocities of the contact point, linear in v: U_N = W_N(t, q) v and
+  U_T = W_T(t, q) v (rows: one a contact; one a contact and tangent), so g_N' = U_N
+  (Glocker and Pfeiffer write W_N^T for our W_N);
+* the biases U_N' = W_N v' + wdot_N(t, q, v), U_T' = W_T v' + wdot_T, for the
+  acceleration-level problem between events;
+* the friction cone data: Coulomb's mu_i and Newton's restitution e_i of every contact.
+
+Generalized contact forces are W_N^T lambda_N + W_T^T lambda_T.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from workbench.equations.contract import ContactForm
+from workbench.mechanics.kinematics import BodyState
+from workbench.model import Model
+
+
+def plane_tangents(normal: np.ndarray, planar: bool) -> list[np.ndarray]:
+    """Unit tangents of a plane with unit ``normal``: n x e_z in a planar model (the x-y
+    plane's one direction), else two orthonormal ones with t1 x t2 = n."""
+    if planar:
+        return [np.array([normal[1], -normal[0], 0.0])]
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    first = np.cross(helper, normal)
+    first /= np.linalg.norm(first)
+    return [first, np.cross(normal, first)]
+
+
+def build_contact_form(
+    model: Model,
+    t: Any,
+    q: Any,
+    v: Any,
+    qdot: Any,
+    bodies: dict[str, BodyState],
+    hot: Callable[[str, list, list], Any],
+) -> ContactForm | None:
+    """The contact form of ``model`` in the coordinates (t, q, v) with q' = ``qdot``;
+    None without contacts. ``hot`` makes the numeric functions (the forms' compiler)."""
+    if not model.contacts:
+        return None
+    planar = model.kind == "planar"
+    gaps, normal_velocity, tangent_velocity = [], [], []
+    for contact in model.contacts:
+        body = bodies[contact.body]
+        normal = np.asarray(contact.plane_normal, dtype=float)
+        normal = normal / np.linalg.norm(normal)
+        centre = body.point(np.asarray(contact.point, dtype=float))
+        gaps.append(ca.dot(ca.DM(normal), centre - ca.DM(contact.plane_point)) - contact.radius)
+        # velocity of the material point touching the plane: centre - radius n
+        arm = ca.mtimes(body.rotation, ca.DM(contact.point)) - contact.radius * ca.DM(normal)
+        velocity = body.velocity + ca.cross(body.angular_velocity, arm)
+        normal_velocity.append(ca.dot(ca.DM(normal), velocity))
+        tangent_velocity += [ca.dot(ca.DM(t_k), velocity) for t_k in plane_tangents(normal, planar)]
+    g_n, u_n, u_t = ca.vertcat(*gaps), ca.vertcat(*normal_velocity), ca.vertcat(*tangent_velocity)
+    zero_v = ca.DM.zeros(v.numel())
+    w_n = ca.substitute(ca.jacobian(u_n, v), v, zero_v)
+    w_t = ca.substitute(ca.jacobian(u_t, v), v, zero_v)
+
+    def bias(u: Any) -> Any:  # d/dt of W v at fixed v: dU/dq q' + dU/dt
+        return ca.mtimes(ca.jacobian(u, q), qdot) + ca.jacobian(u, t)
+
+    return ContactForm(
+        names=[c.name for c in model.contacts],
+        restitution=np.array([c.restitution for c in model.contacts]),
+        friction=np.array([c.friction for c in model.contacts]),
+        n_tangent=1 if planar else 2,
+        gaps=hot("contact_gaps", [t, q], [g_n]),
+        normal_jacobian=hot("contact_W_N", [t, q], [w_n]),
+        tangent_jacobian=hot("contact_W_T", [t, q], [w_t]),
+        normal_bias=hot("contact_wdot_N", [t, q, v], [bias(u_n)]),
+        tangent_bias=hot("contact_wdot_T", [t, q, v], [bias(u_t)]),
+    )
