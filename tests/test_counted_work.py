@@ -93,3 +93,21 @@ def test_the_report_ranks_by_counted_work_with_its_interval() -> None:
     apart = decide(runs[runs["formalism"] != "b"], 4.0, cost.column)
     assert apart.margin == pytest.approx(3.0) and not apart.is_tie
     assert np.isfinite(apart.high)
+
+
+def test_timing_a_unit_cost_under_compile_auto_neither_counts_nor_compiles() -> None:
+    """compile=auto counts a function's VM calls to decide when compiling repays: the
+    timing batches are no calls of the run (they once were, and could set off a compile
+    inside the measurement)."""
+    import casadi as ca
+
+    from workbench.equations.compiled import Compiler
+    from workbench.equations.evaluate import dense_function
+
+    x = ca.SX.sym("x", 4)
+    fast = dense_function("f", [x], [ca.sin(x) * ca.cos(x)], compiler=Compiler(mode="auto"))
+    fast.into(np.ones(4))
+    state = (fast.n_calls, fast.vm_calls, fast.calls_left, fast.evaluated)
+    low, high = fast.cpu_per_call()
+    assert (fast.n_calls, fast.vm_calls, fast.calls_left, fast.evaluated) == state
+    assert 0 < low <= high

@@ -133,12 +133,12 @@ def _joined(form: str, kept_t: list[np.ndarray], kept_y: list[np.ndarray], chart
     times = np.concatenate(kept_t) if kept_t else np.zeros(0)
     if not kept_y:
         return ChartedTrajectory(form, times, np.atleast_2d(last.y), last.success, last.message,
-                                 last.t_reached, stats, list(last.warnings), charts,
-                                 switches)  # fmt: skip
+                                 last.t_reached, stats, list(last.warnings),
+                                 charts=charts, switches=switches)  # fmt: skip
     t_reached = last.t_reached if not last.success else float(times[-1]) if times.size else math.nan
     return ChartedTrajectory(
         form, times, np.concatenate(kept_y), last.success, last.message, t_reached, stats,
-        list(last.warnings), charts, switches,
+        list(last.warnings), charts=charts, switches=switches,
     )  # fmt: skip
 
 
