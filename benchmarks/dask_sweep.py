@@ -28,6 +28,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs.store import load_results
 from workbench.runs.sweep import load_spec, run_sweep
@@ -44,7 +45,7 @@ def computed(frame: pd.DataFrame) -> pd.DataFrame:
         for c in frame.columns
         if not (
             c.endswith("_s")
-            or c in {"equations_cached", "log", *TIMING_COLUMNS}
+            or c in {"equations_cached", "log", *TIMING_COLUMNS, *WORK_COLUMNS}
             or c in PLACE_COLUMNS
         )
     ]

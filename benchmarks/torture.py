@@ -116,9 +116,11 @@ def kill_tree(pid: int) -> None:
 
 
 def timing_column(name: str) -> bool:
+    from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
     from workbench.execution.timing import TIMING_COLUMNS
 
-    return name.endswith("_s") or name in {"equations_cached", "log_s", *TIMING_COLUMNS}
+    named = {"equations_cached", "log_s", *TIMING_COLUMNS, *WORK_COLUMNS}
+    return name.endswith("_s") or name in named
 
 
 def comparable(out: Path) -> pd.DataFrame:

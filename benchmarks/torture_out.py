@@ -278,12 +278,13 @@ class Logged:
 
 
 def comparable(out: Path) -> pd.DataFrame:
+    from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
     from workbench.execution.timing import TIMING_COLUMNS
     from workbench.runs.store import load_results
 
     frame = load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-    timings = {"equations_cached", "workers", "load_avg", "log", *TIMING_COLUMNS}
+    timings = {"equations_cached", "workers", "load_avg", "log", *TIMING_COLUMNS, *WORK_COLUMNS}
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from tests.test_sweep import spec_text
+from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
 from workbench.execution.run_log import raw_path
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs import store
@@ -136,7 +137,7 @@ def test_a_small_sweep_gives_the_local_pools_rows(
     assert list(rows[0].index) == list(rows[1].index)
     # where a crashed run was is read from its progress file, which it may die before
     # writing: the stage of a crash is not part of the result
-    timings = {"equations_cached", "stage", "t_reached", *TIMING_COLUMNS}
+    timings = {"equations_cached", "stage", "t_reached", *TIMING_COLUMNS, *WORK_COLUMNS}
     columns = [c for c in rows[0].columns if not c.endswith("_s") and c not in timings]
     different = [
         c

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from tests.test_sweep import spec_text
+from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs import store
 
@@ -109,7 +110,7 @@ def rows(out: Path) -> int:
 def comparable(out: Path):
     frame = store.load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-    timings = {"equations_cached", "workers", "load_avg", *TIMING_COLUMNS}
+    timings = {"equations_cached", "workers", "load_avg", *TIMING_COLUMNS, *WORK_COLUMNS}
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 
 

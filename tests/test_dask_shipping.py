@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from tests.test_local_plugins import HELPER, spec_text
+from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.plugin import local_modules
 from workbench.plugin.registry import REGISTRY
@@ -59,7 +60,7 @@ def sweep(folder: Path, out: Path, scheduler: str | None = None) -> None:
 def comparable(out: Path):
     frame = store.load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-    timings = {"equations_cached", *TIMING_COLUMNS}
+    timings = {"equations_cached", *TIMING_COLUMNS, *WORK_COLUMNS}
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 
 
