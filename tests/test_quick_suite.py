@@ -125,7 +125,8 @@ def test_the_shipped_tables_estimate_the_quick_suite_short_and_the_full_one_long
     """The quick suite's own measured costs cover every one of its runs; the full suite is
     estimated from its own table beyond the five minutes that warn."""
     tables = shipped_tables()
-    assert sorted(t.name for t in tables) == ["full.costs.json", "quick.costs.json"]
+    shipped = {"full.costs.json", "quick.costs.json", "nonsmooth.costs.json"}
+    assert shipped <= {t.name for t in tables}
     for shipped in tables:
         table = json.loads(shipped.read_text("utf-8"))
         assert table["measured"] and table["overhead_s"] >= 0
