@@ -146,7 +146,8 @@ def test_suites_are_found_by_name_and_unknown_ones_listed():
     assert {r.problem for r in iftomm.runs} == {"iftomm-a01", "iftomm-a02", "iftomm-a03",
                                                 "iftomm-a04", "iftomm-a05"}  # fmt: skip
     assert load_spec().source == load_spec("quick").source
-    with pytest.raises(ConfigError, match="unknown sweep suite 'nope'.*full, iftomm, ivp, nonsmooth, quick"):
+    listed = "unknown sweep suite 'nope'.*full, iftomm, ivp, nonsmooth, quick"
+    with pytest.raises(ConfigError, match=listed):
         load_spec("nope")
     with pytest.raises(ConfigError, match="'default' is now called 'full'.*workbench sweep full"):
         load_spec("default")
