@@ -39,6 +39,7 @@ from workbench.files import check_no_links, make_dirs, remove_file
 from workbench.plugin import registry
 from workbench.plugin.local_modules import import_plugin_modules, imported_from_file
 from workbench.runs import store
+from workbench.runs.parent_watch import exit_with_parent
 from workbench.runs.unfinished import (
     RETRIES,
     died_message,
@@ -156,45 +157,6 @@ def merge_run_recordings(recorder: Any, out: Path) -> tuple[Path | None, bool]:
         for file in files:  # in the merged file now (synced to disk by the merge)
             remove_file(file, out)
     return path, True
-
-
-def exit_with_parent(parent_pid: int | None = None, scratch: Path | None = None) -> None:
-    """Exit when the process that started this one dies (no orphan keeps running a run),
-    removing ``scratch``, a directory of this process's own, first.
-
-    Watched through multiprocessing's parent sentinel, a pipe whose other end only the
-    parent holds: it reads as ready once the parent is gone, even if that happened while
-    this process was still importing (a pid read with getppid then would already be
-    init's), and whatever the start method (a forkserver child's parent is the
-    forkserver, but the pipe comes from the process that asked for it). A process not
-    started by multiprocessing (a Dask worker's child) polls its parent's pid instead:
-    ``parent_pid`` as its parent passed it, or getppid.
-    """
-    import shutil
-    import threading
-    from multiprocessing.connection import wait
-
-    def leave() -> None:
-        if scratch is not None:
-            shutil.rmtree(scratch, ignore_errors=True)
-        os._exit(1)
-
-    parent = multiprocessing.parent_process()
-    if parent is None:  # not started by multiprocessing: poll the parent pid
-        ppid = os.getppid() if parent_pid is None else parent_pid
-
-        def watch() -> None:
-            while os.getppid() == ppid:
-                time.sleep(0.5)
-            leave()
-
-    else:
-
-        def watch() -> None:
-            wait([parent.sentinel])
-            leave()
-
-    threading.Thread(target=watch, daemon=True).start()
 
 
 @dataclass

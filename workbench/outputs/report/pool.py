@@ -21,7 +21,7 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-from workbench.runs.local_pool import exit_with_parent
+from workbench.runs.parent_watch import exit_with_parent
 
 
 def figure_jobs(n_problems: int) -> int:
