@@ -40,7 +40,12 @@ def test_a_run_expecting_many_evaluations_compiles_at_the_first_call():
     assert "in C ode_rhs" in equations.compiler.summary()
 
 
-def test_a_short_run_stays_in_the_vm_and_compiles_once_its_calls_repay(monkeypatch):
+def test_a_short_run_stays_in_the_vm_and_the_next_run_compiles_once_its_calls_repay(
+    monkeypatch,
+):
+    """Rent or buy across runs, never within one: a switch mid-run changed the run's steps
+    and its timed repeats then differed from it ("not reproducible" on a quick-suite row:
+    iftomm-a05 absolute-dae CVODE BDF at 1e-4, n_rhs 1745 then 1748)."""
     monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 50.0)
     monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 50)
     expected = chain("none").forms["ode"].rhs(*ARGS)[0]
@@ -50,16 +55,15 @@ def test_a_short_run_stays_in_the_vm_and_compiles_once_its_calls_repay(monkeypat
     rhs.into(*ARGS)
     assert not rhs.compile() and rhs.calls_left == 49
     assert "1 function in the VM" in equations.compiler.summary()
-    kept = rhs.into  # a caller (an integrator) holds this across the switch
-    for _ in range(49):
+    kept = rhs.into  # an integrator holds this for its run
+    for _ in range(60):
         kept(*ARGS)
-    assert not rhs.compile() and rhs.calls_left == 0
-    value = kept(*ARGS)[0].copy()  # the 51st call compiles and evaluates C
-    assert rhs.compile()
-    assert equations.compiler.in_c == {"ode_rhs": "compiled after 51 calls in the VM"}
+    assert not rhs.compile() and rhs.vm_calls == 61  # repaid, yet the run stays in the VM
+    equations.compiler.expect(10)  # the next run of these equations in this worker
+    assert rhs.compile() and equations.compiler.waiting == []
+    assert equations.compiler.in_c == {"ode_rhs": "compiled after 61 calls in the VM"}
+    value = rhs.into(*ARGS)[0]
     np.testing.assert_allclose(value, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
-    np.testing.assert_allclose(kept(*ARGS)[0], expected, rtol=1e-12, atol=1e-15)
-    assert equations.compiler.waiting == []
 
 
 def test_a_later_run_expecting_more_compiles_what_repays(monkeypatch):

@@ -348,10 +348,14 @@ class Compiler:
 
     def expect(self, calls: float) -> None:
         """compile=auto: a run is about to make about ``calls`` evaluations; a function
-        still in the VM that they would repay is compiled now."""
+        still in the VM that they, or the calls it made in earlier runs, would repay is
+        compiled now (between runs, never within one)."""
         self.expected_calls = calls
         for fast in list(self.waiting):
-            fast.reconsider(calls, "for a run expecting more calls")
+            if fast.calls_left < 0:  # earlier runs' calls repaid it
+                fast.reconsider(fast.vm_calls, f"after {fast.vm_calls:,} calls in the VM")
+            else:
+                fast.reconsider(calls, "for a run expecting more calls")
 
     def decide(
         self, function: ca.Function, vm_seconds: float, calls: float

@@ -165,22 +165,16 @@ class FastFunction:
             self.calls_left = repay - self.vm_calls
 
     def _watch_vm_calls(self) -> None:
-        """compile=auto: evaluate in the VM, counting calls; reconsider when they repay."""
+        """compile=auto: evaluate in the VM, counting calls; once they repay a compile, the
+        next run starts in C (:meth:`Compiler.expect`). Never in the middle of a run: a
+        switch there changed the run's steps, and its repeats then differed from it (a row
+        warned "not reproducible" for the compile's sake)."""
         vm_evaluate = self._evaluate
 
-        def counting_evaluate() -> None:  # an ``into`` kept by a caller may still call it
+        def counting_evaluate() -> None:
             self.calls_left -= 1
-            if self.calls_left >= 0:
-                self.vm_calls += 1
-                vm_evaluate()
-                return
-            if self.evaluated is self.function:  # its calls have repaid a compile
-                self.reconsider(self.vm_calls + 1, f"after {self.vm_calls + 1:,} calls in the VM")
-            if self.evaluated is self.function:  # still not: the code is larger than assumed
-                self.vm_calls += 1
-                vm_evaluate()
-            else:
-                self._evaluate()
+            self.vm_calls += 1
+            vm_evaluate()
 
         self._evaluate = counting_evaluate
         self.into = self._specialized_into()  # type: ignore[method-assign]
