@@ -111,3 +111,27 @@ def test_timing_a_unit_cost_under_compile_auto_neither_counts_nor_compiles() -> 
     low, high = fast.cpu_per_call()
     assert (fast.n_calls, fast.vm_calls, fast.calls_left, fast.evaluated) == state
     assert 0 < low <= high
+
+
+def test_a_unit_cost_is_timed_again_once_compile_auto_moved_its_function_to_c(
+    monkeypatch,
+) -> None:
+    """A worker's first runs time the right-hand side in the VM; once compile=auto has
+    compiled it (between runs), the later runs' counted work must weight their calls with
+    the C call's cost, not the VM's."""
+    from tests.test_compile_auto import ARGS, chain
+    from workbench.equations import compile_policy
+
+    monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 50.0)
+    monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 50)
+    equations = chain("auto")
+    equations.compiler.expect(10)
+    rhs = equations.forms["ode"].rhs
+    for _ in range(60):
+        rhs.into(*ARGS)
+    in_vm = counted_work.unit_cost(equations, "ode", "rhs")
+    assert counted_work.unit_cost(equations, "ode", "rhs") is in_vm  # kept while in the VM
+    equations.compiler.expect(10)  # the next run starts in C
+    assert rhs.compile()
+    in_c = counted_work.unit_cost(equations, "ode", "rhs")
+    assert in_c is not in_vm and 0 < in_c[0] <= in_c[1]
