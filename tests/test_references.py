@@ -38,7 +38,12 @@ CHEAP = ["double-point-pendulum", "slider-crank", "torque-free-gyro", "rotating-
 
 
 def problem_names() -> list[str]:
-    return [info.name for info in list_plugins("problem") if info.plugin is not None]
+    """The catalog's problems (a test module may have registered its own beside them)."""
+    return [
+        info.name
+        for info in list_plugins("problem")
+        if info.plugin is not None and info.module.startswith("workbench.problems")
+    ]
 
 
 def without_analytic_reference() -> list[str]:
