@@ -204,3 +204,60 @@ def test_sliding_sphere_rolls_at_five_sevenths(formalism):
     assert speed == pytest.approx(5 / 7 * 2.0, rel=1e-4)
     (stick,) = trajectory.contact["event_times"]
     assert stick == pytest.approx(problem.roll_time(), abs=2e-3)
+
+
+def _sphere_run(formalism: str, spin_x: float = 0.0):
+    """The sliding sphere by the event-driven method, optionally with side spin about x."""
+    base = registry.get_problem("sliding-sphere")
+
+    class Spun(base):
+        def initial_joint_velocities(self):
+            return {"free": [2.0, 0.0, 0.0, spin_x, 0.0, 0.0]}
+
+    problem = Spun()
+    equations = registry.get_formalism(formalism)().build(problem.model())
+    state = consistent_initial_state(equations, problem)
+    times = problem.sample_times()
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, state.y0(equations, "mechanical"), None, times, 1e-10, 1e-13
+    )
+    assert trajectory.success, trajectory.message
+    poses = np.stack([equations.observables.poses(t, y[: equations.nq])
+                      for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+    return problem, times, poses[:, 0], trajectory
+
+
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+def test_event_driven_sphere_rolls_at_five_sevenths(formalism):
+    """Spatial stick/slip (two tangents): the slip-to-stick event at t_r = 2 v0 / (7 mu g)
+    to round-off, then rolling at 5/7 v0; the pose follows the analytic reference."""
+    problem, times, pose, trajectory = _sphere_run(formalism)
+    (stick,) = trajectory.contact["event_times"]
+    assert stick == pytest.approx(problem.roll_time(), abs=1e-9)
+    reference = problem.reference().poses(times)[:, 0]
+    np.testing.assert_allclose(pose[:, :3], reference[:, :3], atol=1e-9)
+    sign = np.sign(np.sum(pose[:, 3:] * reference[:, 3:], axis=1, keepdims=True))
+    np.testing.assert_allclose(sign * pose[:, 3:], reference[:, 3:], atol=1e-8)
+    assert trajectory.contact["penetration_max"] < 1e-12
+
+
+def test_event_driven_sphere_with_side_spin_slides_along_its_slip():
+    """With side spin the contact point slips along u0 = v0 + w0 x (-r e_z), not along v0:
+    Coulomb's force -mu m g u0/|u0| keeps that direction (u' = -7/2 mu g u0/|u0|), so the
+    slip stops at t_r = 2 |u0| / (7 mu g) and the centre leaves at v0 - mu g t_r u0/|u0|
+    (a curved path: the friction disc, not two boxes, and the direction, not its signs)."""
+    mu, r, spin = 0.2, 0.1, 10.0
+    problem, times, pose, trajectory = _sphere_run("minimal-ode", spin_x=spin)
+    u0 = np.array([2.0, spin * r, 0.0])  # (2, 0, 0) + (spin, 0, 0) x (0, 0, -r)
+    t_r = 2 * np.linalg.norm(u0) / (7 * mu * GRAVITY)
+    (stick,) = trajectory.contact["event_times"]
+    assert stick == pytest.approx(t_r, abs=1e-9)
+    final = np.array([2.0, 0.0, 0.0]) - mu * GRAVITY * t_r * u0 / np.linalg.norm(u0)
+    velocity = (pose[-1, :3] - pose[-11, :3]) / (times[-1] - times[-11])
+    np.testing.assert_allclose(velocity, final, atol=1e-8)
+    sliding = times <= t_r
+    path = (
+        np.array([2.0, 0.0, 0.0]) * times[sliding, None]
+        - mu * GRAVITY * u0 / np.linalg.norm(u0) * times[sliding, None] ** 2 / 2
+    )
+    np.testing.assert_allclose(pose[sliding, :3] - pose[0, :3], path, atol=1e-9)
