@@ -46,7 +46,12 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import Equations, SampledObservables
-from workbench.execution.audit import MEASURE, audit_warnings, health_audit
+from workbench.execution.audit import (
+    MEASURE,
+    at_reference_accuracy,
+    audit_warnings,
+    health_audit,
+)
 from workbench.execution.contact_metrics import contact_metrics
 from workbench.execution.references import ReferencePoses
 from workbench.execution.row_schema import SERIES_COLUMNS
@@ -186,6 +191,9 @@ def trajectory_metrics(
         notes.append("nothing was integrated: no error, drift or energy was measured")
     elif not complete:
         notes.append(f"maxima over the part reached, t <= {float(times[-1]):g} s")
+    at_accuracy = at_reference_accuracy(row, reference.accuracy)
+    if at_accuracy:
+        notes.append(at_accuracy)
     row["notes"] = "; ".join(notes)
 
     audit = health_audit(equations, times, y[:n], sampled.rotations, rtol, charts)
