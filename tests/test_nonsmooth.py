@@ -16,6 +16,9 @@ from workbench.problems.ch5_contacts import (
     BALL_DROP,
     BALL_RADIUS,
     BALL_RESTITUTION,
+    BLOCK_HALF_HEIGHT,
+    BLOCK_HALF_LENGTH,
+    BLOCK_MASS,
     GRAVITY,
     INCLINE,
     bouncing_ball_impacts,
@@ -261,3 +264,31 @@ def test_event_driven_sphere_with_side_spin_slides_along_its_slip():
         - mu * GRAVITY * u0 / np.linalg.norm(u0) * times[sliding, None] ** 2 / 2
     )
     np.testing.assert_allclose(pose[sliding, :3] - pose[0, :3], path, atol=1e-9)
+
+
+def test_penetration_is_a_time_series_in_the_row_and_the_recording(tmp_path):
+    """A compliant block (k = 1e6 N/m) slides on its two corners; friction mu N at the base,
+    h below the centre, loads the front corner by mu N h / (2 L) more (L: half length), so
+    it sinks N (1 + mu h / L) / (2 k): the series ``penetration`` says so at every sample
+    after the first settling, its max is the row's at most; the recording draws it beside the drift; a smooth problem's series has
+    no such column."""
+    import rerun as rr
+
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+    from workbench.outputs.recording import RerunSink
+
+    sink = RerunSink()
+    spec = normalized_spec(RunSpec("incline-block-slide", "minimal-ode", "compliant-contact",
+                                   1e-6, 1e-9))  # fmt: skip
+    result = execute_run(spec, sink=sink)
+    series, row = result.series, result.row
+    depth = series["penetration"].to_numpy()
+    normal = BLOCK_MASS * GRAVITY * math.cos(INCLINE)
+    front = normal * (1 + 0.3 * BLOCK_HALF_HEIGHT / BLOCK_HALF_LENGTH) / (2 * 1e6)
+    settled = series["t"].to_numpy() > 0.1
+    np.testing.assert_allclose(depth[settled], front, rtol=1e-3)
+    assert depth.max() <= row["penetration_max"]
+    paths = {chunk.entity_path for chunk in rr.chunk.RrdReader(sink.save(tmp_path)).stream()}
+    assert any(path.endswith("/series/penetration") for path in paths)
+    smooth = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-8))
+    assert "penetration" not in smooth.series.columns

@@ -124,9 +124,10 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
         f"{base}/bodies/arm/joints/hinge",
         f"{base}/bodies/arm/joints/slide",
         f"{base}/bodies/tip/joints/slide",
-    } | {f"{base}/series/{q}" for q in SERIES_QUANTITIES if q != "drift_nh"}
+    } | {f"{base}/series/{q}" for q in SERIES_QUANTITIES if q not in ("drift_nh", "penetration")}
     assert expected <= set(chunks)
-    assert f"{base}/series/drift_nh" not in chunks
+    assert f"{base}/series/drift_nh" not in chunks  # all NaN: not drawn
+    assert f"{base}/series/penetration" not in chunks  # not a contact model's: no column
 
     for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err"):
         logged = column(chunks[f"{base}/series/{quantity}"], "Scalars:scalars")

@@ -52,7 +52,7 @@ from workbench.execution.audit import (
     audit_warnings,
     health_audit,
 )
-from workbench.execution.contact_metrics import contact_metrics
+from workbench.execution.contact_metrics import contact_metrics, penetration_series
 from workbench.execution.references import ReferencePoses
 from workbench.execution.row_schema import SERIES_COLUMNS
 from workbench.numerics.geometry import length_scale, pose_error
@@ -220,6 +220,8 @@ def trajectory_metrics(
         },
         columns=SERIES_COLUMNS,
     )
+    if getattr(equations, "contacts", None) is not None:  # a contact model's own series
+        series["penetration"] = penetration_series(equations, times, y[:n])
     return row, series
 
 

@@ -13,7 +13,8 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/bodies/<body>/joints/<joint> the joint's frame on that body (parent P or child C)
     <run>/ground/joints/<joint>        a joint frame fixed on the ground
     <run>/series/<quantity>            Scalars on ``sim_time``: drift_pos, drift_vel,
-                                       drift_nh, energy_err, ref_err
+                                       drift_nh, energy_err, ref_err, penetration (m; a
+                                       contact model's deepest penetration)
 
 and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
 
@@ -58,7 +59,9 @@ import pandas as pd
 
 from workbench.files import atomic_write
 
-SERIES_QUANTITIES: tuple[str, ...] = ("drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err")
+SERIES_QUANTITIES: tuple[str, ...] = (
+    "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err", "penetration",
+)  # fmt: skip
 TIMELINE = "sim_time"
 APPLICATION_ID = "mbs-workbench"
 RECORDING_FILE = "recording.rrd"
