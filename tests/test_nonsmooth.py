@@ -270,8 +270,8 @@ def test_penetration_is_a_time_series_in_the_row_and_the_recording(tmp_path):
     """A compliant block (k = 1e6 N/m) slides on its two corners; friction mu N at the base,
     h below the centre, loads the front corner by mu N h / (2 L) more (L: half length), so
     it sinks N (1 + mu h / L) / (2 k): the series ``penetration`` says so at every sample
-    after the first settling, its max is the row's at most; the recording draws it beside the drift; a smooth problem's series has
-    no such column."""
+    after the first settling, its max is the row's at most; the recording draws it beside
+    the drift; a smooth problem's series has no such column."""
     import rerun as rr
 
     from workbench.execution.execute import RunSpec, execute_run, normalized_spec

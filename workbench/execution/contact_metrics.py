@@ -50,8 +50,8 @@ def penetration_series(equations: Any, times: np.ndarray, y: np.ndarray) -> np.n
     if contacts is None:
         return np.zeros(0)
     nq = equations.nq
-    gaps = [contacts.gaps(t, s[:nq])[0].reshape(-1)
-            for t, s in zip(np.asarray(times, dtype=float), np.atleast_2d(y), strict=False)]  # fmt: skip
+    samples = zip(np.asarray(times, dtype=float), np.atleast_2d(y), strict=False)
+    gaps = [contacts.gaps(t, s[:nq])[0].reshape(-1) for t, s in samples]
     return np.array([max(0.0, float(np.max(-g, initial=0.0))) for g in gaps])
 
 
