@@ -292,3 +292,32 @@ def test_penetration_is_a_time_series_in_the_row_and_the_recording(tmp_path):
     assert any(path.endswith("/series/penetration") for path in paths)
     smooth = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-8))
     assert "penetration" not in smooth.series.columns
+
+
+@pytest.mark.parametrize(("mu", "rolls"), [(0.5, True), (0.1, False)])
+def test_event_driven_sphere_on_a_spatial_incline_rolls_or_slips(mu, rolls):
+    """A sphere released on a 30 deg plane: rolling needs the friction 2/7 m g sin a, in
+    the disc iff mu >= 2/7 tan a (0.165). It then rolls at 5/7 g sin a (the contact sticks:
+    the disc holds it); else it starts slipping, against the sticking force, at
+    g (sin a - mu cos a). Both to round-off, on the plane throughout."""
+    from workbench.model import Shape
+
+    alpha, r = math.radians(30.0), 0.1
+    model = Model("sphere-on-incline", kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
+    model.add_body("sphere", 1.0, inertia=[0.4 * r * r] * 3, shapes=[Shape("sphere", (r,))])
+    model.add_joint("free", "free", "ground", "sphere")
+    normal = np.array([-math.sin(alpha), 0.0, math.cos(alpha)])
+    model.add_contact("plane", "sphere", radius=r, plane_normal=tuple(normal), friction=mu)
+    equations = registry.get_formalism("minimal-ode")().build(model)
+    y0 = np.concatenate([r * normal, [1.0, 0.0, 0.0, 0.0], np.zeros(6)])
+    times = np.linspace(0.0, 1.0, 11)
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, y0, None, times, 1e-10, 1e-13)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    centre = np.array([equations.observables.poses(t, y[: equations.nq])[0, :3]
+                       for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+    down = np.array([-math.cos(alpha), 0.0, -math.sin(alpha)])
+    rate = 5 / 7 * math.sin(alpha) if rolls else math.sin(alpha) - mu * math.cos(alpha)
+    np.testing.assert_allclose((centre - centre[0]) @ down, rate * GRAVITY * times**2 / 2,
+                               atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose((centre - centre[0]) @ normal, 0.0, atol=1e-12)
