@@ -294,21 +294,63 @@ def test_penetration_is_a_time_series_in_the_row_and_the_recording(tmp_path):
     assert "penetration" not in smooth.series.columns
 
 
+def _sphere_on_incline(mu: float, alpha: float, r: float = 0.1):
+    from workbench.model import Shape
+
+    model = Model("sphere-on-incline", kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
+    model.add_body("sphere", 1.0, inertia=[0.4 * r * r] * 3, shapes=[Shape("sphere", (r,))])
+    model.add_joint("free", "free", "ground", "sphere")
+    normal = np.array([-math.sin(alpha), 0.0, math.cos(alpha)])
+    model.add_contact("plane", "sphere", radius=r, plane_normal=tuple(normal), friction=mu)
+    return registry.get_formalism("minimal-ode")().build(model), normal
+
+
+def test_event_driven_slip_that_turns_follows_coulombs_disc():
+    """A sphere thrown across a 30 deg incline (mu = 0.3): gravity turns its slip u downhill
+    while friction opposes it, u' = g sin(a) e_down - 7/2 mu g cos(a) u/|u| (solved here by
+    SciPy to 1e-12); the slip turns past 60 degrees (a new phase) and stops at that law's
+    t_s, after which the sphere rolls at 5/7 g sin a. A frozen slip direction or a friction
+    pyramid misses t_s by tens of ms (Moreau-Jean's pyramid: 0.224 s against 0.321 s)."""
+    from scipy.integrate import solve_ivp
+
+    mu, alpha, across = 0.3, math.radians(30.0), 2.0
+    equations, normal = _sphere_on_incline(mu, alpha)
+    y0 = np.concatenate([0.1 * normal, [1.0, 0.0, 0.0, 0.0], [0.0, across, 0.0], np.zeros(3)])
+    times = np.linspace(0.0, 1.0, 101)
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, y0, None, times, 1e-10, 1e-13)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    g_t, k = GRAVITY * math.sin(alpha), 3.5 * mu * GRAVITY * math.cos(alpha)
+
+    def slip(t, u):  # (down, across) components of the contact point's slip
+        return np.array([g_t, 0.0]) - k * u / np.linalg.norm(u)
+
+    stops = lambda t, u: np.linalg.norm(u) - 1e-10  # noqa: E731
+    stops.terminal = True
+    law = solve_ivp(slip, (0.0, 1.0), [0.0, across], rtol=1e-12, atol=1e-14, events=stops)
+    (t_s,) = law.t_events[0]
+    events = trajectory.contact["event_times"]
+    assert len(events) == 2 and events[-1] == pytest.approx(t_s, abs=1e-7)  # turn, stick
+    down = np.array([-math.cos(alpha), 0.0, -math.sin(alpha)])
+    side = np.array([0.0, 1.0, 0.0])
+    # the centre at t_s: v0 + g_t e_down t_s - mu g cos(a) * int d = ... (int d from u's law)
+    v_s = across * side + g_t * t_s * down - (g_t * t_s * down + across * side) / 3.5
+    v_end = v_s + 5 / 7 * g_t * (times[-1] - t_s) * down
+    centre = np.array([equations.observables.poses(t, y[: equations.nq])[0, :3]
+                       for t, y in zip(times[-3:], trajectory.y[-3:], strict=True)])  # fmt: skip
+    velocity = (centre[2] - centre[0]) / (times[-1] - times[-3])  # central: exact here
+    np.testing.assert_allclose(velocity + 5 / 7 * g_t * (times[-1] - times[-2]) * down, v_end,
+                               atol=1e-7)  # fmt: skip
+
+
 @pytest.mark.parametrize(("mu", "rolls"), [(0.5, True), (0.1, False)])
 def test_event_driven_sphere_on_a_spatial_incline_rolls_or_slips(mu, rolls):
     """A sphere released on a 30 deg plane: rolling needs the friction 2/7 m g sin a, in
     the disc iff mu >= 2/7 tan a (0.165). It then rolls at 5/7 g sin a (the contact sticks:
     the disc holds it); else it starts slipping, against the sticking force, at
     g (sin a - mu cos a). Both to round-off, on the plane throughout."""
-    from workbench.model import Shape
-
     alpha, r = math.radians(30.0), 0.1
-    model = Model("sphere-on-incline", kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
-    model.add_body("sphere", 1.0, inertia=[0.4 * r * r] * 3, shapes=[Shape("sphere", (r,))])
-    model.add_joint("free", "free", "ground", "sphere")
-    normal = np.array([-math.sin(alpha), 0.0, math.cos(alpha)])
-    model.add_contact("plane", "sphere", radius=r, plane_normal=tuple(normal), friction=mu)
-    equations = registry.get_formalism("minimal-ode")().build(model)
+    equations, normal = _sphere_on_incline(mu, alpha, r)
     y0 = np.concatenate([r * normal, [1.0, 0.0, 0.0, 0.0], np.zeros(6)])
     times = np.linspace(0.0, 1.0, 11)
     trajectory = registry.get_integrator("event-driven")().solve(
