@@ -363,3 +363,23 @@ def test_event_driven_sphere_on_a_spatial_incline_rolls_or_slips(mu, rolls):
     np.testing.assert_allclose((centre - centre[0]) @ down, rate * GRAVITY * times**2 / 2,
                                atol=1e-9)  # fmt: skip
     np.testing.assert_allclose((centre - centre[0]) @ normal, 0.0, atol=1e-12)
+
+
+def test_event_driven_contact_that_would_pull_lifts_off():
+    """A sphere touching a ceiling (normal down) at rest under gravity: its sticking contact
+    would have to pull (lambda_N < 0), so it lifts off at once and falls freely,
+    z = -g t^2 / 2 (the mode choice of a spatial contact: lift-off before stick/slip)."""
+    from workbench.model import Shape
+
+    r = 0.1
+    model = Model("under-a-ceiling", kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
+    model.add_body("sphere", 1.0, inertia=[0.4 * r * r] * 3, shapes=[Shape("sphere", (r,))])
+    model.add_joint("free", "free", "ground", "sphere")
+    model.add_contact("ceiling", "sphere", radius=r, plane_normal=(0.0, 0.0, -1.0), friction=0.5)
+    equations = registry.get_formalism("minimal-ode")().build(model)
+    y0 = np.concatenate([[0.0, 0.0, -r], [1.0, 0.0, 0.0, 0.0], np.zeros(6)])
+    times = np.linspace(0.0, 0.5, 6)
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, y0, None, times, 1e-10, 1e-13)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    np.testing.assert_allclose(trajectory.y[:, 2], -r - GRAVITY * times**2 / 2, atol=1e-10)

@@ -137,7 +137,7 @@ class _Phases:
             _, lam_n, lam_t = self.accelerations(t, y, modes, signs)
             held = np.linalg.norm(lam_t, axis=1)
             lifted = (modes != OPEN) & (lam_n < 0)
-            slipping = (modes == STICK) & (held > mu * lam_n * (1 + 1e-9))
+            slipping = (modes == STICK) & ~lifted & (held > mu * lam_n * (1 + 1e-9))
             if not lifted.any() and not slipping.any():
                 break
             modes[lifted] = OPEN
