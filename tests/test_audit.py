@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
@@ -152,3 +153,36 @@ def test_the_audit_of_all_samples_at_once_equals_one_sample_at_a_time(
     for key, value in at_once.items():
         same_nan = isinstance(value, float) and math.isnan(value) and math.isnan(one_by_one[key])
         assert value == one_by_one[key] or same_nan, key
+
+
+@pytest.mark.parametrize(("kind", "warned"), [("analytic", False), ("stored", True)])
+def test_an_error_below_the_references_accuracy_warns_only_for_a_computed_one(kind, warned):
+    """The same end error (3e-14 of L) below the same stated accuracy (1e-13): a computed
+    reference beaten is suspicious (a warning); an analytic one's accuracy is its round-off,
+    which an exact method reaches (a note, the fact kept, no warning)."""
+    from workbench.execution.audit import at_reference_accuracy, audit_warnings
+
+    metrics = {"err_end": 3e-14, "length_scale": 1.0, "reference_kind": kind}
+    found = audit_warnings({"reference_accuracy": 1e-13}, metrics, 1e-7, False)
+    note = at_reference_accuracy(metrics, 1e-13)
+    assert any("below the reference's own accuracy" in w for w in found) == warned
+    assert (note is not None and "3.0e-14 is at the analytic reference's accuracy 1.0e-13"
+            in note) != warned  # fmt: skip
+    above = at_reference_accuracy(metrics | {"err_end": 1e-12}, 1e-13)
+    assert above is None
+
+
+def test_exact_event_driven_runs_stay_in_the_decision_table():
+    """Event-driven on the incline is exact (a constant acceleration): its end error lies
+    below the analytic reference's 1e-13. The row is ok without warnings, says so in its
+    notes, caps its scd at 13, and is a trusted candidate of the decision table."""
+    from workbench.outputs.report.overview import trusted
+
+    row = execute_run(RunSpec("incline-block-stop", "minimal-ode", "event-driven", 1e-7,
+                              1e-10)).row  # fmt: skip
+    assert row["status"] == "ok" and row["warnings"] == "", row["warnings"]
+    assert row["err_end"] / row["length_scale"] < row["reference_accuracy"] == 1e-13
+    assert "at the analytic reference's accuracy" in row["notes"]
+    assert row["scd"] == pytest.approx(13.0)
+    runs = pd.DataFrame([row | {"wall_s": 0.01}])
+    assert len(trusted(runs)) == 1

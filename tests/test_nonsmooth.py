@@ -16,6 +16,9 @@ from workbench.problems.ch5_contacts import (
     BALL_DROP,
     BALL_RADIUS,
     BALL_RESTITUTION,
+    BLOCK_HALF_HEIGHT,
+    BLOCK_HALF_LENGTH,
+    BLOCK_MASS,
     GRAVITY,
     INCLINE,
     bouncing_ball_impacts,
@@ -204,3 +207,179 @@ def test_sliding_sphere_rolls_at_five_sevenths(formalism):
     assert speed == pytest.approx(5 / 7 * 2.0, rel=1e-4)
     (stick,) = trajectory.contact["event_times"]
     assert stick == pytest.approx(problem.roll_time(), abs=2e-3)
+
+
+def _sphere_run(formalism: str, spin_x: float = 0.0):
+    """The sliding sphere by the event-driven method, optionally with side spin about x."""
+    base = registry.get_problem("sliding-sphere")
+
+    class Spun(base):
+        def initial_joint_velocities(self):
+            return {"free": [2.0, 0.0, 0.0, spin_x, 0.0, 0.0]}
+
+    problem = Spun()
+    equations = registry.get_formalism(formalism)().build(problem.model())
+    state = consistent_initial_state(equations, problem)
+    times = problem.sample_times()
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, state.y0(equations, "mechanical"), None, times, 1e-10, 1e-13
+    )
+    assert trajectory.success, trajectory.message
+    poses = np.stack([equations.observables.poses(t, y[: equations.nq])
+                      for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+    return problem, times, poses[:, 0], trajectory
+
+
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+def test_event_driven_sphere_rolls_at_five_sevenths(formalism):
+    """Spatial stick/slip (two tangents): the slip-to-stick event at t_r = 2 v0 / (7 mu g)
+    to round-off, then rolling at 5/7 v0; the pose follows the analytic reference."""
+    problem, times, pose, trajectory = _sphere_run(formalism)
+    (stick,) = trajectory.contact["event_times"]
+    assert stick == pytest.approx(problem.roll_time(), abs=1e-9)
+    reference = problem.reference().poses(times)[:, 0]
+    np.testing.assert_allclose(pose[:, :3], reference[:, :3], atol=1e-9)
+    sign = np.sign(np.sum(pose[:, 3:] * reference[:, 3:], axis=1, keepdims=True))
+    np.testing.assert_allclose(sign * pose[:, 3:], reference[:, 3:], atol=1e-8)
+    assert trajectory.contact["penetration_max"] < 1e-12
+
+
+def test_event_driven_sphere_with_side_spin_slides_along_its_slip():
+    """With side spin the contact point slips along u0 = v0 + w0 x (-r e_z), not along v0:
+    Coulomb's force -mu m g u0/|u0| keeps that direction (u' = -7/2 mu g u0/|u0|), so the
+    slip stops at t_r = 2 |u0| / (7 mu g) and the centre leaves at v0 - mu g t_r u0/|u0|
+    (a curved path: the friction disc, not two boxes, and the direction, not its signs)."""
+    mu, r, spin = 0.2, 0.1, 10.0
+    problem, times, pose, trajectory = _sphere_run("minimal-ode", spin_x=spin)
+    u0 = np.array([2.0, spin * r, 0.0])  # (2, 0, 0) + (spin, 0, 0) x (0, 0, -r)
+    t_r = 2 * np.linalg.norm(u0) / (7 * mu * GRAVITY)
+    (stick,) = trajectory.contact["event_times"]
+    assert stick == pytest.approx(t_r, abs=1e-9)
+    final = np.array([2.0, 0.0, 0.0]) - mu * GRAVITY * t_r * u0 / np.linalg.norm(u0)
+    velocity = (pose[-1, :3] - pose[-11, :3]) / (times[-1] - times[-11])
+    np.testing.assert_allclose(velocity, final, atol=1e-8)
+    sliding = times <= t_r
+    path = (
+        np.array([2.0, 0.0, 0.0]) * times[sliding, None]
+        - mu * GRAVITY * u0 / np.linalg.norm(u0) * times[sliding, None] ** 2 / 2
+    )
+    np.testing.assert_allclose(pose[sliding, :3] - pose[0, :3], path, atol=1e-9)
+
+
+def test_penetration_is_a_time_series_in_the_row_and_the_recording(tmp_path):
+    """A compliant block (k = 1e6 N/m) slides on its two corners; friction mu N at the base,
+    h below the centre, loads the front corner by mu N h / (2 L) more (L: half length), so
+    it sinks N (1 + mu h / L) / (2 k): the series ``penetration`` says so at every sample
+    after the first settling, its max is the row's at most; the recording draws it beside
+    the drift; a smooth problem's series has no such column."""
+    import rerun as rr
+
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+    from workbench.outputs.recording import RerunSink
+
+    sink = RerunSink()
+    spec = normalized_spec(RunSpec("incline-block-slide", "minimal-ode", "compliant-contact",
+                                   1e-6, 1e-9))  # fmt: skip
+    result = execute_run(spec, sink=sink)
+    series, row = result.series, result.row
+    depth = series["penetration"].to_numpy()
+    normal = BLOCK_MASS * GRAVITY * math.cos(INCLINE)
+    front = normal * (1 + 0.3 * BLOCK_HALF_HEIGHT / BLOCK_HALF_LENGTH) / (2 * 1e6)
+    settled = series["t"].to_numpy() > 0.1
+    np.testing.assert_allclose(depth[settled], front, rtol=1e-3)
+    assert depth.max() <= row["penetration_max"]
+    paths = {chunk.entity_path for chunk in rr.chunk.RrdReader(sink.save(tmp_path)).stream()}
+    assert any(path.endswith("/series/penetration") for path in paths)
+    smooth = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-8))
+    assert "penetration" not in smooth.series.columns
+
+
+def _sphere_on_incline(mu: float, alpha: float, r: float = 0.1):
+    from workbench.model import Shape
+
+    model = Model("sphere-on-incline", kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
+    model.add_body("sphere", 1.0, inertia=[0.4 * r * r] * 3, shapes=[Shape("sphere", (r,))])
+    model.add_joint("free", "free", "ground", "sphere")
+    normal = np.array([-math.sin(alpha), 0.0, math.cos(alpha)])
+    model.add_contact("plane", "sphere", radius=r, plane_normal=tuple(normal), friction=mu)
+    return registry.get_formalism("minimal-ode")().build(model), normal
+
+
+def test_event_driven_slip_that_turns_follows_coulombs_disc():
+    """A sphere thrown across a 30 deg incline (mu = 0.3): gravity turns its slip u downhill
+    while friction opposes it, u' = g sin(a) e_down - 7/2 mu g cos(a) u/|u| (solved here by
+    SciPy to 1e-12); the slip turns past 60 degrees (a new phase) and stops at that law's
+    t_s, after which the sphere rolls at 5/7 g sin a. A frozen slip direction or a friction
+    pyramid misses t_s by tens of ms (Moreau-Jean's pyramid: 0.224 s against 0.321 s)."""
+    from scipy.integrate import solve_ivp
+
+    mu, alpha, across = 0.3, math.radians(30.0), 2.0
+    equations, normal = _sphere_on_incline(mu, alpha)
+    y0 = np.concatenate([0.1 * normal, [1.0, 0.0, 0.0, 0.0], [0.0, across, 0.0], np.zeros(3)])
+    times = np.linspace(0.0, 1.0, 101)
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, y0, None, times, 1e-10, 1e-13)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    g_t, k = GRAVITY * math.sin(alpha), 3.5 * mu * GRAVITY * math.cos(alpha)
+
+    def slip(t, u):  # (down, across) components of the contact point's slip
+        return np.array([g_t, 0.0]) - k * u / np.linalg.norm(u)
+
+    stops = lambda t, u: np.linalg.norm(u) - 1e-10  # noqa: E731
+    stops.terminal = True
+    law = solve_ivp(slip, (0.0, 1.0), [0.0, across], rtol=1e-12, atol=1e-14, events=stops)
+    (t_s,) = law.t_events[0]
+    events = trajectory.contact["event_times"]
+    assert len(events) == 2 and events[-1] == pytest.approx(t_s, abs=1e-7)  # turn, stick
+    down = np.array([-math.cos(alpha), 0.0, -math.sin(alpha)])
+    side = np.array([0.0, 1.0, 0.0])
+    # the centre at t_s: v0 + g_t e_down t_s - mu g cos(a) * int d = ... (int d from u's law)
+    v_s = across * side + g_t * t_s * down - (g_t * t_s * down + across * side) / 3.5
+    v_end = v_s + 5 / 7 * g_t * (times[-1] - t_s) * down
+    centre = np.array([equations.observables.poses(t, y[: equations.nq])[0, :3]
+                       for t, y in zip(times[-3:], trajectory.y[-3:], strict=True)])  # fmt: skip
+    velocity = (centre[2] - centre[0]) / (times[-1] - times[-3])  # central: exact here
+    np.testing.assert_allclose(velocity + 5 / 7 * g_t * (times[-1] - times[-2]) * down, v_end,
+                               atol=1e-7)  # fmt: skip
+
+
+@pytest.mark.parametrize(("mu", "rolls"), [(0.5, True), (0.1, False)])
+def test_event_driven_sphere_on_a_spatial_incline_rolls_or_slips(mu, rolls):
+    """A sphere released on a 30 deg plane: rolling needs the friction 2/7 m g sin a, in
+    the disc iff mu >= 2/7 tan a (0.165). It then rolls at 5/7 g sin a (the contact sticks:
+    the disc holds it); else it starts slipping, against the sticking force, at
+    g (sin a - mu cos a). Both to round-off, on the plane throughout."""
+    alpha, r = math.radians(30.0), 0.1
+    equations, normal = _sphere_on_incline(mu, alpha, r)
+    y0 = np.concatenate([r * normal, [1.0, 0.0, 0.0, 0.0], np.zeros(6)])
+    times = np.linspace(0.0, 1.0, 11)
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, y0, None, times, 1e-10, 1e-13)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    centre = np.array([equations.observables.poses(t, y[: equations.nq])[0, :3]
+                       for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+    down = np.array([-math.cos(alpha), 0.0, -math.sin(alpha)])
+    rate = 5 / 7 * math.sin(alpha) if rolls else math.sin(alpha) - mu * math.cos(alpha)
+    np.testing.assert_allclose((centre - centre[0]) @ down, rate * GRAVITY * times**2 / 2,
+                               atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose((centre - centre[0]) @ normal, 0.0, atol=1e-12)
+
+
+def test_event_driven_contact_that_would_pull_lifts_off():
+    """A sphere touching a ceiling (normal down) at rest under gravity: its sticking contact
+    would have to pull (lambda_N < 0), so it lifts off at once and falls freely,
+    z = -g t^2 / 2 (the mode choice of a spatial contact: lift-off before stick/slip)."""
+    from workbench.model import Shape
+
+    r = 0.1
+    model = Model("under-a-ceiling", kind="spatial", gravity=(0.0, 0.0, -GRAVITY))
+    model.add_body("sphere", 1.0, inertia=[0.4 * r * r] * 3, shapes=[Shape("sphere", (r,))])
+    model.add_joint("free", "free", "ground", "sphere")
+    model.add_contact("ceiling", "sphere", radius=r, plane_normal=(0.0, 0.0, -1.0), friction=0.5)
+    equations = registry.get_formalism("minimal-ode")().build(model)
+    y0 = np.concatenate([[0.0, 0.0, -r], [1.0, 0.0, 0.0, 0.0], np.zeros(6)])
+    times = np.linspace(0.0, 0.5, 6)
+    trajectory = registry.get_integrator("event-driven")().solve(
+        equations, y0, None, times, 1e-10, 1e-13)  # fmt: skip
+    assert trajectory.success, trajectory.message
+    np.testing.assert_allclose(trajectory.y[:, 2], -r - GRAVITY * times**2 / 2, atol=1e-10)

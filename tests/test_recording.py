@@ -124,9 +124,10 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
         f"{base}/bodies/arm/joints/hinge",
         f"{base}/bodies/arm/joints/slide",
         f"{base}/bodies/tip/joints/slide",
-    } | {f"{base}/series/{q}" for q in SERIES_QUANTITIES if q != "drift_nh"}
+    } | {f"{base}/series/{q}" for q in SERIES_QUANTITIES if q not in ("drift_nh", "penetration")}
     assert expected <= set(chunks)
-    assert f"{base}/series/drift_nh" not in chunks
+    assert f"{base}/series/drift_nh" not in chunks  # all NaN: not drawn
+    assert f"{base}/series/penetration" not in chunks  # not a contact model's: no column
 
     for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err"):
         logged = column(chunks[f"{base}/series/{quantity}"], "Scalars:scalars")
@@ -320,3 +321,31 @@ def test_view_up_is_against_gravity() -> None:
     assert up("spatial", (0, 0, 9.81)) == views.RIGHT_HAND_Z_DOWN
     assert up("planar", (0, 0, 0)) == views.RIGHT_HAND_Y_UP  # facing a horizontal plane
     assert up("spatial", (0, 0, 0)) == views.RIGHT_HAND_Z_UP
+
+
+def test_contact_plane_is_drawn_once_per_model(tmp_path: Path) -> None:
+    """The incline's plane (both corner contacts touch it) is one static thin box below
+    the model's shared path, logged once for two runs, its top face the plane itself: the
+    centre lies half its thickness below the plane point along the normal, and the box's
+    local z is the normal."""
+    from scipy.spatial.transform import Rotation
+
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+    from workbench.problems.ch5_contacts import INCLINE
+
+    sink = RerunSink()
+    for rtol in (1e-4, 1e-6):
+        spec = normalized_spec(RunSpec("incline-block-slide", "minimal-ode", "event-driven",
+                                       rtol, rtol * 1e-3))  # fmt: skip
+        assert execute_run(spec, sink=sink).row["status"] == "ok"
+    chunks = read_chunks(sink.save(tmp_path))
+    planes = [p for p in chunks if "contact_planes" in p]
+    assert planes == ["/runs/incline-block-slide/model/contact_planes/rear"]
+    (frame,) = chunks[planes[0]]  # one static row for both runs
+    half = np.array(frame["Boxes3D:half_sizes"].iloc[0][0])
+    centre = np.array(frame["Boxes3D:centers"].iloc[0][0])
+    xyzw = np.array(frame["Boxes3D:quaternions"].iloc[0][0])
+    normal = np.array([-np.sin(INCLINE), np.cos(INCLINE), 0.0])
+    np.testing.assert_allclose(centre, -normal * half[2], atol=1e-6)
+    np.testing.assert_allclose(Rotation.from_quat(xyzw).apply([0, 0, 1.0]), normal, atol=1e-6)
+    assert half[0] >= 2.0 > 100 * half[2]

@@ -10,8 +10,14 @@ a sliding contact's friction is -mu lambda_N along its sliding velocity. The pha
 where an open gap reaches zero (an impact: :func:`_contact.velocity_problem` with the
 restitution), a normal force falls to zero (lift-off), a sliding velocity reaches zero
 (slip to stick, if mu lambda_N holds it) or a sticking force reaches the cone (stick to
-slip). The modes are then chosen again and the method restarts. Planar models only (one
-tangent: the sliding direction is a sign).
+slip). The modes are then chosen again and the method restarts.
+
+A planar contact has one tangent (its slip direction is a sign); a spatial one two: the
+friction -mu lambda_N d acts along the unit slip direction d = U_T / |U_T| (frozen at the
+phase's start direction d_0 once U_T . d_0 <= 0, so that the force is continuous where a
+straight slip stops), slip to stick is U_T . d_0 reaching zero, a slip that turns 60 degrees
+from d_0 starts a new phase (a new d_0), and sticking holds while |lambda_T| <= mu lambda_N
+(the friction disc); a contact that starts to slip does so against its sticking force.
 """
 
 from __future__ import annotations
@@ -52,8 +58,6 @@ class EventDriven(Integrator):
     contacts: ClassVar[bool] = True
 
     def incompatibility(self, equations: Equations, options: Any) -> str | None:
-        if equations.contacts is not None and equations.contacts.n_tangent != 1:
-            return "stick/slip events of spatial contacts (two tangents) are not written yet"
         return refuse(equations)
 
     def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
@@ -74,20 +78,24 @@ class _Phases:
 
     # -- the smooth phase in given modes --------------------------------------------
     def accelerations(self, t: float, y: np.ndarray, modes: np.ndarray, signs: np.ndarray):
-        """(v', lambda_N (n), lambda_T (n)) in ``modes``; sliding friction along -signs."""
+        """(v', lambda_N (n), lambda_T (n, n_tangent)) in ``modes``; ``signs`` (n, n_tangent):
+        each contact's slip direction at the phase's start (a sign in a planar model)."""
         q, v = y[: self.nq], y[self.nq :]
         state = contact_state(self.equations, t, q, v)
         closed = np.flatnonzero(modes != OPEN)
         stick = np.flatnonzero(modes == STICK)
-        mu = self.contacts.friction
+        mu, nt = self.contacts.friction, self.contacts.n_tangent
         w_n_bias = self.contacts.normal_bias(t, q, v)[0].reshape(-1)
         w_t_bias = self.contacts.tangent_bias(t, q, v)[0].reshape(-1)
-        force_dirs = [state.w_n[i] - mu[i] * signs[i] * state.w_t[i] * (modes[i] == SLIP)
-                      for i in closed] + [state.w_t[i] for i in stick]  # fmt: skip
-        rows = [state.w_n[i] for i in closed] + [state.w_t[i] for i in stick]
-        bias = [w_n_bias[i] for i in closed] + [w_t_bias[i] for i in stick]
+        w_t = state.w_t.reshape(self.n, nt, -1)
+        slip = self.slip_directions(w_t @ v, signs)
+        force_dirs = [state.w_n[i] - mu[i] * (modes[i] == SLIP) * slip[i] @ w_t[i]
+                      for i in closed] + [row for i in stick for row in w_t[i]]  # fmt: skip
+        rows = [state.w_n[i] for i in closed] + [row for i in stick for row in w_t[i]]
+        bias = [w_n_bias[i] for i in closed] + [w_t_bias[i * nt + k] for i in stick
+                                                 for k in range(nt)]  # fmt: skip
         k = len(rows)
-        lam_n, lam_t = np.zeros(self.n), np.zeros(self.n)
+        lam_n, lam_t = np.zeros(self.n), np.zeros((self.n, nt))
         if k == 0:
             return np.linalg.solve(state.mass, state.forces), lam_n, lam_t
         f = np.array(force_dirs).T
@@ -96,52 +104,73 @@ class _Phases:
         solution = np.linalg.lstsq(kkt, rhs, rcond=1e-12)[0]
         a, lam = solution[: self.nv], solution[self.nv :]
         lam_n[closed] = lam[: closed.size]
-        lam_t[stick] = lam[closed.size :]
-        slip = closed[modes[closed] == SLIP]
-        lam_t[slip] = -mu[slip] * signs[slip] * lam_n[slip]
+        lam_t[stick] = lam[closed.size :].reshape(-1, nt)
+        sliding = closed[modes[closed] == SLIP]
+        lam_t[sliding] = -mu[sliding, None] * slip[sliding] * lam_n[sliding, None]
         return a, lam_n, lam_t
+
+    @staticmethod
+    def slip_directions(u_t: np.ndarray, signs: np.ndarray) -> np.ndarray:
+        """Each contact's unit slip direction: that of its sliding velocity ``u_t`` (n, nt)
+        while it points ahead of the phase's start direction ``signs``, else ``signs``
+        (so the friction stays continuous where a straight slip stops: its event)."""
+        speed = np.linalg.norm(u_t, axis=1, keepdims=True)
+        ahead = (np.sum(u_t * signs, axis=1, keepdims=True) > 0) & (speed > 0)
+        return np.where(ahead, u_t / np.where(speed > 0, speed, 1.0), signs)
 
     def choose_modes(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Modes after an event: closed where the gap is ~0 and not opening; stick where not
-        sliding and the cone holds the sticking force; lift-off where lambda_N < 0."""
+        sliding and the cone holds the sticking force (the friction disc of a spatial
+        contact); lift-off where lambda_N < 0. Also each slip direction (n, n_tangent)."""
         q, v = y[: self.nq], y[self.nq :]
         state = contact_state(self.equations, t, q, v)
-        u_n, u_t = state.w_n @ v, state.w_t @ v
+        nt = self.contacts.n_tangent
+        u_n, u_t = state.w_n @ v, (state.w_t @ v).reshape(self.n, nt)
         tol = self.task.options.rest_speed
         gap_tol = max(1e-9, 10 * self.task.atol) * self.scale
         modes = np.where((state.gaps <= gap_tol) & (u_n <= tol), STICK, OPEN)
-        modes[(modes == STICK) & (np.abs(u_t) > tol)] = SLIP
-        signs = np.sign(u_t)
+        speed = np.linalg.norm(u_t, axis=1)
+        modes[(modes == STICK) & (speed > tol)] = SLIP
+        signs = u_t / np.where(speed > 0, speed, 1.0)[:, None]
         mu = self.contacts.friction
         for _ in range(4 * self.n + 2):
             _, lam_n, lam_t = self.accelerations(t, y, modes, signs)
+            held = np.linalg.norm(lam_t, axis=1)
             lifted = (modes != OPEN) & (lam_n < 0)
-            slipping = (modes == STICK) & (np.abs(lam_t) > mu * lam_n * (1 + 1e-9))
+            slipping = (modes == STICK) & ~lifted & (held > mu * lam_n * (1 + 1e-9))
             if not lifted.any() and not slipping.any():
                 break
             modes[lifted] = OPEN
-            signs[slipping] = -np.sign(lam_t[slipping])
+            # stick to slip: the contact starts to slide against the force that held it
+            signs[slipping] = -lam_t[slipping] / held[slipping, None]
             modes[slipping] = SLIP
         return modes, signs
 
     def switching_functions(self, modes: np.ndarray, signs: np.ndarray) -> list:
+        nt = self.contacts.n_tangent
+
         def make(i: int, kind: str) -> Any:
             def event(t: float, y: np.ndarray) -> float:
                 q, v = y[: self.nq], y[self.nq :]
                 if kind == "gap":
                     return float(self.contacts.gaps(t, q)[0].reshape(-1)[i])
-                if kind == "slide":
-                    return float(signs[i] * (self.contacts.tangent_jacobian(t, q)[0]
-                                             .reshape(self.n, -1)[i] @ v))  # fmt: skip
+                if kind in ("slide", "turn"):
+                    w_t = self.contacts.tangent_jacobian(t, q)[0].reshape(self.n, nt, -1)[i]
+                    u_t = w_t @ v
+                    if kind == "slide":  # the slip stops (or reverses, planar)
+                        return float(signs[i] @ u_t)
+                    # a spatial slip turned 60 degrees from the phase's start: new phase
+                    return float(signs[i] @ u_t - np.linalg.norm(u_t) / 2)
                 _, lam_n, lam_t = self.accelerations(t, y, modes, signs)
                 if kind == "normal":
                     return float(lam_n[i])
-                return float(self.contacts.friction[i] * lam_n[i] - abs(lam_t[i]))
+                return float(self.contacts.friction[i] * lam_n[i] - np.linalg.norm(lam_t[i]))
 
             event.terminal, event.direction = True, -1
             return event
 
-        kinds = {OPEN: ["gap"], SLIP: ["normal", "slide"], STICK: ["normal", "cone"]}
+        slide = ["normal", "slide"] + (["turn"] if nt > 1 else [])
+        kinds = {OPEN: ["gap"], SLIP: slide, STICK: ["normal", "cone"]}
         return [make(i, kind) for i in range(self.n) for kind in kinds[int(modes[i])]]
 
     # -- the run ---------------------------------------------------------------------

@@ -13,6 +13,9 @@
   (``reference_energy(times)``), E_scale the larger of the energy those laws take over
   the run and the largest kinetic energy reached.
 
+The run's time series gets ``penetration`` (m): the deepest penetration at each output
+sample (:func:`penetration_series`; a contact model's series only), drawn in the recording.
+
 Warnings (so ``ok`` means nothing is wrong): penetration over PENETRATION_LIMIT of the
 model's length scale; complementarity over COMPLEMENTARITY_LIMIT; a reference event missed
 or misplaced by more than EVENT_TIME_LIMIT of the time span; energy off by more than
@@ -40,6 +43,18 @@ CONTACT_COLUMNS = (
 )
 
 
+def penetration_series(equations: Any, times: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The deepest penetration max(0, -g_N) (m) over the contacts at each sample (n,); an
+    empty array without contacts. The row's time series ``penetration``."""
+    contacts = getattr(equations, "contacts", None)
+    if contacts is None:
+        return np.zeros(0)
+    nq = equations.nq
+    samples = zip(np.asarray(times, dtype=float), np.atleast_2d(y), strict=False)
+    gaps = [contacts.gaps(t, s[:nq])[0].reshape(-1) for t, s in samples]
+    return np.array([max(0.0, float(np.max(-g, initial=0.0))) for g in gaps])
+
+
 def contact_metrics(
     problem: Any,
     equations: Any,
@@ -62,9 +77,8 @@ def contact_metrics(
     times = np.asarray(times, dtype=float)
     y = np.atleast_2d(y)[: len(times)]
     own = own or {}
-    nq = equations.nq
-    gaps = [contacts.gaps(t, s[:nq])[0].reshape(-1) for t, s in zip(times, y, strict=True)]
-    sampled = float(np.max(-np.array(gaps), initial=0.0)) if gaps else math.nan
+    depth = penetration_series(equations, times, y)
+    sampled = float(np.max(depth, initial=0.0)) if depth.size else math.nan
     row["penetration_max"] = max(sampled, float(own.get("penetration_max", 0.0)))
     row["complementarity_max"] = float(own.get("complementarity_max", math.nan))
     events = np.sort(np.asarray(own.get("event_times", []), dtype=float))

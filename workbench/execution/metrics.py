@@ -46,8 +46,13 @@ import numpy as np
 import pandas as pd
 
 from workbench.equations import Equations, SampledObservables
-from workbench.execution.audit import MEASURE, audit_warnings, health_audit
-from workbench.execution.contact_metrics import contact_metrics
+from workbench.execution.audit import (
+    MEASURE,
+    at_reference_accuracy,
+    audit_warnings,
+    health_audit,
+)
+from workbench.execution.contact_metrics import contact_metrics, penetration_series
 from workbench.execution.references import ReferencePoses
 from workbench.execution.row_schema import SERIES_COLUMNS
 from workbench.numerics.geometry import length_scale, pose_error
@@ -186,6 +191,9 @@ def trajectory_metrics(
         notes.append("nothing was integrated: no error, drift or energy was measured")
     elif not complete:
         notes.append(f"maxima over the part reached, t <= {float(times[-1]):g} s")
+    at_accuracy = at_reference_accuracy(row, reference.accuracy)
+    if at_accuracy:
+        notes.append(at_accuracy)
     row["notes"] = "; ".join(notes)
 
     audit = health_audit(equations, times, y[:n], sampled.rotations, rtol, charts)
@@ -212,6 +220,8 @@ def trajectory_metrics(
         },
         columns=SERIES_COLUMNS,
     )
+    if getattr(equations, "contacts", None) is not None:  # a contact model's own series
+        series["penetration"] = penetration_series(equations, times, y[:n])
     return row, series
 
 

@@ -13,7 +13,8 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/bodies/<body>/joints/<joint> the joint's frame on that body (parent P or child C)
     <run>/ground/joints/<joint>        a joint frame fixed on the ground
     <run>/series/<quantity>            Scalars on ``sim_time``: drift_pos, drift_vel,
-                                       drift_nh, energy_err, ref_err
+                                       drift_nh, energy_err, ref_err, penetration (m; a
+                                       contact model's deepest penetration)
 
 and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
 
@@ -21,6 +22,8 @@ and what the runs of a model share, stored once (a robot's meshes are most of it
                                        InstancePoses3D on ``sim_time``: that body's pose in
                                        every run (an instance a run), so each run is drawn
     .../meshes/<i>/instance_runs       which run each instance is (static)
+    runs/<problem>/model/contact_planes/<contact>  a plane the contacts touch (a thin box,
+                                       static; named by its first contact)
 
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
@@ -56,7 +59,9 @@ import pandas as pd
 
 from workbench.files import atomic_write
 
-SERIES_QUANTITIES: tuple[str, ...] = ("drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err")
+SERIES_QUANTITIES: tuple[str, ...] = (
+    "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err", "penetration",
+)  # fmt: skip
 TIMELINE = "sim_time"
 APPLICATION_ID = "mbs-workbench"
 RECORDING_FILE = "recording.rrd"
@@ -226,6 +231,10 @@ class RerunSink:
                 for relative, archetypes in entries
             ]
         places = self._mesh_places.get(key, {})
+        for relative, archetypes in _contact_planes(model):  # fixed: drawn once per model
+            if f"{shared}/{relative}" not in self._shared_logged:
+                self._shared_logged[f"{shared}/{relative}"] = ""
+                self.recording.log(f"{shared}/{relative}", *archetypes, static=True)
         for relative, batches in self._batches_cache[key]:
             if relative not in places:
                 self.recording.log(f"{path}/{relative}", batches, static=True)
@@ -712,6 +721,37 @@ def _model_scale(model: Any) -> float:
     ]
     scale = max(sizes + offsets, default=0.0)
     return scale if scale > 0 else 1.0
+
+
+def _contact_planes(model: Any) -> list[tuple[str, list[Any]]]:
+    """(entity below the model's shared path, archetypes) of each plane the model's
+    contacts touch (one a plane, named by its first contact): a thin box whose top face is
+    the plane, 20 model lengths (at least 2 m) each way, so impacts and penetration show."""
+    import rerun as rr
+
+    from workbench.equations.contacts import plane_tangents
+
+    planes: dict[tuple[float, ...], str] = {}
+    for contact in getattr(model, "contacts", None) or []:
+        normal = np.asarray(contact.plane_normal, dtype=float)
+        normal = normal / np.linalg.norm(normal)
+        point = np.asarray(contact.plane_point, dtype=float)
+        planes.setdefault((*np.round(point, 12), *np.round(normal, 12)), contact.name)
+    scale = _model_scale(model)
+    half, thickness = max(2.0, 20 * scale), 0.05 * scale
+    entries = []
+    for plane, name in planes.items():
+        point, normal = np.array(plane[:3]), np.array(plane[3:])
+        rotation = np.column_stack([*plane_tangents(normal, planar=False), normal])
+        box = rr.Boxes3D(
+            half_sizes=[[half, half, thickness / 2]],
+            centers=[point - normal * thickness / 2],
+            quaternions=[rr.Quaternion(xyzw=matrix_xyzw(rotation))],
+            colors=[(150, 150, 150, 120)],
+            fill_mode=rr.components.FillMode.Solid,
+        )
+        entries.append((entity_path("contact_planes", name), [box]))
+    return entries
 
 
 PLACEHOLDER_HALF_SIZE = 0.05
