@@ -110,7 +110,9 @@ def generate_c(function: ca.Function, statements_per_part: int = STATEMENTS_PER_
     """The C source of ``function`` (and what it calls), as CasADi generates it, with long
     straight-line bodies cut into parts (:func:`split_long_bodies`). Pass it through
     :func:`exported` first: the exported symbol is the function's own name."""
-    generator = ca.CodeGenerator(function.name(), {"with_header": False, "avoid_stack": True})
+    generator = ca.CodeGenerator(
+        function.name(), {"with_header": False, "avoid_stack": True, "verbose": False}
+    )
     generator.add(function)
     return split_long_bodies(generator.dump(), statements_per_part)
 
