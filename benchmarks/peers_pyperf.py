@@ -8,12 +8,16 @@ prismatic and spherical joints, rotated frames, full inertias; robots of
 example-robot-data, Talos being the humanoid, imported by our URDF importer). This
 process builds each model's ode right-hand side (the ``recursive`` formalism's articulated
 bodies, the graph a compiled build compiles: unrolled, or joint-type kernels above their
-size threshold, column ``graph``), compiles it (``-O1``, through the compile cache) and checks its accelerations
-against ``pin.aba`` (to 1e-9); then pyperf times ours (``FastFunction.into`` on the
-compiled library) and ``pin.aba`` (same state) each in ``--processes`` fresh worker
-processes, calibrating the loops of a value to 0.1 s, one warm-up and 3 values a
-process, in CPU time (``time.process_time``: this machine is shared). A process's
-figure is the mean of its values.
+size threshold, column ``graph``), compiles it (``-O1``, through the compile cache) and
+checks its accelerations against ``pin.aba`` (to 1e-9); then pyperf times ours
+(``FastFunction.into`` on the compiled library) and ``pin.aba`` (same state) each in
+``--processes`` fresh worker processes, calibrating the loops of a value to 0.1 s, one
+warm-up and 3 values a process, in CPU time (``time.process_time``: this machine is
+shared). A process's figure is the mean of its values. Like with like: both are called
+from Python as an integrator calls them, ours through ``FastFunction.into(t, y)`` (what
+the SciPy plugins call: the state copied into a preallocated input, then CasADi's
+buffer call), ``pin.aba`` through its boost-python binding on a preallocated ``data``
+and state arrays (where a small model's time goes: docs/performance-targets.md).
 
 Ratios ours / pin over every pair of processes (ours' i, pin's j): the median and the
 upper end (max, the slowest process of ours against the fastest of pin's), the figure the

@@ -48,7 +48,6 @@ def test_each_run_decides_alone_whatever_earlier_runs_chose(monkeypatch):
     switch there changed the run's steps (iftomm-a05 absolute-dae CVODE BDF at 1e-4, n_rhs
     1745 then 1748 in its repeats)."""
     monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 50.0)
-    monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 50)
     expected = chain("none").forms["ode"].rhs(*ARGS)[0]
     equations = chain("auto")
     equations.compiler.expect(10)  # fewer than the 50 calls that repay
@@ -78,7 +77,6 @@ def test_the_vm_cost_of_a_call_is_estimated_from_the_graph_not_timed():
 
 def test_a_later_run_expecting_more_compiles_what_repays(monkeypatch):
     monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 1e4)
-    monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 1e4)
     equations = chain("auto")
     equations.compiler.expect(100)
     rhs = equations.forms["ode"].rhs
@@ -162,7 +160,6 @@ def test_expected_evaluations_grow_with_span_and_tolerance():
     # a compile repays only calls that take longer in the VM than it costs
     repay = compile_policy.calls_to_repay(1e-4, 100_000)
     assert repay * 1e-4 > compile_policy.compile_cpu_estimate(100_000)
-    assert compile_policy.worth_a_look(repay, 1e-4) and not compile_policy.worth_a_look(10, 1e-4)
 
 
 def test_the_compile_stage_takes_this_process_cpu_not_the_compilers_wall_time(monkeypatch):

@@ -123,7 +123,6 @@ def test_a_unit_cost_is_timed_again_once_compile_auto_moved_its_function_to_c(
     from workbench.equations import compile_policy
 
     monkeypatch.setattr(compile_policy, "calls_to_repay", lambda vm_seconds, code_bytes: 50.0)
-    monkeypatch.setattr(compile_policy, "worth_a_look", lambda calls, vm_seconds: calls >= 50)
     equations = chain("auto")
     equations.compiler.expect(10)
     rhs = equations.forms["ode"].rhs

@@ -10,7 +10,8 @@ its worker did before nor on what the cache holds: each run (:meth:`Compiler.exp
 <workbench.equations.compiled.Compiler.expect>`) puts a function in C when the run's
 expected evaluations (:func:`expected_evaluations`, from the problem's span and the
 tolerance) times the saving a call exceed the compile's estimated CPU
-(:func:`calls_to_repay`), and in the VM otherwise, even if an earlier run in the same
+(:func:`calls_to_repay`, with the C's size estimated from the graph:
+:func:`code_bytes_estimate`), and in the VM otherwise, even if an earlier run in the same
 worker compiled it. A call's VM cost is estimated from the graph's size
 (:func:`vm_seconds_estimate`), not timed, so the load cannot tip the decision. A cached
 library only makes the C cheaper to get (it is loaded, not compiled), never changes
@@ -62,36 +63,39 @@ def vm_seconds_estimate(function: Any) -> float:
     return VM_CALL_SECONDS + VM_SECONDS_PER_INSTRUCTION * instruction_count(function)
 
 
-def compile_cpu_estimate(code_bytes: int) -> float:
+CODE_BYTES_PER_INSTRUCTION = 30.0
+"""Bytes of generated C an SX instruction (random trees: 28 at 3,872 instructions, 30 at
+121,617; 2026-11-26)."""
+
+
+def code_bytes_estimate(function: Any) -> float:
+    """Estimated bytes of ``function``'s generated C, from its size: the decision to
+    compile needs no code generated (generating costs about 500 VM calls)."""
+    return CODE_BYTES_PER_INSTRUCTION * instruction_count(function)
+
+
+def compile_cpu_estimate(code_bytes: float) -> float:
     """Estimated CPU seconds to compile ``code_bytes`` of generated C."""
     return COMPILE_CPU_FIXED_S + COMPILE_CPU_S_PER_BYTE * code_bytes
 
 
 def saving_per_call(vm_seconds: float) -> float:
-    """Seconds a call saves compiled, from its measured VM time."""
+    """Seconds a call saves compiled, from its (estimated) VM time."""
     return vm_seconds * (1.0 - 1.0 / COMPILED_SPEEDUP)
 
 
-def calls_to_repay(vm_seconds: float, code_bytes: int) -> float:
-    """Calls after which compiling (generating the C included) has paid for itself (inf
-    for a free VM call); ``code_bytes`` 0: before the C is generated."""
+def calls_to_repay(vm_seconds: float, code_bytes: float) -> float:
+    """Calls after which compiling ``code_bytes`` of C (generating it included) has paid
+    for itself (inf for a free VM call)."""
     saving = saving_per_call(vm_seconds)
     cost = compile_cpu_estimate(code_bytes) + GENERATE_VM_CALLS * vm_seconds
     return cost / saving if saving > 0 else math.inf
 
 
-def worth_a_look(calls: float, vm_seconds: float) -> bool:
-    """Whether ``calls`` VM calls save enough compiled to repay generating their C (to
-    look for it in the cache, which is keyed by it) and the smallest compile, so that
-    neither is wasted on a short run."""
-    generating = GENERATE_VM_CALLS * vm_seconds
-    return calls * saving_per_call(vm_seconds) >= COMPILE_CPU_FIXED_S + generating
-
-
 def expected_evaluations(span: float, rtol: float) -> float:
     """A run's expected evaluations from the problem's span (s) and the relative tolerance:
-    a prior only (a stiff problem under an explicit method takes 100x more); the calls
-    themselves decide later (module docstring)."""
+    a prior only (a stiff problem under an explicit method takes 100x more), and all that
+    decides: the calls a run actually makes never move a function (module docstring)."""
     if not (span > 0 and rtol > 0):
         return 0.0
     return EVALUATIONS_PER_SECOND * span * (1e-4 / rtol) ** EVALUATIONS_RTOL_EXPONENT

@@ -365,33 +365,27 @@ class Compiler:
 
     def decide(self, function: ca.Function, vm_seconds: float, calls: float) -> ca.Function | None:
         """compile=auto: the compiled ``function`` if ``calls`` calls that each take
-        ``vm_seconds`` in the VM repay its compile (loaded from the cache if there, which
-        changes only the cost), else None (the VM). Its C is generated only when the calls
-        take more than generating it costs (``compile_policy.worth_a_look``)."""
-        from workbench.equations.compile_policy import calls_to_repay, worth_a_look
+        ``vm_seconds`` in the VM repay its compile, else None (the VM). The size of its C
+        is estimated from the graph (``compile_policy.code_bytes_estimate``), so the
+        decision needs no code generated; the library is then loaded from the cache if
+        there (which changes only the cost) or compiled, once a process."""
+        from workbench.equations.compile_policy import calls_to_repay, code_bytes_estimate
 
         name = function.name()
         if self.loaded_bytes.get(name) == -1:  # it cannot be compiled (warned once)
             return None
-        if name in self.loaded:
-            chosen = calls >= calls_to_repay(vm_seconds, self.loaded_bytes.get(name, 0))
-        elif not worth_a_look(calls, vm_seconds):
+        if calls < calls_to_repay(vm_seconds, code_bytes_estimate(function)):
             return None
-        else:
+        if name not in self.loaded:
             with counted():
                 try:
                     generated = generate(function, self.flags)
-                    if calls < calls_to_repay(vm_seconds, len(generated.code)):
-                        return None
                     self.loaded[name] = load_generated(generated)
                     self.loaded_bytes[name] = len(generated.code)
                 except RuntimeError as error:
                     self._failed(function, error)
                     self.loaded_bytes[name] = -1
                     return None
-            chosen = True
-        if not chosen:
-            return None
         self.in_c[name] = "C"
         return self.loaded[name]
 
