@@ -35,7 +35,8 @@ result.trajectory.head()
 # %%
 fig, (left, right) = plt.subplots(1, 2, figsize=(11, 3.5))
 result.plot(ax=left)
-result.plot_energy(ax=right)
+result.plot_energy(ax=right);
+
 # %% [markdown]
 # ## A problem of your own, defined here
 #
@@ -91,9 +92,8 @@ class Oscillator(Problem):
 out = tempfile.mkdtemp(prefix="first-steps-")
 results = wb.sweep(
     problems=["notebook-oscillator"],
-    formalisms=[
-        {"name": f, "options": {"index": 1}} for f in ("minimal-ode", "recursive", "absolute-dae")
-    ],
+    formalisms=[{"name": f, "options": {"index": 1}}
+                for f in ("minimal-ode", "recursive", "absolute-dae")],
     integrators=["scipy-dop853", "sundials-cvode-bdf"],
     tolerances=[1e-4, 1e-6, 1e-8],
     out=out,
@@ -108,7 +108,8 @@ results[["formalism", "integrator", "rtol", "status", "scd", "integrate_cpu_s"]]
 
 # %%
 results = wb.load_results(out)
-wb.plot_work_precision(results, cost="n_rhs")
+wb.plot_work_precision(results, cost="n_rhs");
+
 # %%
 first = results.iloc[0]
 wb.load_trajectory(out, first["run_id"]).head()

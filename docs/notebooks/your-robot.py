@@ -24,9 +24,8 @@ wb.describe(robot)
 
 # %%
 out = tempfile.mkdtemp(prefix="your-robot-")
-result = wb.run(
-    robot, "recursive", "sundials-ida", rtol=1e-6, index=1, t_end=0.5, n_samples=51, out=out
-)
+result = wb.run(robot, "recursive", "sundials-ida", rtol=1e-6, index=1,
+                t_end=0.5, n_samples=51, out=out)
 result
 
 # %% [markdown]
@@ -36,7 +35,8 @@ result
 # %%
 fig, (left, right) = plt.subplots(1, 2, figsize=(11, 3.5))
 result.plot(["crank_joint", "rocker_joint"], ax=left)
-result.plot_drift(ax=right)
+result.plot_drift(ax=right);
+
 # %%
 result.trajectory.filter(like="lambda:").describe().loc[["min", "max"]]
 
@@ -59,4 +59,4 @@ results = wb.sweep(
 results[["formalism", "integrator", "rtol", "status", "scd", "drift_pos_max", "n_rhs"]]
 
 # %%
-wb.plot_work_precision(results, cost="n_rhs")
+wb.plot_work_precision(results, cost="n_rhs");
