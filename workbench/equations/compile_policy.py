@@ -34,10 +34,10 @@ GENERATE_VM_CALLS = 500.0
 """Generating a function's C costs about this many of its VM calls (measured 420-630 on
 right-hand sides of 0.13-0.5 MB of C; a large MX Jacobian took seconds)."""
 VM_CALL_SECONDS = 0.7e-6
-"""Fixed cost of a CasADi VM call through ``FastFunction.into`` (four-bar, 280
-instructions: 1.8 us; 3-link chain, 531: 2.0 us; measured 2026-11-26 at load 3)."""
+"""Fixed cost of a CasADi VM call through ``FastFunction.into`` (right-hand sides of 280
+and 531 instructions: 1.8 and 2.0 us; measured 2026-11-26 at load 3)."""
 VM_SECONDS_PER_INSTRUCTION = 3.7e-9
-"""VM seconds an SX instruction (3.65-3.73 ns on the chain and the rssr-linkage's 5,815)."""
+"""VM seconds an SX instruction (3.65-3.73 ns on right-hand sides of 531 and 5,815)."""
 EVALUATIONS_PER_SECOND = 300.0
 """Right-hand-side evaluations a second of simulated time at rtol 1e-4 (the quick suite's
 non-stiff runs: 130-650)."""
@@ -64,8 +64,8 @@ def vm_seconds_estimate(function: Any) -> float:
 
 
 CODE_BYTES_PER_INSTRUCTION = 30.0
-"""Bytes of generated C an SX instruction (random trees: 28 at 3,872 instructions, 30 at
-121,617; 2026-11-26)."""
+"""Bytes of generated C an SX instruction (28 at 3,872 instructions, 30 at 121,617;
+2026-11-26, docs/performance.md)."""
 
 
 def code_bytes_estimate(function: Any) -> float:
