@@ -136,6 +136,14 @@ def targets() -> list[Row]:
     return rows
 
 
+def _code_note(row: dict) -> str:
+    """The compiled graph (unrolled or joint-type kernels) and its size in C (bytes: a
+    load-independent figure), when the CSV has them."""
+    if "graph" not in row or "code_bytes" not in row:
+        return ""
+    return f"; {row['graph']}, {row['code_bytes'] / 1e6:.2f} MB of C"
+
+
 def issue36_targets() -> list[Row]:
     """The targets of issue 36, each measured or "not measured" (the reason in its note)."""
     rows: list[Row] = []
@@ -149,7 +157,7 @@ def issue36_targets() -> list[Row]:
                 bound, low=row["ratio_min"], high=row["ratio_max"],
                 interval=f"all pairs of {row['processes']} processes",
                 note=f"held to the upper end; load {row['load1_before']:.0f}-"
-                f"{row['load1_after']:.0f}",
+                f"{row['load1_after']:.0f}" + _code_note(row),
             ))  # fmt: skip
     else:
         rows.append(Row("forward dynamics vs pin.aba over processes (pyperf)", NAN, 0.5,

@@ -52,8 +52,6 @@ def computed(frame: pd.DataFrame) -> pd.DataFrame:
     frame = frame[columns].set_index("run_id").sort_index()
     if "reference" in frame:  # whichever worker came first computed it, the others read it
         frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-        # which functions were in C (compile=auto) follows the worker's earlier runs
-        frame["notes"] = frame["notes"].str.replace(r"compile=auto: [^|]*", "", regex=True)
     return frame
 
 

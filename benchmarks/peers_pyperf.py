@@ -7,12 +7,17 @@ The models are those of :mod:`benchmarks.peers` (``random``: a free base, then r
 prismatic and spherical joints, rotated frames, full inertias; robots of
 example-robot-data, Talos being the humanoid, imported by our URDF importer). This
 process builds each model's ode right-hand side (the ``recursive`` formalism's articulated
-bodies), compiles it (``-O1``, through the compile cache) and checks its accelerations
-against ``pin.aba`` (to 1e-9); then pyperf times ours (``FastFunction.into`` on the
-compiled library) and ``pin.aba`` (same state) each in ``--processes`` fresh worker
-processes, calibrating the loops of a value to 0.1 s, one warm-up and 3 values a
-process, in CPU time (``time.process_time``: this machine is shared). A process's
-figure is the mean of its values.
+bodies, the graph a compiled build compiles: unrolled, or joint-type kernels above their
+size threshold, column ``graph``), compiles it (``-O1``, through the compile cache) and
+checks its accelerations against ``pin.aba`` (to 1e-9); then pyperf times ours
+(``FastFunction.into`` on the compiled library) and ``pin.aba`` (same state) each in
+``--processes`` fresh worker processes, calibrating the loops of a value to 0.1 s, one
+warm-up and 3 values a process, in CPU time (``time.process_time``: this machine is
+shared). A process's figure is the mean of its values. Like with like: both are called
+from Python as an integrator calls them, ours through ``FastFunction.into(t, y)`` (what
+the SciPy plugins call: the state copied into a preallocated input, then CasADi's
+buffer call), ``pin.aba`` through its boost-python binding on a preallocated ``data``
+and state arrays (where a small model's time goes: docs/performance-targets.md).
 
 Ratios ours / pin over every pair of processes (ours' i, pin's j): the median and the
 upper end (max, the slowest process of ours against the fastest of pin's), the figure the
@@ -65,7 +70,7 @@ def prepare(kind: str, name: str) -> dict:
 
     model, pin_model, state = model_of(kind, name)
     kinematics = state.kinematics
-    function = ode_function(model)
+    function = ode_function(model, kernels=None)  # what a compiled build compiles
     start = time.process_time()
     with compiled.counted():
         generated = compiled.generate(function)
@@ -81,7 +86,9 @@ def prepare(kind: str, name: str) -> dict:
     return {
         "kind": kind, "name": name, "nv": kinematics.nv, "library": str(generated.path),
         "symbol": generated.function.name(), "instructions": function.n_instructions(),
-        "code_bytes": len(generated.code), "prepare_cpu_s": time.process_time() - start,
+        "code_bytes": len(generated.code), "library_bytes": generated.path.stat().st_size,
+        "graph": "kernels" if function.is_a("MXFunction") else "unrolled",
+        "prepare_cpu_s": time.process_time() - start,
         "types": " ".join(sorted({j.type for j in kinematics.order})),
     }  # fmt: skip
 
@@ -135,7 +142,8 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
         pin = process_means(suite.get_benchmark(f"{label} pin.aba"))
         ratios = (ours[:, None] / pin[None, :]).ravel()
         rows.append({
-            **{k: item[k] for k in ("kind", "name", "nv", "types", "instructions", "code_bytes")},
+            **{k: item[k] for k in ("kind", "name", "nv", "types", "graph", "instructions",
+                                    "code_bytes", "library_bytes")},
             "ours_us": float(np.median(ours) * 1e6), "pin_aba_us": float(np.median(pin) * 1e6),
             "ratio_median": float(np.median(ratios)), "ratio_min": float(ratios.min()),
             "ratio_max": float(ratios.max()), "processes": f"{len(ours)}+{len(pin)}",

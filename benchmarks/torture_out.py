@@ -284,8 +284,6 @@ def comparable(out: Path) -> pd.DataFrame:
 
     frame = load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-    # which functions were in C (compile=auto) follows the worker's earlier runs
-    frame["notes"] = frame["notes"].str.replace(r"compile=auto: [^|]*", "", regex=True)
     timings = {"equations_cached", "workers", "load_avg", "log", *TIMING_COLUMNS, *WORK_COLUMNS}
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 

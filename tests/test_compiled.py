@@ -62,7 +62,7 @@ CASES = [
 
 @pytest.mark.parametrize(("problem", "problem_options", "formalism"), CASES)
 def test_compiled_evaluation_equals_the_virtual_machine(problem, problem_options, formalism):
-    problem_, plain = build(problem, problem_options, formalism, {})
+    problem_, plain = build(problem, problem_options, formalism, {"compile": "none"})
     _, jit = build(problem, problem_options, formalism, {"compile": "jit"})
     state = consistent_initial_state(plain, problem_)
     for label, form, name, args in hot_functions(plain, state):
@@ -238,7 +238,7 @@ def test_every_catalog_problem_and_formalism_compiles_and_agrees_with_the_vm():
     assert len(pairs) > 50
     failures = []
     for problem, formalism in pairs:
-        problem_, plain = build(problem, {}, formalism, {})
+        problem_, plain = build(problem, {}, formalism, {"compile": "none"})
         _, jit = build(problem, {}, formalism, {"compile": "jit", "compile_flags": "-O0"})
         state = consistent_initial_state(plain, problem_)
         for label, form, name, args in catalog_calls(plain, state):

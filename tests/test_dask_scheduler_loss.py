@@ -110,8 +110,6 @@ def rows(out: Path) -> int:
 def comparable(out: Path):
     frame = store.load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-    # which functions were in C (compile=auto) follows the worker's earlier runs
-    frame["notes"] = frame["notes"].str.replace(r"compile=auto: [^|]*", "", regex=True)
     timings = {"equations_cached", "workers", "load_avg", *TIMING_COLUMNS, *WORK_COLUMNS}
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 

@@ -60,9 +60,6 @@ def sweep(folder: Path, out: Path, scheduler: str | None = None) -> None:
 def comparable(out: Path):
     frame = store.load_results(out).set_index("run_id").sort_index()
     frame["reference"] = frame["reference"].str.replace(r" \(read from .*\)$", "", regex=True)
-    # compile=auto's note says which functions a worker had compiled by then: that follows
-    # the worker's earlier runs (its calls repay a compile across runs), not the run
-    frame["notes"] = frame["notes"].str.replace(r"compile=auto: [^|]*", "", regex=True)
     timings = {"equations_cached", *TIMING_COLUMNS, *WORK_COLUMNS}
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 

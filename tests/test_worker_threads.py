@@ -69,8 +69,8 @@ def test_local_pool_and_child_process_rows_agree_bit_for_bit(
     # `workbench run` executes in a child process, as a Dask task does
     ran = subprocess.run(
         [sys.executable, "-m", "workbench", "run", problem, "-f", formalism, "-i", integrator,
-         "--rtol", "1e-6", "-o", "formalism.index=1", "-o", "formalism.compile=auto",
-         "--out", str(child)],  # (a sweep's default compile, which `run` does not share)
+         "--rtol", "1e-6", "-o", "formalism.index=1", "--out", str(child)],
+        # (no compile option: `run` and sweeps share the default, compile=auto)
         cwd=ROOT, env=environment(child_threads),
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip

@@ -618,10 +618,14 @@ def recursive_mechanical_system(
     return joint_space_system(k, mass, forces, acceleration)
 
 
-def ode_function(model: Model, algorithm: str = "aba") -> ca.Function:
+def ode_function(model: Model, algorithm: str = "aba", kernels: bool | None = False) -> ca.Function:
     """f(t, y) = [q'; v'] of the tree (closure constraints ignored): the ode right-hand
     side exactly as :func:`build_equations` builds it, without the other forms (for
-    benchmarks of large models)."""
+    benchmarks of large models). ``kernels``: True, the graph of joint-type kernels
+    (:mod:`~workbench.plugins.formalisms.recursive_kernels`); None, the graph a compiled
+    build compiles (kernels above their size threshold); False, the unrolled graph."""
+    from workbench.plugins.formalisms import recursive_kernels
+
     k = TreeKinematics(model.validate())
     tree = SpatialTree(model, k)
     if algorithm == "aba":
@@ -630,7 +634,10 @@ def ode_function(model: Model, algorithm: str = "aba") -> ca.Function:
         mass = composite_rigid_body_mass(tree)
         acceleration = ca.solve(mass, -recursive_newton_euler(tree, ca.SX.zeros(k.nv)))
     y = ca.vertcat(k.q, k.v)
-    return ca.Function("ode_rhs", [k.t, y], [ca.densify(ca.vertcat(k.qdot, acceleration))])
+    unrolled = ca.Function("ode_rhs", [k.t, y], [ca.densify(ca.vertcat(k.qdot, acceleration))])
+    if kernels is None and algorithm == "aba":
+        kernels = recursive_kernels.use_kernels(model, unrolled.n_instructions())
+    return recursive_kernels.ode_function_kernels(model) if kernels else unrolled
 
 
 def _numeric_tree(model: Model) -> tuple[TreeKinematics, SpatialTree]:
@@ -704,5 +711,25 @@ class Recursive(Formalism):
                 "system (O(n^3)); the ode form is index 1 with Baumgarte stabilization"
             )
         return build_joint_space_equations(
-            self.name, model, kinematics, system, options, ode=True, notes=notes
-        )
+            self.name, model, kinematics, system, options, ode=True, notes=notes,
+            ode_rhs_for_c=self._kernels_for_c(model, kinematics, system, options),
+        )  # fmt: skip
+
+    @staticmethod
+    def _kernels_for_c(
+        model: Model, kinematics: TreeKinematics, system: MechanicalSystem, options: Any
+    ) -> Callable[[Any, Any], Any] | None:
+        """The joint-type kernels' graph of the ode right-hand side, to compile in place of
+        the unrolled one when that is too large to stay in cache (None otherwise): the VM
+        keeps the unrolled graph (:mod:`~workbench.plugins.formalisms.recursive_kernels`)."""
+        from workbench.plugins.formalisms import recursive_kernels
+
+        if getattr(options, "compile", "none") == "none" or system.acceleration is None:
+            return None
+        if system.n_constraints:
+            return None
+        k = kinematics
+        size = ca.Function("aba", [k.t, k.q, k.v], [system.acceleration]).n_instructions()
+        if not recursive_kernels.use_kernels(model, size):
+            return None
+        return lambda t, y: recursive_kernels.ode_rhs_kernels(model, k, t, y)

@@ -5,20 +5,24 @@ at ``-O1``) and saves a part of each call (compiled C ran 1.1-12.7x faster than 
 CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP`, a
 low end, so that a compile is not bought on hope). Measured figures: docs/performance.md.
 
-A function is compiled when its calls would save more than the smallest compile costs
-(:func:`worth_a_look`) and its library is already in the cache (loading costs
-milliseconds), or when the run's expected evaluations
-(:func:`expected_evaluations`, from the problem's span and the tolerance) times the
-saving a call exceed the compile's estimated CPU. Otherwise it stays in the VM and is
-compiled once its calls (counted over every run of the same equations in the process)
-have spent in the VM what the compile would cost (:func:`calls_to_repay`): the
-rent-or-buy rule, which pays at most twice the best choice made with hindsight, whatever
-the number of calls turns out to be.
+The decision is a function of the run alone, so that a row does not depend on which runs
+its worker did before nor on what the cache holds: each run (:meth:`Compiler.expect
+<workbench.equations.compiled.Compiler.expect>`) puts a function in C when the run's
+expected evaluations (:func:`expected_evaluations`, from the problem's span and the
+tolerance) times the saving a call exceed the compile's estimated CPU
+(:func:`calls_to_repay`, with the C's size estimated from the graph:
+:func:`code_bytes_estimate`), and in the VM otherwise, even if an earlier run in the same
+worker compiled it. A call's VM cost is estimated from the graph's size
+(:func:`vm_seconds_estimate`), not timed, so the load cannot tip the decision. A cached
+library only makes the C cheaper to get (it is loaded, not compiled), never changes
+where a function runs. (Until 2026-11-26 a cached library was loaded by any run and the
+VM calls of earlier runs counted towards a compile: rows depended on the worker's history.)
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 COMPILE_CPU_FIXED_S = 0.08
 """CPU of compiling the smallest generated function (gcc -O1, measured 0.086-0.11 s)."""
@@ -29,6 +33,11 @@ COMPILED_SPEEDUP = 2.0
 GENERATE_VM_CALLS = 500.0
 """Generating a function's C costs about this many of its VM calls (measured 420-630 on
 right-hand sides of 0.13-0.5 MB of C; a large MX Jacobian took seconds)."""
+VM_CALL_SECONDS = 0.7e-6
+"""Fixed cost of a CasADi VM call through ``FastFunction.into`` (right-hand sides of 280
+and 531 instructions: 1.8 and 2.0 us; measured 2026-11-26 at load 3)."""
+VM_SECONDS_PER_INSTRUCTION = 3.7e-9
+"""VM seconds an SX instruction (3.65-3.73 ns on right-hand sides of 531 and 5,815)."""
 EVALUATIONS_PER_SECOND = 300.0
 """Right-hand-side evaluations a second of simulated time at rtol 1e-4 (the quick suite's
 non-stiff runs: 130-650)."""
@@ -36,36 +45,57 @@ EVALUATIONS_RTOL_EXPONENT = 0.125
 """Evaluations grow as rtol^-0.125 (the quick suite: about 2x from 1e-4 to 1e-7)."""
 
 
-def compile_cpu_estimate(code_bytes: int) -> float:
+def instruction_count(function: Any) -> int:
+    """SX instructions a call of ``function`` runs: its own, and for an MX graph those of
+    the Functions it calls (a linear solve or other MX node counts one)."""
+    if not function.is_a("MXFunction"):
+        return int(function.n_instructions())
+    count = 0
+    for k in range(function.n_instructions()):
+        node = function.instruction_MX(k)
+        count += instruction_count(node.which_function()) if node.is_call() else 1
+    return count
+
+
+def vm_seconds_estimate(function: Any) -> float:
+    """Estimated VM seconds of one call of ``function``, from its size alone (a function
+    of the graph, so the same on every machine and at any load)."""
+    return VM_CALL_SECONDS + VM_SECONDS_PER_INSTRUCTION * instruction_count(function)
+
+
+CODE_BYTES_PER_INSTRUCTION = 30.0
+"""Bytes of generated C an SX instruction (28 at 3,872 instructions, 30 at 121,617;
+2026-11-26, docs/performance.md)."""
+
+
+def code_bytes_estimate(function: Any) -> float:
+    """Estimated bytes of ``function``'s generated C, from its size: the decision to
+    compile needs no code generated (generating costs about 500 VM calls)."""
+    return CODE_BYTES_PER_INSTRUCTION * instruction_count(function)
+
+
+def compile_cpu_estimate(code_bytes: float) -> float:
     """Estimated CPU seconds to compile ``code_bytes`` of generated C."""
     return COMPILE_CPU_FIXED_S + COMPILE_CPU_S_PER_BYTE * code_bytes
 
 
 def saving_per_call(vm_seconds: float) -> float:
-    """Seconds a call saves compiled, from its measured VM time."""
+    """Seconds a call saves compiled, from its (estimated) VM time."""
     return vm_seconds * (1.0 - 1.0 / COMPILED_SPEEDUP)
 
 
-def calls_to_repay(vm_seconds: float, code_bytes: int) -> float:
-    """Calls after which compiling (generating the C included) has paid for itself (inf
-    for a free VM call); ``code_bytes`` 0: before the C is generated."""
+def calls_to_repay(vm_seconds: float, code_bytes: float) -> float:
+    """Calls after which compiling ``code_bytes`` of C (generating it included) has paid
+    for itself (inf for a free VM call)."""
     saving = saving_per_call(vm_seconds)
     cost = compile_cpu_estimate(code_bytes) + GENERATE_VM_CALLS * vm_seconds
     return cost / saving if saving > 0 else math.inf
 
 
-def worth_a_look(calls: float, vm_seconds: float) -> bool:
-    """Whether ``calls`` VM calls save enough compiled to repay generating their C (to
-    look for it in the cache, which is keyed by it) and the smallest compile, so that
-    neither is wasted on a short run."""
-    generating = GENERATE_VM_CALLS * vm_seconds
-    return calls * saving_per_call(vm_seconds) >= COMPILE_CPU_FIXED_S + generating
-
-
 def expected_evaluations(span: float, rtol: float) -> float:
     """A run's expected evaluations from the problem's span (s) and the relative tolerance:
-    a prior only (a stiff problem under an explicit method takes 100x more); the calls
-    themselves decide later (module docstring)."""
+    a prior only (a stiff problem under an explicit method takes 100x more), and all that
+    decides: the calls a run actually makes never move a function (module docstring)."""
     if not (span > 0 and rtol > 0):
         return 0.0
     return EVALUATIONS_PER_SECOND * span * (1e-4 / rtol) ** EVALUATIONS_RTOL_EXPONENT

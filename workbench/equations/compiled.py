@@ -110,7 +110,9 @@ def generate_c(function: ca.Function, statements_per_part: int = STATEMENTS_PER_
     """The C source of ``function`` (and what it calls), as CasADi generates it, with long
     straight-line bodies cut into parts (:func:`split_long_bodies`). Pass it through
     :func:`exported` first: the exported symbol is the function's own name."""
-    generator = ca.CodeGenerator(function.name(), {"with_header": False, "avoid_stack": True})
+    generator = ca.CodeGenerator(
+        function.name(), {"with_header": False, "avoid_stack": True, "verbose": False}
+    )
     generator.add(function)
     return split_long_bodies(generator.dump(), statements_per_part)
 
@@ -287,18 +289,19 @@ class Compiler:
     warning that reaches the run's message. ``mode`` "jit" or "auto" without a C compiler
     falls back to "none" with a warning.
 
-    "auto" compiles a function at its first call when that repays
-    (:mod:`workbench.equations.compile_policy`): its library is cached, or the evaluations
-    the run expects (:meth:`expect`, set by the runner) save more than the compile costs;
-    else it runs in the VM until its calls have spent what the compile would cost."""
+    "auto" decides for each run, from that run alone, which functions run in C
+    (:mod:`workbench.equations.compile_policy`): those whose compile the evaluations the
+    run expects (:meth:`expect`, set by the runner) repay; the others run in the VM, even
+    if an earlier run of the same equations compiled them."""
 
     mode: str = "none"
     flags: str = DEFAULT_FLAGS
     warnings: list[str] = field(default_factory=list)
     expected_calls: float = 0.0
-    in_c: dict[str, str] = field(default_factory=dict)  # name -> how it came to run in C
-    waiting: list[Any] = field(default_factory=list)  # auto: FastFunctions still in the VM
-    generated: dict[str, Generated] = field(default_factory=dict)  # auto: C not yet compiled
+    in_c: dict[str, str] = field(default_factory=dict)  # name -> "C" (this run's choice)
+    tracked: list[Any] = field(default_factory=list)  # auto: FastFunctions called so far
+    loaded: dict[str, ca.Function] = field(default_factory=dict)  # auto: libraries loaded
+    loaded_bytes: dict[str, int] = field(default_factory=dict)  # auto: their C's size
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -312,8 +315,8 @@ class Compiler:
 
     def __getstate__(self) -> dict:
         return {"mode": self.mode, "flags": self.flags, "warnings": list(self.warnings),
-                "expected_calls": self.expected_calls, "in_c": {}, "waiting": [],
-                "generated": {}}  # fmt: skip
+                "expected_calls": self.expected_calls, "in_c": {}, "tracked": [],
+                "loaded": {}, "loaded_bytes": {}}  # fmt: skip
 
     @classmethod
     def from_options(cls, options: Any) -> Compiler:
@@ -326,6 +329,11 @@ class Compiler:
     def active(self) -> bool:
         """Functions may run compiled (the graphs are built so that C can be generated)."""
         return self.mode != "none"
+
+    @property
+    def waiting(self) -> list[Any]:
+        """compile=auto: the FastFunctions called so far that run in the VM this run."""
+        return [fast for fast in self.tracked if fast.evaluated is fast.function]
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -347,50 +355,45 @@ class Compiler:
         self.warn(f"compile={self.mode}: {function.name()} stays in the CasADi VM ({text})")
 
     def expect(self, calls: float) -> None:
-        """compile=auto: a run is about to make about ``calls`` evaluations; a function
-        still in the VM that they, or the calls it made in earlier runs, would repay is
-        compiled now (between runs, never within one)."""
+        """compile=auto: a run is about to make about ``calls`` evaluations: every function
+        called so far is put in C or in the VM for it (:meth:`decide`), whatever earlier
+        runs chose; functions first called during the run decide at their first call."""
         self.expected_calls = calls
-        for fast in list(self.waiting):
-            if fast.calls_left < 0:  # earlier runs' calls repaid it
-                fast.reconsider(fast.vm_calls, f"after {fast.vm_calls:,} calls in the VM")
-            else:
-                fast.reconsider(calls, "for a run expecting more calls")
+        self.in_c.clear()
+        for fast in self.tracked:
+            fast.reconsider(calls)
 
-    def decide(
-        self, function: ca.Function, vm_seconds: float, calls: float
-    ) -> tuple[ca.Function | None, float]:
-        """compile=auto: (the compiled ``function`` or None, the calls that would repay its
-        compile) for ``calls`` calls that each take ``vm_seconds`` in the VM. Its C is
-        generated (which the cache is keyed by; kept for the next decision) only when the
-        calls take more than generating it costs (``compile_policy.worth_a_look``)."""
-        from workbench.equations.compile_policy import calls_to_repay, worth_a_look
+    def decide(self, function: ca.Function, vm_seconds: float, calls: float) -> ca.Function | None:
+        """compile=auto: the compiled ``function`` if ``calls`` calls that each take
+        ``vm_seconds`` in the VM repay its compile, else None (the VM). The size of its C
+        is estimated from the graph (``compile_policy.code_bytes_estimate``), so the
+        decision needs no code generated; the library is then loaded from the cache if
+        there (which changes only the cost) or compiled, once a process."""
+        from workbench.equations.compile_policy import calls_to_repay, code_bytes_estimate
 
         name = function.name()
-        generated = self.generated.get(name)
-        if generated is None and not worth_a_look(calls, vm_seconds):
-            return None, calls_to_repay(vm_seconds, 0)
-        with counted():
-            try:
-                if generated is None:
-                    generated = self.generated[name] = generate(function, self.flags)
-                repay = calls_to_repay(vm_seconds, len(generated.code))
-                cached = generated.path.exists()
-                if not cached and calls < repay:
-                    return None, repay
-                loaded = load_generated(generated)
-            except RuntimeError as error:
-                self._failed(function, error)
-                return None, float("inf")
-        del self.generated[name]
-        self.in_c[name] = "cached" if cached else "compiled"
-        return loaded, 0.0
+        if self.loaded_bytes.get(name) == -1:  # it cannot be compiled (warned once)
+            return None
+        if calls < calls_to_repay(vm_seconds, code_bytes_estimate(function)):
+            return None
+        if name not in self.loaded:
+            with counted():
+                try:
+                    generated = generate(function, self.flags)
+                    self.loaded[name] = load_generated(generated)
+                    self.loaded_bytes[name] = len(generated.code)
+                except RuntimeError as error:
+                    self._failed(function, error)
+                    self.loaded_bytes[name] = -1
+                    return None
+        self.in_c[name] = "C"
+        return self.loaded[name]
 
     def summary(self) -> str:
         """compile=auto: which functions run in C and which in the VM (for a row's notes)."""
         if self.mode != "auto":
             return ""
-        in_c = ", ".join(f"{name} ({how})" for name, how in sorted(self.in_c.items()))
+        in_c = ", ".join(sorted(self.in_c))
         vm = len(self.waiting)
         parts = [f"in C {in_c}" if in_c else "",
                  f"{vm} function{'s' * (vm != 1)} in the VM (too few calls to repay a compile)"

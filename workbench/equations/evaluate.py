@@ -6,19 +6,19 @@ preallocated NumPy arrays to a ``Function.buffer()`` once and evaluates into the
 are dense (the builder must ``densify`` them: buffers hold only structural nonzeros). With
 an active :class:`~workbench.equations.compiled.Compiler` the Function is compiled to C at
 its first call and the same arrays are bound to the compiled function's buffer; under
-``compile = "auto"`` only if that repays, else it counts its VM calls and is compiled once
-they have (:mod:`workbench.equations.compile_policy`).
+``compile = "auto"`` only if the run's expected evaluations repay that, decided anew for
+each run (:mod:`workbench.equations.compile_policy`).
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
 
+from workbench.equations.compile_policy import vm_seconds_estimate
 from workbench.equations.compiled import Compiler
 
 
@@ -39,9 +39,8 @@ class FastFunction:
         self.compiler = compiler if compiler is not None and compiler.active else None
         self.name = function.name()
         self.n_calls = 0
-        self.calls_left = math.inf  # compile=auto, in the VM: calls until compiling repays
-        self.vm_calls = 0  # compile=auto: calls made in the VM
-        self.vm_seconds = 0.0  # compile=auto: CPU of a VM call, measured at the first
+        self.vm_seconds = 0.0  # compile=auto: a VM call's estimated seconds
+        self._pending_bind = True  # compile=auto: no buffers bound yet
         self._inputs = []
         for i in range(function.n_in()):
             sparsity = function.sparsity_in(i)
@@ -70,7 +69,7 @@ class FastFunction:
     def _bind(self, function: ca.Function) -> None:
         self.evaluated = function
         self._buffer, self._evaluate = function.buffer()
-        self._bound_evaluate = self._evaluate  # (compile=auto wraps _evaluate to count)
+        self._bound_evaluate = self._evaluate
         for i, array in enumerate(self._inputs):
             self._buffer.set_arg(i, memoryview(array))
         for i, array in enumerate(self._outputs):
@@ -128,56 +127,24 @@ class FastFunction:
             self._pending = False
             assert self.compiler is not None
             if self.compiler.mode == "auto":
-                self._bind(self.function)
-                self.vm_seconds = self._vm_seconds()
-                self._watch_vm_calls()
-                self.reconsider(self.compiler.expected_calls, "")
+                self.vm_seconds = vm_seconds_estimate(self.function)
+                self.compiler.tracked.append(self)
+                self.reconsider(self.compiler.expected_calls)
             else:
                 self._bind(self.compiler.load(self.for_c) or self.function)
         return self.evaluated is not self.function
 
-    def _vm_seconds(self) -> float:
-        """CPU seconds of one VM call at the current inputs (at least 3 calls, about 1 ms)."""
-        calls, start = 0, time.process_time()
-        while calls < 3 or (calls < 1000 and time.process_time() - start < 1e-3):
-            self._evaluate()
-            calls += 1
-        return (time.process_time() - start) / calls
-
-    def reconsider(self, calls: float, how: str) -> None:
-        """compile=auto: compile now if ``calls`` VM calls (expected, or made) repay it;
-        else count calls until they would (rent or buy)."""
+    def reconsider(self, calls: float) -> None:
+        """compile=auto: run in C if ``calls`` calls (what this run expects) repay the
+        compile, else in the VM (:meth:`Compiler.decide`); called between runs, never
+        within one: a switch there changed the run's steps, and its repeats then differed
+        from it (a row warned "not reproducible" for the compile's sake)."""
         assert self.compiler is not None
-        loaded, repay = self.compiler.decide(self.for_c, self.vm_seconds, calls)
-        if loaded is not None:
-            if self in self.compiler.waiting:
-                self.compiler.waiting.remove(self)
-            self._bind(loaded)
-            self.compiler.in_c[self.name] += f" {how}" if how else ""
-            self.calls_left = -1.0
-        elif not math.isfinite(repay):  # it cannot be compiled: the VM for good
-            if self in self.compiler.waiting:
-                self.compiler.waiting.remove(self)
-            self.calls_left = math.inf
-        else:
-            if self not in self.compiler.waiting:
-                self.compiler.waiting.append(self)
-            self.calls_left = repay - self.vm_calls
-
-    def _watch_vm_calls(self) -> None:
-        """compile=auto: evaluate in the VM, counting calls; once they repay a compile, the
-        next run starts in C (:meth:`Compiler.expect`). Never in the middle of a run: a
-        switch there changed the run's steps, and its repeats then differed from it (a row
-        warned "not reproducible" for the compile's sake)."""
-        vm_evaluate = self._evaluate
-
-        def counting_evaluate() -> None:
-            self.calls_left -= 1
-            self.vm_calls += 1
-            vm_evaluate()
-
-        self._evaluate = counting_evaluate
-        self.into = self._specialized_into()  # type: ignore[method-assign]
+        loaded = self.compiler.decide(self.for_c, self.vm_seconds, calls)
+        chosen = loaded if loaded is not None else self.function
+        if chosen is not self.evaluated or self._pending_bind:
+            self._pending_bind = False
+            self._bind(chosen)
 
     def into(self, *args: object) -> tuple[np.ndarray, ...]:
         """Evaluate at ``args``; returns the internal output arrays (see the class)."""

@@ -155,6 +155,7 @@ def build_equations(
     notes: list[str] | None = None,
     compiler: Compiler | None = None,
     quaternion_slices: list[slice] | None = None,
+    ode_rhs_for_c: Callable[[Any, Any], Any] | None = None,
 ) -> Equations:
     """Derive all forms and observables from a formalism's symbolic description.
 
@@ -171,6 +172,8 @@ def build_equations(
     ``quaternion_slices``: the slices of q that hold Euler parameters (for the audit);
     by default the q slices of ``system.rotation_blocks``, which are checked here
     (:func:`check_rotation_blocks`) and handed on in the mechanical form.
+    ``ode_rhs_for_c``: (t, y) MX -> [q'; v'] MX, another graph of an unconstrained ode
+    right-hand side to compile to C (e.g. with bounded code size); the VM keeps the other.
     """
     compiler = compiler if compiler is not None else Compiler()
 
@@ -249,8 +252,12 @@ def build_equations(
         # compile=auto: the VM keeps LAPACK's LU, C gets the QR that it can generate
         both = compiler.mode == "auto" and _kkt_solve_differs(system)
         c_graphs = ode_graphs(True) if both else None
+        rhs_for_c = c_graphs[:2] if c_graphs else None
+        if ode_rhs_for_c is not None and compiler.active and nc == 0:
+            t_c, y_c = ca.MX.sym("t"), ca.MX.sym("y", nq + nv)
+            rhs_for_c = ([t_c, y_c], [ode_rhs_for_c(t_c, y_c)])
         forms["ode"] = OdeForm(
-            rhs=hot("ode_rhs", inputs, outputs, c_graphs[:2] if c_graphs else None),
+            rhs=hot("ode_rhs", inputs, outputs, rhs_for_c),
             jacobian=lazy_hot(
                 "ode_jac", inputs, jacobian, (c_graphs[0], c_graphs[2]) if c_graphs else None
             ),
@@ -454,6 +461,7 @@ def build_joint_space_equations(
     options: Any,
     ode: bool,
     notes: list[str] | None = None,
+    ode_rhs_for_c: Callable[[Any, Any], Any] | None = None,
 ) -> Equations:
     """:func:`build_equations` for formalisms whose coordinates are the tree's free joint
     coordinates (``kinematics`` a TreeKinematics): the joint-space map is the identity.
@@ -476,4 +484,5 @@ def build_joint_space_equations(
         notes=notes,
         compiler=Compiler.from_options(options),
         quaternion_slices=quaternion_slices(k),
+        ode_rhs_for_c=ode_rhs_for_c,
     )

@@ -87,10 +87,11 @@ class CompileOptions:
     """Options of every formalism: how its equations are evaluated in hot loops,
     ``compile`` = "none" (CasADi virtual machine), "jit" (C compiled with the machine's
     compiler and ``compile_flags``, cached on disk; see :mod:`workbench.equations.compiled`)
-    or "auto" (C where the run's evaluations repay the compile; a sweep's default, see
-    :mod:`workbench.equations.compile_policy`)."""
+    or "auto" (C where the run's evaluations repay the compile, decided for each run alone;
+    the default of ``workbench run`` and of sweeps alike, so that the same pairing has one
+    run id; see :mod:`workbench.equations.compile_policy`)."""
 
-    compile: Literal["none", "jit", "auto"] = "none"
+    compile: Literal["none", "jit", "auto"] = "auto"
     compile_flags: str = "-O1"
 
 
