@@ -18,6 +18,13 @@ phase's start direction d_0 once U_T . d_0 <= 0, so that the force is continuous
 straight slip stops), slip to stick is U_T . d_0 reaching zero, a slip that turns 60 degrees
 from d_0 starts a new phase (a new d_0), and sticking holds while |lambda_T| <= mu lambda_N
 (the friction disc); a contact that starts to slip does so against its sticking force.
+
+Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
+joints) keep W_B v' = gamma in every phase: their forces are solved with the closed
+contacts' forces and the accelerations in one KKT system; the impact map keeps
+W_B v+ + w = 0 as equalities (:func:`_contact.velocity_problem`); at every event the state
+is projected back onto g(q) = 0 and W_B v + w = 0 (:func:`_contact.project`), so the
+drift of the index-1 phases does not build up from phase to phase.
 """
 
 from __future__ import annotations
@@ -32,7 +39,12 @@ from workbench.equations import Equations
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators._contact import contact_state, refuse, velocity_problem
+from workbench.plugins.integrators._contact import (
+    contact_state,
+    project,
+    refuse,
+    velocity_problem,
+)
 
 OPEN, SLIP, STICK = 0, 1, 2
 
@@ -94,17 +106,19 @@ class _Phases:
         rows = [state.w_n[i] for i in closed] + [row for i in stick for row in w_t[i]]
         bias = [w_n_bias[i] for i in closed] + [w_t_bias[i * nt + k] for i in stick
                                                  for k in range(nt)]  # fmt: skip
-        k = len(rows)
+        k, nb = len(rows), state.w_b.shape[0]
         lam_n, lam_t = np.zeros(self.n), np.zeros((self.n, nt))
-        if k == 0:
-            return np.linalg.solve(state.mass, state.forces), lam_n, lam_t
-        f = np.array(force_dirs).T
-        kkt = np.block([[state.mass, -f], [np.array(rows), np.zeros((k, k))]])
-        rhs = np.concatenate([state.forces, -np.array(bias)])
+        if k + nb == 0:
+            return np.linalg.solve(state.mass, state.forces), lam_n, lam_t  # nb = 0 here
+        # the contacts' forces f lam and the bilateral ones -W_B^T mu, with their rows
+        f = np.hstack([np.array(force_dirs).reshape(k, self.nv).T, -state.w_b.T])
+        rows = np.vstack([np.array(rows).reshape(k, self.nv), state.w_b])
+        kkt = np.block([[state.mass, -f], [rows, np.zeros((k + nb, k + nb))]])
+        rhs = np.concatenate([state.forces, -np.array(bias).reshape(k), state.gamma])
         solution = np.linalg.lstsq(kkt, rhs, rcond=1e-12)[0]
         a, lam = solution[: self.nv], solution[self.nv :]
         lam_n[closed] = lam[: closed.size]
-        lam_t[stick] = lam[closed.size :].reshape(-1, nt)
+        lam_t[stick] = lam[closed.size : k].reshape(-1, nt)
         sliding = closed[modes[closed] == SLIP]
         lam_t[sliding] = -mu[sliding, None] * slip[sliding] * lam_n[sliding, None]
         return a, lam_n, lam_t
@@ -203,6 +217,8 @@ class _Phases:
                      if te.size and te[0] == t_event)  # fmt: skip
             t = float(t_event)
             y = self.impact(t, y)
+            q, v = project(self.equations, t, y[: self.nq], y[self.nq :])
+            y = np.concatenate([q, v])
         else:
             trajectory.success = False
             trajectory.message = (
