@@ -26,7 +26,7 @@ back on g = 0 (Gauss-Newton, minimum norm) and v on W v + w = 0 (in the metric o
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import proxsuite
@@ -50,6 +50,7 @@ class ContactState:
     w_b: np.ndarray
     w_b_offset: np.ndarray  # w
     gamma: np.ndarray
+    w_f: np.ndarray  # (nf, nv): the rates of the joints with friction, U_F = W_F v
 
 
 def contact_state(equations: Equations, t: float, q: np.ndarray, v: np.ndarray) -> ContactState:
@@ -64,12 +65,21 @@ def contact_state(equations: Equations, t: float, q: np.ndarray, v: np.ndarray) 
         np.asarray(mech.mass(t, q)[0]).reshape(nv, nv),
         np.asarray(mech.forces(t, q, v)[0]).reshape(nv),
         contacts.gaps(t, q)[0].reshape(-1),
-        contacts.normal_jacobian(t, q)[0].reshape(contacts.n_contacts, -1),
-        contacts.tangent_jacobian(t, q)[0].reshape(contacts.n_contacts * contacts.n_tangent, -1),
+        contacts.normal_jacobian(t, q)[0].reshape(contacts.n_contacts, nv),
+        contacts.tangent_jacobian(t, q)[0].reshape(contacts.n_contacts * contacts.n_tangent, nv),
         w_b,
         offset,
         gamma,
+        joint_rate_matrix(equations, t, q),
     )
+
+
+def joint_rate_matrix(equations: Equations, t: float, q: np.ndarray) -> np.ndarray:
+    """W_F (nf, nv): the rates of the joints with Coulomb friction, U_F = W_F v."""
+    contacts, nv = equations.contacts, equations.nv
+    if not contacts.n_joint_frictions:
+        return np.zeros((0, nv))
+    return np.asarray(contacts.joint_rate_jacobian(t, q)[0]).reshape(-1, nv)
 
 
 def constrained_solve(state: ContactState, rhs: np.ndarray, bilateral: np.ndarray | None = None):
@@ -130,6 +140,7 @@ class Impulses:
     tangent: np.ndarray  # (n_active * n_tangent,) P_T
     velocity: np.ndarray  # (nv,) v+
     residual: float  # complementarity residual max |min(P_N, U_N+ + e U_N-)|, normalised
+    joint: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (nf,) P_F
 
 
 def velocity_problem(
@@ -138,10 +149,13 @@ def velocity_problem(
     v_free: np.ndarray,
     v_before: np.ndarray,
     active: np.ndarray,
+    joint_bounds: np.ndarray | None = None,
 ) -> Impulses:
     """Impulses on the ``active`` contacts (boolean, one a contact) from v_free; Newton's
     law refers to the local velocities at ``v_before`` (module docstring). Bilateral rows
-    W_B v+ + w = 0 hold as equalities (unbounded impulses)."""
+    W_B v+ + w = 0 hold as equalities. ``joint_bounds`` (nf,): the joints with Coulomb
+    friction take impulses |P_F| <= joint_bounds on their rates (Moreau-Jean: h times the
+    friction bound); None leaves them out (an impact: no impulsive joint friction)."""
     contacts = equations.contacts
     nt = contacts.n_tangent
     index = np.flatnonzero(active)
@@ -149,10 +163,11 @@ def velocity_problem(
     if nb:  # onto W_B v + w = 0 (the bilateral impulses that need no contact impulse)
         v_free = v_free + constrained_solve(state, np.zeros_like(v_free),
                                             -(state.w_b @ v_free + state.w_b_offset))  # fmt: skip
-    if index.size == 0:
+    nf = 0 if joint_bounds is None else state.w_f.shape[0]
+    if index.size == 0 and nf == 0:
         return Impulses(np.zeros(0), np.zeros(0), v_free, 0.0)
     tangent_rows = (index[:, None] * nt + np.arange(nt)).reshape(-1)
-    w = np.vstack([state.w_n[index], state.w_t[tangent_rows]])
+    w = np.vstack([state.w_n[index], state.w_t[tangent_rows], state.w_f[:nf]])
     inverse_mass_wt = constrained_solve(state, w.T, np.zeros((nb, w.shape[0])))
     delassus = w @ inverse_mass_wt
     delassus = (delassus + delassus.T) / 2
@@ -160,10 +175,11 @@ def velocity_problem(
     n = index.size
     b = w @ v_free
     b[:n] += e * (state.w_n[index] @ v_before)
-    lower = np.concatenate([np.zeros(n), np.zeros(n * nt)])
-    upper = np.concatenate([np.full(n, np.inf), np.zeros(n * nt)])
+    joint = np.zeros(0) if joint_bounds is None else np.asarray(joint_bounds, dtype=float)
+    lower = np.concatenate([np.zeros(n), np.zeros(n * nt), -joint])
+    upper = np.concatenate([np.full(n, np.inf), np.zeros(n * nt), joint])
     bound = np.zeros(n)
-    impulses = np.zeros(n * (1 + nt))
+    impulses = np.zeros(n * (1 + nt) + nf)
     for _ in range(FIXED_POINT_ITERATIONS):
         lower[n : n * (1 + nt)] = -np.repeat(mu * bound, nt)
         upper[n : n * (1 + nt)] = np.repeat(mu * bound, nt)
@@ -184,4 +200,4 @@ def velocity_problem(
     scale = max(float(np.max(speeds, initial=0.0)), 1e-12)  # the velocities it changes
     residual = np.abs(np.minimum(normal * np.diag(delassus)[:n], target))
     residual = float(np.max(residual, initial=0.0)) / scale
-    return Impulses(normal, tangent, velocity, residual)
+    return Impulses(normal, tangent, velocity, residual, impulses[n * (1 + nt) :])

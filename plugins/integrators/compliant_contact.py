@@ -12,6 +12,7 @@ penetrates about m g / k at rest and creeps at about v_eps where it should stick
 Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
 joints) are kept at acceleration level, W_B v' = gamma, in the same linear solve
 (:func:`_contact.constrained_solve`), and m_eff uses the constrained response.
+Coulomb friction in a joint is regularized the same way: -bound U_F / sqrt(U_F^2 + v_eps^2).
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ class CompliantContact(Integrator):
         nq, nv, n, nt = equations.nq, equations.nv, contacts.n_contacts, contacts.n_tangent
         zeta = damping_ratio(contacts.restitution)
         k = options.stiffness
+        bound_f = contacts.joint_friction_bound
 
         def rhs(t: float, y: np.ndarray) -> np.ndarray:
             q, v = y[:nq], y[nq:]
@@ -85,6 +87,8 @@ class CompliantContact(Integrator):
                     u_t = w_t @ v
                     slip = np.sqrt(u_t @ u_t + options.slip_speed**2)
                     force -= w_t.T @ (contacts.friction[i] * lam_n[j] * u_t / slip)
+            u_f = state.w_f @ v  # joint friction, regularized like the contacts'
+            force -= state.w_f.T @ (bound_f * u_f / np.sqrt(u_f**2 + options.slip_speed**2))
             qdot = mech.qdot(t, q, v)[0].reshape(-1)
             return np.concatenate([qdot, constrained_solve(state, force)])
 

@@ -22,6 +22,8 @@ joints) hold at velocity level in the same problem, W_B v_k+1 + w = 0 (their imp
 eliminated with the KKT matrix, :func:`_contact.velocity_problem`); the positions are then
 stabilized by projecting q_k+1 onto g(q) = 0
 (:func:`_contact.project`, Gauss-Newton with minimum-norm steps) after each step.
+Coulomb friction in a joint takes an impulse |P_F| <= h bound on the joint's rate in the
+same problem (a box beside the contacts').
 """
 
 from __future__ import annotations
@@ -100,7 +102,8 @@ class MoreauJean(Integrator):
                 q_mid = q + h / 2 * kinematics @ v
                 active = contacts.gaps(t + h / 2, q_mid)[0].reshape(-1) <= 0
                 v_free = v + h * constrained_solve(state, state.forces)
-                solved = velocity_problem(equations, state, v_free, v, active)
+                solved = velocity_problem(equations, state, v_free, v, active,
+                                          h * contacts.joint_friction_bound)  # fmt: skip
                 v_new = solved.velocity
                 residual = max(residual, solved.residual)
                 q_new = q + h * kinematics @ (options.theta * v_new + (1 - options.theta) * v)
