@@ -243,8 +243,11 @@ class _Phases:
                 rhs, (t, t_end), y, method="DOP853", t_eval=wanted, rtol=task.rtol,
                 atol=task.atol, events=self.switching_functions(modes, signs),
             )  # fmt: skip
-            steps += solution.t.size
-            for s, z in zip(solution.t, solution.y.T, strict=True):
+            # (an event in the first step, before any output time, leaves lists)
+            sampled_t = np.asarray(solution.t, dtype=float).reshape(-1)
+            sampled_y = np.asarray(solution.y, dtype=float).reshape(y.size, sampled_t.size)
+            steps += sampled_t.size
+            for s, z in zip(sampled_t, sampled_y.T, strict=True):
                 out_t.append(s)
                 out_y.append(z)
                 gaps = self.contacts.gaps(s, z[: self.nq])[0].reshape(-1)

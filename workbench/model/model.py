@@ -188,8 +188,8 @@ class Model:
 
     def add_joint_friction(self, joint: str, bound: float) -> JointFriction:
         """Add Coulomb friction to the one-coordinate joint ``joint`` (revolute: a torque
-        bound in N m; prismatic: a force bound in N); set-valued, so only the contact
-        integrators (event-driven, moreau-jean, compliant-contact) run such a model."""
+        bound in N m; prismatic: a force bound in N); set-valued, so only integrators that
+        take contacts run such a model."""
         where = f"model {self.name!r}, joint friction of {joint!r}"
         if any(f.joint == joint for f in self.joint_frictions):
             raise ModelError(f"{where}: the joint has friction already; add it once")
