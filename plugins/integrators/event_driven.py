@@ -29,8 +29,10 @@ drift of the index-1 phases does not build up from phase to phase.
 Coulomb friction in a joint (:class:`~workbench.model.JointFriction`) is a contact that
 never opens: sticking, its torque (or force) lambda_F keeps the joint rate's derivative
 zero, solved with the rest, until |lambda_F| reaches the bound; sliding, it is -bound
-times the sign of the rate, until the rate reaches zero. Impacts take no impulsive joint
-friction.
+times the sign of the rate, until the rate reaches zero; there it slips on the way its
+rate then turns (U_F' = W_F v' + wdot_F under the friction that opposes it: a slider-crank's
+dead centre turns its piston whatever the friction), else it sticks. Impacts take no
+impulsive joint friction.
 """
 
 from __future__ import annotations
@@ -176,6 +178,17 @@ class _Phases:
         joint_signs[:, 0] = np.sign(u_f)
         modes, signs = np.concatenate([modes, joint_modes]), np.vstack([signs, joint_signs])
         mu, n = self.contacts.friction, self.n
+        if self.nf:  # a joint at rest slips the way its rate then turns (a dead centre's
+            # kinematics may turn it whatever the friction), else it sticks
+            joint_bias = self.contacts.joint_rate_bias(t, q, v)[0].reshape(-1)
+            for i in np.flatnonzero(joint_modes == STICK):
+                for sign in (1.0, -1.0):
+                    modes[n + i], signs[n + i, 0] = SLIP, sign
+                    a = self.accelerations(t, y, modes, signs)[0]
+                    if sign * (state.w_f[i] @ a + joint_bias[i]) > 0:
+                        break
+                else:
+                    modes[n + i], signs[n + i, 0] = STICK, 0.0
         for _ in range(4 * (n + self.nf) + 2):
             _, lam_n, lam_t, lam_f = self.accelerations(t, y, modes, signs)
             held = np.linalg.norm(lam_t, axis=1)
