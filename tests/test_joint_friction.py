@@ -53,6 +53,7 @@ def swings(bound: float, start: float) -> list[float]:
     rests = [start]
     while abs(WEIGHT * math.cos(rests[-1])) > bound and len(rests) < 50:
         a = rests[-1]
+
         def lost(b: float, a: float = a) -> float:
             return WEIGHT * (math.sin(a) - math.sin(b)) - bound * abs(b - a)
 

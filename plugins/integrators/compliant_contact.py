@@ -28,7 +28,7 @@ from workbench.equations import Equations
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators._contact import contact_state, constrained_solve, refuse
+from workbench.plugins.integrators._contact import constrained_solve, contact_state, refuse
 
 
 @dataclass(frozen=True)

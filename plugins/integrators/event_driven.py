@@ -195,7 +195,8 @@ class _Phases:
             lifted = (modes[:n] != OPEN) & (lam_n < 0)
             slipping = (modes[:n] == STICK) & ~lifted & (held > mu * lam_n * (1 + 1e-9))
             joint_slipping = (modes[n:] == STICK) & (
-                np.abs(lam_f) > self.bound_f * (1 + 1e-9) + 1e-12)
+                np.abs(lam_f) > self.bound_f * (1 + 1e-9) + 1e-12
+            )
             if not lifted.any() and not slipping.any() and not joint_slipping.any():
                 break
             modes[:n][lifted] = OPEN
