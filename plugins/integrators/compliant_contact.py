@@ -9,6 +9,10 @@ zeta = -ln e / sqrt(pi^2 + ln^2 e) (e = 0: zeta = 1, critical). Friction is Coul
 regularized: lambda_T = -mu lambda_N U_T / sqrt(U_T^2 + v_eps^2) (``slip_speed`` v_eps).
 The answer converges to the rigid one only as k grows and v_eps shrinks: the contact
 penetrates about m g / k at rest and creeps at about v_eps where it should stick.
+Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
+joints) are kept at acceleration level, W_B v' = gamma, in the same linear solve
+(:func:`_contact.constrained_solve`), and m_eff uses the constrained response.
+Coulomb friction in a joint is regularized the same way: -bound U_F / sqrt(U_F^2 + v_eps^2).
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from workbench.equations import Equations
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators._contact import contact_state, refuse
+from workbench.plugins.integrators._contact import constrained_solve, contact_state, refuse
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,7 @@ class CompliantContact(Integrator):
         nq, nv, n, nt = equations.nq, equations.nv, contacts.n_contacts, contacts.n_tangent
         zeta = damping_ratio(contacts.restitution)
         k = options.stiffness
+        bound_f = contacts.joint_friction_bound
 
         def rhs(t: float, y: np.ndarray) -> np.ndarray:
             q, v = y[:nq], y[nq:]
@@ -69,7 +74,9 @@ class CompliantContact(Integrator):
             force = state.forces.copy()
             touching = np.flatnonzero(state.gaps < 0)
             if touching.size:
-                inverse_wt = np.linalg.solve(state.mass, state.w_n[touching].T)
+                columns = state.w_n[touching].T  # the constrained response N W_N^T
+                zero = np.zeros((state.w_b.shape[0], touching.size))
+                inverse_wt = constrained_solve(state, columns, zero)
                 m_eff = 1 / np.einsum("ij,ji->i", state.w_n[touching], inverse_wt)
                 c = 2 * zeta[touching] * np.sqrt(k * m_eff)
                 u_n = state.w_n[touching] @ v
@@ -80,8 +87,10 @@ class CompliantContact(Integrator):
                     u_t = w_t @ v
                     slip = np.sqrt(u_t @ u_t + options.slip_speed**2)
                     force -= w_t.T @ (contacts.friction[i] * lam_n[j] * u_t / slip)
+            u_f = state.w_f @ v  # joint friction, regularized like the contacts'
+            force -= state.w_f.T @ (bound_f * u_f / np.sqrt(u_f**2 + options.slip_speed**2))
             qdot = mech.qdot(t, q, v)[0].reshape(-1)
-            return np.concatenate([qdot, np.linalg.solve(state.mass, force)])
+            return np.concatenate([qdot, constrained_solve(state, force)])
 
         def closing(i: int) -> Any:  # a gap turning negative: the contact's event
             def event(t: float, y: np.ndarray) -> float:

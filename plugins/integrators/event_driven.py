@@ -18,6 +18,21 @@ phase's start direction d_0 once U_T . d_0 <= 0, so that the force is continuous
 straight slip stops), slip to stick is U_T . d_0 reaching zero, a slip that turns 60 degrees
 from d_0 starts a new phase (a new d_0), and sticking holds while |lambda_T| <= mu lambda_N
 (the friction disc); a contact that starts to slip does so against its sticking force.
+
+Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
+joints) keep W_B v' = gamma in every phase: their forces are solved with the closed
+contacts' forces and the accelerations in one KKT system; the impact map keeps
+W_B v+ + w = 0 as equalities (:func:`_contact.velocity_problem`); at every event the state
+is projected back onto g(q) = 0 and W_B v + w = 0 (:func:`_contact.project`), so the
+drift of the index-1 phases does not build up from phase to phase.
+
+Coulomb friction in a joint (:class:`~workbench.model.JointFriction`) is a contact that
+never opens: sticking, its torque (or force) lambda_F keeps the joint rate's derivative
+zero, solved with the rest, until |lambda_F| reaches the bound; sliding, it is -bound
+times the sign of the rate, until the rate reaches zero; there it slips on the way its
+rate then turns (U_F' = W_F v' + wdot_F under the friction that opposes it: a slider-crank's
+dead centre turns its piston whatever the friction), else it sticks. Impacts take no
+impulsive joint friction.
 """
 
 from __future__ import annotations
@@ -32,7 +47,12 @@ from workbench.equations import Equations
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators._contact import contact_state, refuse, velocity_problem
+from workbench.plugins.integrators._contact import (
+    contact_state,
+    project,
+    refuse,
+    velocity_problem,
+)
 
 OPEN, SLIP, STICK = 0, 1, 2
 
@@ -71,6 +91,8 @@ class _Phases:
         self.mech, self.contacts = task.form, task.equations.contacts
         self.nq, self.nv = task.equations.nq, task.equations.nv
         self.n = self.contacts.n_contacts
+        self.nf = self.contacts.n_joint_frictions
+        self.bound_f = self.contacts.joint_friction_bound
         self.scale = 1.0  # a length for gap tolerances
         self.events: list[float] = []
         self.penetration = 0.0
@@ -78,36 +100,54 @@ class _Phases:
 
     # -- the smooth phase in given modes --------------------------------------------
     def accelerations(self, t: float, y: np.ndarray, modes: np.ndarray, signs: np.ndarray):
-        """(v', lambda_N (n), lambda_T (n, n_tangent)) in ``modes``; ``signs`` (n, n_tangent):
-        each contact's slip direction at the phase's start (a sign in a planar model)."""
+        """(v', lambda_N (n), lambda_T (n, n_tangent), lambda_F (nf)) in ``modes`` (n + nf:
+        the contacts', then the joint frictions'); ``signs`` (n + nf, n_tangent): each
+        contact's slip direction at the phase's start (a sign in a planar model), each
+        joint's slip sign in column 0."""
         q, v = y[: self.nq], y[self.nq :]
         state = contact_state(self.equations, t, q, v)
+        joint_modes, joint_signs = modes[self.n :], signs[self.n :, 0]
+        modes, signs = modes[: self.n], signs[: self.n]
+        joint_stick = np.flatnonzero(joint_modes == STICK)
+        joint_slip = np.flatnonzero(joint_modes == SLIP)
+        lam_f = np.zeros(self.nf)
+        lam_f[joint_slip] = -self.bound_f[joint_slip] * joint_signs[joint_slip]
+        forces = state.forces + state.w_f.T @ lam_f  # the sliding joints' friction
+        joint_bias = (self.contacts.joint_rate_bias(t, q, v)[0].reshape(-1) if self.nf
+                      else np.zeros(0))  # fmt: skip
         closed = np.flatnonzero(modes != OPEN)
         stick = np.flatnonzero(modes == STICK)
         mu, nt = self.contacts.friction, self.contacts.n_tangent
         w_n_bias = self.contacts.normal_bias(t, q, v)[0].reshape(-1)
         w_t_bias = self.contacts.tangent_bias(t, q, v)[0].reshape(-1)
-        w_t = state.w_t.reshape(self.n, nt, -1)
+        w_t = state.w_t.reshape(self.n, nt, self.nv)
         slip = self.slip_directions(w_t @ v, signs)
         force_dirs = [state.w_n[i] - mu[i] * (modes[i] == SLIP) * slip[i] @ w_t[i]
                       for i in closed] + [row for i in stick for row in w_t[i]]  # fmt: skip
         rows = [state.w_n[i] for i in closed] + [row for i in stick for row in w_t[i]]
         bias = [w_n_bias[i] for i in closed] + [w_t_bias[i * nt + k] for i in stick
                                                  for k in range(nt)]  # fmt: skip
-        k = len(rows)
+        k_contacts = len(rows)
+        force_dirs += [state.w_f[i] for i in joint_stick]
+        rows += [state.w_f[i] for i in joint_stick]
+        bias += [joint_bias[i] for i in joint_stick]
+        k, nb = len(rows), state.w_b.shape[0]
         lam_n, lam_t = np.zeros(self.n), np.zeros((self.n, nt))
-        if k == 0:
-            return np.linalg.solve(state.mass, state.forces), lam_n, lam_t
-        f = np.array(force_dirs).T
-        kkt = np.block([[state.mass, -f], [np.array(rows), np.zeros((k, k))]])
-        rhs = np.concatenate([state.forces, -np.array(bias)])
+        if k + nb == 0:
+            return np.linalg.solve(state.mass, forces), lam_n, lam_t, lam_f  # nb = 0 here
+        # the contacts' forces f lam and the bilateral ones -W_B^T mu, with their rows
+        f = np.hstack([np.array(force_dirs).reshape(k, self.nv).T, -state.w_b.T])
+        rows = np.vstack([np.array(rows).reshape(k, self.nv), state.w_b])
+        kkt = np.block([[state.mass, -f], [rows, np.zeros((k + nb, k + nb))]])
+        rhs = np.concatenate([forces, -np.array(bias).reshape(k), state.gamma])
         solution = np.linalg.lstsq(kkt, rhs, rcond=1e-12)[0]
         a, lam = solution[: self.nv], solution[self.nv :]
         lam_n[closed] = lam[: closed.size]
-        lam_t[stick] = lam[closed.size :].reshape(-1, nt)
+        lam_t[stick] = lam[closed.size : k_contacts].reshape(-1, nt)
+        lam_f[joint_stick] = lam[k_contacts:k]
         sliding = closed[modes[closed] == SLIP]
         lam_t[sliding] = -mu[sliding, None] * slip[sliding] * lam_n[sliding, None]
-        return a, lam_n, lam_t
+        return a, lam_n, lam_t, lam_f
 
     @staticmethod
     def slip_directions(u_t: np.ndarray, signs: np.ndarray) -> np.ndarray:
@@ -132,18 +172,39 @@ class _Phases:
         speed = np.linalg.norm(u_t, axis=1)
         modes[(modes == STICK) & (speed > tol)] = SLIP
         signs = u_t / np.where(speed > 0, speed, 1.0)[:, None]
-        mu = self.contacts.friction
-        for _ in range(4 * self.n + 2):
-            _, lam_n, lam_t = self.accelerations(t, y, modes, signs)
+        u_f = state.w_f @ v  # the joints with friction: slipping where they turn
+        joint_modes = np.where(np.abs(u_f) > tol, SLIP, STICK)
+        joint_signs = np.zeros((self.nf, nt))
+        joint_signs[:, 0] = np.sign(u_f)
+        modes, signs = np.concatenate([modes, joint_modes]), np.vstack([signs, joint_signs])
+        mu, n = self.contacts.friction, self.n
+        if self.nf:  # a joint at rest slips the way its rate then turns (a dead centre's
+            # kinematics may turn it whatever the friction), else it sticks
+            joint_bias = self.contacts.joint_rate_bias(t, q, v)[0].reshape(-1)
+            for i in np.flatnonzero(joint_modes == STICK):
+                for sign in (1.0, -1.0):
+                    modes[n + i], signs[n + i, 0] = SLIP, sign
+                    a = self.accelerations(t, y, modes, signs)[0]
+                    if sign * (state.w_f[i] @ a + joint_bias[i]) > 0:
+                        break
+                else:
+                    modes[n + i], signs[n + i, 0] = STICK, 0.0
+        for _ in range(4 * (n + self.nf) + 2):
+            _, lam_n, lam_t, lam_f = self.accelerations(t, y, modes, signs)
             held = np.linalg.norm(lam_t, axis=1)
-            lifted = (modes != OPEN) & (lam_n < 0)
-            slipping = (modes == STICK) & ~lifted & (held > mu * lam_n * (1 + 1e-9))
-            if not lifted.any() and not slipping.any():
+            lifted = (modes[:n] != OPEN) & (lam_n < 0)
+            slipping = (modes[:n] == STICK) & ~lifted & (held > mu * lam_n * (1 + 1e-9))
+            joint_slipping = (modes[n:] == STICK) & (
+                np.abs(lam_f) > self.bound_f * (1 + 1e-9) + 1e-12
+            )
+            if not lifted.any() and not slipping.any() and not joint_slipping.any():
                 break
-            modes[lifted] = OPEN
+            modes[:n][lifted] = OPEN
             # stick to slip: the contact starts to slide against the force that held it
-            signs[slipping] = -lam_t[slipping] / held[slipping, None]
-            modes[slipping] = SLIP
+            signs[:n][slipping] = -lam_t[slipping] / held[slipping, None]
+            modes[:n][slipping] = SLIP
+            signs[n:, 0][joint_slipping] = -np.sign(lam_f[joint_slipping])
+            modes[n:][joint_slipping] = SLIP
         return modes, signs
 
     def switching_functions(self, modes: np.ndarray, signs: np.ndarray) -> list:
@@ -154,14 +215,20 @@ class _Phases:
                 q, v = y[: self.nq], y[self.nq :]
                 if kind == "gap":
                     return float(self.contacts.gaps(t, q)[0].reshape(-1)[i])
+                if kind == "joint-slide":  # the joint's slip stops (or reverses)
+                    w_f = self.contacts.joint_rate_jacobian(t, q)[0].reshape(self.nf, self.nv)
+                    return float(signs[self.n + i, 0] * (w_f[i] @ v))
+                if kind == "joint-cone":
+                    lam_f = self.accelerations(t, y, modes, signs)[3]
+                    return float(self.bound_f[i] - abs(lam_f[i]))
                 if kind in ("slide", "turn"):
-                    w_t = self.contacts.tangent_jacobian(t, q)[0].reshape(self.n, nt, -1)[i]
+                    w_t = self.contacts.tangent_jacobian(t, q)[0].reshape(self.n, nt, self.nv)[i]
                     u_t = w_t @ v
                     if kind == "slide":  # the slip stops (or reverses, planar)
                         return float(signs[i] @ u_t)
                     # a spatial slip turned 60 degrees from the phase's start: new phase
                     return float(signs[i] @ u_t - np.linalg.norm(u_t) / 2)
-                _, lam_n, lam_t = self.accelerations(t, y, modes, signs)
+                _, lam_n, lam_t, _ = self.accelerations(t, y, modes, signs)
                 if kind == "normal":
                     return float(lam_n[i])
                 return float(self.contacts.friction[i] * lam_n[i] - np.linalg.norm(lam_t[i]))
@@ -171,7 +238,10 @@ class _Phases:
 
         slide = ["normal", "slide"] + (["turn"] if nt > 1 else [])
         kinds = {OPEN: ["gap"], SLIP: slide, STICK: ["normal", "cone"]}
-        return [make(i, kind) for i in range(self.n) for kind in kinds[int(modes[i])]]
+        joint_kinds = {SLIP: ["joint-slide"], STICK: ["joint-cone"]}
+        return [make(i, kind) for i in range(self.n) for kind in kinds[int(modes[i])]] + [
+            make(i, kind) for i in range(self.nf) for kind in joint_kinds[int(modes[self.n + i])]
+        ]
 
     # -- the run ---------------------------------------------------------------------
     def run(self, trajectory: Trajectory) -> None:
@@ -187,8 +257,11 @@ class _Phases:
                 rhs, (t, t_end), y, method="DOP853", t_eval=wanted, rtol=task.rtol,
                 atol=task.atol, events=self.switching_functions(modes, signs),
             )  # fmt: skip
-            steps += solution.t.size
-            for s, z in zip(solution.t, solution.y.T, strict=True):
+            # (an event in the first step, before any output time, leaves lists)
+            sampled_t = np.asarray(solution.t, dtype=float).reshape(-1)
+            sampled_y = np.asarray(solution.y, dtype=float).reshape(y.size, sampled_t.size)
+            steps += sampled_t.size
+            for s, z in zip(sampled_t, sampled_y.T, strict=True):
                 out_t.append(s)
                 out_y.append(z)
                 gaps = self.contacts.gaps(s, z[: self.nq])[0].reshape(-1)
@@ -203,6 +276,8 @@ class _Phases:
                      if te.size and te[0] == t_event)  # fmt: skip
             t = float(t_event)
             y = self.impact(t, y)
+            q, v = project(self.equations, t, y[: self.nq], y[self.nq :])
+            y = np.concatenate([q, v])
         else:
             trajectory.success = False
             trajectory.message = (

@@ -16,6 +16,14 @@ zero by linear interpolation within the step; a slip-to-stick switch where a clo
 contact's friction impulse leaves the edge of its cone (at the step's end). ``step``: 0
 takes it from rtol (:func:`step_for_tolerance`, order 1), never longer than an output
 interval.
+
+Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
+joints) hold at velocity level in the same problem, W_B v_k+1 + w = 0 (their impulses
+eliminated with the KKT matrix, :func:`_contact.velocity_problem`); the positions are then
+stabilized by projecting q_k+1 onto g(q) = 0
+(:func:`_contact.project`, Gauss-Newton with minimum-norm steps) after each step.
+Coulomb friction in a joint takes an impulse |P_F| <= h bound on the joint's rate in the
+same problem (a box beside the contacts').
 """
 
 from __future__ import annotations
@@ -35,7 +43,13 @@ from workbench.plugin.integrator import (
     step_for_tolerance,
 )
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators._contact import contact_state, refuse, velocity_problem
+from workbench.plugins.integrators._contact import (
+    constrained_solve,
+    contact_state,
+    project,
+    refuse,
+    velocity_problem,
+)
 
 
 @dataclass(frozen=True)
@@ -87,13 +101,16 @@ class MoreauJean(Integrator):
                 kinematics = mech.kinematics(t, q)[0]
                 q_mid = q + h / 2 * kinematics @ v
                 active = contacts.gaps(t + h / 2, q_mid)[0].reshape(-1) <= 0
-                v_free = v + h * np.linalg.solve(state.mass, state.forces)
-                solved = velocity_problem(equations, state, v_free, v, active)
+                v_free = v + h * constrained_solve(state, state.forces)
+                solved = velocity_problem(equations, state, v_free, v, active,
+                                          h * contacts.joint_friction_bound)  # fmt: skip
                 v_new = solved.velocity
                 residual = max(residual, solved.residual)
                 q_new = q + h * kinematics @ (options.theta * v_new + (1 - options.theta) * v)
                 for block in equations.quaternion_slices:  # back onto the unit sphere
                     q_new[block] /= np.linalg.norm(q_new[block])
+                if equations.n_constraints:  # position-level stabilization
+                    q_new, _ = project(equations, t + h, q_new, v_new)
                 gaps_new = contacts.gaps(t + h, q_new)[0].reshape(-1)
                 pushed = np.zeros(active.size, dtype=bool)
                 pushed[np.flatnonzero(active)] = solved.normal > 0

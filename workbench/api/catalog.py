@@ -132,7 +132,7 @@ def model_facts(problem: Any, model: Any) -> dict[str, str]:
 
     topology = analyze(model)
     dof = topology.dof if topology.dof is not None else topology.dof_gruebler
-    return {
+    facts = {
         "kind": model.kind,
         "bodies": f"{len(model.bodies)}: {', '.join(model.bodies)}",
         "joints": f"{len(model.joints)}: {', '.join(model.joints)}",
@@ -142,3 +142,10 @@ def model_facts(problem: Any, model: Any) -> dict[str, str]:
         "conservative": "yes" if problem.conservative else "no",
         "time span": f"{problem.t_start:g} .. {problem.t_end:g} s",
     }
+    if model.contacts:
+        facts["contacts"] = f"{len(model.contacts)}: {', '.join(c.name for c in model.contacts)}"
+    if model.joint_frictions:
+        facts["joint friction"] = ", ".join(
+            f"{f.joint} (bound {f.bound:g})" for f in model.joint_frictions
+        )
+    return facts

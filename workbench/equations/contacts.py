@@ -15,6 +15,11 @@ t_i (one in a planar model: n x e_z; two in a spatial one):
 * the friction cone data: Coulomb's mu_i and Newton's restitution e_i of every contact.
 
 Generalized contact forces are W_N^T lambda_N + W_T^T lambda_T.
+
+Coulomb friction in a one-coordinate joint (:class:`~workbench.model.JointFriction`) is
+offered the same way, as the joint's rate U_F = W_F v (a revolute joint's relative angular
+velocity about its axis, a prismatic one's relative sliding velocity along it) with its
+bias and the friction bound: a contact that never opens, with a given normal force.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import numpy as np
 
 from workbench.equations.contract import ContactForm
 from workbench.mechanics.kinematics import BodyState
-from workbench.model import Model
+from workbench.model import GROUND, Model
 
 
 def plane_tangents(normal: np.ndarray, planar: bool) -> list[np.ndarray]:
@@ -52,10 +57,11 @@ def build_contact_form(
 ) -> ContactForm | None:
     """The contact form of ``model`` in the coordinates (t, q, v) with q' = ``qdot``;
     None without contacts. ``hot`` makes the numeric functions (the forms' compiler)."""
-    if not model.contacts:
+    if not model.contacts and not model.joint_frictions:
         return None
     planar = model.kind == "planar"
-    gaps, normal_velocity, tangent_velocity = [], [], []
+    empty = type(q)(0, 1)  # (q[0:0] of a one-coordinate q is (1, 0))
+    gaps, normal_velocity, tangent_velocity = [empty], [empty], [empty]
     for contact in model.contacts:
         body = bodies[contact.body]
         normal = np.asarray(contact.plane_normal, dtype=float)
@@ -71,6 +77,8 @@ def build_contact_form(
     zero_v = ca.DM.zeros(v.numel())
     w_n = ca.substitute(ca.jacobian(u_n, v), v, zero_v)
     w_t = ca.substitute(ca.jacobian(u_t, v), v, zero_v)
+    u_f = ca.vertcat(empty, *[joint_rate(model, f.joint, bodies) for f in model.joint_frictions])
+    w_f = ca.substitute(ca.jacobian(u_f, v), v, zero_v)
 
     def bias(u: Any) -> Any:  # d/dt of W v at fixed v: dU/dq q' + dU/dt
         return ca.mtimes(ca.jacobian(u, q), qdot) + ca.jacobian(u, t)
@@ -85,4 +93,28 @@ def build_contact_form(
         tangent_jacobian=hot("contact_W_T", [t, q], [w_t]),
         normal_bias=hot("contact_wdot_N", [t, q, v], [bias(u_n)]),
         tangent_bias=hot("contact_wdot_T", [t, q, v], [bias(u_t)]),
+        joint_friction_names=[f.name for f in model.joint_frictions],
+        joint_friction_bound=np.array([f.bound for f in model.joint_frictions]),
+        joint_rate_jacobian=hot("joint_W_F", [t, q], [w_f]),
+        joint_rate_bias=hot("joint_wdot_F", [t, q, v], [bias(u_f)]),
     )
+
+
+def joint_rate(model: Model, name: str, bodies: dict[str, BodyState]) -> Any:
+    """The rate of one-coordinate joint ``name`` from its bodies' twists: the relative
+    angular velocity about the axis (revolute) or the relative velocity of the joint
+    frames' origins along it, seen from the parent (prismatic); the axis in frame P."""
+    joint = model.joints[name]
+    zero = ca.DM.zeros(3)
+    ground = BodyState(zero, ca.DM.eye(3), zero, zero)
+    parent = ground if joint.parent == GROUND else bodies[joint.parent]
+    child = bodies[joint.child]
+    origin_p, rotation_p = parent.frame(joint.parent_frame)
+    axis = ca.mtimes(rotation_p, ca.DM(joint.axis / np.linalg.norm(joint.axis)))
+    if joint.type == "revolute":
+        return ca.dot(axis, child.angular_velocity - parent.angular_velocity)
+    origin_c = child.point(joint.child_frame.position)
+    relative = (child.point_velocity(joint.child_frame.position)
+                - parent.point_velocity(joint.parent_frame.position)
+                - ca.cross(parent.angular_velocity, origin_c - origin_p))  # fmt: skip
+    return ca.dot(axis, relative)

@@ -149,10 +149,21 @@ class ContactForm:
     tangent_jacobian: FastFunction
     normal_bias: FastFunction
     tangent_bias: FastFunction
+    # Coulomb friction in joints (Model.add_joint_friction): the joint rates U_F = W_F v,
+    # joint_rate_jacobian(t, q) -> W_F (nf, nv), joint_rate_bias(t, q, v) -> wdot_F with
+    # U_F' = W_F v' + wdot_F, and each |lambda_F| <= bound (forces W_F^T lambda_F)
+    joint_friction_names: list[str] = field(default_factory=list)
+    joint_friction_bound: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    joint_rate_jacobian: FastFunction | None = None
+    joint_rate_bias: FastFunction | None = None
 
     @property
     def n_contacts(self) -> int:
         return len(self.names)
+
+    @property
+    def n_joint_frictions(self) -> int:
+        return len(self.joint_friction_names)
 
 
 class Atlas(Protocol):

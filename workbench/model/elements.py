@@ -309,3 +309,18 @@ class PlaneContact:
     plane_normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     restitution: float = 0.0
     friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class JointFriction:
+    """Coulomb friction in a one-coordinate joint ``joint`` (revolute: a torque in N m;
+    prismatic: a force in N) with a given ``bound`` >= 0: while the joint slides it acts
+    against the joint rate with magnitude ``bound``; while it sticks it is whatever keeps
+    the rate zero, if that stays within the bound (Glocker's set-valued force law)."""
+
+    joint: str
+    bound: float
+
+    @property
+    def name(self) -> str:
+        return f"{self.joint}.friction"

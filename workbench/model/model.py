@@ -41,6 +41,7 @@ from workbench.model.elements import (
     ForceElement,
     Frame,
     Joint,
+    JointFriction,
     NonholonomicConstraint,
     PlaneContact,
     Shape,
@@ -63,6 +64,7 @@ class Model:
     forces: list[ForceElement] = field(default_factory=list)
     nonholonomic: list[NonholonomicConstraint] = field(default_factory=list)
     contacts: list[PlaneContact] = field(default_factory=list)
+    joint_frictions: list[JointFriction] = field(default_factory=list)
     initial_configuration: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -183,6 +185,17 @@ class Model:
         )
         self.contacts.append(contact)
         return contact
+
+    def add_joint_friction(self, joint: str, bound: float) -> JointFriction:
+        """Add Coulomb friction to the one-coordinate joint ``joint`` (revolute: a torque
+        bound in N m; prismatic: a force bound in N); set-valued, so only integrators that
+        take contacts run such a model."""
+        where = f"model {self.name!r}, joint friction of {joint!r}"
+        if any(f.joint == joint for f in self.joint_frictions):
+            raise ModelError(f"{where}: the joint has friction already; add it once")
+        friction = JointFriction(joint, float(real_array(bound, where, "bound", ())))
+        self.joint_frictions.append(friction)
+        return friction
 
     def _add(self, table: dict, name: str, item: Any) -> None:
         self._check_new_name(name)

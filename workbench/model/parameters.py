@@ -60,6 +60,10 @@ def model_parameters(model: Model) -> list[Row]:
         rows += _nonholonomic_rows(constraint, planar)
     for contact in model.contacts:
         rows.append(_contact_row(contact, planar))
+    for friction in model.joint_frictions:
+        joint = model.joints.get(friction.joint)
+        unit = "N m" if joint is not None and joint.type == "revolute" else "N"
+        rows.append((friction.joint, "Coulomb friction bound", f"{number(friction.bound)} {unit}"))
     return rows
 
 

@@ -34,6 +34,7 @@ from workbench.model.elements import (
     Frame,
     Joint,
     JointForce,
+    JointFriction,
     JointSpringDamper,
     KnifeEdge,
     PlaneContact,
@@ -82,6 +83,8 @@ def validate_model(model: Model) -> None:
         _check_nonholonomic(model, constraint)
     for contact in model.contacts:
         _check_contact(model, contact)
+    for friction in model.joint_frictions:
+        _check_joint_friction(model, friction)
     _check_tree(model)
     _check_point_mass_joints(model)
 
@@ -498,6 +501,28 @@ def _check_contact(model: Model, contact: Any) -> None:
             f"{_where(model, what)}: restitution must be in [0, 1] (got {restitution}); "
             "0 is a plastic impact, 1 an elastic one"
         )
+
+
+def _check_joint_friction(model: Model, friction: Any) -> None:
+    """A JointFriction: a known revolute or prismatic joint, a finite bound >= 0."""
+    what = f"joint friction {getattr(friction, 'name', friction)!r}"
+    if not isinstance(friction, JointFriction):
+        raise ModelError(
+            f"{_where(model, what)}: {type(friction).__name__} is not a joint friction; "
+            "use Model.add_joint_friction(joint, bound)"
+        )
+    joint = model.joints.get(friction.joint)
+    if joint is None:
+        raise ModelError(
+            f"{_where(model, what)}: {friction.joint!r} is not a joint of the model "
+            f"(joints: {', '.join(model.joints) or 'none'})"
+        )
+    if joint.type not in ("revolute", "prismatic"):
+        raise ModelError(
+            f"{_where(model, what)}: joint {joint.name!r} is {joint.type}; friction with a "
+            "bound needs a one-coordinate joint (revolute or prismatic)"
+        )
+    _check_nonnegative(model, what, "bound", friction.bound)
 
 
 # ---- topology ---------------------------------------------------------------------

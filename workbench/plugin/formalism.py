@@ -77,7 +77,7 @@ def model_features(model: Model) -> set[str]:
         features.add("rheonomic")
     if any(b.point_mass for b in model.bodies.values()):
         features.add("point-masses")
-    if model.contacts:
+    if model.contacts or model.joint_frictions:
         features.add("contacts")
     return features
 
