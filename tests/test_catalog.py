@@ -51,6 +51,7 @@ EXPECTED = {
     "incline-block-slide": ({}, 3, 0),
     "incline-block-stop": ({}, 3, 0),
     "sliding-sphere": ({}, 6, 0),  # free 6
+    "rocking-block": ({}, 3, 0),  # planar 3
     "knife-edge-cart[sleigh]": ({"com_offset": 0.1}, 2, 0),
     "articulated-arm": ({}, 6, 0),
     "four-bar": ({}, 1, 1),  # 3 revolutes - 2 rows of the cut revolute
