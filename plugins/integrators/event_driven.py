@@ -158,8 +158,11 @@ class _Phases:
                 rhs, (t, t_end), y, method="DOP853", t_eval=wanted, rtol=task.rtol,
                 atol=task.atol, events=self.switching_functions(modes, signs),
             )  # fmt: skip
-            steps += solution.t.size
-            for s, z in zip(solution.t, solution.y.T, strict=True):
+            # a phase ended by an event before its first output time: SciPy gives lists
+            phase_t = np.asarray(solution.t, dtype=float)
+            phase_y = np.asarray(solution.y, dtype=float).reshape(y.size, phase_t.size)
+            steps += phase_t.size
+            for s, z in zip(phase_t, phase_y.T, strict=True):
                 out_t.append(s)
                 out_y.append(z)
                 gaps = self.contacts.gaps(s, z[: self.nq])[0].reshape(-1)
