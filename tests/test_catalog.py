@@ -52,6 +52,8 @@ EXPECTED = {
     "incline-block-stop": ({}, 3, 0),
     "sliding-sphere": ({}, 6, 0),  # free 6
     "slider-crank-friction": ({}, 1, 1),  # point-mass-slider-crank with slide friction
+    "rocking-block": ({}, 3, 0),  # planar 3
+    "woodpecker": ({}, 3, 0),  # prismatic 1 + revolute 1 + revolute 1
     "knife-edge-cart[sleigh]": ({"com_offset": 0.1}, 2, 0),
     "articulated-arm": ({}, 6, 0),
     "four-bar": ({}, 1, 1),  # 3 revolutes - 2 rows of the cut revolute
