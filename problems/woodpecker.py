@@ -63,6 +63,11 @@ START_SLEEVE = brentq(lower_edge_gap, -0.2, 0.0, xtol=1e-15)  # -0.10353 rad
 @workbench.plugin.registry.problem
 class Woodpecker(Problem):
     name = "woodpecker"
+    no_reference = (
+        "no closed form, and event-driven (the one exact contact integrator) stops at its"
+        " first lift-off under sticking; the energy balance and the limit cycle are checked"
+        " in tests/test_contact_problems.py"
+    )
     summary = "Woodpecker toy: beak impacts, sleeve jamming and friction in a limit cycle"
     source = "book 5.1.2, 5.4.2; Glocker 1995, Pfeiffer & Glocker 1996, Leine et al. 2003"
     t_end = 0.5

@@ -270,8 +270,10 @@ def solve_poses(
         raise ConfigError(f"{pipeline.label()}: the integrator accepts none of the forms {offered}")
     state = consistent_initial_state(equations, problem)
     built = time.perf_counter()
-    solve = integrator.solve if getattr(equations, "atlas", None) is None else functools.partial(
-        integrate_on_charts, integrator
+    solve = (
+        integrator.solve
+        if getattr(equations, "atlas", None) is None
+        else functools.partial(integrate_on_charts, integrator)
     )  # a formalism with charts (velocity partitions): re-partitioned like any run
     trajectory = solve(
         equations, state.y0(equations, form), state.yp0(equations, form), times, rtol, atol,
@@ -672,6 +674,10 @@ def problem_reference(
                 return ReferencePoses(given.kind, poses, given.description, seconds, accuracy)
             except ReferenceTimesMismatch:
                 pass
+        reason = getattr(problem, "no_reference", "")  # a problem that says why it has none
+        if given is None and reason:
+            seconds = time.perf_counter() - started
+            return ReferencePoses("none", None, f"no reference: {reason}", seconds)
         return computed_reference(problem, problem_name, problem_options, times, reference_dir)
     except Exception as error:  # noqa: BLE001 - a missing reference leaves NaN, not a crash
         line = str(error).strip().splitlines()[-1:] or [type(error).__name__]
