@@ -66,20 +66,34 @@ def _prefixes() -> tuple[Path, Path]:
     return prefix, eigen
 
 
-def build() -> Path:
-    """The anchor's shared library, compiled unless the cache holds it."""
+def _compiler() -> str:
     compiler = shutil.which(os.environ.get("CXX", "g++")) or shutil.which("c++")
     if compiler is None:
         raise AnchorUnavailable("no C++ compiler (g++ or $CXX) on PATH")
-    prefix, eigen = _prefixes()
+    return compiler
+
+
+def library_path() -> Path:
+    """Where the anchor's library is cached (it may not be built yet)."""
+    return _library_path(_compiler(), *_prefixes())
+
+
+def _library_path(compiler: str, prefix: Path, eigen: Path) -> Path:
     version = subprocess.run([compiler, "--version"], capture_output=True, text=True).stdout
     key = hashlib.sha256()
     for part in (SOURCE.read_bytes(), " ".join(FLAGS).encode(), version.encode()):
         key.update(part)
     for header in (prefix / "include/pinocchio/config.hpp", eigen / "Eigen/src/Core/util/Macros.h"):
         key.update(header.read_bytes())
-    folder = user_cache_dir() / "anchor"
-    path = folder / f"anchor_aba-{key.hexdigest()[:16]}.so"
+    return user_cache_dir() / "anchor" / f"anchor_aba-{key.hexdigest()[:16]}.so"
+
+
+def build() -> Path:
+    """The anchor's shared library, compiled unless the cache holds it."""
+    compiler = _compiler()
+    prefix, eigen = _prefixes()
+    path = _library_path(compiler, prefix, eigen)
+    folder = path.parent
     if path.exists():
         return path
     folder.mkdir(parents=True, exist_ok=True)
