@@ -369,3 +369,30 @@ def test_collocation_failure_is_reported_at_its_time_with_the_trajectory_before(
     assert trajectory.times[-1] == pytest.approx(0.5)
     exact = X0 * np.cos(OMEGA * trajectory.times)
     assert np.allclose(trajectory.y[:, 0], exact, atol=1e-5)
+
+
+@pytest.mark.parametrize("name, scale", [("casadi-cvodes", 2.0), ("casadi-idas", 1.0)])
+def test_casadi_integrator_built_once_for_the_same_equations_options_and_times(
+    name, scale, oscillator
+):
+    """A second solve (CVODES: from another initial state; IDAS, whose options hold the
+    initial derivative: the same solve) reuses the built integrator and starts from its own
+    state; another tolerance builds another."""
+    from workbench.plugins.integrators import casadi_integrators
+
+    equations, state = oscillator
+    times = np.linspace(0.0, 2.0, 11)
+    casadi_integrators._built.clear()
+    first = solve(name, equations, state, times, 1e-9)
+    assert len(casadi_integrators._built) == 1
+    plugin = get_integrator(name)()
+    form = plugin.select_form({key: getattr(f, "index", 0) for key, f in equations.forms.items()})
+    y0, yp0 = state.y0(equations, form), state.yp0(equations, form)
+    second = plugin.solve(equations, scale * y0, scale * yp0, times, 1e-9, 1e-9, None, form=form)
+    assert len(casadi_integrators._built) == 1
+    assert first.success and second.success
+    exact = X0 * np.cos(OMEGA * times)
+    assert np.abs(np.asarray(first.y)[:, 0] - exact).max() < 1e-6
+    assert np.abs(np.asarray(second.y)[:, 0] - scale * exact).max() < 2e-6
+    solve(name, equations, state, times, 1e-7)
+    assert len(casadi_integrators._built) == 2

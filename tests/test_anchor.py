@@ -1,0 +1,51 @@
+"""The all-compiled anchor of benchmarks/simulation.py (Pinocchio's C++ ABA under CasADi's
+CVODES): it says why when it cannot be built, and once built it gives Pinocchio's Python
+accelerations and ends the UR5's simulation where CVODE + ``pin.aba`` does."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from benchmarks import anchor
+
+
+def test_missing_compiler_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("CXX", "no-such-compiler")
+    monkeypatch.setenv("PATH", "")
+    with pytest.raises(anchor.AnchorUnavailable, match="no C.. compiler"):
+        anchor.build()
+
+
+def test_anchor_agrees_with_pinocchio_on_the_ur5() -> None:
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    pytest.importorskip("workbench.problems.robots", reason="example-robot-data missing")
+    try:
+        cached = anchor.library_path().exists()
+    except anchor.AnchorUnavailable as error:
+        pytest.skip(str(error))
+    if not cached:  # about a minute of compile: built by python -m benchmarks.simulation
+        pytest.skip("the anchor is not built yet (python -m benchmarks.simulation builds it)")
+    from benchmarks.simulation_models import case
+
+    bench = case("ur5")
+    model, order = bench.pin
+    times = np.linspace(0.0, bench.t_end, 11)
+    tree = anchor.Anchor(model, order, bench.y0, times)
+    data, rng = model.createData(), np.random.default_rng(3)
+    for _ in range(3):
+        q, v = rng.uniform(-2, 2, model.nv), rng.uniform(-2, 2, model.nv)
+        expected = pin.aba(model, data, q, v, np.zeros(model.nv))  # same order (UR5)
+        assert np.abs(tree.accelerations(q, v) - expected).max() <= 1e-9 * max(
+            1.0, np.abs(expected).max()
+        )
+    from sksundae.cvode import CVODE
+
+    n = model.nv
+
+    def rhs(t, y, yp):
+        yp[:n], yp[n:] = y[n:], pin.aba(model, data, y[:n], y[n:], np.zeros(n))
+
+    peer = CVODE(rhs, method="Adams", rtol=1e-11, atol=1e-13).solve(times, bench.y0)
+    end, _ = tree.run(1e-11)
+    assert np.abs(end - np.asarray(peer.y)[-1]).max() < 1e-7
