@@ -97,6 +97,7 @@ class _Phases:
         self.events: list[float] = []
         self.penetration = 0.0
         self.residual = 0.0
+        self.labels: list[tuple[int, str]] = []  # the current phase's switching functions
 
     # -- the smooth phase in given modes --------------------------------------------
     def accelerations(self, t: float, y: np.ndarray, modes: np.ndarray, signs: np.ndarray):
@@ -158,10 +159,16 @@ class _Phases:
         ahead = (np.sum(u_t * signs, axis=1, keepdims=True) > 0) & (speed > 0)
         return np.where(ahead, u_t / np.where(speed > 0, speed, 1.0), signs)
 
-    def choose_modes(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def choose_modes(
+        self, t: float, y: np.ndarray, fired: tuple[int, str] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Modes after an event: closed where the gap is ~0 and not opening; stick where not
         sliding and the cone holds the sticking force (the friction disc of a spatial
-        contact); lift-off where lambda_N < 0. Also each slip direction (n, n_tangent)."""
+        contact); lift-off where lambda_N < 0. Also each slip direction (n, n_tangent).
+
+        ``fired`` (contact, kind) is the switch that ended the last phase: its force stands
+        at the boundary (lambda_N = 0, or the cone), where the tests above cannot tell the
+        sides apart, so that contact takes the transition the event signals."""
         q, v = y[: self.nq], y[self.nq :]
         state = contact_state(self.equations, t, q, v)
         nt = self.contacts.n_tangent
@@ -189,6 +196,8 @@ class _Phases:
                         break
                 else:
                     modes[n + i], signs[n + i, 0] = STICK, 0.0
+        if fired is not None:
+            self.take_fired_switch(t, y, modes, signs, fired)
         for _ in range(4 * (n + self.nf) + 2):
             _, lam_n, lam_t, lam_f = self.accelerations(t, y, modes, signs)
             held = np.linalg.norm(lam_t, axis=1)
@@ -206,6 +215,26 @@ class _Phases:
             signs[n:, 0][joint_slipping] = -np.sign(lam_f[joint_slipping])
             modes[n:][joint_slipping] = SLIP
         return modes, signs
+
+    def take_fired_switch(
+        self, t: float, y: np.ndarray, modes: np.ndarray, signs: np.ndarray, fired: tuple
+    ) -> None:
+        """Apply the transition of the event that fired (see :meth:`choose_modes`) in place."""
+        i, kind = fired
+        if kind == "normal" and modes[i] != OPEN:
+            # lambda_N fell through 0 (the event's direction): released, the gap's
+            # acceleration equals the closed one's 0 there and then turns outward; a wrong
+            # release only costs a zero-speed impact that closes it again
+            modes[i] = OPEN
+        elif kind == "cone" and modes[i] == STICK:
+            lam_t = self.accelerations(t, y, modes, signs)[2][i]
+            held = np.linalg.norm(lam_t)
+            if held > 0:  # slide against the force that held it
+                modes[i], signs[i] = SLIP, -lam_t / held
+        elif kind == "joint-cone" and modes[self.n + i] == STICK:
+            lam_f = self.accelerations(t, y, modes, signs)[3][i]
+            if lam_f != 0:
+                modes[self.n + i], signs[self.n + i, 0] = SLIP, -np.sign(lam_f)
 
     def switching_functions(self, modes: np.ndarray, signs: np.ndarray) -> list:
         nt = self.contacts.n_tangent
@@ -239,8 +268,13 @@ class _Phases:
         slide = ["normal", "slide"] + (["turn"] if nt > 1 else [])
         kinds = {OPEN: ["gap"], SLIP: slide, STICK: ["normal", "cone"]}
         joint_kinds = {SLIP: ["joint-slide"], STICK: ["joint-cone"]}
-        return [make(i, kind) for i in range(self.n) for kind in kinds[int(modes[i])]] + [
-            make(i, kind) for i in range(self.nf) for kind in joint_kinds[int(modes[self.n + i])]
+        self.labels = self.switch_labels(modes, kinds, joint_kinds)
+        return [make(i, kind) for i, kind in self.labels]
+
+    def switch_labels(self, modes: np.ndarray, kinds: dict, joint_kinds: dict) -> list:
+        """(contact or joint index, kind) of each switching function, in their order."""
+        return [(i, kind) for i in range(self.n) for kind in kinds[int(modes[i])]] + [
+            (i, kind) for i in range(self.nf) for kind in joint_kinds[int(modes[self.n + i])]
         ]
 
     # -- the run ---------------------------------------------------------------------
@@ -249,8 +283,9 @@ class _Phases:
         times, t_end = task.times, float(task.times[-1])
         t, y = float(times[0]), task.y0[: self.nq + self.nv].copy()
         out_t, out_y, steps = [times[0]], [y.copy()], 0
+        fired = None
         for _ in range(task.options.max_events + 1):
-            modes, signs = self.choose_modes(t, y)
+            modes, signs = self.choose_modes(t, y, fired)
             rhs = self.right_hand_side(modes, signs)
             wanted = times[(times > t) & (times <= t_end)]
             solution = solve_ivp(
@@ -272,8 +307,8 @@ class _Phases:
                     trajectory.message = f"{self.name_of()}: {solution.message}"
                 break
             t_event = min(te[0] for te in solution.t_events if te.size)
-            y = next(ye[0] for te, ye in zip(solution.t_events, solution.y_events, strict=True)
-                     if te.size and te[0] == t_event)  # fmt: skip
+            k = next(k for k, te in enumerate(solution.t_events) if te.size and te[0] == t_event)
+            y, fired = solution.y_events[k][0], self.labels[k]
             t = float(t_event)
             y = self.impact(t, y)
             q, v = project(self.equations, t, y[: self.nq], y[self.nq :])
