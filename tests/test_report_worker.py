@@ -135,3 +135,12 @@ def test_a_figure_worker_draws_a_problem_without_its_plugin(tmp_path) -> None:
     )  # fmt: skip
     assert done.stdout.split() == [], done.stdout
     assert (tmp_path / "figures" / "four-bar-picture.png").stat().st_size > 0
+
+
+def test_a_few_problems_are_drawn_without_worker_processes() -> None:
+    """The quick suite's 6 problems are drawn in the report's process: two spawned workers
+    took more CPU (their start) and twice the memory (issue 35: 604 against 263 MiB PSS)."""
+    from workbench.outputs.report.pool import PROBLEMS_PER_WORKER, figure_jobs
+
+    assert figure_jobs(6) == figure_jobs(2 * PROBLEMS_PER_WORKER - 1) == 1
+    assert figure_jobs(100) == min(os.cpu_count() or 1, 8) or figure_jobs(100) == 1

@@ -102,7 +102,7 @@ def write_report(
         energy_err, ...) or None when a run has no series; ``None`` draws no drift plots.
     command: the exact command line that produced the report (printed in the footer).
     progress: show a rich progress bar on stderr; default: when there are several problems.
-    jobs: processes drawing figures; default: one per CPU when there are 4 problems or more.
+    jobs: processes drawing figures; default: :func:`~workbench.outputs.report.pool.figure_jobs`.
     cost: the cost measure of the diagrams, tables and recommendation, a key of
         :data:`~workbench.outputs.report.cost.COST_MEASURES` (default: see that module).
     plan: the sweep's plan (:func:`workbench.runs.store.load_plan`): the first screen then
