@@ -349,6 +349,8 @@ def targets_table(counts: list[int]) -> pd.DataFrame:
         rows.append({"target": name, "measured": measured, "unit": unit, "limit": limit,
                      "verdict": verdict, "load_1min": os.getloadavg()[0]})  # fmt: skip
         print(rows[-1], flush=True)
+        RESULTS.mkdir(exist_ok=True)  # written as it goes: a long run stopped keeps its rows
+        pd.DataFrame(rows).to_csv(RESULTS / "footprint-targets.csv", index=False)
 
     with tempfile.TemporaryDirectory() as directory:
         out = Path(directory) / "out"
@@ -391,8 +393,6 @@ def targets_table(counts: list[int]) -> pd.DataFrame:
         measured = dask_tiny(n)
         target(f"Dask, {n:,} tiny runs: runs/s", measured["runs_per_s"], "1/s", None, None)
     table = pd.DataFrame(rows)
-    RESULTS.mkdir(exist_ok=True)
-    table.to_csv(RESULTS / "footprint-targets.csv", index=False)
     with pd.option_context("display.width", 200, "display.max_colwidth", 60):
         print(table.round(2).to_string(index=False))
     return table
