@@ -4,7 +4,7 @@ Run: ``python -m benchmarks.footprint [N_MERGE ...] [--resume N_RUNS]`` (default
 of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load 8 on
 2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it), or
 ``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3, or
-``python -m benchmarks.footprint --targets [1000 10000]`` for 4.
+``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4.
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
@@ -338,8 +338,9 @@ def dask_tiny(n: int) -> dict:
     return measured | {"runs_per_s": n / measured["wall_s"]}
 
 
-def targets_table(counts: list[int]) -> pd.DataFrame:
-    """Measure every target of issue 35's "done when" and print measured / met / missed."""
+def targets_table(counts: list[int], dask_counts: list[int] | None = None) -> pd.DataFrame:
+    """Measure every target of issue 35's "done when" and print measured / met / missed;
+    tiny runs through Dask at ``dask_counts`` (default: ``counts``)."""
     load = os.getloadavg()[0]
     print(f"load average at start: {load:.2f} on {os.cpu_count()} CPUs", flush=True)
     rows: list[dict] = []
@@ -389,7 +390,7 @@ def targets_table(counts: list[int]) -> pd.DataFrame:
         marginal = large["marginal_outside_cpu_ms"]
         target(f"time outside integration, marginal at {large['n']:,} runs", marginal, "ms",
                5, marginal <= 5)  # fmt: skip
-    for n in counts:
+    for n in counts if dask_counts is None else dask_counts:
         measured = dask_tiny(n)
         target(f"Dask, {n:,} tiny runs: runs/s", measured["runs_per_s"], "1/s", None, None)
     table = pd.DataFrame(rows)
@@ -402,8 +403,10 @@ def main(argv: list[str]) -> pd.DataFrame:
     if argv[:1] == ["--sweep-child"]:
         _sweep_child(*argv[1:])
         return pd.DataFrame()
-    if argv[:1] == ["--targets"]:
-        return targets_table([int(a) for a in argv[1:]] or [1000, 10000])
+    if argv[:1] == ["--targets"]:  # --targets [N ...] [--dask N ...]
+        at = argv.index("--dask") if "--dask" in argv else len(argv)
+        dask = [int(a) for a in argv[at + 1 :]] if at < len(argv) else None
+        return targets_table([int(a) for a in argv[1:at]] or [1000, 10000], dask)
     if "--tiny" in argv:  # --tiny N [N ...] [--before CHECKOUT]: the tiny-runs measure only
         before = argv[argv.index("--before") + 1] if "--before" in argv else ""
         counts = [int(a) for a in argv[argv.index("--tiny") + 1 :] if a.isdigit()]
