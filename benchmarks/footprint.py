@@ -3,7 +3,8 @@
 Run: ``python -m benchmarks.footprint [N_MERGE ...] [--resume N_RUNS]`` (defaults: merges
 of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load 8 on
 2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it), or
-``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3.
+``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3, or
+``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4.
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
@@ -24,6 +25,13 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
 3. Tiny runs (:func:`tiny_rows`): runs/s and the CPU a run spends outside its
    integration on 2 workers, before and after; the recording's size and the ``.rrd``
    bytes left on disk.
+
+4. The issue's targets (:func:`targets_table`), each printed as measured / met / missed:
+   the default sweep's peak PSS per phase, its recording (one copy, ``rerun rrd verify``,
+   Python's reader within 2x its size), the no-op resume at 1,000 runs, tiny runs on the
+   local pool (runs/s, time outside the integration, the largest process's peak at 10,000
+   against 1,000) and on a local Dask cluster (runs/s); about 25 min at load 4 with
+   1,000 and 10,000 runs. Writes ``footprint-targets.csv``.
 
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
 (``footprint-tiny.csv`` for 3).
@@ -171,22 +179,23 @@ def resume_spec(out: Path, n_runs: int) -> str:
     )
 
 
-def _sweep(spec: Path, code: str = "") -> dict:
+def _sweep(spec: Path, code: str = "", *extra: str) -> dict:
     """Run ``workbench sweep SPEC`` (2 workers, 1 timed sample a run) from a fresh process
     of this module, so that the peak RSS is this command's: its measures. ``code``: a
     checkout whose ``workbench`` runs it (``python -m workbench`` in that folder)."""
-    command = [sys.executable, "-m", "benchmarks.footprint", "--sweep-child", str(spec), code]
+    command = [sys.executable, "-m", "benchmarks.footprint", "--sweep-child", str(spec), code,
+               *extra]  # fmt: skip
     done = subprocess.run(command, capture_output=True, text=True, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _sweep_child(spec: str, code: str = "") -> None:
+def _sweep_child(spec: str, code: str = "", *extra: str) -> None:
     workbench = [sys.executable, "-m", "workbench"] if code else [
         str(Path(sys.executable).with_name("workbench"))
     ]  # fmt: skip
     started = time.perf_counter()
     done = subprocess.run(
-        [*workbench, "sweep", spec, "-j", "2", "--repeats", "1"],
+        [*workbench, "sweep", spec, "-j", "2", "--repeats", "1", *extra],
         capture_output=True, text=True, check=True, cwd=code or None,
     )  # fmt: skip
     used = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -265,10 +274,139 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
     return rows
 
 
+# ---- the issue's targets ----------------------------------------------------------------
+
+
+def phase_memory(out: Path) -> dict:
+    """``workbench sweep`` (the default, quick suite, 2 workers) into ``out``: the peak PSS
+    of all its processes in each phase (runs; merge and report, after the line "N runs in";
+    sampled every 0.1 s), its wall time and the largest process at the peak."""
+    import psutil
+
+    from benchmarks.default_sweep import tree_memory
+
+    log = out.parent / "sweep.log"
+    command = [str(Path(sys.executable).with_name("workbench")), "sweep", "--out", str(out),
+               "-j", "2"]  # fmt: skip
+    started = time.perf_counter()
+    with log.open("w") as sink:
+        process = subprocess.Popen(command, stdout=sink, stderr=subprocess.STDOUT)
+        root, peaks = psutil.Process(process.pid), {"runs": 0, "merge and report": 0}
+        while process.poll() is None:
+            phase = "merge and report" if " runs in " in log.read_text() else "runs"
+            peaks[phase] = max(peaks[phase], tree_memory(root)[0])
+            time.sleep(0.1)
+    if process.returncode != 0:
+        raise SystemExit(f"workbench sweep exited with {process.returncode}: {log.read_text()}")
+    return {
+        "wall_s": time.perf_counter() - started,
+        "peak_pss_runs_mib": peaks["runs"] / 2**20,
+        "peak_pss_report_mib": peaks["merge and report"] / 2**20,
+    }
+
+
+def read_back(recording: Path) -> dict:
+    """``rerun rrd verify`` of ``recording`` (its exit code) and the peak RSS growth of
+    Python's reader reading it whole, a chunk at a time (tests/test_recording_readback.py)."""
+    import shutil
+
+    from tests.test_recording_readback import READ_CHILD
+    from workbench.cli.outputs import rerun_command
+
+    verified = subprocess.run([*rerun_command(shutil.which), "rrd", "verify", str(recording)],
+                              capture_output=True, text=True)  # fmt: skip
+    child = recording.parent / "read.py"
+    child.write_text(READ_CHILD)
+    done = subprocess.run([sys.executable, str(child), str(recording)], capture_output=True,
+                          text=True, check=True)  # fmt: skip
+    growth = json.loads(done.stdout.strip().splitlines()[-1])["growth"]
+    return {"verify_rc": verified.returncode, "read_growth_mib": growth / 2**20}
+
+
+def dask_tiny(n: int) -> dict:
+    """A sweep of ``n`` tiny runs through a local Dask cluster (2 single-threaded worker
+    processes): :func:`_sweep`'s measures, runs/s."""
+    import distributed
+
+    with tempfile.TemporaryDirectory() as directory, distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as cluster:  # fmt: skip
+        spec = Path(directory) / "spec.toml"
+        spec.write_text(resume_spec(Path(directory) / "out", n))
+        measured = _sweep(spec, "", "--scheduler", cluster.scheduler_address)
+    return measured | {"runs_per_s": n / measured["wall_s"]}
+
+
+def targets_table(counts: list[int], dask_counts: list[int] | None = None) -> pd.DataFrame:
+    """Measure every target of issue 35's "done when" and print measured / met / missed;
+    tiny runs through Dask at ``dask_counts`` (default: ``counts``)."""
+    load = os.getloadavg()[0]
+    print(f"load average at start: {load:.2f} on {os.cpu_count()} CPUs", flush=True)
+    rows: list[dict] = []
+
+    def target(name: str, measured: float, unit: str, limit: float | None, met: bool | None):
+        verdict = "measured" if met is None else ("met" if met else "missed")
+        rows.append({"target": name, "measured": measured, "unit": unit, "limit": limit,
+                     "verdict": verdict, "load_1min": os.getloadavg()[0]})  # fmt: skip
+        print(rows[-1], flush=True)
+        RESULTS.mkdir(exist_ok=True)  # written as it goes: a long run stopped keeps its rows
+        pd.DataFrame(rows).to_csv(RESULTS / "footprint-targets.csv", index=False)
+
+    with tempfile.TemporaryDirectory() as directory:
+        out = Path(directory) / "out"
+        memory = phase_memory(out)
+        peak = max(memory["peak_pss_runs_mib"], memory["peak_pss_report_mib"])
+        target("default sweep: peak PSS, all processes", peak, "MiB", 512, peak < 512)
+        target("  of it: runs phase", memory["peak_pss_runs_mib"], "MiB", None, None)
+        target("  of it: merge and report", memory["peak_pss_report_mib"], "MiB", None, None)
+        target("default sweep: wall", memory["wall_s"], "s", None, None)
+        recording = out / "recording.rrd"
+        copies = [f for f in out.rglob("*.rrd") if f != recording]
+        target("default sweep: recording size", recording.stat().st_size / 2**20, "MiB", None,
+               None)  # fmt: skip
+        target("one copy of the recording (other .rrd files)", len(copies), "files", 0,
+               not copies)  # fmt: skip
+        back = read_back(recording)
+        target("rerun rrd verify (exit code)", back["verify_rc"], "", 0, back["verify_rc"] == 0)
+        size = recording.stat().st_size / 2**20
+        target("Python reader: peak growth", back["read_growth_mib"], "MiB", 2 * size,
+               back["read_growth_mib"] < 2 * size)  # fmt: skip
+    resume = next(r for r in resume_rows(1000) if r["code"] == "after")
+    target("no-op resume at 1,000 runs", resume["wall_s"], "s", 5, resume["wall_s"] < 5)
+    target("  its CPU", resume["cpu_s"], "s", None, None)
+    tiny = [r for r in tiny_rows(counts, "") if r["code"] == "after"]
+    for row in tiny:
+        target(f"local pool, {row['n']:,} tiny runs: runs/s", row["runs_per_s"], "1/s", None,
+               None)  # fmt: skip
+        target("  outside integration (CPU a run, fixed costs in)", row["outside_cpu_ms"],
+               "ms", None, None)  # fmt: skip
+        target("  largest process's peak RSS", row["peak_rss_mib"], "MiB", None, None)
+    if len(tiny) > 1:
+        small, large = tiny[0], tiny[-1]
+        ratio = large["peak_rss_mib"] / small["peak_rss_mib"]
+        target(f"parent peak at {large['n']:,} / at {small['n']:,} runs", ratio, "x", 1.5,
+               ratio <= 1.5)  # fmt: skip
+        marginal = large["marginal_outside_cpu_ms"]
+        target(f"time outside integration, marginal at {large['n']:,} runs", marginal, "ms",
+               5, marginal <= 5)  # fmt: skip
+    for n in counts if dask_counts is None else dask_counts:
+        measured = dask_tiny(n)
+        target(f"Dask, {n:,} tiny runs: runs/s", measured["runs_per_s"], "1/s", None, None)
+    table = pd.DataFrame(rows)
+    with pd.option_context("display.width", 200, "display.max_colwidth", 60):
+        print(table.round(2).to_string(index=False))
+    return table
+
+
 def main(argv: list[str]) -> pd.DataFrame:
     if argv[:1] == ["--sweep-child"]:
-        _sweep_child(argv[1], argv[2] if len(argv) > 2 else "")
+        _sweep_child(*argv[1:])
         return pd.DataFrame()
+    if argv[:1] == ["--targets"]:  # --targets [N ...] [--dask N ...]
+        at = argv.index("--dask") if "--dask" in argv else len(argv)
+        dask = [int(a) for a in argv[at + 1 :]] if at < len(argv) else None
+        return targets_table([int(a) for a in argv[1:at]] or [1000, 10000], dask)
     if "--tiny" in argv:  # --tiny N [N ...] [--before CHECKOUT]: the tiny-runs measure only
         before = argv[argv.index("--before") + 1] if "--before" in argv else ""
         counts = [int(a) for a in argv[argv.index("--tiny") + 1 :] if a.isdigit()]

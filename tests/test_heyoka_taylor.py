@@ -123,3 +123,18 @@ def test_bad_precision_is_one_clear_line():
 
     with pytest.raises(ConfigError, match="precision must be one of"):
         get_integrator("heyoka-taylor").parse_options({"precision": "octuple"})
+
+
+def test_plugin_discovery_does_not_import_heyoka() -> None:
+    """heyoka and the SymPy it imports (100 MiB and more) are loaded by a heyoka run only:
+    every sweep's parent, its forked workers and its report discover the plugins (issue 35)."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys\nfrom workbench.plugin import registry\n"
+        "registry.get_integrator('heyoka-taylor')\nregistry.get_problem('four-bar')\n"
+        "print(sorted({'heyoka', 'sympy'} & set(sys.modules)))"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]", done.stdout + done.stderr

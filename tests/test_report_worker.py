@@ -23,7 +23,7 @@ PROBLEMS = '["test-pendulum", "test-slider-crank"]'
 REAL_SECTION = writer.problem_section  # (a spawned worker imports this module afresh)
 
 
-def section_killing_its_worker_once(runs, series, out, cost):
+def section_killing_its_worker_once(runs, series, out, cost, traits, sketch):
     """problem_section, but the first call in a pool worker SIGKILLs that worker, as the
     OOM killer would (a marker file in the report folder makes it once)."""
     if multiprocessing.parent_process() is not None:
@@ -33,7 +33,7 @@ def section_killing_its_worker_once(runs, series, out, cost):
             pass
         else:
             os.kill(os.getpid(), signal.SIGKILL)
-    return REAL_SECTION(runs, series, out, cost)
+    return REAL_SECTION(runs, series, out, cost, traits, sketch)
 
 
 @pytest.fixture
@@ -76,7 +76,7 @@ def test_sweep_with_a_killed_report_worker_is_one_line_and_a_whole_report(
     assert 'id="test-pendulum"' in page and 'id="test-slider-crank"' in page
 
 
-def section_that_fails(runs, series, out, cost):
+def section_that_fails(*arguments):
     raise RuntimeError("drawing failed")
 
 
@@ -93,3 +93,54 @@ def test_a_report_that_cannot_be_finished_is_one_line_exit_1_and_the_rows_kept(
     assert last.startswith("error: the report of ") and "drawing failed" in last, result.output
     assert f"rebuild it with `workbench report {tmp_path / 'out'}`" in last
     assert len(store.load_results(tmp_path / "out")) == 4
+
+
+WORKER = """
+import pickle, sys
+from workbench.outputs.report.writer import problem_section
+arguments = pickle.loads(open(sys.argv[1], "rb").read())
+section = problem_section(*arguments)
+assert section.picture is not None and section.work_precision is not None, section
+heavy = ("casadi", "scipy.integrate", "workbench.plugins.", "workbench.problems.")
+print(" ".join(sorted(name for name in sys.modules if name.startswith(heavy))))
+"""
+
+
+def test_a_figure_worker_draws_a_problem_without_its_plugin(tmp_path) -> None:
+    """A figure worker's task imports neither CasADi nor the plugins (issue 35): the
+    problem's traits and picture geometry are made in the parent, which has them loaded.
+    A worker that built the model itself was 230 MiB, the default sweep's peak memory."""
+    import pickle
+    import subprocess
+    import sys
+
+    from tests.test_report import synthetic_results
+    from workbench.outputs.report.analysis import prepare_results
+    from workbench.outputs.report.picture import mechanism_sketch
+    from workbench.outputs.report.traits import problem_traits
+
+    runs = prepare_results(synthetic_results(problems=("four-bar",)))
+    traits = problem_traits(runs)
+    sketch = mechanism_sketch(traits.model)
+    assert sketch is not None and traits.family == "closed loops"
+    traits.model = None
+    for folder in ("figures", "tables"):
+        (tmp_path / folder).mkdir()
+    (tmp_path / "arguments.pickle").write_bytes(
+        pickle.dumps((runs, None, tmp_path, "wall_s", traits, sketch))
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", WORKER, str(tmp_path / "arguments.pickle")],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert done.stdout.split() == [], done.stdout
+    assert (tmp_path / "figures" / "four-bar-picture.png").stat().st_size > 0
+
+
+def test_a_few_problems_are_drawn_without_worker_processes() -> None:
+    """The quick suite's 6 problems are drawn in the report's process: two spawned workers
+    took more CPU (their start) and twice the memory (issue 35: 604 against 263 MiB PSS)."""
+    from workbench.outputs.report.pool import PROBLEMS_PER_WORKER, figure_jobs
+
+    assert figure_jobs(6) == figure_jobs(2 * PROBLEMS_PER_WORKER - 1) == 1
+    assert figure_jobs(100) == min(os.cpu_count() or 1, 8) or figure_jobs(100) == 1

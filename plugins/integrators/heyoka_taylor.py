@@ -29,22 +29,32 @@ import time
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-import heyoka as hy
 import numpy as np
 
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
-from workbench.plugins.integrators._casadi_heyoka import (
-    TranslationError,
-    as_sx_function,
-    translate,
-)
 
-PRECISIONS: dict[str, Any] = {"double": float, "extended": np.longdouble}
-if hasattr(hy, "real128"):
-    PRECISIONS["quad"] = hy.real128
+# heyoka (and the SymPy it imports: 140 MiB, 0.3 s) is imported by a run that uses it, not
+# by plugin discovery: every sweep's parent and report would carry it otherwise.
+PRECISIONS = ("double", "extended", "quad")
 COMPACT_MODE_INSTRUCTIONS = 50
+
+
+def fp_type(precision: str) -> Any:
+    """heyoka's floating-point type of ``precision`` (quad: where the build has real128)."""
+    if precision == "double":
+        return float
+    if precision == "extended":
+        return np.longdouble
+    import heyoka as hy
+
+    if not hasattr(hy, "real128"):
+        raise ConfigError(
+            'precision "quad" needs a heyoka built with real128 (binary128); this one has '
+            'none: use "extended"'
+        )
+    return hy.real128
 
 
 @dataclass(frozen=True)
@@ -58,6 +68,7 @@ class HeyokaOptions:
             raise ConfigError(
                 f"precision must be one of {sorted(PRECISIONS)}, not {self.precision!r}"
             )
+        fp_type(self.precision)  # quad without real128: said here, not at the run
         if self.compact_mode not in ("auto", "on", "off"):
             raise ConfigError(
                 f'compact_mode must be "auto", "on" or "off", not {self.compact_mode!r}'
@@ -67,6 +78,10 @@ class HeyokaOptions:
 def taylor_system(function: Any, n: int) -> tuple[list[Any], int]:
     """heyoka's [(y_i, f_i(t, y))] for the CasADi ode right-hand side ``function`` (t, y) -> y',
     and the number of instructions of its SX graph."""
+    import heyoka as hy
+
+    from workbench.plugins.integrators._casadi_heyoka import as_sx_function, translate
+
     sx = as_sx_function(function)
     variables = list(hy.make_vars(*[f"y{i}" for i in range(n)])) if n > 1 else [hy.make_vars("y0")]
     (derivatives,) = translate(sx, [[hy.time], variables])
@@ -84,6 +99,8 @@ class HeyokaTaylor(Integrator):
         form = equations.forms.get("ode")
         if form is None:
             return None
+        from workbench.plugins.integrators._casadi_heyoka import TranslationError, as_sx_function
+
         try:
             as_sx_function(form.rhs.function)
         except TranslationError as error:
@@ -91,6 +108,10 @@ class HeyokaTaylor(Integrator):
         return None
 
     def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
+        import heyoka as hy
+
+        from workbench.plugins.integrators._casadi_heyoka import TranslationError
+
         options = task.options
         started = time.perf_counter()
         try:
@@ -99,23 +120,23 @@ class HeyokaTaylor(Integrator):
             trajectory.success = False
             trajectory.message = f"{self.name}: {error}"
             return
-        fp_type = PRECISIONS[options.precision]
+        real = fp_type(options.precision)
         compact = {"on": True, "off": False}.get(
             options.compact_mode, instructions > COMPACT_MODE_INSTRUCTIONS
         )
 
         def typed(values: np.ndarray) -> np.ndarray:
-            return np.asarray(values, dtype=float).astype(fp_type)
+            return np.asarray(values, dtype=float).astype(real)
 
         tol = min(task.rtol, task.atol)
         taylor = hy.taylor_adaptive(
             system,
             typed(task.y0),
-            time=fp_type(float(task.times[0])),
-            tol=fp_type(tol),
+            time=real(float(task.times[0])),
+            tol=real(tol),
             high_accuracy=options.high_accuracy,
             compact_mode=compact,
-            fp_type=fp_type,
+            fp_type=real,
         )
         trajectory.stats.setup_s = time.perf_counter() - started
         outcome, _, _, n_steps, _, states = taylor.propagate_grid(typed(task.times))

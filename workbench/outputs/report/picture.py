@@ -10,6 +10,7 @@ closures are drawn as they are at those coordinates (the picture is not an assem
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -97,10 +98,19 @@ def projection(planar: bool) -> np.ndarray:
     return np.stack([right, up, toward])
 
 
-def mechanism_picture(model: Any, out: Path, problem: str) -> FigureFiles | None:
-    """Draw ``model`` at its initial pose into ``out``/figures (None: nothing to draw)."""
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Polygon
+@dataclass
+class Sketch:
+    """What a picture draws, as plain data: filled hulls (depth, points (n, 2), colour) far
+    ones first, joint lines (2, 2) and the view's name. Made where the model is (the
+    kinematics need CasADi), drawn by a figure worker that imports neither."""
+
+    patches: list[tuple[np.ndarray, np.ndarray]]
+    lines: list[np.ndarray]
+    view: str
+
+
+def mechanism_sketch(model: Any) -> Sketch | None:
+    """The projected geometry of ``model`` at its initial pose (None: nothing to draw)."""
     from scipy.spatial import ConvexHull, QhullError
 
     try:
@@ -123,9 +133,7 @@ def mechanism_picture(model: Any, out: Path, problem: str) -> FigureFiles | None
             patches.append((points[:, 2].mean(), hull, np.asarray(shape.color) / 255.0))
     if not patches:
         return None
-    figure, ax = plt.subplots(figsize=(2.6, 2.6))
-    for _depth, hull, color in sorted(patches, key=lambda patch: patch[0]):
-        ax.add_patch(Polygon(hull, closed=True, facecolor=color, edgecolor="0.25", linewidth=0.5))
+    lines = []
     for joint in model.joints.values():
         if joint.type in ("free", "planar"):  # no link to draw: the body floats
             continue
@@ -137,16 +145,25 @@ def mechanism_picture(model: Any, out: Path, problem: str) -> FigureFiles | None
         else:
             continue
         end = poses[joint.child][0]
-        line = np.stack([start, end]) @ view.T
+        lines.append((np.stack([start, end]) @ view.T)[:, :2])
+    ordered = [(hull, color) for _depth, hull, color in sorted(patches, key=lambda p: p[0])]
+    view_name = "its x-y plane" if model.kind == "planar" else "oblique view, z up"
+    return Sketch(ordered, lines, view_name)
+
+
+def mechanism_picture(sketch: Sketch, out: Path, problem: str) -> FigureFiles:
+    """Draw ``sketch`` (:func:`mechanism_sketch`) into ``out``/figures."""
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon
+
+    figure, ax = plt.subplots(figsize=(2.6, 2.6))
+    for hull, color in sketch.patches:
+        ax.add_patch(Polygon(hull, closed=True, facecolor=color, edgecolor="0.25", linewidth=0.5))
+    for line in sketch.lines:
         ax.plot(line[:, 0], line[:, 1], color="0.35", linewidth=0.8, zorder=5)
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.axis("off")
     return save_figure(
-        figure,
-        out,
-        f"{slug(problem)}-picture",
-        f"{problem} at its initial pose ("
-        + ("its x-y plane" if model.kind == "planar" else "oblique view, z up")
-        + ")",
+        figure, out, f"{slug(problem)}-picture", f"{problem} at its initial pose ({sketch.view})"
     )

@@ -51,7 +51,7 @@ from workbench.outputs.report.page import (
     render_page,
 )
 from workbench.outputs.report.paper import PaperSection, write_paper
-from workbench.outputs.report.picture import mechanism_picture
+from workbench.outputs.report.picture import Sketch, mechanism_picture, mechanism_sketch
 from workbench.outputs.report.pool import (
     figure_executor,
     figure_jobs,
@@ -60,7 +60,7 @@ from workbench.outputs.report.pool import (
 )
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import write_table
-from workbench.outputs.report.traits import problem_traits
+from workbench.outputs.report.traits import Traits, problem_traits
 from workbench.runs import output_keys
 from workbench.runs.progress import progress_bar
 
@@ -102,7 +102,7 @@ def write_report(
         energy_err, ...) or None when a run has no series; ``None`` draws no drift plots.
     command: the exact command line that produced the report (printed in the footer).
     progress: show a rich progress bar on stderr; default: when there are several problems.
-    jobs: processes drawing figures; default: one per CPU when there are 4 problems or more.
+    jobs: processes drawing figures; default: :func:`~workbench.outputs.report.pool.figure_jobs`.
     cost: the cost measure of the diagrams, tables and recommendation, a key of
         :data:`~workbench.outputs.report.cost.COST_MEASURES` (default: see that module).
     plan: the sweep's plan (:func:`workbench.runs.store.load_plan`): the first screen then
@@ -142,7 +142,12 @@ def write_report(
         for problem in problems:
             of_problem = runs[runs["problem"] == problem]
             series = _load_series(of_problem, series_loader, measure.column)
-            arguments = (of_problem, series, out, measure.column)
+            # the model is built here, where the plugins are loaded: a figure worker then
+            # imports matplotlib and pandas only (a sweep's peak memory is two of them)
+            traits = problem_traits(of_problem)
+            sketch = mechanism_sketch(traits.model) if traits.model is not None else None
+            traits.model = None
+            arguments = (of_problem, series, out, measure.column, traits, sketch)
             future = submit_or_none(executor, problem_section, *arguments)
             tasks.append((problem, future, arguments))
         # a worker killed from outside: its problems are drawn again here (one warning)
@@ -405,18 +410,19 @@ def problem_section(
     runs: pd.DataFrame,
     series: Mapping[str, pd.DataFrame | None] | None,
     out: Path,
-    cost: str = "integrate_s",
+    cost: str,
+    traits: Traits,
+    sketch: Sketch | None,
 ) -> ProblemSection:
     """One problem's part of the report (a figure worker's task): draws its figures into
-    ``out``/figures, writes its drift table into ``out``/tables."""
+    ``out``/figures, writes its drift table into ``out``/tables. ``traits`` and ``sketch``
+    (the model's) come from the parent, so a worker needs no plugin."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
     problem = str(runs["problem"].iloc[0])
     work_precision = work_precision_figure(runs, out, problem, cost)
-    traits = problem_traits(runs)
-    picture = mechanism_picture(traits.model, out, problem) if traits.model is not None else None
-    traits.model = None  # plain data back to the parent
+    picture = mechanism_picture(sketch, out, problem) if sketch is not None else None
     drift, rtol = drift_figure(runs, series, out, problem)
     error = error_figure(runs, series, out, problem, cost)
     table = None
