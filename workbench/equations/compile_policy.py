@@ -47,9 +47,12 @@ EVALUATIONS_RTOL_EXPONENT = 0.125
 
 def instruction_count(function: Any) -> int:
     """SX instructions a call of ``function`` runs: its own, and for an MX graph those of
-    the Functions it calls (a linear solve or other MX node counts one)."""
-    if not function.is_a("MXFunction"):
+    the Functions it calls (a linear solve or other MX node counts one, as does a call of a
+    Function that has no instruction list: a rootfinder, an external)."""
+    if function.is_a("SXFunction"):
         return int(function.n_instructions())
+    if not function.is_a("MXFunction"):
+        return 1
     count = 0
     for k in range(function.n_instructions()):
         node = function.instruction_MX(k)

@@ -165,8 +165,9 @@ def _canonical(value: Any) -> Any:
             for f in dataclasses.fields(value)
             # visual only; the model's initial configuration is the fingerprint's "q0"
             if f.name not in ("shapes", "color", "initial_configuration")
-            # a model without contacts keeps the fingerprint it had before they existed
-            and not (f.name == "contacts" and not getattr(value, f.name))
+            # a model without contacts or joint friction keeps the fingerprint it had
+            # before they existed
+            and not (f.name in ("contacts", "joint_frictions") and not getattr(value, f.name))
         }
     if isinstance(value, dict):
         return {str(k): _canonical(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}
