@@ -123,7 +123,7 @@ class MoreauJean(Integrator):
                 # edge and whose sliding velocity vanishes (at the step's end)
                 sticking = np.zeros(active.size, dtype=bool)
                 if solved.normal.size:
-                    p_t = np.abs(solved.tangent.reshape(-1, nt)).max(axis=1)
+                    p_t = np.linalg.norm(solved.tangent.reshape(-1, nt), axis=1)  # in the disc
                     inside = p_t < mu[active] * solved.normal * (1 - 1e-6)
                     sticking[np.flatnonzero(active)] = inside & (solved.normal > 0)
                 for i in np.flatnonzero(sticking & ~stuck & closed & pushed):
