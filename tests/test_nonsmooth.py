@@ -367,7 +367,8 @@ def test_moreau_jean_slip_that_turns_stops_where_coulombs_disc_says():
         run = registry.get_integrator("moreau-jean")().solve(equations, y0, None, times, 1e-6,
                                                              1e-9, {"step": h})  # fmt: skip
         errors.append(float(np.max(np.abs(centres(run) - reference))))
-        assert run.contact["event_times"][-1] == pytest.approx(t_s, abs=2 * h)
+        (stick,) = run.contact["event_times"]  # no impact: the sphere rests on the plane
+        assert stick == pytest.approx(t_s, abs=2 * h)
         assert run.contact["complementarity_max"] < 1e-6
     assert errors[1] < 5e-4 and errors[1] < errors[0] / 5
 

@@ -1,18 +1,20 @@
 """What the contact integrators share: the numbers of the contact form at a state, and the
-velocity-level contact problem (impacts, Moreau-Jean steps) solved by proxsuite.
+velocity-level contact problem (impacts, Moreau-Jean steps) solved by proxsuite (planar
+contacts) or Clarabel (spatial contacts: Coulomb's disc, a second-order cone).
 
 The velocity-level problem (Moreau 1988, Jean 1999; Acary & Brogliato 2008, ch. 10): with
 the free velocity v_free (no contact impulse), impulses P = [P_N; P_T] on the contacts
 ``rows`` give v+ = v_free + M^-1 W^T P and local velocities U+ = W v_free + D P,
 D = W M^-1 W^T (Delassus). Newton's impact law and Coulomb's law ask
 
-    0 <= U_N+ + e U_N-  _|_  P_N >= 0,   U_T+ in -N_[-mu P_N, mu P_N](P_T)
+    0 <= U_N+ + e U_N-  _|_  P_N >= 0,   U_T+ in -N_C(P_T),  C = {|P_T| <= mu P_N}
 
-(the tangential law per tangent component: a box, the friction pyramid of a spatial
-contact). For a fixed bound s = mu P_N this is the optimality system of the convex QP
-min 1/2 P^T D P + P^T b, b = W v_free + [e U_N-; 0], P_N >= 0, |P_T| <= s (Tresca
-friction), solved by proxsuite's ProxQP; Coulomb's law is its fixed point in s
-(Panagiotopoulos' iteration), reached in a few QPs.
+(C: Coulomb's disc, an interval for a planar contact). For a fixed bound s = mu P_N this
+is the optimality system of the convex program min 1/2 P^T D P + P^T b,
+b = W v_free + [e U_N-; 0], P_N >= 0, |P_T| <= s (Tresca friction): a box QP solved by
+proxsuite's ProxQP for planar contacts, a QP with a second-order cone per spatial contact
+solved by Clarabel; Coulomb's law is its fixed point in s (Panagiotopoulos' iteration),
+reached in a few programs.
 
 Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
 joints), W_B v + w = 0, hold as equalities through every impact and time step: their
@@ -263,7 +265,7 @@ def velocity_problem(
     scale = max(float(np.max(speeds, initial=0.0)), 1e-12)  # the velocities it changes
     residual = np.abs(np.minimum(normal * np.diag(delassus)[:n], target))
     residual = float(np.max(residual, initial=0.0)) / scale
-    if n and mu.any():  # Coulomb's disc, relative to the slip speeds it changes
+    if n and nt > 1 and mu.any():  # Coulomb's disc, relative to the slip speeds it changes
         slip = (w[n : n * (1 + nt)] @ velocity).reshape(n, nt)
         speeds = np.abs(w[n : n * (1 + nt)] @ np.stack([v_before, v_free], axis=1))
         slip_scale = max(scale, float(np.max(speeds, initial=0.0)))
