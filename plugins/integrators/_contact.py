@@ -212,7 +212,7 @@ class Impulses:
     normal: np.ndarray  # (n_active,) P_N
     tangent: np.ndarray  # (n_active * n_tangent,) P_T
     velocity: np.ndarray  # (nv,) v+
-    residual: float  # max |min(P_N D_NN, U_N+ + e U_N-)| and the disc's (disc_residual), normalised
+    residual: float  # max |min(P_N D_NN, U_N+ + e U_N-)|, spatial: the disc's too; relative
     joint: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (nf,) P_F
 
 
