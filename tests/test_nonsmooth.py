@@ -310,7 +310,7 @@ def test_event_driven_slip_that_turns_follows_coulombs_disc():
     while friction opposes it, u' = g sin(a) e_down - 7/2 mu g cos(a) u/|u| (solved here by
     SciPy to 1e-12); the slip turns past 60 degrees (a new phase) and stops at that law's
     t_s, after which the sphere rolls at 5/7 g sin a. A frozen slip direction or a friction
-    pyramid misses t_s by tens of ms (Moreau-Jean's pyramid: 0.224 s against 0.321 s)."""
+    pyramid misses t_s by tens of ms (Moreau-Jean's old pyramid: 0.224 s against 0.321 s)."""
     from scipy.integrate import solve_ivp
 
     mu, alpha, across = 0.3, math.radians(30.0), 2.0
@@ -341,6 +341,49 @@ def test_event_driven_slip_that_turns_follows_coulombs_disc():
     velocity = (centre[2] - centre[0]) / (times[-1] - times[-3])  # central: exact here
     np.testing.assert_allclose(velocity + 5 / 7 * g_t * (times[-1] - times[-2]) * down, v_end,
                                atol=1e-7)  # fmt: skip
+
+
+def test_moreau_jean_slip_that_turns_stops_where_coulombs_disc_says():
+    """The turning slip of the test above by Moreau-Jean: with Coulomb's disc (a second-order
+    cone per contact, Clarabel) it stops slipping within two steps of the event-driven t_s
+    and its path converges to the event-driven one as h shrinks (first order: 10x smaller
+    h, >= 5x smaller error); the friction pyramid stopped at 0.225 s and stayed 2.2 cm
+    away at any step. The residual, which includes the disc's natural map, stays small."""
+    mu, alpha, across = 0.3, math.radians(30.0), 2.0
+    equations, normal = _sphere_on_incline(mu, alpha)
+    y0 = np.concatenate([0.1 * normal, [1.0, 0.0, 0.0, 0.0], [0.0, across, 0.0], np.zeros(3)])
+    times = np.linspace(0.0, 1.0, 101)
+
+    def centres(trajectory):
+        assert trajectory.success, trajectory.message
+        return np.array([equations.observables.poses(t, y[: equations.nq])[0, :3]
+                         for t, y in zip(times, trajectory.y, strict=True)])  # fmt: skip
+
+    exact = registry.get_integrator("event-driven")().solve(equations, y0, None, times,
+                                                            1e-10, 1e-13)  # fmt: skip
+    reference, t_s = centres(exact), exact.contact["event_times"][-1]
+    errors = []
+    for h in (1e-2, 1e-3):
+        run = registry.get_integrator("moreau-jean")().solve(equations, y0, None, times, 1e-6,
+                                                             1e-9, {"step": h})  # fmt: skip
+        errors.append(float(np.max(np.abs(centres(run) - reference))))
+        (stick,) = run.contact["event_times"]  # no impact: the sphere rests on the plane
+        assert stick == pytest.approx(t_s, abs=2 * h)
+        assert run.contact["complementarity_max"] < 1e-6
+    assert errors[1] < 5e-4 and errors[1] < errors[0] / 5
+
+
+def test_disc_residual_is_zero_on_coulombs_law_only():
+    """The friction part of the complementarity residual (the disc's natural map): zero for
+    a force on the disc's edge against the slip, or inside it without slip; not zero for
+    the pyramid's corner answer to a diagonal slip (|P_T| = sqrt 2 bound, not against it)."""
+    from workbench.plugins.integrators._contact import disc_residual
+
+    slip = np.array([[3.0, 4.0], [0.0, 0.0], [1.0, 1.0], [1.0, 0.0]])
+    force = np.array([[-0.6, -0.8], [0.3, -0.2], [-1.0, -1.0], [-1.0, 0.5]])
+    residual = disc_residual(force, slip, np.ones(4), np.full(4, 2.0))
+    np.testing.assert_allclose(residual[:2], 0.0, atol=1e-15)
+    assert residual[2] > 0.5 and residual[3] > 0.1
 
 
 @pytest.mark.parametrize(("mu", "rolls"), [(0.5, True), (0.1, False)])

@@ -1,18 +1,20 @@
 """What the contact integrators share: the numbers of the contact form at a state, and the
-velocity-level contact problem (impacts, Moreau-Jean steps) solved by proxsuite.
+velocity-level contact problem (impacts, Moreau-Jean steps) solved by proxsuite (planar
+contacts) or Clarabel (spatial contacts: Coulomb's disc, a second-order cone).
 
 The velocity-level problem (Moreau 1988, Jean 1999; Acary & Brogliato 2008, ch. 10): with
 the free velocity v_free (no contact impulse), impulses P = [P_N; P_T] on the contacts
 ``rows`` give v+ = v_free + M^-1 W^T P and local velocities U+ = W v_free + D P,
 D = W M^-1 W^T (Delassus). Newton's impact law and Coulomb's law ask
 
-    0 <= U_N+ + e U_N-  _|_  P_N >= 0,   U_T+ in -N_[-mu P_N, mu P_N](P_T)
+    0 <= U_N+ + e U_N-  _|_  P_N >= 0,   U_T+ in -N_C(P_T),  C = {|P_T| <= mu P_N}
 
-(the tangential law per tangent component: a box, the friction pyramid of a spatial
-contact). For a fixed bound s = mu P_N this is the optimality system of the convex QP
-min 1/2 P^T D P + P^T b, b = W v_free + [e U_N-; 0], P_N >= 0, |P_T| <= s (Tresca
-friction), solved by proxsuite's ProxQP; Coulomb's law is its fixed point in s
-(Panagiotopoulos' iteration), reached in a few QPs.
+(C: Coulomb's disc, an interval for a planar contact). For a fixed bound s = mu P_N this
+is the optimality system of the convex program min 1/2 P^T D P + P^T b,
+b = W v_free + [e U_N-; 0], P_N >= 0, |P_T| <= s (Tresca friction): a box QP solved by
+proxsuite's ProxQP for planar contacts, a QP with a second-order cone per spatial contact
+solved by Clarabel; Coulomb's law is its fixed point in s (Panagiotopoulos' iteration),
+reached in a few programs.
 
 Bilateral constraints beside the contacts (a closed loop; absolute coordinates with
 joints), W_B v + w = 0, hold as equalities through every impact and time step: their
@@ -28,13 +30,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import clarabel
 import numpy as np
 import proxsuite
+from scipy import sparse
 
 from workbench.equations import Equations
+from workbench.errors import IntegrationError
 
 QP_ACCURACY = 1e-10  # proxsuite's absolute accuracy (N s) of the impulses
 FIXED_POINT_ITERATIONS = 50
+CONIC_ACCURACY = 1e-12  # Clarabel's gap and feasibility tolerances (spatial contacts)
 
 
 @dataclass
@@ -132,6 +138,73 @@ def refuse(equations: Equations) -> str | None:
     return None
 
 
+def tresca_problem(delassus, b, n, nt, friction_bounds, joint_bounds) -> np.ndarray:
+    """P = [P_N; P_T; P_F] minimizing 1/2 P^T D P + P^T b with P_N >= 0, the friction
+    impulse of contact i in its disc |P_T,i| <= friction_bounds[i] and |P_F| <=
+    joint_bounds: an interval per planar contact (a box QP, proxsuite's ProxQP), a
+    second-order cone per spatial contact (Clarabel)."""
+    if nt == 1:
+        lower = np.concatenate([np.zeros(n), -friction_bounds, -joint_bounds])
+        upper = np.concatenate([np.full(n, np.inf), friction_bounds, joint_bounds])
+        result = proxsuite.proxqp.dense.solve(
+            delassus, b, None, None, None, None, None, l_box=lower, u_box=upper,
+            eps_abs=QP_ACCURACY, eps_rel=0.0,
+        )  # fmt: skip
+        return np.asarray(result.x)
+    return disc_problem(delassus, b, n, nt, friction_bounds, joint_bounds)
+
+
+def disc_problem(delassus, b, n, nt, friction_bounds, joint_bounds) -> np.ndarray:
+    """The Tresca problem of :func:`tresca_problem` with Coulomb's disc per spatial contact,
+    by Clarabel: A P + s = c, s in K, K = R+^n (P_N >= 0) x R+^2nf (the joints' box) x,
+    per contact, the cone ||P_T,i|| <= friction_bounds[i] (a zero cone where the bound is
+    0: a cone without interior stalls an interior-point method). Solved in units where D
+    and b are of order 1 (its tolerances are absolute in part)."""
+    nf, size = joint_bounds.size, b.size
+    d_scale = max(float(np.max(np.abs(np.diag(delassus)))), 1e-300)
+    b_scale = max(float(np.max(np.abs(b), initial=0.0)), 1e-300)
+    unit = b_scale / d_scale  # the impulse that changes the velocities by about |b|
+    friction_bounds, joint_bounds = friction_bounds / unit, joint_bounds / unit
+    tangent = n + np.arange(n * nt).reshape(n, nt)
+    joints = n * (1 + nt) + np.arange(nf)
+    zero = [row for i in range(n) if friction_bounds[i] <= 0 for row in tangent[i]]
+    rows, offsets = [np.eye(size)[zero]], [np.zeros(len(zero))]
+    cones = [clarabel.ZeroConeT(len(zero))] if zero else []
+    rows += [-np.eye(size)[:n], np.eye(size)[joints], -np.eye(size)[joints]]
+    offsets += [np.zeros(n), joint_bounds, joint_bounds]
+    cones.append(clarabel.NonnegativeConeT(n + 2 * nf))
+    for i in np.flatnonzero(friction_bounds > 0):
+        rows += [np.zeros((1, size)), -np.eye(size)[tangent[i]]]
+        offsets += [[friction_bounds[i]], np.zeros(nt)]
+        cones.append(clarabel.SecondOrderConeT(1 + nt))
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = CONIC_ACCURACY
+    solver = clarabel.DefaultSolver(
+        sparse.triu(sparse.csc_matrix(delassus / d_scale)).tocsc(), np.asarray(b) / b_scale,
+        sparse.csc_matrix(np.vstack(rows)), np.concatenate(offsets).astype(float), cones,
+        settings,
+    )  # fmt: skip
+    solution = solver.solve()
+    if str(solution.status) not in ("Solved", "AlmostSolved"):
+        raise IntegrationError(
+            f"Clarabel failed on a contact problem ({solution.status}): try a smaller step"
+        )
+    return np.asarray(solution.x) * unit
+
+
+def disc_residual(p_t, u_t, bound, stiffness) -> np.ndarray:
+    """Per contact, how far (P_T, U_T+) is from Coulomb's law in the disc |P_T| <= bound:
+    the natural map |D_TT (P_T - proj_disc(P_T - U_T+ / D_TT))| (m/s), zero iff P_T is in
+    the disc and opposes U_T+ with |P_T| = bound where U_T+ != 0 (D_TT: the mean diagonal of
+    the contact's tangent block of the Delassus matrix)."""
+    stiffness = np.maximum(stiffness, 1e-300)[:, None]
+    trial = p_t - u_t / stiffness
+    length = np.linalg.norm(trial, axis=1, keepdims=True)
+    projected = trial * np.minimum(1.0, bound[:, None] / np.maximum(length, 1e-300))
+    return np.linalg.norm(stiffness * (p_t - projected), axis=1)
+
+
 @dataclass
 class Impulses:
     """Solution of the velocity-level problem on ``active`` contacts."""
@@ -139,7 +212,7 @@ class Impulses:
     normal: np.ndarray  # (n_active,) P_N
     tangent: np.ndarray  # (n_active * n_tangent,) P_T
     velocity: np.ndarray  # (nv,) v+
-    residual: float  # complementarity residual max |min(P_N, U_N+ + e U_N-)|, normalised
+    residual: float  # max |min(P_N D_NN, U_N+ + e U_N-)|, spatial: the disc's too; relative
     joint: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (nf,) P_F
 
 
@@ -176,18 +249,10 @@ def velocity_problem(
     b = w @ v_free
     b[:n] += e * (state.w_n[index] @ v_before)
     joint = np.zeros(0) if joint_bounds is None else np.asarray(joint_bounds, dtype=float)
-    lower = np.concatenate([np.zeros(n), np.zeros(n * nt), -joint])
-    upper = np.concatenate([np.full(n, np.inf), np.zeros(n * nt), joint])
     bound = np.zeros(n)
     impulses = np.zeros(n * (1 + nt) + nf)
     for _ in range(FIXED_POINT_ITERATIONS):
-        lower[n : n * (1 + nt)] = -np.repeat(mu * bound, nt)
-        upper[n : n * (1 + nt)] = np.repeat(mu * bound, nt)
-        result = proxsuite.proxqp.dense.solve(
-            delassus, b, None, None, None, None, None, l_box=lower, u_box=upper,
-            eps_abs=QP_ACCURACY, eps_rel=0.0,
-        )  # fmt: skip
-        impulses = np.asarray(result.x)
+        impulses = tresca_problem(delassus, b, n, nt, mu * bound, joint)
         new_bound = np.maximum(impulses[:n], 0.0)
         if np.max(np.abs(new_bound - bound), initial=0.0) <= QP_ACCURACY * 10 or not mu.any():
             bound = new_bound
@@ -200,4 +265,11 @@ def velocity_problem(
     scale = max(float(np.max(speeds, initial=0.0)), 1e-12)  # the velocities it changes
     residual = np.abs(np.minimum(normal * np.diag(delassus)[:n], target))
     residual = float(np.max(residual, initial=0.0)) / scale
+    if n and nt > 1 and mu.any():  # Coulomb's disc, relative to the slip speeds it changes
+        slip = (w[n : n * (1 + nt)] @ velocity).reshape(n, nt)
+        speeds = np.abs(w[n : n * (1 + nt)] @ np.stack([v_before, v_free], axis=1))
+        slip_scale = max(scale, float(np.max(speeds, initial=0.0)))
+        stiffness = np.diag(delassus)[n : n * (1 + nt)].reshape(n, nt).mean(axis=1)
+        friction = disc_residual(tangent.reshape(n, nt), slip, mu * normal, stiffness)
+        residual = max(residual, float(np.max(friction, initial=0.0)) / slip_scale)
     return Impulses(normal, tangent, velocity, residual, impulses[n * (1 + nt) :])

@@ -226,8 +226,7 @@ class GeneralizedAlpha(Integrator):
                             h = h_try * factor
                             if h < h_min:
                                 raise IntegrationError(
-                                    f"{self.name}: step size {h:.3g} s underflow "
-                                    f"at t = {t:.6g}"
+                                    f"{self.name}: step size {h:.3g} s underflow at t = {t:.6g}"
                                 )
                 else:
                     # Newton fails when a step is too long for the motion (Andrews'

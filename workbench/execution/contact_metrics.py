@@ -3,8 +3,10 @@
 * ``penetration_max`` (m): the deepest gap g_N < 0, over the integrator's own steps
   where it reports them (``Trajectory.contact``), else over the output samples;
 * ``complementarity_max``: the worst residual |min(P_N D_NN, U_N+ + e U_N-)| of the
-  contact problems solved, relative to the normal velocities they changed (NaN: the
-  method solves none, e.g. a compliant contact);
+  contact problems solved, relative to the normal velocities they changed, and for
+  spatial contacts the worst of Coulomb's disc (its natural map, docs/nonsmooth.md)
+  relative to the slip speeds they changed (NaN: the method solves none, e.g. a
+  compliant contact);
 * ``n_events``: the impacts and stick/slip switches the method reported;
 * ``event_time_err_max`` (s): the largest distance from a reference event (the problem's
   ``contact_events()``) reached by the run to the nearest event of the run;
