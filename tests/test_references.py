@@ -310,8 +310,8 @@ def test_formalism_follows_the_reference_early(name: str, formalism: str, option
     formalism_class = get_formalism(formalism)
     if formalism_class.unsupported(model):
         pytest.skip(f"{formalism} does not support {sorted(formalism_class.unsupported(model))}")
-    if model.contacts:  # the smooth ode form knows no contact forces
-        pytest.skip("contact forces: tests/test_nonsmooth.py follows these references")
+    if model.contacts or model.joint_frictions:  # the smooth form knows no set-valued forces
+        pytest.skip("set-valued forces: tests/test_nonsmooth*.py follow these problems")
     reference = given_reference(problem)
     assert reference is not None, f"{name}: no analytic or stored reference"
     times = problem.sample_times()
