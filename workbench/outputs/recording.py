@@ -677,7 +677,7 @@ def _sync_directory(directory: Path) -> None:
 FOOTER_INPUT_LIMIT = 96 * 2**20
 """Inputs (bytes) up to which a merged recording gets a footer: its manifest then takes
 at most about 270 MiB while the merge runs (2.8x: a run's file holds its series in one
-chunk since 2026-11-27, 35 % fewer bytes for about the same manifest)."""
+chunk since 2026-11-26, 35 % fewer bytes for about the same manifest)."""
 FLUSH_BYTES = 16 * 2**20
 """The merge flushes its file sink after this many bytes of inputs (a flush a file took
 2.7 ms: 27 s for 10,000 runs)."""
