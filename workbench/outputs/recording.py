@@ -337,17 +337,14 @@ class RerunSink:
             if not (ids == str(run_id)).all():  # a run's own series is kept whole, unfiltered
                 series = series[series["run_id"].astype(str) == str(run_id)]
         t = series["t"].to_numpy(dtype=float)
-        table = np.full((len(t), len(SERIES_QUANTITIES)), np.nan)
-        present = []
-        for k, quantity in enumerate(SERIES_QUANTITIES):
-            if quantity in series.columns:
-                table[:, k] = series[quantity].to_numpy(dtype=float)
-                if np.isfinite(table[:, k]).any():
-                    present.append(quantity)
+        # one copy of all quantities (an absent one is NaN, an infinite value a gap too)
+        table = series.reindex(columns=list(SERIES_QUANTITIES)).to_numpy(dtype=float)
+        finite = np.isfinite(table)
+        present = [q for q, has in zip(SERIES_QUANTITIES, finite.any(axis=0), strict=True) if has]
         keep = np.isfinite(t)
         if not present or not keep.any():
             return
-        table[~np.isfinite(table)] = np.nan  # an infinite value is a gap, as a missing one
+        table[~finite] = np.nan
         self.quantities.update(present)
         series_path = f"{path}/{SERIES_ENTITY}"
         self.recording.log(
