@@ -11,7 +11,6 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose)
     <run>/bodies/<body>/<kind>s        its shapes (boxes, cylinders, spheres, capsules), static
     <run>/bodies/<body>/joints/<joint> the joint's frame on that body (parent P or child C)
-    <run>/ground/joints/<joint>        a joint frame fixed on the ground
     <run>/series                       Scalars on ``sim_time``, one instance a quantity:
                                        drift_pos, drift_vel, drift_nh, energy_err,
                                        ref_err, penetration (m; a contact model's deepest
@@ -26,6 +25,7 @@ and what the runs of a model share, stored once (a robot's meshes are most of it
                                        InstancePoses3D on ``sim_time``: that body's pose in
                                        every run (an instance a run), so each run is drawn
     .../meshes/<i>/instance_runs       which run each instance is (static)
+    runs/<problem>/model/ground/joints/<joint>  a joint frame fixed on the ground (static)
     runs/<problem>/model/contact_planes/<contact>  a plane the contacts touch (a thin box,
                                        static; named by its first contact)
 
@@ -246,7 +246,8 @@ class RerunSink:
                 self._shared_logged[f"{shared}/{relative}"] = ""
                 self.recording.log(f"{shared}/{relative}", *archetypes, static=True)
         for relative, batches in self._batches_cache[key]:
-            if relative not in places:
+            # a joint frame on the ground is the same in every run: once per model too
+            if relative not in places and not relative.startswith("ground/"):
                 self.recording.log(f"{path}/{relative}", batches, static=True)
             elif f"{shared}/{relative}" not in self._shared_logged:
                 self._shared_logged[f"{shared}/{relative}"] = ""
