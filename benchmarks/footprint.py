@@ -4,7 +4,8 @@ Run: ``python -m benchmarks.footprint [N_MERGE ...] [--resume N_RUNS]`` (default
 of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load 8 on
 2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it), or
 ``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3, or
-``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4.
+``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4, or
+``python -m benchmarks.footprint --recording N [--before CHECKOUT]`` for 5.
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
@@ -32,6 +33,10 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
    local pool (runs/s, time outside the integration, the largest process's peak at 10,000
    against 1,000) and on a local Dask cluster (runs/s); about 25 min at load 4 with
    1,000 and 10,000 runs. Writes ``footprint-targets.csv``.
+
+5. A run's recording (:func:`recording_rows`): chunks a run, the CPU of a run's
+   recording, and Python's reader's growth against the merged file's size (the 2x target
+   of 4 without a sweep: load-independent but for the CPU), before and after.
 
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
 (``footprint-tiny.csv`` for 3).
@@ -88,8 +93,9 @@ def _equations() -> SimpleNamespace:
     return SimpleNamespace(model=model, observables=_Observables(), nq=2)
 
 
-def write_run_recordings(directory: Path, n: int) -> list[Path]:
-    """``n`` per-run recordings, as a sweep's worker writes them (one sink, a file a run)."""
+def write_run_recordings(directory: Path, n: int, seconds: list[float] | None = None) -> list[Path]:
+    """``n`` per-run recordings, as a sweep's worker writes them (one sink, a file a run);
+    ``seconds``: gets the CPU seconds of each run's recording (all threads: Rerun's too)."""
     from workbench.outputs.recording import SweepRecorder
 
     sink, equations = SweepRecorder(), _equations()
@@ -106,10 +112,61 @@ def write_run_recordings(directory: Path, n: int) -> list[Path]:
             for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err")
         })  # fmt: skip
         trajectory = SimpleNamespace(times=times, y=np.zeros((len(times), 4)))
+        started = time.process_time()
         sink.begin_file(directory / f"{spec.run_id}.rrd")
         sink.log_run(spec, equations, None, trajectory, series)
         files.append(sink.end_file())
+        if seconds is not None:
+            seconds.append(time.process_time() - started)
     return files
+
+
+RECORDING_CHILD = """
+import json, sys
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])  # the workbench of that checkout
+import importlib.util
+spec = importlib.util.spec_from_file_location("footprint_bench", sys.argv[2])
+bench = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bench)
+import numpy as np, rerun as rr
+from workbench.outputs.recording import merge_recordings
+directory, n, seconds = Path(sys.argv[3]), int(sys.argv[4]), []
+files = bench.write_run_recordings(directory, n, seconds)
+merged = merge_recordings(files, directory / "merged.rrd")  # small: with its footer
+chunks = sum(1 for chunk in rr.chunk.RrdReader(merged).stream()
+             if chunk.entity_path.startswith("/runs/"))
+print(json.dumps({"chunks_per_run": chunks / n, "recording_ms": 1000 * float(np.median(seconds)),
+                  "run_file_kb": np.mean([f.stat().st_size for f in files]) / 1000,
+                  "merged": str(merged)}))
+"""
+
+
+def recording_rows(n: int, before: str) -> list[dict]:
+    """The recording of ``n`` runs of :func:`write_run_recordings` (the 2-body model, 200
+    poses, 4 series of 1,001 samples), with this code ("after") and a checkout's
+    ("before"), each in a fresh process: chunks a run, the CPU a run's recording takes
+    (median; logging and writing its file), the merged file's size with its footer, and
+    ``rerun rrd verify`` and Python's reader's growth on it (:func:`read_back`)."""
+    rows = []
+    for code, checkout in (("before", before), ("after", str(Path(__file__).parents[1]))):
+        if not checkout:
+            continue
+        with tempfile.TemporaryDirectory() as directory:
+            command = [sys.executable, "-c", RECORDING_CHILD, checkout, __file__, directory,
+                       str(n)]  # fmt: skip
+            done = subprocess.run(command, capture_output=True, text=True, check=True)
+            measured = json.loads(done.stdout.strip().splitlines()[-1])
+            merged = Path(measured.pop("merged"))
+            size = merged.stat().st_size / 2**20
+            back = read_back(merged)
+        row = {"measure": "recording", "n": n, "code": code} | measured | {
+            "size_mib": size, **back, "read_growth_x": back["read_growth_mib"] / size,
+            "load_1min": os.getloadavg()[0],
+        }  # fmt: skip
+        rows.append(row)
+        print(row, flush=True)
+    return rows
 
 
 def merge_before(files: list[Path], target: Path) -> Path:
@@ -416,6 +473,15 @@ def main(argv: list[str]) -> pd.DataFrame:
         table.to_csv(RESULTS / "footprint-tiny.csv", index=False)
         with pd.option_context("display.width", 250, "display.max_columns", 30):
             print(table.round(2).to_string(index=False))
+        return table
+    if "--recording" in argv:  # --recording N [--before CHECKOUT]: a run's recording only
+        before = argv[argv.index("--before") + 1] if "--before" in argv else ""
+        table = pd.DataFrame(recording_rows(int(argv[argv.index("--recording") + 1]), before))
+        RESULTS.mkdir(exist_ok=True)
+        table.to_csv(RESULTS / "footprint-recording.csv", index=False)
+        print(f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        with pd.option_context("display.width", 200, "display.max_columns", 20):
+            print(table.round(3).to_string(index=False))
         return table
     if argv[:1] == ["--merge-child"]:
         _merge_child(argv[1], argv[2], int(argv[3]))

@@ -103,6 +103,20 @@ def seconds(values: pd.Series) -> np.ndarray:
     return values.to_numpy().astype("timedelta64[ns]").astype(np.int64) / 1e9
 
 
+def series_of(frames: list[pd.DataFrame], quantity: str) -> tuple[np.ndarray, np.ndarray]:
+    """(times s, values) of ``quantity`` in a run's ``series`` entity (one instance a
+    quantity, in the order of SERIES_QUANTITIES), its NaN samples left out."""
+    logged = column(frames, "Scalars:scalars")
+    values = np.array([row[SERIES_QUANTITIES.index(quantity)] for row in logged["Scalars:scalars"]])
+    keep = ~np.isnan(values)
+    return seconds(logged["sim_time"])[keep], values[keep]
+
+
+def series_present(frames: list[pd.DataFrame]) -> list[str]:
+    """The quantities a run's ``series`` entity says it has values of (static)."""
+    return list(column(frames, "quantities")["quantities"].iloc[0])
+
+
 def test_log_run_is_read_back(tmp_path: Path) -> None:
     sink = RerunSink()
     spec, trajectory, series = fake_run()
@@ -120,19 +134,23 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
         f"{base}/bodies/arm/capsules",
         f"{base}/bodies/arm/cylinders",
         f"{base}/bodies/tip/spheres",
-        f"{base}/ground/joints/hinge",
+        "/runs/fake-problem/model/ground/joints/hinge",  # the same in every run: once
         f"{base}/bodies/arm/joints/hinge",
         f"{base}/bodies/arm/joints/slide",
         f"{base}/bodies/tip/joints/slide",
-    } | {f"{base}/series/{q}" for q in SERIES_QUANTITIES if q not in ("drift_nh", "penetration")}
+        f"{base}/series",
+    }
     assert expected <= set(chunks)
-    assert f"{base}/series/drift_nh" not in chunks  # all NaN: not drawn
-    assert f"{base}/series/penetration" not in chunks  # not a contact model's: no column
-
+    # drift_nh all NaN (not drawn), penetration not a contact model's (no column)
+    assert series_present(chunks[f"{base}/series"]) == [
+        "drift_pos", "drift_vel", "energy_err", "ref_err"
+    ]  # fmt: skip
+    assert len(chunks[f"{base}/series"]) == 2  # its names (static) and all its values
+    for quantity in ("drift_nh", "penetration"):
+        assert len(series_of(chunks[f"{base}/series"], quantity)[1]) == 0
     for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err"):
-        logged = column(chunks[f"{base}/series/{quantity}"], "Scalars:scalars")
-        np.testing.assert_allclose(seconds(logged["sim_time"]), series["t"], atol=1e-9)
-        values = np.array([v[0] for v in logged["Scalars:scalars"]])
+        t, values = series_of(chunks[f"{base}/series"], quantity)
+        np.testing.assert_allclose(t, series["t"], atol=1e-9)
         np.testing.assert_allclose(values, series[quantity].to_numpy(), rtol=1e-15)
 
     arm = column(chunks[f"{base}/bodies/arm"], "Transform3D:quaternion")
@@ -172,7 +190,7 @@ def test_blueprint_has_a_3d_view_beside_the_plots(tmp_path: Path) -> None:
     assert views["fake-problem"]["space_origin"] == ["runs/fake-problem"]
     assert set(views) == {"fake-problem", "drift_pos", "drift_vel", "energy_err", "ref_err"}
     assert views["ref_err"]["class_identifier"] == ["TimeSeries"]
-    assert views["ref_err"]["query"] == [f"+ /{run}/series/ref_err"]
+    assert views["ref_err"]["query"] == [f"+ /{run}/series"]
 
 
 def test_runs_with_other_tolerances_and_repeated_keys(tmp_path: Path) -> None:
@@ -183,7 +201,7 @@ def test_runs_with_other_tolerances_and_repeated_keys(tmp_path: Path) -> None:
     chunks = read_chunks(sink.save(tmp_path / "r.rrd"))
     arm = column(chunks[f"/{paths[0]}/bodies/arm"], "Transform3D:quaternion")
     assert len(arm) == 10  # poses strided to max_frames; series are whole
-    assert len(column(chunks[f"/{paths[0]}/series/ref_err"], "Scalars:scalars")) == 50
+    assert len(series_of(chunks[f"/{paths[0]}/series"], "ref_err")[1]) == 50
 
 
 def _args(run: tuple) -> tuple:
@@ -200,7 +218,7 @@ def test_merge_recordings_of_workers(tmp_path: Path) -> None:
     merged = merge_recordings(files, tmp_path / "all.rrd")
     chunks = read_chunks(merged)
     for rtol in ("0.001", "1e-06"):
-        assert f"/runs/fake-problem/minimal-ode/radau/rtol\\={rtol}/series/ref_err" in chunks
+        assert f"/runs/fake-problem/minimal-ode/radau/rtol\\={rtol}/series" in chunks
     assert rr.chunk.RrdReader(merged).blueprints()
 
 
@@ -220,13 +238,13 @@ def test_one_sink_writes_a_file_a_run(tmp_path: Path) -> None:
     ]
     for path, rtol in zip(files[:2], (1e-3, 1e-6), strict=True):
         chunks = read_chunks(path)
-        runs = {key.split("/series/")[0] for key in chunks if "/series/" in key}
+        runs = {key.removesuffix("/series") for key in chunks if key.endswith("/series")}
         assert runs == {f"/runs/fake-problem/minimal-ode/radau/rtol\\={rtol:g}"}
-        ref_err = column(chunks[f"{runs.pop()}/series/ref_err"], "Scalars:scalars")
+        _t, ref_err = series_of(chunks[f"{runs.pop()}/series"], "ref_err")
         times = np.linspace(0.0, 2.0, 50)
-        np.testing.assert_allclose(np.concatenate(ref_err["Scalars:scalars"]), rtol * times**2)
+        np.testing.assert_allclose(ref_err, rtol * times**2)
     merged = read_chunks(merge_recordings(files[:2], tmp_path / "all.rrd"))
-    assert sum("/series/ref_err" in key for key in merged) == 2
+    assert sum(key.endswith("/series") for key in merged) == 2
 
 
 def test_entity_paths_escape_and_split() -> None:
@@ -247,10 +265,10 @@ def test_sink_in_the_runner(tmp_path: Path) -> None:
     assert result.row["status"] == "ok", result.row["message"]
     chunks = read_chunks(sink.save(tmp_path))
     base = "/runs/simple-pendulum/minimal-ode/generalized-alpha/rtol\\=1e-05"
-    logged = column(chunks[f"{base}/series/energy_err"], "Scalars:scalars")
+    t, energy_err = series_of(chunks[f"{base}/series"], "energy_err")
     expected = result.series.dropna(subset=["energy_err"])
-    np.testing.assert_allclose(seconds(logged["sim_time"]), expected["t"], atol=1e-9)
-    np.testing.assert_allclose([v[0] for v in logged["Scalars:scalars"]], expected["energy_err"])
+    np.testing.assert_allclose(t, expected["t"], atol=1e-9)
+    np.testing.assert_allclose(energy_err, expected["energy_err"])
     assert any(p.startswith(f"{base}/bodies/") for p in chunks)
 
 
@@ -349,3 +367,26 @@ def test_contact_plane_is_drawn_once_per_model(tmp_path: Path) -> None:
     np.testing.assert_allclose(centre, -normal * half[2], atol=1e-6)
     np.testing.assert_allclose(Rotation.from_quat(xyzw).apply([0, 0, 1.0]), normal, atol=1e-6)
     assert half[0] >= 2.0 > 100 * half[2]
+
+
+def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) -> None:
+    """Each component of a run's data costs Python's reader about 3 KiB (the footer's
+    manifest): a shape at its body's origin has no centers, an unrotated one no
+    quaternions, no shape carries a fill mode (solid is the 3D views' default), and a
+    joint frame on an unrotated body frame no rotation."""
+    sink = RerunSink()
+    run = sink.log_run(*_args(fake_run()))
+    path = sink.save(tmp_path)
+    columns = {
+        chunk.entity_path: set(chunk.to_record_batch().schema.names)
+        for chunk in rr.chunk.RrdReader(path).stream()
+        if chunk.is_static
+    }
+    base = "/" + run
+    assert not any(name.endswith(":fill_mode") for names in columns.values() for name in names)
+    assert "Ellipsoids3D:centers" not in columns[f"{base}/bodies/tip/spheres"]
+    assert "Cylinders3D:quaternions" not in columns[f"{base}/bodies/arm/cylinders"]
+    assert "Boxes3D:centers" in columns[f"{base}/bodies/arm/boxes"]
+    assert "Transform3D:mat3x3" not in columns[f"{base}/bodies/arm/joints/slide"]
+    views = blueprint_views(path)
+    assert views["fake-problem"]["class_identifier"] == ["3D"]

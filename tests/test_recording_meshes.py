@@ -131,9 +131,9 @@ def test_a_sweep_keeps_one_copy_and_redone_runs_replace_theirs(tmp_path: Path) -
         chunk.entity_path
         for chunk in chunks_of(merged)
         if "Scalars:scalars" in chunk.to_record_batch().schema.names
-        and chunk.entity_path.endswith("/ref_err")
+        and chunk.entity_path.endswith("/series")
     ]
-    assert sorted(series) == sorted(f"/{run_path(r)}/series/ref_err" for r in (1e-3, 1e-4, 1e-5))
+    assert sorted(series) == sorted(f"/{run_path(r)}/series" for r in (1e-3, 1e-4, 1e-5))
 
 
 def test_view_opens_one_run_of_a_sweeps_recording(tmp_path: Path, monkeypatch) -> None:
@@ -165,7 +165,9 @@ def test_view_opens_one_run_of_a_sweeps_recording(tmp_path: Path, monkeypatch) -
     runs, _times, translations = instances(one)
     assert runs == [run_path(1e-4)] and translations.shape[1] == 1 and mesh_bytes(one)[0] == 1
     assert {
-        c.entity_path.split("/series/")[0] for c in chunks_of(one) if "/series/" in c.entity_path
+        c.entity_path.removesuffix("/series")
+        for c in chunks_of(one)
+        if c.entity_path.endswith("/series")
     } == {"/" + run_path(1e-4)}
     unknown = CliRunner().invoke(app, ["view", str(out), "--run", "nope"])
     assert unknown.exit_code == 2 and "error: no run 'nope'" in unknown.output

@@ -63,7 +63,7 @@ print(json.dumps({"growth": status("VmHWM") - start, "rows": rows}))
 def test_pythons_reader_reads_a_merged_recording_within_twice_its_size(tmp_path: Path) -> None:
     from benchmarks.footprint import write_run_recordings
 
-    files = write_run_recordings(tmp_path, 150)  # about 20 MB merged
+    files = write_run_recordings(tmp_path, 300)  # about 20 MB merged (7 MiB of growth is fixed)
     merged = merge_recordings(files, tmp_path / "merged.rrd")  # with its footer (manifest)
     assert rr.chunk.RrdReader(merged).store() is not None  # which only a footer allows
     child = tmp_path / "read.py"
@@ -73,5 +73,5 @@ def test_pythons_reader_reads_a_merged_recording_within_twice_its_size(tmp_path:
         check=True,
     )  # fmt: skip
     measured = json.loads(done.stdout.strip().splitlines()[-1])
-    assert measured["rows"] > 150 * 200  # every run's poses at least: it read it all
+    assert measured["rows"] > 300 * 200  # every run's poses at least: it read it all
     assert measured["growth"] < 2 * merged.stat().st_size, measured

@@ -11,10 +11,13 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose)
     <run>/bodies/<body>/<kind>s        its shapes (boxes, cylinders, spheres, capsules), static
     <run>/bodies/<body>/joints/<joint> the joint's frame on that body (parent P or child C)
-    <run>/ground/joints/<joint>        a joint frame fixed on the ground
-    <run>/series/<quantity>            Scalars on ``sim_time``: drift_pos, drift_vel,
-                                       drift_nh, energy_err, ref_err, penetration (m; a
-                                       contact model's deepest penetration)
+    <run>/series                       Scalars on ``sim_time``, one instance a quantity:
+                                       drift_pos, drift_vel, drift_nh, energy_err,
+                                       ref_err, penetration (m; a contact model's deepest
+                                       penetration), NaN where the run has none; static
+                                       ``quantities`` names those it has. The blueprint's
+                                       plot of a quantity shows its instance only
+                                       (SeriesLines' ``visible_series``, a view default)
 
 and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
 
@@ -22,6 +25,7 @@ and what the runs of a model share, stored once (a robot's meshes are most of it
                                        InstancePoses3D on ``sim_time``: that body's pose in
                                        every run (an instance a run), so each run is drawn
     .../meshes/<i>/instance_runs       which run each instance is (static)
+    runs/<problem>/model/ground/joints/<joint>  a joint frame fixed on the ground (static)
     runs/<problem>/model/contact_planes/<contact>  a plane the contacts touch (a thin box,
                                        static; named by its first contact)
 
@@ -71,6 +75,12 @@ INSTANCE_RUNS = "instance_runs"
 """The component naming the run of each instance pose of a shared mesh entity; static, on
 its child entity of that name (a chunk of its own: Rerun's batcher may join static rows
 of one entity into one chunk, and the mesh must be copied without it)."""
+SERIES_ENTITY = "series"
+"""``<run>/series``: all of a run's time series, one Scalars instance a quantity in the
+order of :data:`SERIES_QUANTITIES` (NaN where the run has none), sent in one column
+chunk: a chunk a quantity cost the reader about 11 KiB each (its footer's manifest)."""
+SERIES_PRESENT = "quantities"
+"""The static component of ``<run>/series`` naming the quantities the run has values of."""
 SHAPE_ENTITIES = {
     "box": "boxes",
     "cylinder": "cylinders",
@@ -236,7 +246,8 @@ class RerunSink:
                 self._shared_logged[f"{shared}/{relative}"] = ""
                 self.recording.log(f"{shared}/{relative}", *archetypes, static=True)
         for relative, batches in self._batches_cache[key]:
-            if relative not in places:
+            # a joint frame on the ground is the same in every run: once per model too
+            if relative not in places and not relative.startswith("ground/"):
                 self.recording.log(f"{path}/{relative}", batches, static=True)
             elif f"{shared}/{relative}" not in self._shared_logged:
                 self._shared_logged[f"{shared}/{relative}"] = ""
@@ -269,10 +280,15 @@ class RerunSink:
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
             for body, frame in ends:
                 owner = "ground" if body == "ground" else entity_path("bodies", body)
-                frame_archetypes = [
-                    rr.Transform3D(translation=frame.position, mat3x3=frame.rotation),
-                    rr.TransformAxes3D(axis_length),
-                ]
+                # a frame at the body's origin, or unrotated, leaves that field out
+                placed = {}
+                if np.any(frame.position):
+                    placed["translation"] = frame.position
+                if np.any(frame.rotation != np.eye(3)):
+                    placed["mat3x3"] = frame.rotation
+                frame_archetypes = [rr.TransformAxes3D(axis_length)]
+                if placed:
+                    frame_archetypes.insert(0, rr.Transform3D(**placed))
                 entries.append((f"{owner}/{entity_path('joints', joint.name)}", frame_archetypes))
         self._geometry_cache[key] = entries
         return entries
@@ -322,38 +338,54 @@ class RerunSink:
             if not (ids == str(run_id)).all():  # a run's own series is kept whole, unfiltered
                 series = series[series["run_id"].astype(str) == str(run_id)]
         t = series["t"].to_numpy(dtype=float)
-        for quantity in SERIES_QUANTITIES:
-            if quantity not in series.columns:
-                continue
-            values = series[quantity].to_numpy(dtype=float)
-            keep = np.isfinite(values) & np.isfinite(t)
-            if not keep.any():
-                continue
-            self.quantities.add(quantity)
-            quantity_path = f"{path}/series/{quantity}"
-            self.recording.log(quantity_path, rr.SeriesLines(names=label), static=True)
-            self.recording.send_columns(
-                quantity_path,
-                indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
-                columns=rr.Scalars.columns(scalars=values[keep]),
-            )
+        # one copy of all quantities (an absent one is NaN, an infinite value a gap too)
+        table = series.reindex(columns=list(SERIES_QUANTITIES)).to_numpy(dtype=float)
+        finite = np.isfinite(table)
+        present = [q for q, has in zip(SERIES_QUANTITIES, finite.any(axis=0), strict=True) if has]
+        keep = np.isfinite(t)
+        if not present or not keep.any():
+            return
+        table[~finite] = np.nan
+        self.quantities.update(present)
+        series_path = f"{path}/{SERIES_ENTITY}"
+        self.recording.log(
+            series_path,
+            rr.SeriesLines(names=[label] * len(SERIES_QUANTITIES)),
+            rr.AnyValues(**{SERIES_PRESENT: present}),
+            static=True,
+        )
+        self.recording.send_columns(
+            series_path,
+            indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
+            columns=rr.Scalars.columns(scalars=table[keep]),
+        )
 
     # -- the file -------------------------------------------------------------------------
     def blueprint(self) -> Any:
         """A 3D view per problem (tabs; its runs overlaid, so drift shows as bodies
         parting) beside one time-series plot per quantity that some run logged."""
+        import rerun as rr
         import rerun.blueprint as rrb
 
         problems = list(dict.fromkeys(problem for problem, _label in self.runs.values()))
         spatial = [
-            rrb.Spatial3DView(origin=entity_path("runs", problem), name=problem)
+            rrb.Spatial3DView(
+                origin=entity_path("runs", problem), name=problem, defaults=solid_shapes()
+            )
             for problem in problems
-        ] or [rrb.Spatial3DView(origin="runs", name="runs")]
+        ] or [rrb.Spatial3DView(origin="runs", name="runs", defaults=solid_shapes())]
         plots = [
             rrb.TimeSeriesView(
                 name=quantity,
                 origin="runs",
-                contents=[f"+ /{path}/series/{quantity}" for path in self.runs] or "$origin/**",
+                contents=[f"+ /{path}/{SERIES_ENTITY}" for path in self.runs] or "$origin/**",
+                # every run's series entity holds all quantities, one line each: the
+                # view shows this quantity's (a default, so one entry however many runs)
+                defaults=[
+                    rr.SeriesLines.from_fields(
+                        visible_series=[other == quantity for other in SERIES_QUANTITIES]
+                    )
+                ],
                 plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),  # errors grow to the right
             )
             for quantity in SERIES_QUANTITIES
@@ -502,8 +534,10 @@ class RerunSink:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
                 found.append(run)
-            if len(parts) == 7 and parts[5] == "series" and parts[6] in SERIES_QUANTITIES:
-                self.quantities.add(parts[6])
+            if len(parts) == 6 and parts[5] == SERIES_ENTITY and chunk.is_static:
+                batch = chunk.to_record_batch()
+                if SERIES_PRESENT in batch.schema.names:
+                    self.quantities.update(map(str, batch.column(SERIES_PRESENT)[0].as_py()))
             self.recording.send_chunks(chunk)
         for shared, pieces in poses.items():
             runs = named.get(shared) or found[:1]  # a run's own file names none: its run
@@ -593,8 +627,8 @@ def merge_recordings(
     ``target`` at the end, so that the inputs can then be removed.
     The file has a footer (a manifest of its chunks, which ``rerun rrd verify`` and random
     access need) when its inputs are at most :data:`FOOTER_INPUT_LIMIT` bytes: Rerun's
-    file sink keeps that manifest in memory until the end, about 2x the inputs' size
-    (13 KiB a chunk; rerun-sdk 0.41, docs/performance.md), and a larger file goes without
+    file sink keeps that manifest in memory until the end, about 3x the inputs' size
+    (12-16 KiB a chunk; rerun-sdk 0.41, docs/performance.md), and a larger file goes without
     (the viewer and Python's streaming reader read it whole; ``rerun rrd migrate`` adds
     one to a copy).
     Rerun's file sink blocks forever on a full disk (rerun-sdk 0.41, see
@@ -638,9 +672,10 @@ def _sync_directory(directory: Path) -> None:
         os.close(descriptor)
 
 
-FOOTER_INPUT_LIMIT = 128 * 2**20
+FOOTER_INPUT_LIMIT = 96 * 2**20
 """Inputs (bytes) up to which a merged recording gets a footer: its manifest then takes
-at most about 256 MiB while the merge runs."""
+at most about 270 MiB while the merge runs (2.8x: a run's file holds its series in one
+chunk since 2026-11-26, 35 % fewer bytes for about the same manifest)."""
 FLUSH_BYTES = 16 * 2**20
 """The merge flushes its file sink after this many bytes of inputs (a flush a file took
 2.7 ms: 27 s for 10,000 runs)."""
@@ -807,36 +842,27 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
     by_kind: dict[str, list[Any]] = {}
     for shape in shapes:
         by_kind.setdefault(shape.kind, []).append(shape)
-    solid = rr.components.FillMode.Solid
     archetypes: dict[str, Any] = {}
     for kind, group in by_kind.items():
-        centers = np.array([s.frame.position for s in group])
-        quaternions = [rr.Quaternion(xyzw=matrix_xyzw(s.frame.rotation)) for s in group]
-        colors = [tuple(s.color) for s in group]
+        # centers and rotations only when some shape has one (each component of a
+        # run's static data costs the reader's manifest about 3 KiB); the fill mode is
+        # the 3D views' default (:func:`solid_shapes`)
+        placed = {"colors": [tuple(s.color) for s in group]}
+        if any(np.any(s.frame.rotation != np.eye(3)) for s in group):
+            rotations = [s.frame.rotation for s in group]
+            placed["quaternions"] = [rr.Quaternion(xyzw=matrix_xyzw(r)) for r in rotations]
+        centers = np.array([s.frame.position for s in group], dtype=float)
+        if kind != "capsule" and np.any(centers):
+            placed["centers"] = centers
         if kind == "box":
-            archetypes[kind] = rr.Boxes3D(
-                half_sizes=[np.asarray(s.size, dtype=float) / 2 for s in group],
-                centers=centers,
-                quaternions=quaternions,
-                colors=colors,
-                fill_mode=solid,
-            )
+            half_sizes = [np.asarray(s.size, dtype=float) / 2 for s in group]
+            archetypes[kind] = rr.Boxes3D(half_sizes=half_sizes, **placed)
         elif kind == "sphere":
-            archetypes[kind] = rr.Ellipsoids3D(
-                half_sizes=[[s.size[0]] * 3 for s in group],
-                centers=centers,
-                quaternions=quaternions,
-                colors=colors,
-                fill_mode=solid,
-            )
+            half_sizes = [[s.size[0]] * 3 for s in group]
+            archetypes[kind] = rr.Ellipsoids3D(half_sizes=half_sizes, **placed)
         elif kind == "cylinder":
             archetypes[kind] = rr.Cylinders3D(
-                radii=[s.size[0] for s in group],
-                lengths=[s.size[1] for s in group],
-                centers=centers,
-                quaternions=quaternions,
-                colors=colors,
-                fill_mode=solid,
+                radii=[s.size[0] for s in group], lengths=[s.size[1] for s in group], **placed
             )
         elif kind == "capsule":
             # Rerun's capsule runs from its origin along +z; ours is centred on its frame.
@@ -848,11 +874,21 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
                 radii=[s.size[0] for s in group],
                 lengths=[s.size[1] for s in group],
                 translations=starts,
-                quaternions=quaternions,
-                colors=colors,
-                fill_mode=solid,
+                **placed,
             )
     return archetypes
+
+
+def solid_shapes() -> list[Any]:
+    """The 3D views' default fill mode of the primitive shapes: solid (Rerun draws them as
+    wireframes otherwise). A view default rather than a component of every run's shapes."""
+    import rerun as rr
+
+    solid = rr.components.FillMode.Solid
+    return [
+        archetype.from_fields(fill_mode=solid)
+        for archetype in (rr.Boxes3D, rr.Ellipsoids3D, rr.Cylinders3D, rr.Capsules3D)
+    ]
 
 
 class SweepRecorder(RerunSink):
