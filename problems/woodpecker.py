@@ -26,8 +26,9 @@ Initial state: the published point of the limit cycle, y' = -0.3411 m/s, phi_M' 
 phi_S = -0.2788 rad, phi_S' = -7.4583 rad/s, with phi_M = -0.1009 rad (published
 -0.1036, the linear gap's root) chosen so the exact gap of the lower edge is zero.
 t_end = 0.5 s: about four cycles (Moreau-Jean, h = 1e-4 s: period 0.1296 s, the sleeve
-descending at 0.103 m/s on average). No reference poses yet (docs/nonsmooth.md): tests
-assert what holds on every path.
+descending at 0.103 m/s on average). Reference: stored (references/woodpecker.npz), event-driven
+on minimal-ode at rtol 1e-12, confirmed by event-driven on absolute-dae at 1e-11 to 4.4e-9 L
+(L = 0.054 m), its stated accuracy; its cycle: period 0.1296 s within 2 %.
 """
 
 from __future__ import annotations
@@ -63,11 +64,6 @@ START_SLEEVE = brentq(lower_edge_gap, -0.2, 0.0, xtol=1e-15)  # -0.10353 rad
 @workbench.plugin.registry.problem
 class Woodpecker(Problem):
     name = "woodpecker"
-    no_reference = (
-        "no closed form, and event-driven (the one exact contact integrator) stops at its"
-        " first lift-off under sticking; the energy balance and the limit cycle are checked"
-        " in tests/test_contact_problems.py"
-    )
     summary = "Woodpecker toy: beak impacts, sleeve jamming and friction in a limit cycle"
     source = "book 5.1.2, 5.4.2; Glocker 1995, Pfeiffer & Glocker 1996, Leine et al. 2003"
     t_end = 0.5
