@@ -197,6 +197,12 @@ def issue36_targets() -> list[Row]:
                 if "anchor" in set(table.side):
                     anchor = table[table.side == "anchor"].wall_s.iloc[0]
                     note += f"; the anchor / that peer {anchor / table.wall_s[row.peer]:.2f}"
+            calls = getattr(row, "rhs_calls_ours_side", NAN)
+            if not pd.isna(calls):  # where the time goes: calls x (wall a call)
+                note += (
+                    f"; rhs calls {calls:.0f} / {row.rhs_calls_peer_side:.0f}, "
+                    f"us a call {row.us_per_rhs_ours_side:.1f} / {row.us_per_rhs_peer_side:.1f}"
+                )
             rows.append(Row(f"whole simulation, {case}, best of ours / best Python-driven peer",
                             row.ratio, 0.5, low=row.low, high=row.high, interval="95 % CI",
                             note=note))  # fmt: skip

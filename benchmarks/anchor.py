@@ -159,8 +159,10 @@ class Anchor:
             self.built[rtol] = ca.integrator("anchor", "cvodes", dae, 0.0, self.times, options)
         return self.built[rtol]
 
-    def run(self, rtol: float) -> tuple[np.ndarray, float]:
-        """(final state in our coordinates, 0 s excluded); RuntimeError on a failed step."""
+    def run(self, rtol: float) -> tuple[np.ndarray, float, tuple[float, float]]:
+        """(final state in our coordinates, 0 s excluded, (steps, rhs calls)); RuntimeError
+        on a failed step."""
         solve = self.integrator(rtol)
         xf = np.asarray(solve(x0=self.x0)["xf"])
-        return xf[:, -1][self.back], 0.0
+        stats = solve.stats()
+        return xf[:, -1][self.back], 0.0, (float(stats["nsteps"]), float(stats["nfevals"]))

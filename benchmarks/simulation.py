@@ -25,8 +25,15 @@ Accuracy: ``end_error`` is the largest difference of the final (q, v) from a ref
 (DOP853 at rtol = atol = 1e-13 on our compiled right-hand side). The target accuracy is
 that of DOP853 + ``pin.aba`` at rtol 1e-8, atol 1e-10. Pair (a) runs both DOP853 sides at
 that tolerance. For pair (b) every pipeline is run at the loosest setting of its ladder
-(rtol 1e-6 ... 1e-12 with atol = rtol / 100; MuJoCo: steps 2^k x 256) whose end error is at
-most 1.5 x the target (the ``setting`` column).
+(rtol 1e-6, 3.16e-7, 1e-7 ... 1e-12, half decades, with atol = rtol / 100; MuJoCo: steps
+2^k x 256) whose end error is at most 1.5 x the target (the ``setting`` column).
+
+Where the time goes: each pipeline's ``steps`` and ``rhs_calls`` (from its own statistics,
+read after the solve, never counted inside it; NaN where it reports none: SciPy and
+scikit-sundae give only calls; scikit-sundae's CVODE iterates by Newton with a difference-
+quotient Jacobian, whose 2n calls a Jacobian are counted too) and ``us_per_rhs`` = median
+wall / rhs calls, everything included (the integrator's own work a call); the pairs' rows
+repeat both sides' figures (``rhs_calls_ours_side`` ...).
 
 Timing: ``--repeat`` rounds; each round runs every pipeline once, in a shuffled order
 (interleaved, so a change of the machine's load falls on all of them). ``wall_s`` is the
@@ -73,7 +80,9 @@ from workbench.plugins.integrators import scipy_ivp
 RESULTS = Path(__file__).parent / "results"
 TARGET_RTOL, TARGET_ATOL = 1e-8, 1e-10
 SLACK = 1.5  # a pipeline matches when its end error is <= SLACK x the target's
-LADDER = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
+# half decades: a pipeline's setting is within a factor 3.2 of the loosest that matches (with
+# whole decades the chain's CVODES took rtol 1e-11 for an end error 1.2x the allowed at 1e-10)
+LADDER = tuple(float(f"{r:.3g}") for r in np.logspace(-6, -12, 13))
 MUJOCO_STEPS = tuple(256 * 2**k for k in range(13))
 OURS = {
     "scipy-dop853": None,
@@ -83,6 +92,7 @@ OURS = {
 }
 TARGETS = {"a": 0.8, "b": 0.5, "c": 1.5}
 ANCHOR = "anchor: CVODES Adams (CasADi) + pinocchio::aba (C++)"
+NAN = float("nan")
 SPLIT_ROUNDS = 9  # instrumented DOP853 runs a side for the split of pair (a)
 
 
@@ -99,7 +109,8 @@ def interval(ratios: np.ndarray) -> tuple[float, float, float]:
 
 class Pipelines:
     """The pipelines of one case: each ``run(setting)`` integrates and returns (final y,
-    seconds to subtract from the wall time)."""
+    seconds to subtract from the wall time, (steps, right-hand-side calls)); a count the
+    pipeline does not report is NaN (read after the solve, never counted inside it)."""
 
     def __init__(self, bench: Case) -> None:
         self.case = bench
@@ -129,31 +140,33 @@ class Pipelines:
                 if not difference <= TOLERANCE * max(1.0, float(np.abs(ours).max())):
                     raise AssertionError(f"the anchor's aba differs from ours by {difference:.2e}")
 
-    def ours(self, name: str, options: dict | None) -> Callable[[float], tuple[np.ndarray, float]]:
+    def ours(self, name: str, options: dict | None) -> Callable[[float], tuple]:
         integrator = get_integrator(name)()
 
-        def run(rtol: float) -> tuple[np.ndarray, float]:
+        def run(rtol: float) -> tuple:
             trajectory = integrator.solve(
                 self.equations, self.case.y0, None, self.times, rtol, rtol / 100, options, "ode"
             )
             if not trajectory.success:
                 raise RuntimeError(f"{name}: {trajectory.message}")
-            setup = trajectory.stats.setup_s if name == "heyoka-taylor" else 0.0
-            return np.asarray(trajectory.y)[-1], float(setup or 0.0)
+            stats = trajectory.stats
+            setup = stats.setup_s if name == "heyoka-taylor" else 0.0
+            counts = (stats.n_steps or NAN, stats.n_rhs or NAN)
+            return np.asarray(trajectory.y)[-1], float(setup or 0.0), counts
 
         return run
 
     def pin_rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         return np.concatenate([y[self.n :], self.peers.aba(y[: self.n], y[self.n :])])
 
-    def pin_dop853(self, rtol: float, solver: Callable = solve_ivp) -> tuple[np.ndarray, float]:
+    def pin_dop853(self, rtol: float, solver: Callable = solve_ivp) -> tuple:
         solution = solver(
             self.pin_rhs, (0.0, self.case.t_end), self.case.y0, method="DOP853",
             t_eval=self.times, rtol=rtol, atol=rtol / 100,
         )  # fmt: skip
-        return solution.y[:, -1], 0.0
+        return solution.y[:, -1], 0.0, (NAN, float(solution.nfev))
 
-    def pin_cvode(self, method: str) -> Callable[[float], tuple[np.ndarray, float]]:
+    def pin_cvode(self, method: str) -> Callable[[float], tuple]:
         from sksundae.cvode import CVODE
 
         n = self.n
@@ -162,16 +175,19 @@ class Pipelines:
             yp[:n] = y[n:]
             yp[n:] = self.peers.aba(y[:n], y[n:])
 
-        def run(rtol: float) -> tuple[np.ndarray, float]:
+        def run(rtol: float) -> tuple:
             solver = CVODE(rhsfn, method=method, rtol=rtol, atol=rtol / 100, max_num_steps=100000)
             result = solver.solve(self.times, self.case.y0)
             if not result.success:
                 raise RuntimeError(f"CVODE {method} + pin.aba: {result.message}")
-            return np.asarray(result.y)[-1], 0.0
+            # Newton iteration with a difference-quotient Jacobian: SUNDIALS counts its 2n
+            # right-hand sides a Jacobian apart from nfev
+            calls = float(result.nfev + 2 * n * result.njev)
+            return np.asarray(result.y)[-1], 0.0, (NAN, calls)
 
         return run
 
-    def mujoco_rk4(self, steps: int) -> tuple[np.ndarray, float]:
+    def mujoco_rk4(self, steps: int) -> tuple:
         import mujoco
         from mujoco import rollout
 
@@ -186,7 +202,8 @@ class Pipelines:
         trajectory, _ = rollout.rollout(model, data, state[None, :], nstep=steps)
         final = trajectory[0, -1]
         back, nq = np.argsort(order), model.nq
-        return np.concatenate([final[1 : 1 + nq][back], final[1 + nq : 1 + 2 * nq][back]]), 0.0
+        final = np.concatenate([final[1 : 1 + nq][back], final[1 + nq : 1 + 2 * nq][back]])
+        return final, 0.0, (float(steps), 4.0 * steps)  # RK4: 4 forward dynamics a step
 
 
 class RhsClock:
@@ -277,15 +294,17 @@ def rhs_split(pipelines: Pipelines, ours: Callable, rounds: int) -> dict[str, fl
     return out
 
 
-def match(run, ladder, error, target: float) -> tuple[object, float]:
-    """(setting, end error): the first setting of ``ladder`` whose end error is <= SLACK x
-    target, else the last that ran (its error then shows the miss); RuntimeError if none ran."""
+def match(run, ladder, error, target: float) -> tuple[object, float, tuple[float, float]]:
+    """(setting, end error, (steps, rhs calls)): the first setting of ``ladder`` whose end
+    error is <= SLACK x target, else the last that ran (its error then shows the miss);
+    RuntimeError if none ran."""
     last = None
     for setting in ladder:
         try:
-            last = (setting, error(run(setting)[0]))
+            final, _, counts = run(setting)
         except RuntimeError:
             continue
+        last = (setting, error(final), counts)
         if last[1] <= SLACK * target:
             break
     if last is None:
@@ -305,14 +324,16 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
     def error(final: np.ndarray) -> float:
         return float(np.abs(final - reference).max())
 
-    target = error(pipelines.pin_dop853(TARGET_RTOL)[0])
-    # label: (side, run, setting)
-    chosen: dict[str, tuple[str, Callable, object, float]] = {
-        "scipy DOP853 + pin.aba": ("peer", pipelines.pin_dop853, TARGET_RTOL, target),
+    final, _, counts = pipelines.pin_dop853(TARGET_RTOL)
+    target = error(final)
+    # label: (side, run, setting, end error, (steps, rhs calls))
+    chosen: dict[str, tuple[str, Callable, object, float, tuple[float, float]]] = {
+        "scipy DOP853 + pin.aba": ("peer", pipelines.pin_dop853, TARGET_RTOL, target, counts),
     }
     ours_dop853 = pipelines.ours("scipy-dop853", None)
+    final, _, counts = ours_dop853(TARGET_RTOL)
     chosen["recursive jit + scipy-dop853 (same rtol)"] = (
-        "ours", ours_dop853, TARGET_RTOL, error(ours_dop853(TARGET_RTOL)[0]),
+        "ours", ours_dop853, TARGET_RTOL, error(final), counts,
     )  # fmt: skip
     candidates = {
         f"recursive jit + {k}" + (" (adams, functional)" if o else ""): (
@@ -331,23 +352,23 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
     if pipelines.anchor is not None:
         candidates[ANCHOR] = ("anchor", pipelines.anchor.run, LADDER)
     for label, (side, run, ladder) in candidates.items():
-        setting, err = match(run, ladder, error, target)
-        chosen[label] = (side, run, setting, err)
+        chosen[label] = (side, run, *match(run, ladder, error, target))
     walls: dict[str, list[float]] = {label: [] for label in chosen}
     labels = list(chosen)
     for _ in range(repeat):
         for label in rng.permutation(labels):
-            _, run, setting, _ = chosen[label]
+            _, run, setting, _, _ = chosen[label]
             start = time.perf_counter()
-            _, excluded = run(setting)
+            _, excluded, _ = run(setting)
             walls[label].append(time.perf_counter() - start - excluded)
     rows = [
         {
             "case": name, "side": side, "pipeline": label, "setting": setting, "end_error": err,
             "target_error": target, "wall_s": float(np.median(walls[label])),
-            "wall_min_s": float(np.min(walls[label])),
+            "wall_min_s": float(np.min(walls[label])), "steps": steps, "rhs_calls": calls,
+            "us_per_rhs": 1e6 * float(np.median(walls[label])) / calls,
         }
-        for label, (side, _, setting, err) in chosen.items()
+        for label, (side, _, setting, err, (steps, calls)) in chosen.items()
     ]  # fmt: skip
     table = pd.DataFrame(rows)
     matched = table[(table.end_error <= SLACK * target) & ~table.pipeline.str.contains("same rtol")]
@@ -368,7 +389,8 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
     split = rhs_split(pipelines, ours_dop853, SPLIT_ROUNDS)
     targets = []
     load = os.getloadavg()[0]
-    nan = float("nan")
+    nan = NAN
+    counted = {row["pipeline"]: row for row in rows}
     for pair, (ours, peer) in pairs.items():
         if peer in walls:
             ratios = np.array(walls[ours]) / np.array(walls[peer])
@@ -383,6 +405,11 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
             "met": high <= TARGETS[pair], "note": note,
             "repeats": repeat, "load_1min": load, "cpu_count": os.cpu_count(),
             "compile_s": pipelines.compile_s, "max_rel_diff": pipelines.max_rel_diff,
+            # where the time goes: each side's rhs calls and median wall a call (all in it)
+            "rhs_calls_ours_side": counted[ours]["rhs_calls"],
+            "rhs_calls_peer_side": counted[peer]["rhs_calls"] if peer in counted else nan,
+            "us_per_rhs_ours_side": counted[ours]["us_per_rhs"],
+            "us_per_rhs_peer_side": counted[peer]["us_per_rhs"] if peer in counted else nan,
         })  # fmt: skip
         # the split is of pair (a) only: not measured for (b), so NaN there
         targets[-1] |= {k: (v if pair == "a" else float("nan")) for k, v in split.items()}
@@ -423,6 +450,10 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
         print()
         shown = ["case", "pair", "ours", "peer", "ratio", "low", "high", "best_ratio", "floor"]
         shown += ["ratio_if_rhs_free", "target", "verdict"]
+        print(summary[shown].to_string(index=False, float_format=lambda x: f"{x:.2f}"))
+        print("\nwhere the time goes (each side: rhs calls, median wall a call in us, all in it):")
+        shown = ["case", "pair", "rhs_calls_ours_side", "rhs_calls_peer_side"]
+        shown += ["us_per_rhs_ours_side", "us_per_rhs_peer_side"]
         print(summary[shown].to_string(index=False, float_format=lambda x: f"{x:.2f}"))
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     return summary

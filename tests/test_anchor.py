@@ -47,5 +47,9 @@ def test_anchor_agrees_with_pinocchio_on_the_ur5() -> None:
         yp[:n], yp[n:] = y[n:], pin.aba(model, data, y[:n], y[n:], np.zeros(n))
 
     peer = CVODE(rhs, method="Adams", rtol=1e-11, atol=1e-13).solve(times, bench.y0)
-    end, _ = tree.run(1e-11)
+    end, _, (steps, calls) = tree.run(1e-11)
     assert np.abs(end - np.asarray(peer.y)[-1]).max() < 1e-7
+    # the counts are CVODES' own: Adams with fixed-point iteration calls the rhs at least
+    # once a step, and the same integrator run again takes the same steps
+    assert 0 < steps <= calls
+    assert tree.run(1e-11)[2] == (steps, calls)

@@ -63,3 +63,24 @@ def test_rhs_clock_sees_every_evaluation_and_changes_nothing() -> None:
     assert calls == plain.nfev == timed.nfev
     np.testing.assert_array_equal(timed.y, plain.y)
     assert clock.total > 0 and inside > 0
+
+
+def test_match_takes_the_loosest_setting_within_the_slack_and_its_counts() -> None:
+    """benchmarks.simulation runs each pipeline at the first (loosest) setting of its
+    ladder whose end error is within SLACK x the target, keeping that run's (steps, rhs
+    calls); a setting that fails is skipped; none within: the last that ran, showing the miss."""
+    from benchmarks.simulation import LADDER, SLACK, match
+
+    assert LADDER[0] == 1e-6 and LADDER[-1] == 1e-12 and len(LADDER) == 13  # half decades
+    assert all(1 / 3.2 < b / a < 1 / 3.1 for a, b in zip(LADDER, LADDER[1:], strict=False))
+
+    def run(rtol: float) -> tuple:
+        if rtol == 1e-6:
+            raise RuntimeError("too loose to finish")
+        return np.array([rtol * 1e3]), 0.0, (1 / rtol, 2 / rtol)  # end error 1000 rtol
+
+    target = 1.01e-5 / SLACK  # 1e-4 at rtol 1e-7 and 3.16e-5 at 3.16e-8 are above it
+    setting, error, counts = match(run, LADDER, lambda final: float(final[0]), target)
+    assert setting == 1e-8 and error == pytest.approx(1e-5) and counts == (1e8, 2e8)
+    setting, error, _ = match(run, LADDER[:3], lambda final: float(final[0]), target)
+    assert setting == 1e-7 and error > SLACK * target
