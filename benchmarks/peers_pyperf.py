@@ -21,8 +21,9 @@ and state arrays (where a small model's time goes: docs/performance-targets.md).
 
 A second line, like for like in C: both sides through the same CasADi buffer call
 (``Function.buffer()``, the arguments already in place), ours the same compiled library,
-Pinocchio's C++ ``pinocchio::aba`` (the libpinocchio wheel's) as a CasADi external
-function (``benchmarks/aba_call.cpp``, built by :mod:`benchmarks.anchor` and cached):
+Pinocchio's C++ ``pinocchio::aba`` (the libpinocchio wheel's headers) as a CasADi
+external function (``benchmarks/aba_call.cpp``, built by :mod:`benchmarks.anchor` at
+``-O3``, Pinocchio's own Release flags, and cached):
 no Python conversion on either side, so the ratio is that of the two C codes plus the
 same call overhead (columns ``buffer_*``). Both lines are checked against ours to 1e-9
 before any timing.
@@ -47,12 +48,18 @@ from pathlib import Path
 import numpy as np
 import pyperf
 
+from benchmarks import anchor
+
 RESULTS = Path(__file__).parent / "results"
 SIZES = (7, 20, 50, 200)
 ROBOTS = ("ur5", "panda", "solo12", "talos")
 HUMANOID = ("talos_data/robots/talos_reduced.urdf", {"floating_base": True})
 PREPARED = Path(tempfile.gettempdir()) / f"mbs-peers-pyperf-{os.getuid()}.json"
 ABA_CALL = Path(__file__).with_name("aba_call.cpp")
+# Pinocchio's own build flags (CMake's Release: -O3), not the anchor's -O2, under which
+# pinocchio::aba in C was slower than the wheel's pin.aba with its Python call (-O2 / -O3,
+# one process, load 5: random N = 20 5.68 / 4.57 us, N = 200 58.2 / 45.6, UR5 1.51 / 1.30)
+ABA_CALL_FLAGS = [flag.replace("-O2", "-O3") for flag in anchor.FLAGS]
 PYTHON = ("ours", "pin.aba")  # each called from Python as an integrator calls it
 BUFFER = ("ours buffer", "pinocchio::aba buffer")  # each through CasADi's buffer call
 
@@ -91,7 +98,8 @@ def prepare(kind: str, name: str) -> dict:
     data, zero = pin_model.createData(), np.zeros(kinematics.nv)
     model_text = PREPARED.with_name(f"{PREPARED.stem}-{kind}-{name}.txt")
     pin_model.saveToText(str(model_text))
-    evaluate_ours, ours_arrays = buffered(ca.external(generated.function.name(), str(generated.path)))
+    library = ca.external(generated.function.name(), str(generated.path))
+    evaluate_ours, ours_arrays = buffered(library)
     evaluate_cpp, cpp_arrays = buffered(pinocchio_call(model_text))
     for q, v in random_states(kinematics, 3, seed=2):
         ours = np.asarray(loaded(0.0, np.concatenate([q, v]))).ravel()[kinematics.nq :]
@@ -159,9 +167,7 @@ def pinocchio_call(model_text: Path):
 
     import casadi as ca
 
-    from benchmarks import anchor
-
-    library = anchor.build(ABA_CALL)
+    library = anchor.build(ABA_CALL, ABA_CALL_FLAGS)
     loader = ctypes.CDLL(str(library))  # the handle casadi.external opens too
     loader.aba_call_load.argtypes = [ctypes.c_char_p]
     if loader.aba_call_load(str(model_text).encode()) < 0:
@@ -210,7 +216,8 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
                 f"{prefix}ours_us": float(np.median(ours) * 1e6),
                 f"{prefix}pin_aba_us": float(np.median(pin) * 1e6),
                 f"{prefix}ratio_median": float(np.median(ratios)),
-                f"{prefix}ratio_min": float(ratios.min()), f"{prefix}ratio_max": float(ratios.max()),
+                f"{prefix}ratio_min": float(ratios.min()),
+                f"{prefix}ratio_max": float(ratios.max()),
             })  # fmt: skip
         row.update({"processes": f"{len(ours)}+{len(pin)}", "load1_before": load[0],
                     "load1_after": load[1]})  # fmt: skip
