@@ -73,26 +73,29 @@ def _compiler() -> str:
     return compiler
 
 
-def library_path() -> Path:
-    """Where the anchor's library is cached (it may not be built yet)."""
-    return _library_path(_compiler(), *_prefixes())
+def library_path(source: Path = SOURCE, flags: list[str] = FLAGS) -> Path:
+    """Where the library of ``source`` is cached (it may not be built yet)."""
+    return _library_path(_compiler(), *_prefixes(), source, flags)
 
 
-def _library_path(compiler: str, prefix: Path, eigen: Path) -> Path:
+def _library_path(
+    compiler: str, prefix: Path, eigen: Path, source: Path = SOURCE, flags: list[str] = FLAGS
+) -> Path:
     version = subprocess.run([compiler, "--version"], capture_output=True, text=True).stdout
     key = hashlib.sha256()
-    for part in (SOURCE.read_bytes(), " ".join(FLAGS).encode(), version.encode()):
+    for part in (source.read_bytes(), " ".join(flags).encode(), version.encode()):
         key.update(part)
     for header in (prefix / "include/pinocchio/config.hpp", eigen / "Eigen/src/Core/util/Macros.h"):
         key.update(header.read_bytes())
-    return user_cache_dir() / "anchor" / f"anchor_aba-{key.hexdigest()[:16]}.so"
+    return user_cache_dir() / "anchor" / f"{source.stem}-{key.hexdigest()[:16]}.so"
 
 
-def build() -> Path:
-    """The anchor's shared library, compiled unless the cache holds it."""
+def build(source: Path = SOURCE, flags: list[str] = FLAGS) -> Path:
+    """The shared library of ``source`` (the anchor's by default) compiled with ``flags``,
+    unless the cache holds it."""
     compiler = _compiler()
     prefix, eigen = _prefixes()
-    path = _library_path(compiler, prefix, eigen)
+    path = _library_path(compiler, prefix, eigen, source, flags)
     folder = path.parent
     if path.exists():
         return path
@@ -100,7 +103,7 @@ def build() -> Path:
     with tempfile.TemporaryDirectory(dir=folder) as scratch:
         output = Path(scratch) / path.name
         command = [
-            compiler, *FLAGS, f"-I{prefix / 'include'}", f"-I{eigen}", str(SOURCE),
+            compiler, *flags, f"-I{prefix / 'include'}", f"-I{eigen}", str(source),
             "-o", str(output), f"-L{prefix / 'lib'}", "-lpinocchio_default",
             "-lboost_serialization", f"-Wl,-rpath,{prefix / 'lib'}",
         ]  # fmt: skip

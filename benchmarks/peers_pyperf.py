@@ -19,11 +19,21 @@ the SciPy plugins call: the state copied into a preallocated input, then CasADi'
 buffer call), ``pin.aba`` through its boost-python binding on a preallocated ``data``
 and state arrays (where a small model's time goes: docs/performance-targets.md).
 
+A second line, like for like in C: both sides through the same CasADi buffer call
+(``Function.buffer()``, the arguments already in place), ours the same compiled library,
+Pinocchio's C++ ``pinocchio::aba`` (the libpinocchio wheel's headers) as a CasADi
+external function (``benchmarks/aba_call.cpp``, built by :mod:`benchmarks.anchor` at
+``-O3``, Pinocchio's own Release flags, and cached):
+no Python conversion on either side, so the ratio is that of the two C codes plus the
+same call overhead (columns ``buffer_*``). Both lines are checked against ours to 1e-9
+before any timing.
+
 Ratios ours / pin over every pair of processes (ours' i, pin's j): the median and the
 upper end (max, the slowest process of ours against the fastest of pin's), the figure the
 targets are held to (issue 36: a single process's median hides the spread between
-processes). Writes ``benchmarks/results/peers_pyperf.json`` (pyperf's own file: ``python
--m pyperf stats`` reads it) and ``benchmarks/results/peers_pyperf.csv``.
+processes), on each line (``python -m benchmarks --summary`` names the line of each
+verdict). Writes ``benchmarks/results/peers_pyperf.json`` (pyperf's own file: ``python -m
+pyperf stats`` reads it) and ``benchmarks/results/peers_pyperf.csv``.
 """
 
 from __future__ import annotations
@@ -38,11 +48,20 @@ from pathlib import Path
 import numpy as np
 import pyperf
 
+from benchmarks import anchor
+
 RESULTS = Path(__file__).parent / "results"
 SIZES = (7, 20, 50, 200)
 ROBOTS = ("ur5", "panda", "solo12", "talos")
 HUMANOID = ("talos_data/robots/talos_reduced.urdf", {"floating_base": True})
 PREPARED = Path(tempfile.gettempdir()) / f"mbs-peers-pyperf-{os.getuid()}.json"
+ABA_CALL = Path(__file__).with_name("aba_call.cpp")
+# Pinocchio's own build flags (CMake's Release: -O3), not the anchor's -O2, under which
+# pinocchio::aba in C was slower than the wheel's pin.aba with its Python call (-O2 / -O3,
+# one process, load 5: random N = 20 5.68 / 4.57 us, N = 200 58.2 / 45.6, UR5 1.51 / 1.30)
+ABA_CALL_FLAGS = [flag.replace("-O2", "-O3") for flag in anchor.FLAGS]
+PYTHON = ("ours", "pin.aba")  # each called from Python as an integrator calls it
+BUFFER = ("ours buffer", "pinocchio::aba buffer")  # each through CasADi's buffer call
 
 
 def model_of(kind: str, name: str):
@@ -62,6 +81,7 @@ def model_of(kind: str, name: str):
 
 def prepare(kind: str, name: str) -> dict:
     """Build, compile and check one model in this process: what the workers load."""
+    import casadi as ca
     import pinocchio as pin
 
     from benchmarks.peers import TOLERANCE, random_states
@@ -76,15 +96,27 @@ def prepare(kind: str, name: str) -> dict:
         generated = compiled.generate(function)
         loaded = compiled.load_generated(generated)
     data, zero = pin_model.createData(), np.zeros(kinematics.nv)
+    model_text = PREPARED.with_name(f"{PREPARED.stem}-{kind}-{name}.txt")
+    pin_model.saveToText(str(model_text))
+    library = ca.external(generated.function.name(), str(generated.path))
+    evaluate_ours, ours_arrays = buffered(library)
+    evaluate_cpp, cpp_arrays = buffered(pinocchio_call(model_text))
     for q, v in random_states(kinematics, 3, seed=2):
         ours = np.asarray(loaded(0.0, np.concatenate([q, v]))).ravel()[kinematics.nq :]
         q_pin, v_pin = state.state(q, v)
         theirs = state.accelerations(pin.aba(pin_model, data, q_pin, v_pin, zero), q, v)
-        difference = float(np.abs(ours - theirs).max()) / max(1.0, float(np.abs(theirs).max()))
-        if not difference <= TOLERANCE:
-            raise AssertionError(f"{kind} {name}: pin.aba differs from ours by {difference:.2e}")
+        ours_arrays[1][:] = np.concatenate([q, v])  # the buffer-call line, both sides
+        cpp_arrays[1][:] = np.concatenate([q_pin, v_pin])
+        evaluate_ours(), evaluate_cpp()
+        ours_c = ours_arrays[2][kinematics.nq :]
+        theirs_c = state.accelerations(cpp_arrays[2][kinematics.nv :], q, v)
+        for who, a, b in (("pin.aba", ours, theirs), ("pinocchio::aba (C)", ours_c, theirs_c)):
+            difference = float(np.abs(a - b).max()) / max(1.0, float(np.abs(b).max()))
+            if not difference <= TOLERANCE:
+                raise AssertionError(f"{kind} {name}: {who} differs from ours by {difference:.2e}")
     return {
         "kind": kind, "name": name, "nv": kinematics.nv, "library": str(generated.path),
+        "model_text": str(model_text),
         "symbol": generated.function.name(), "instructions": function.n_instructions(),
         "code_bytes": len(generated.code), "library_bytes": generated.path.stat().st_size,
         "graph": "kernels" if function.is_a("MXFunction") else "unrolled",
@@ -109,15 +141,51 @@ def timed_call(prepared: dict, who: str):
 
         _, pin_model, state = model_of(prepared["kind"], prepared["name"])
         ((q, v),) = random_states(state.kinematics, 1, seed=3)
+        q_pin, v_pin = state.state(q, v)
         if who == "ours":
             fast = FastFunction(ca.external(prepared["symbol"], prepared["library"]))
             y = np.concatenate([q, v])
             _TIMED[key] = lambda: fast.into(0.0, y)
-        else:
+        elif who == "pin.aba":
             data, zero = pin_model.createData(), np.zeros(state.kinematics.nv)
-            q_pin, v_pin = state.state(q, v)
             _TIMED[key] = lambda: pin.aba(pin_model, data, q_pin, v_pin, zero)
+        else:  # the buffer-call line: the arguments in place, CasADi's call into C
+            if who == BUFFER[0]:
+                function, y = ca.external(prepared["symbol"], prepared["library"]), [q, v]
+            else:
+                function, y = pinocchio_call(Path(prepared["model_text"])), [q_pin, v_pin]
+            _TIMED[key], arrays = buffered(function)
+            arrays[1][:] = np.concatenate(y)
+            _TIMED[key + " arrays"] = arrays  # kept alive: evaluate points to them
     return _TIMED[key]
+
+
+def pinocchio_call(model_text: Path):
+    """``pinocchio::aba`` of the model saved in ``model_text`` as a CasADi external
+    function (benchmarks/aba_call.cpp: (t, [q; v]) -> [v; a], Pinocchio's coordinates)."""
+    import ctypes
+
+    import casadi as ca
+
+    library = anchor.build(ABA_CALL, ABA_CALL_FLAGS)
+    loader = ctypes.CDLL(str(library))  # the handle casadi.external opens too
+    loader.aba_call_load.argtypes = [ctypes.c_char_p]
+    if loader.aba_call_load(str(model_text).encode()) < 0:
+        raise RuntimeError(f"aba_call_load could not read {model_text}")
+    return ca.external("aba_call", str(library))
+
+
+def buffered(function):
+    """(evaluate, [t, y, out, buffer]) of ``function``'s buffer call bound to those arrays
+    (the buffer is kept: ``evaluate`` holds only a pointer to it): ``evaluate()`` is
+    CasADi's call into the C with the arguments already in place."""
+    buffer, evaluate = function.buffer()
+    arrays = [np.zeros(function.nnz_in(0)), np.zeros(function.nnz_in(1)),
+              np.zeros(function.nnz_out(0))]  # fmt: skip
+    buffer.set_arg(0, memoryview(arrays[0]))
+    buffer.set_arg(1, memoryview(arrays[1]))
+    buffer.set_res(0, memoryview(arrays[2]))
+    return evaluate, [*arrays, buffer]
 
 
 def time_loops(loops: int, prepared: dict, who: str) -> float:
@@ -138,17 +206,22 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
     rows = []
     for item in prepared:
         label = f"{item['kind']} {item['name']}"
-        ours = process_means(suite.get_benchmark(f"{label} ours"))
-        pin = process_means(suite.get_benchmark(f"{label} pin.aba"))
-        ratios = (ours[:, None] / pin[None, :]).ravel()
-        rows.append({
-            **{k: item[k] for k in ("kind", "name", "nv", "types", "graph", "instructions",
-                                    "code_bytes", "library_bytes")},
-            "ours_us": float(np.median(ours) * 1e6), "pin_aba_us": float(np.median(pin) * 1e6),
-            "ratio_median": float(np.median(ratios)), "ratio_min": float(ratios.min()),
-            "ratio_max": float(ratios.max()), "processes": f"{len(ours)}+{len(pin)}",
-            "load1_before": load[0], "load1_after": load[1],
-        })  # fmt: skip
+        row = {k: item[k] for k in ("kind", "name", "nv", "types", "graph", "instructions",
+                                    "code_bytes", "library_bytes")}  # fmt: skip
+        for prefix, (us, them) in (("", PYTHON), ("buffer_", BUFFER)):
+            ours = process_means(suite.get_benchmark(f"{label} {us}"))
+            pin = process_means(suite.get_benchmark(f"{label} {them}"))
+            ratios = (ours[:, None] / pin[None, :]).ravel()
+            row.update({
+                f"{prefix}ours_us": float(np.median(ours) * 1e6),
+                f"{prefix}pin_aba_us": float(np.median(pin) * 1e6),
+                f"{prefix}ratio_median": float(np.median(ratios)),
+                f"{prefix}ratio_min": float(ratios.min()),
+                f"{prefix}ratio_max": float(ratios.max()),
+            })  # fmt: skip
+        row.update({"processes": f"{len(ours)}+{len(pin)}", "load1_before": load[0],
+                    "load1_after": load[1]})  # fmt: skip
+        rows.append(row)
     return rows
 
 
@@ -177,7 +250,7 @@ def main() -> None:
     suite = []
     for item in prepared:
         label = f"{item['kind']} {item['name']}"
-        for who in ("ours", "pin.aba"):
+        for who in (*PYTHON, *BUFFER):
             suite.append(runner.bench_time_func(f"{label} {who}", time_loops, item, who))
     if args.worker:
         return

@@ -53,3 +53,36 @@ def test_anchor_agrees_with_pinocchio_on_the_ur5() -> None:
     # once a step, and the same integrator run again takes the same steps
     assert 0 < steps <= calls
     assert tree.run(1e-11)[2] == (steps, calls)
+
+
+def test_pinocchio_aba_call_agrees_with_pin_aba_on_a_general_tree(tmp_path) -> None:
+    """The per-call benchmark's like-for-like line (benchmarks/aba_call.cpp): pinocchio::aba
+    through CasADi's buffer call gives pin.aba's accelerations on a tree with a free base and
+    spherical joints (nq != nv)."""
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    from benchmarks import peers_pyperf
+    from benchmarks.peer_models import pinocchio_model, random_tree
+
+    try:
+        cached = anchor.library_path(peers_pyperf.ABA_CALL, peers_pyperf.ABA_CALL_FLAGS).exists()
+    except anchor.AnchorUnavailable as error:
+        pytest.skip(str(error))
+    if not cached:  # about a minute of compile: built by python -m benchmarks.peers_pyperf
+        pytest.skip("pinocchio::aba's call is not built yet (python -m benchmarks.peers_pyperf)")
+    pin_model, _ = pinocchio_model(random_tree(7, seed=7), general=True)
+    assert pin_model.nq != pin_model.nv
+    text = tmp_path / "model.txt"
+    pin_model.saveToText(str(text))
+    evaluate, bound = peers_pyperf.buffered(peers_pyperf.pinocchio_call(text))
+    y, out = bound[1], bound[2]  # (bound kept: the buffer points into its arrays)
+    data, rng = pin_model.createData(), np.random.default_rng(4)
+    for _ in range(3):
+        q = pin.randomConfiguration(pin_model, -np.ones(pin_model.nq), np.ones(pin_model.nq))
+        v = rng.uniform(-2, 2, pin_model.nv)
+        y[:] = np.concatenate([q, v])
+        evaluate()
+        expected = pin.aba(pin_model, data, q, v, np.zeros(pin_model.nv))
+        assert np.abs(out[pin_model.nv :] - expected).max() <= 1e-9 * max(
+            1.0, np.abs(expected).max()
+        )
+        assert np.array_equal(out[: pin_model.nv], v)

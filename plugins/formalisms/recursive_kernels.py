@@ -13,10 +13,12 @@ link's instructions. The price: constants are no longer folded (products by the 
 exact zeros and ones are made), about 1.5-2x the instructions a link.
 
 The passes are those of the recursive formalism's module docstring, per link i:
-``outward``  (q_i, v_i, V_lambda(i), k_i, f^x_i) -> V_i, c_i, p^A_i (with I^A_i = I_i);
-``inward``   (q_i, v_i, I^A_i, p^A_i, c_i, tau_i, k_i) -> X_i^T I^a_i X_i, X_i^T p^a_i,
+``outward``  (q_i, v_i, V_lambda(i), k_i, f^x_i) -> V_i, c_i, p^A_i (with I^A_i = I_i),
+X_i (the joint's transform E_i, r_i: the later passes take it, not recompute it: a
+revolute joint's sin and cos once a call, not three times);
+``inward``   (q_i, v_i, I^A_i, p^A_i, c_i, tau_i, X_i) -> X_i^T I^a_i X_i, X_i^T p^a_i,
 D_i^-1 U_i^T, D_i^-1 u_i (what the parent receives, and what pass 3 needs);
-``accelerate`` (q_i, v_i, a_lambda(i), c_i, D_i^-1 U_i^T, D_i^-1 u_i, k_i) -> a_i, v'_i;
+``accelerate`` (q_i, v_i, a_lambda(i), c_i, D_i^-1 U_i^T, D_i^-1 u_i, X_i) -> a_i, v'_i;
 a root joint's inward and accelerate are one kernel ``root`` (it hands nothing on).
 Joint types other than those five (universal, planar, cylindrical, driven joints) are
 not supported here: :func:`supports` says so and the caller keeps the unrolled graph.
@@ -105,7 +107,10 @@ def _kernels(kind: str) -> dict[str, ca.Function]:
     V = transform_motion(E, r, V_p) + v_J
     c = (ca.SX.zeros(6) if local else c_J) + motion_cross(V, v_J)
     p_A = force_cross(V, ca.mtimes(inertia, V)) - f
-    outward = ca.Function(f"aba_out_{kind}", [q, v, V_p, k, f], [V, c, p_A])
+    X = ca.vertcat(ca.reshape(E, 9, 1), r)  # the joint's transform, handed to the later passes
+    outward = ca.Function(f"aba_out_{kind}", [q, v, V_p, k, f], [V, c, p_A, X])
+    X = ca.SX.sym("X", 12)  # the later passes take it rather than recompute it (sin, cos)
+    E, r = ca.reshape(X[0:9], 3, 3), X[9:12]
 
     I_A, p, c_i = ca.SX.sym("I_A", 6, 6), ca.SX.sym("p_A", 6), ca.SX.sym("c", 6)
     tau, a_p = ca.SX.sym("tau", nv), ca.SX.sym("a_parent", 6)
@@ -124,7 +129,7 @@ def _kernels(kind: str) -> dict[str, ca.Function]:
             p_a[row] = tau_i[column]
         root_vdot = _solve_symmetric(D, u - ca.mtimes(U.T, a_prime))
         kernels["root"] = ca.Function(
-            f"aba_root_{kind}", [q, v, I_A, p, c_i, tau, a_p, k],
+            f"aba_root_{kind}", [q, v, I_A, p, c_i, tau, a_p, X],
             [a_prime + ca.mtimes(S_aba, root_vdot),
              local.rates(root_vdot) if local else root_vdot]
         )  # fmt: skip
@@ -133,12 +138,12 @@ def _kernels(kind: str) -> dict[str, ca.Function]:
         D_inv_U, D_inv_u = ca.SX(0, 6), ca.SX(0, 1)
     DU, Du = ca.SX.sym("D_inv_U", nv, 6), ca.SX.sym("D_inv_u", nv)
     kernels["inward"] = ca.Function(
-        f"aba_in_{kind}", [q, v, I_A, p, c_i, tau, k],
+        f"aba_in_{kind}", [q, v, I_A, p, c_i, tau, X],
         [congruence(E, r, I_a), transform_force_back(E, r, p_a), D_inv_U, D_inv_u]
     )  # fmt: skip
     vdot = Du - ca.mtimes(DU, a_prime)
     kernels["accelerate"] = ca.Function(
-        f"aba_acc_{kind}", [q, v, a_p, c_i, DU, Du, k],
+        f"aba_acc_{kind}", [q, v, a_p, c_i, DU, Du, X],
         [a_prime + ca.mtimes(S_aba, vdot), local.rates(vdot) if local else vdot]
     )  # fmt: skip
     return kernels
@@ -182,10 +187,10 @@ def articulated_body_accelerations_mx(
         q_slice, v_slice = k.joint_slices.get(joint.name, (slice(0, 0), slice(0, 0)))
         coordinates.append((q[q_slice], v[v_slice]))
     kernels = [_kernels(_convention(j)) for j in k.order]
-    V, c, I_A, p_A = [None] * n, [None] * n, [None] * n, [None] * n
+    V, c, I_A, p_A, X = [None] * n, [None] * n, [None] * n, [None] * n, [None] * n
     for i, link in enumerate(links):
         V_p = ca.MX.zeros(6) if link.parent < 0 else V[link.parent]
-        V[i], c[i], p_A[i] = kernels[i]["outward"](
+        V[i], c[i], p_A[i], X[i] = kernels[i]["outward"](
             *coordinates[i], V_p, ca.DM(constants[i]), f_all[6 * i : 6 * i + 6]
         )
         I_A[i] = ca.DM(np.asarray(ca.evalf(link.inertia)))
@@ -196,7 +201,7 @@ def articulated_body_accelerations_mx(
         if link.parent < 0 and link.nv:
             continue  # its inward and outward passes are one kernel, below
         I_par, p_par, D_inv_U[i], D_inv_u[i] = kernels[i]["inward"](
-            *coordinates[i], I_A[i], p_A[i], c[i], taus[i], ca.DM(constants[i])
+            *coordinates[i], I_A[i], p_A[i], c[i], taus[i], X[i]
         )
         if link.parent >= 0:
             I_A[link.parent] = I_A[link.parent] + I_par
@@ -206,11 +211,11 @@ def articulated_body_accelerations_mx(
         a_p = base if link.parent < 0 else a[link.parent]
         if link.parent < 0 and link.nv:
             a[i], vdot[i] = kernels[i]["root"](
-                *coordinates[i], I_A[i], p_A[i], c[i], taus[i], a_p, ca.DM(constants[i])
+                *coordinates[i], I_A[i], p_A[i], c[i], taus[i], a_p, X[i]
             )
         else:
             a[i], vdot[i] = kernels[i]["accelerate"](
-                *coordinates[i], a_p, c[i], D_inv_U[i], D_inv_u[i], ca.DM(constants[i])
+                *coordinates[i], a_p, c[i], D_inv_U[i], D_inv_u[i], X[i]
             )
     order = sorted((link.v_slice.start, i) for i, link in enumerate(links) if link.nv)
     return ca.vertcat(*[vdot[i] for _, i in order])
