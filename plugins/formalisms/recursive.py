@@ -691,7 +691,9 @@ class Recursive(Formalism):
     name = "recursive"
     summary = "Joint coordinates, articulated-body recursion without a mass matrix, O(n) (10.6)"
     Options = RecursiveOptions
-    capabilities = frozenset({"planar", "spatial", "closed-loops", "rheonomic", "point-masses"})
+    capabilities = frozenset(
+        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "contacts"}
+    )  # the contact form comes from build_equations, on the tree's body states
 
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:
