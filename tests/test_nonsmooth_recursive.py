@@ -69,13 +69,19 @@ def test_recursive_contact_form_is_minimal_odes(name):
         pieces = {}
         for label, equations in (("minimal", minimal), ("recursive", recursive)):
             mech, contacts = equations.forms["mechanical"], equations.contacts
-            values = [mech.mass(t, q)[0], mech.forces(t, q, v)[0],
-                      mech.velocity_matrix(t, q)[0], contacts.gaps(t, q)[0],
-                      contacts.normal_jacobian(t, q)[0], contacts.tangent_jacobian(t, q)[0],
-                      contacts.normal_bias(t, q, v)[0], contacts.tangent_bias(t, q, v)[0]]  # fmt: skip
+            values = [
+                mech.mass(t, q)[0],
+                mech.forces(t, q, v)[0],
+                mech.velocity_matrix(t, q)[0],
+                contacts.gaps(t, q)[0],
+                contacts.normal_jacobian(t, q)[0],
+                contacts.tangent_jacobian(t, q)[0],
+                contacts.normal_bias(t, q, v)[0],
+                contacts.tangent_bias(t, q, v)[0],
+            ]
             if contacts.n_joint_frictions:
-                values += [contacts.joint_rate_jacobian(t, q)[0],
-                           contacts.joint_rate_bias(t, q, v)[0]]  # fmt: skip
+                values.append(contacts.joint_rate_jacobian(t, q)[0])
+                values.append(contacts.joint_rate_bias(t, q, v)[0])
             pieces[label] = [np.asarray(value, dtype=float) for value in values]
         for ours, theirs in zip(pieces["recursive"], pieces["minimal"], strict=True):
             scale = max(1.0, float(np.max(np.abs(theirs), initial=0.0)))
