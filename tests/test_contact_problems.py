@@ -39,7 +39,7 @@ def test_housner_coefficient_and_reference():
     assert np.max(np.abs(angle)) < SLENDERNESS
 
 
-@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae", "recursive"])
 def test_event_driven_block_rocks_as_housner_says(formalism):
     """Newton's law with e = 0 at both corners gives Housner's impact: the impulse at the
     striking corner only, the old one lifts off; impact times, poses and the energy each
@@ -118,7 +118,7 @@ def test_woodpecker_walks_down_the_pole_in_a_limit_cycle():
 @pytest.mark.parametrize(
     ("formalism", "integrator", "options"),
     [("minimal-ode", "event-driven", {}), ("absolute-dae", "event-driven", {}),
-     ("absolute-dae", "moreau-jean", {"step": 1e-4})],
+     ("recursive", "event-driven", {}), ("absolute-dae", "moreau-jean", {"step": 1e-4})],
 )  # fmt: skip
 def test_woodpecker_cycle_is_the_same_in_every_pairing(formalism, integrator, options):
     """The other pairings walk the same limit cycle as Moreau-Jean on minimal-ode above:

@@ -94,7 +94,7 @@ def test_pendulum_sticks_where_gravity_stays_within_the_bound(formalism, integra
         np.testing.assert_allclose(energy, energy[0], atol=1e-9)
 
 
-@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae", "recursive"])
 def test_event_driven_friction_pendulum_stops_by_the_work_law(formalism):
     """Released horizontal with a bound of 2 N m it swings to and fro until, at rest at
     an angle b with |m g L cos b| <= 2 N m, it sticks; there E0 - E = bound * |angle

@@ -38,7 +38,7 @@ def _run(problem_name: str, formalism: str, integrator: str, rtol: float, **opti
     return problem, equations, trajectory
 
 
-@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae", "recursive"])
 def test_contact_jacobians_are_the_gaps_derivatives(formalism):
     """W_N v is dg_N/dt along q' = H v (central differences), for a tilted block's corners."""
     problem = registry.get_problem("incline-block-slide")()
@@ -95,7 +95,7 @@ def _ball_height(equations, trajectory):
     return trajectory.y[:, 1] - BALL_RADIUS  # both formalisms: q = (x, y, angle)
 
 
-@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae", "recursive"])
 def test_event_driven_ball_follows_newtons_law(formalism):
     """Impact times t_k and apex heights h0 e^(2k): the geometric series of Newton's law."""
     problem, equations, trajectory = _run("bouncing-ball", formalism, "event-driven", 1e-10)
@@ -230,7 +230,7 @@ def _sphere_run(formalism: str, spin_x: float = 0.0):
     return problem, times, poses[:, 0], trajectory
 
 
-@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae", "recursive"])
 def test_event_driven_sphere_rolls_at_five_sevenths(formalism):
     """Spatial stick/slip (two tangents): the slip-to-stick event at t_r = 2 v0 / (7 mu g)
     to round-off, then rolling at 5/7 v0; the pose follows the analytic reference."""

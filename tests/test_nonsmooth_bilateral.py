@@ -83,7 +83,7 @@ def _away_from(times: np.ndarray, impacts: np.ndarray, margin: float) -> np.ndar
     return np.min(np.abs(times[:, None] - impacts[None, :]), axis=1) > margin
 
 
-@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae"])
+@pytest.mark.parametrize("formalism", ["minimal-ode", "absolute-dae", "recursive"])
 def test_event_driven_pendulum_strikes_a_wall_by_newtons_law(formalism):
     """Both coordinates give the analytic impact times to 1e-7 s and the energy
     m g L e^(2k) after the k-th impact; the joint stays closed to 1e-8 m."""

@@ -58,6 +58,12 @@ and the augmented solve of :func:`~workbench.equations.build_equations` is O(n^3
 the unconstrained ode right-hand side is O(n). The ode form of a constrained model is the
 index-1 system with Baumgarte stabilization.
 
+Contacts (docs/nonsmooth.md): the contact form (gaps, their Jacobians W_N, W_T, joint
+rates W_F) is the core's (:mod:`workbench.equations.contacts`), built by
+:func:`~workbench.equations.build_equations` on the tree's body states, the same as
+minimal-ode's; the contact integrators take M (CRBA) and Q - h (RNEA) from the mechanical
+form.
+
 All symbolic graphs are CasADi SX without expansion, so common subexpressions stay
 shared and the ABA graph has O(n) instructions.
 """
@@ -691,7 +697,9 @@ class Recursive(Formalism):
     name = "recursive"
     summary = "Joint coordinates, articulated-body recursion without a mass matrix, O(n) (10.6)"
     Options = RecursiveOptions
-    capabilities = frozenset({"planar", "spatial", "closed-loops", "rheonomic", "point-masses"})
+    capabilities = frozenset(
+        {"planar", "spatial", "closed-loops", "rheonomic", "point-masses", "contacts"}
+    )  # the contact form comes from build_equations, on the tree's body states
 
     @classmethod
     def forms(cls, options: Any) -> dict[str, int]:
