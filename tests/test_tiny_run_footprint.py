@@ -1,6 +1,6 @@
 """A tiny run's work outside its integration made cheaper (issue 35, item 4) gives the
 same row and series: metrics of all samples in one mapped call equal one call a sample,
-the series is built column by column as ``pd.concat`` built it, the run id is computed
+the series has the same columns, the run id is computed
 once and is the hash of the spec."""
 
 from __future__ import annotations
@@ -9,7 +9,6 @@ import hashlib
 import math
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from workbench.equations import observables as observables_module
@@ -21,11 +20,9 @@ from workbench.execution.execute import (
     canonical_json,
     execute_run,
     normalized_spec,
-    state_columns,
-    with_state_columns,
 )
 from workbench.execution.references import problem_reference
-from workbench.execution.row_schema import SERIES_COLUMNS, STATE_PREFIX
+from workbench.execution.row_schema import SERIES_COLUMNS
 from workbench.plugin.registry import get_formalism, get_integrator, get_problem
 
 
@@ -91,26 +88,6 @@ def test_metrics_of_all_samples_at_once_equal_one_sample_at_a_time(
     )
 
 
-def test_the_series_with_states_is_the_concat_of_both():
-    """:func:`with_state_columns` (one frame made from the columns) gives the frame
-    ``pd.concat([series, state_columns(...)], axis=1)`` gave: names, order, dtypes, values."""
-    problem = get_problem("four-bar")()
-    equations = get_formalism("absolute-dae")().build(problem.model(), {"index": 1})
-    n = 7
-    rng = np.random.default_rng(3)
-    series = pd.DataFrame({"run_id": "abc", "t": np.linspace(0, 1, n)} | {
-        name: rng.standard_normal(n) for name in SERIES_COLUMNS[2:]
-    })  # fmt: skip
-    for form in ("ode", "dae"):
-        width = len(equations.y_names("dae" if form == "dae" else "ode")) + 2
-        y = rng.standard_normal((n, width))
-        made = with_state_columns(series, equations, form, y)
-        expected = pd.concat([series, state_columns(equations, form, y)], axis=1)
-        pd.testing.assert_frame_equal(made, expected)
-        assert list(made.columns[: len(SERIES_COLUMNS)]) == SERIES_COLUMNS
-        assert all(c.startswith(STATE_PREFIX) for c in made.columns[len(SERIES_COLUMNS) :])
-
-
 def test_the_run_id_is_computed_once_and_is_the_hash_of_the_spec():
     spec = normalized_spec(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
     expected = hashlib.sha256(canonical_json(spec.to_dict()).encode()).hexdigest()[:16]
@@ -118,3 +95,23 @@ def test_the_run_id_is_computed_once_and_is_the_hash_of_the_spec():
     result = execute_run(spec)
     assert result.row["run_id"] == expected and result.row["status"] == "ok"
     assert set(result.series["run_id"]) == {expected}
+
+
+def test_one_progress_thread_serves_every_run_and_none_writes_after_its_stop(tmp_path):
+    """The progress file of each run (written at its start, removed at its end) by one
+    thread a process, not a thread a run; a stopped run's file is never written again."""
+    import threading
+    import time
+
+    from workbench.execution.run_progress import WRITE_EVERY, ProgressWriter, read_progress
+
+    paths = [tmp_path / f"run{k}.progress" for k in range(4)]
+    threads = []
+    for path in paths:
+        with ProgressWriter(path):
+            assert read_progress(path).keys() >= {"stage", "t_reached", "wall_s"}
+            threads += [t for t in threading.enumerate() if t.name == "run-progress"]
+        assert not path.exists()
+    assert len(threads) == len(paths) and all(t is threads[0] for t in threads)
+    time.sleep(3 * WRITE_EVERY)  # the thread went on ticking: it follows no file
+    assert not any(path.exists() for path in paths)
