@@ -5,7 +5,9 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
 2 cores with ``100 1000 --resume 1000``, the 1,000-run sweep most of it), or
 ``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3, or
 ``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4, or
-``python -m benchmarks.footprint --recording N [--before CHECKOUT]`` for 5.
+``python -m benchmarks.footprint --recording N [--before CHECKOUT]`` for 5, or
+``python -m benchmarks.footprint --dask N [N ...]`` for 4's Dask rows alone (10,000
+runs: about 7 min at load 4).
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
@@ -411,7 +413,13 @@ def dask_tiny(n: int) -> dict:
         spec = Path(directory) / "spec.toml"
         spec.write_text(resume_spec(Path(directory) / "out", n))
         measured = _sweep(spec, "", "--scheduler", cluster.scheduler_address)
-    return measured | {"runs_per_s": n / measured["wall_s"]}
+        results = pd.read_parquet(Path(directory) / "out" / "results.parquet")
+    return measured | {
+        "runs_per_s": n / measured["wall_s"],
+        "rows": len(results),
+        "integration_cpu_ms": 1000 * float(results["integrate_cpu_s"].sum()) / n,
+        "load_1min": os.getloadavg()[0],
+    }
 
 
 def targets_table(counts: list[int], dask_counts: list[int] | None = None) -> pd.DataFrame:
@@ -495,6 +503,14 @@ def main(argv: list[str]) -> pd.DataFrame:
         RESULTS.mkdir(exist_ok=True)
         table.to_csv(RESULTS / "footprint-tiny.csv", index=False)
         with pd.option_context("display.width", 250, "display.max_columns", 30):
+            print(table.round(2).to_string(index=False))
+        return table
+    if argv[:1] == ["--dask"]:  # --dask N [N ...]: tiny runs through a local Dask cluster
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        table = pd.DataFrame([{"n": int(a)} | dask_tiny(int(a)) for a in argv[1:]])
+        RESULTS.mkdir(exist_ok=True)
+        table.to_csv(RESULTS / "footprint-dask.csv", index=False)
+        with pd.option_context("display.width", 200, "display.max_columns", 20):
             print(table.round(2).to_string(index=False))
         return table
     if "--recording" in argv:  # --recording N [--before CHECKOUT]: a run's recording only

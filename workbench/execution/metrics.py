@@ -208,18 +208,17 @@ def trajectory_metrics(
         problem, equations, times, y[:n], contact, energy, length
     )
     row.update(audit | contact_row, warnings="; ".join(found + contact_found))
-    series = pd.DataFrame(
-        {
-            "run_id": run_id,
-            "t": np.asarray(times, dtype=float),
-            "drift_pos": drift[:, 0],
-            "drift_vel": drift[:, 1],
-            "drift_nh": drift[:, 2],
-            "energy_err": energy_err,
-            "ref_err": ref_err,
-        },
-        columns=SERIES_COLUMNS,
-    )
+    columns = {
+        "run_id": run_id,
+        "t": np.asarray(times, dtype=float),
+        "drift_pos": drift[:, 0],
+        "drift_vel": drift[:, 1],
+        "drift_nh": drift[:, 2],
+        "energy_err": energy_err,
+        "ref_err": ref_err,
+    }
+    # in SERIES_COLUMNS' order already: DataFrame(columns=...) reindexed them (0.3 ms a run)
+    series = pd.DataFrame({name: columns[name] for name in SERIES_COLUMNS})
     if getattr(equations, "contacts", None) is not None:  # a contact model's own series
         series["penetration"] = penetration_series(equations, times, y[:n])
     return row, series

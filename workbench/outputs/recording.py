@@ -339,7 +339,10 @@ class RerunSink:
                 series = series[series["run_id"].astype(str) == str(run_id)]
         t = series["t"].to_numpy(dtype=float)
         # one copy of all quantities (an absent one is NaN, an infinite value a gap too)
-        table = series.reindex(columns=list(SERIES_QUANTITIES)).to_numpy(dtype=float)
+        nan = np.full(len(t), np.nan)  # (a pandas reindex cost 0.2 ms a run)
+        table = np.column_stack(
+            [series[q].to_numpy(dtype=float) if q in series else nan for q in SERIES_QUANTITIES]
+        )
         finite = np.isfinite(table)
         present = [q for q, has in zip(SERIES_QUANTITIES, finite.any(axis=0), strict=True) if has]
         keep = np.isfinite(t)

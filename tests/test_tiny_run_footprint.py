@@ -1,0 +1,117 @@
+"""A tiny run's work outside its integration made cheaper (issue 35, item 4) gives the
+same row and series: metrics of all samples in one mapped call equal one call a sample,
+the series has the same columns, the run id is computed
+once and is the hash of the spec."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+import pytest
+
+from workbench.equations import observables as observables_module
+from workbench.equations.initial import consistent_initial_state
+from workbench.execution import audit
+from workbench.execution import metrics as metrics_module
+from workbench.execution.execute import (
+    RunSpec,
+    canonical_json,
+    execute_run,
+    normalized_spec,
+)
+from workbench.execution.references import problem_reference
+from workbench.execution.row_schema import SERIES_COLUMNS
+from workbench.plugin.registry import get_formalism, get_integrator, get_problem
+
+
+def _one_sample_at_a_time(function, n, args, cache):
+    """evaluate_along's contract met by n separate calls (the metrics before Function.map)."""
+    outputs = [function.call([np.asarray(a)[:, k] for a in args]) for k in range(n)]
+    return [np.stack([np.array(out[i]) for out in outputs]) for i in range(function.n_out())]
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, float) and isinstance(b, float):
+        if math.isnan(a) or math.isnan(b):
+            return math.isnan(a) and math.isnan(b)
+        return a == b or abs(a - b) <= 1e-12 * max(abs(a), abs(b))
+    return a == b
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism", "options"),
+    [
+        ("simple-pendulum", "minimal-ode", {}),  # the tiny run of the benchmark
+        ("four-bar", "absolute-dae", {"index": 1}),  # drift, closed loop
+    ],
+)
+def test_metrics_of_all_samples_at_once_equal_one_sample_at_a_time(
+    problem, formalism, options, monkeypatch
+):
+    """Every metric column and series value of a real run, by the mapped call
+    (``Observables.along``) and by one call a sample: equal to 1e-12 relative, the same
+    columns."""
+    problem_ = get_problem(problem)()
+    equations = get_formalism(formalism)().build(problem_.model(), options)
+    state = consistent_initial_state(equations, problem_)
+    integrator = get_integrator("scipy-dop853")()
+    parsed = integrator.parse_options({})
+    form = integrator.select_form({k: getattr(f, "index", 0) for k, f in equations.forms.items()})
+    times = problem_.sample_times()
+    trajectory = integrator.solve(
+        equations, state.y0(equations, form), state.yp0(equations, form), times, 1e-6, 1e-8,
+        parsed, form,
+    )  # fmt: skip
+    reference = problem_reference(problem_, problem, {}, times, None)
+
+    def measure():
+        return metrics_module.trajectory_metrics(
+            "run", problem_, equations, np.asarray(trajectory.times),
+            np.atleast_2d(trajectory.y), trajectory.success, reference, 1e-6,
+        )  # fmt: skip
+
+    row, series = measure()
+    monkeypatch.setattr(observables_module, "evaluate_along", _one_sample_at_a_time)
+    monkeypatch.setattr(audit, "evaluate_along", _one_sample_at_a_time)
+    equations.observables._last = ()  # no poses kept from the mapped call
+    row_each, series_each = measure()
+    assert list(series.columns) == SERIES_COLUMNS == list(series_each.columns)
+    assert row.keys() == row_each.keys()
+    for key, value in row.items():
+        assert _same(value, row_each[key]), (key, value, row_each[key])
+    assert np.isfinite(series["energy_err"]).all()
+    numeric = SERIES_COLUMNS[1:]
+    np.testing.assert_allclose(
+        series[numeric].to_numpy(), series_each[numeric].to_numpy(), rtol=1e-12, atol=1e-300
+    )
+
+
+def test_the_run_id_is_computed_once_and_is_the_hash_of_the_spec():
+    spec = normalized_spec(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
+    expected = hashlib.sha256(canonical_json(spec.to_dict()).encode()).hexdigest()[:16]
+    assert spec.run_id == expected and spec.__dict__["run_id"] == expected
+    result = execute_run(spec)
+    assert result.row["run_id"] == expected and result.row["status"] == "ok"
+    assert set(result.series["run_id"]) == {expected}
+
+
+def test_one_progress_thread_serves_every_run_and_none_writes_after_its_stop(tmp_path):
+    """The progress file of each run (written at its start, removed at its end) by one
+    thread a process, not a thread a run; a stopped run's file is never written again."""
+    import threading
+    import time
+
+    from workbench.execution.run_progress import WRITE_EVERY, ProgressWriter, read_progress
+
+    paths = [tmp_path / f"run{k}.progress" for k in range(4)]
+    threads = []
+    for path in paths:
+        with ProgressWriter(path):
+            assert read_progress(path).keys() >= {"stage", "t_reached", "wall_s"}
+            threads += [t for t in threading.enumerate() if t.name == "run-progress"]
+        assert not path.exists()
+    assert len(threads) == len(paths) and all(t is threads[0] for t in threads)
+    time.sleep(3 * WRITE_EVERY)  # the thread went on ticking: it follows no file
+    assert not any(path.exists() for path in paths)
