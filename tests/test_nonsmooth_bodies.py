@@ -182,3 +182,22 @@ def test_colliding_balls_follow_momentum_and_newtons_law(formalism, integrator):
     # v0 sqrt(m_eff / k) = 0.8 mm
     depth = {"event-driven": 1e-8, "moreau-jean": 1e-3 * PAIR_SPEED, "compliant-contact": 2e-3}
     assert trajectory.contact["penetration_max"] < depth[integrator]
+
+
+def test_recording_draws_both_spheres_and_no_plane(tmp_path):
+    """A sphere pair is drawn on each of its bodies (an ellipsoid at the contact's centre),
+    not as a contact plane; ``describe`` lists it."""
+    import rerun as rr
+
+    from workbench.api.catalog import describe
+    from workbench.execution.execute import RunSpec, execute_run, normalized_spec
+    from workbench.outputs.recording import RerunSink
+
+    sink = RerunSink()
+    spec = normalized_spec(RunSpec("colliding-balls", "minimal-ode", "event-driven", 1e-6, 1e-9))
+    assert execute_run(spec, sink=sink).row["status"] == "ok"
+    paths = {chunk.entity_path for chunk in rr.chunk.RrdReader(sink.save(tmp_path)).stream()}
+    for body in ("a", "b"):
+        assert any(p.endswith(f"/bodies/{body}/contacts/touch") for p in paths), body
+    assert not any("contact_planes" in p for p in paths)
+    assert "touch" in str(describe("colliding-balls"))
