@@ -31,9 +31,9 @@ contact with two tangents. t_end = 1 s.
 
 ``colliding-balls`` -- planar, no gravity (an air table); balls ``a`` (m_A = 1 kg,
 r_A = 0.1 m) and ``b`` (m_B = 2 kg, r_B = 0.15 m), each on a planar joint, both centres on a
-line at 30 degrees to x, B at rest 0.6 m from A, A moving towards it at v0 = 1 m/s; a
+line at 30 degrees to x, B at rest 0.5875 m from A, A moving towards it at v0 = 1 m/s; a
 frictionless sphere-sphere contact ``touch``, restitution e = 0.9. A central impact at
-t_c = (0.6 - r_A - r_B) / v0 = 0.35 s; momentum conserved and U+ = -e U- give
+t_c = (0.5875 - r_A - r_B) / v0 = 0.3375 s (between samples); momentum conserved and U+ = -e U- give
 v_A+ = (m_A - e m_B) v0 / (m_A + m_B) = -0.267 m/s, v_B+ = m_A (1 + e) v0 / (m_A + m_B) =
 0.633 m/s, and the energy lost is (1 - e^2) mu v0^2 / 2 = 0.0633 J, mu = m_A m_B / (m_A +
 m_B) the reduced mass. t_end = 1 s.
@@ -274,7 +274,7 @@ class SlidingSphere(Problem):
 
 
 PAIR_MASSES, PAIR_RADII, PAIR_RESTITUTION = (1.0, 2.0), (0.1, 0.15), 0.9
-PAIR_SPEED, PAIR_DISTANCE, PAIR_LINE = 1.0, 0.6, math.radians(30.0)
+PAIR_SPEED, PAIR_DISTANCE, PAIR_LINE = 1.0, 0.5875, math.radians(30.0)
 
 
 def colliding_balls_motion(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
