@@ -28,6 +28,15 @@ Friction mu m g slows it (x'' = -mu g) and spins it up (omega_y' = 5 mu g / (2 r
 its contact point sticks, at t_r = 2 v0 / (7 mu g) = 0.291 s; from then on it rolls at
 5/7 v0 = 1.429 m/s: the classic billiard-ball result, a slip-to-stick event in a spatial
 contact with two tangents. t_end = 1 s.
+
+``colliding-balls`` -- planar, no gravity (an air table); balls ``a`` (m_A = 1 kg,
+r_A = 0.1 m) and ``b`` (m_B = 2 kg, r_B = 0.15 m), each on a planar joint, both centres on a
+line at 30 degrees to x, B at rest 0.5875 m from A, A moving towards it at v0 = 1 m/s; a
+frictionless sphere-sphere contact ``touch``, restitution e = 0.9. A central impact at
+t_c = (0.5875 - r_A - r_B) / v0 = 0.3375 s (between samples); momentum conserved and U+ = -e U- give
+v_A+ = (m_A - e m_B) v0 / (m_A + m_B) = -0.267 m/s, v_B+ = m_A (1 + e) v0 / (m_A + m_B) =
+0.633 m/s, and the energy lost is (1 - e^2) mu v0^2 / 2 = 0.0633 J, mu = m_A m_B / (m_A +
+m_B) the reduced mass. t_end = 1 s.
 """
 
 from __future__ import annotations
@@ -262,3 +271,85 @@ class SlidingSphere(Problem):
             return np.stack([*position, *quaternion], axis=-1)[:, None, :]
 
         return Reference("analytic", poses, "Coulomb's law: slides at -mu g, rolls at 5/7 v0")
+
+
+PAIR_MASSES, PAIR_RADII, PAIR_RESTITUTION = (1.0, 2.0), (0.1, 0.15), 0.9
+PAIR_SPEED, PAIR_DISTANCE, PAIR_LINE = 1.0, 0.5875, math.radians(30.0)
+
+
+def colliding_balls_motion(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(s_A, s_B): the two centres' distances (m) along the line at ``times`` by Newton's
+    restitution law and conservation of momentum (module docstring)."""
+    times = np.asarray(times, dtype=float)
+    t_c = colliding_balls_impact()
+    after_a, after_b = colliding_balls_velocities()
+    tau = np.maximum(times - t_c, 0.0)
+    s_a = PAIR_SPEED * np.minimum(times, t_c) + after_a * tau
+    s_b = PAIR_DISTANCE + after_b * tau
+    return s_a, s_b
+
+
+def colliding_balls_impact() -> float:
+    """The impact time (s): the gap d - r_A - r_B closed at the speed v0."""
+    return (PAIR_DISTANCE - sum(PAIR_RADII)) / PAIR_SPEED
+
+
+def colliding_balls_velocities() -> tuple[float, float]:
+    """Velocities (m/s) along the line after the impact: momentum conserved and the
+    relative velocity reversed times e."""
+    (m_a, m_b), e, v0 = PAIR_MASSES, PAIR_RESTITUTION, PAIR_SPEED
+    return (m_a - e * m_b) * v0 / (m_a + m_b), m_a * (1 + e) * v0 / (m_a + m_b)
+
+
+@workbench.plugin.registry.problem
+class CollidingBalls(Problem):
+    """Two balls, one struck against the other at rest (module docstring)."""
+
+    name = "colliding-balls"
+    summary = "Ball striking a heavier ball at rest, e = 0.9: momentum and Newton's law"
+    source = "book 5.1.2 (unilateral constraints); central impact of two spheres"
+    t_end = 1.0
+    n_samples = 101
+    conservative = False
+
+    def model(self) -> Model:
+        model = Model(self.name, kind="planar", gravity=(0.0, 0.0, 0.0))
+        for name, mass, radius in zip(("a", "b"), PAIR_MASSES, PAIR_RADII, strict=True):
+            model.add_body(name, mass, inertia=0.4 * mass * radius**2,
+                           shapes=[Shape("sphere", (radius,))])  # fmt: skip
+            model.add_joint(f"free_{name}", "planar", "ground", name)
+        model.add_sphere_contact("touch", "a", PAIR_RADII[0], "b", PAIR_RADII[1],
+                                 restitution=PAIR_RESTITUTION)  # fmt: skip
+        return model
+
+    def _on_line(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return s * math.cos(PAIR_LINE), s * math.sin(PAIR_LINE)
+
+    def initial_joint_coordinates(self) -> dict[str, list[float]]:
+        x_b, y_b = self._on_line(np.array(PAIR_DISTANCE))
+        return {"free_a": [0.0, 0.0, 0.0], "free_b": [float(x_b), float(y_b), 0.0]}
+
+    def initial_joint_velocities(self) -> dict[str, list[float]]:
+        x_a, y_a = self._on_line(np.array(PAIR_SPEED))
+        return {"free_a": [float(x_a), float(y_a), 0.0], "free_b": [0.0, 0.0, 0.0]}
+
+    def contact_events(self) -> np.ndarray:
+        return np.array([colliding_balls_impact()])
+
+    def reference_energy(self, times: np.ndarray) -> np.ndarray:
+        """Kinetic energy (J): m_A v0^2 / 2, less (1 - e^2) mu v0^2 / 2 at the impact
+        (mu = m_A m_B / (m_A + m_B), the reduced mass)."""
+        (m_a, m_b), e, v0 = PAIR_MASSES, PAIR_RESTITUTION, PAIR_SPEED
+        loss = (1 - e**2) * m_a * m_b / (m_a + m_b) * v0**2 / 2
+        after = np.asarray(times, dtype=float) > colliding_balls_impact()
+        return m_a * v0**2 / 2 - loss * after
+
+    def reference(self) -> Reference:
+        def poses(times: np.ndarray) -> np.ndarray:
+            s_a, s_b = colliding_balls_motion(times)
+            zero = np.zeros_like(s_a)
+            return np.concatenate(
+                [_planar_poses(*self._on_line(s), zero) for s in (s_a, s_b)], axis=1
+            )
+
+        return Reference("analytic", poses, "momentum conserved, Newton's law U+ = -e U-")

@@ -45,6 +45,7 @@ from scipy.integrate import solve_ivp
 
 from workbench.equations import Equations
 from workbench.errors import ConfigError
+from workbench.model import SphereContact
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
 from workbench.plugins.integrators._contact import (
@@ -281,6 +282,9 @@ class _Phases:
     def run(self, trajectory: Trajectory) -> None:
         task = self.task
         times, t_end = task.times, float(task.times[-1])
+        spacing = np.diff(np.asarray(times, dtype=float))
+        pairs = any(isinstance(c, SphereContact) for c in self.task.equations.model.contacts)
+        self.max_step = float(np.max(spacing)) if pairs and spacing.size else np.inf
         t, y = float(times[0]), task.y0[: self.nq + self.nv].copy()
         out_t, out_y, steps = [times[0]], [y.copy()], 0
         fired = None
@@ -288,9 +292,13 @@ class _Phases:
             modes, signs = self.choose_modes(t, y, fired)
             rhs = self.right_hand_side(modes, signs)
             wanted = times[(times > t) & (times <= t_end)]
+            # SciPy looks for sign changes between steps only: a sphere pair's gap can close
+            # and open again within one step (two balls in free flight passing through each
+            # other), so with sphere pairs no step spans more than an output interval
             solution = solve_ivp(
                 rhs, (t, t_end), y, method="DOP853", t_eval=wanted, rtol=task.rtol,
                 atol=task.atol, events=self.switching_functions(modes, signs),
+                max_step=self.max_step,
             )  # fmt: skip
             # (an event in the first step, before any output time, leaves lists)
             sampled_t = np.asarray(solution.t, dtype=float).reshape(-1)

@@ -14,6 +14,11 @@ t_i (one in a planar model: n x e_z; two in a spatial one):
   acceleration-level problem between events;
 * the friction cone data: Coulomb's mu_i and Newton's restitution e_i of every contact.
 
+A :class:`~workbench.model.SphereContact` between two bodies' spheres enters the same rows:
+g_N = |c_B - c_A| - r_A - r_B along n = (c_B - c_A) / |c_B - c_A|, U_N and U_T the
+velocity of B's touching point relative to A's (:func:`sphere_pair`), so its impulses act
+on both bodies, equal and opposite.
+
 Generalized contact forces are W_N^T lambda_N + W_T^T lambda_T.
 
 Coulomb friction in a one-coordinate joint (:class:`~workbench.model.JointFriction`) is
@@ -32,7 +37,7 @@ import numpy as np
 
 from workbench.equations.contract import ContactForm
 from workbench.mechanics.kinematics import BodyState
-from workbench.model import GROUND, Model
+from workbench.model import GROUND, Model, SphereContact
 
 
 def plane_tangents(normal: np.ndarray, planar: bool) -> list[np.ndarray]:
@@ -63,6 +68,12 @@ def build_contact_form(
     empty = type(q)(0, 1)  # (q[0:0] of a one-coordinate q is (1, 0))
     gaps, normal_velocity, tangent_velocity = [empty], [empty], [empty]
     for contact in model.contacts:
+        if isinstance(contact, SphereContact):
+            gap, velocity, normal, tangents = sphere_pair(contact, bodies, planar)
+            gaps.append(gap)
+            normal_velocity.append(ca.dot(normal, velocity))
+            tangent_velocity += [ca.dot(t_k, velocity) for t_k in tangents]
+            continue
         body = bodies[contact.body]
         normal = np.asarray(contact.plane_normal, dtype=float)
         normal = normal / np.linalg.norm(normal)
@@ -98,6 +109,42 @@ def build_contact_form(
         joint_rate_jacobian=hot("joint_W_F", [t, q], [w_f]),
         joint_rate_bias=hot("joint_wdot_F", [t, q, v], [bias(u_f)]),
     )
+
+
+def sphere_pair(
+    contact: SphereContact, bodies: dict[str, BodyState], planar: bool
+) -> tuple[Any, Any, Any, list[Any]]:
+    """(gap, relative velocity of the touching points, normal, tangents) of a sphere pair:
+    g_N = |c_B - c_A| - r_A - r_B, n = (c_B - c_A) / |c_B - c_A| from A to B, the velocity
+    of B's point c_B - r_B n minus A's c_A + r_A n (so n . it = g_N'), tangents as
+    :func:`plane_tangents` makes them from the (configuration-dependent) normal."""
+    body_a, body_b = bodies[contact.body_a], _body_or_ground(contact.body_b, bodies)
+    centre_a = body_a.point(np.asarray(contact.centre_a, dtype=float))
+    centre_b = body_b.point(np.asarray(contact.centre_b, dtype=float))
+    distance = ca.norm_2(centre_b - centre_a)
+    normal = (centre_b - centre_a) / distance
+    touch_a = centre_a + contact.radius_a * normal
+    touch_b = centre_b - contact.radius_b * normal
+    velocity_b = body_b.velocity + ca.cross(body_b.angular_velocity, touch_b - body_b.position)
+    velocity_a = body_a.velocity + ca.cross(body_a.angular_velocity, touch_a - body_a.position)
+    velocity = velocity_b - velocity_a
+    if planar:
+        tangents = [ca.vertcat(normal[1], -normal[0], 0)]
+    else:  # the helper axis least along n (as plane_tangents), chosen symbolically
+        ax, ay, az = (ca.fabs(normal[i]) for i in range(3))
+        helper = ca.if_else(
+            ca.logic_and(ax <= ay, ax <= az), ca.DM([1, 0, 0]),
+            ca.if_else(ay <= az, ca.DM([0, 1, 0]), ca.DM([0, 0, 1])),
+        )  # fmt: skip
+        first = ca.cross(helper, normal)
+        first = first / ca.norm_2(first)
+        tangents = [first, ca.cross(normal, first)]
+    return distance - contact.radius_a - contact.radius_b, velocity, normal, tangents
+
+
+def _body_or_ground(name: str, bodies: dict[str, BodyState]) -> BodyState:
+    zero = ca.DM.zeros(3)
+    return BodyState(zero, ca.DM.eye(3), zero, zero) if name == GROUND else bodies[name]
 
 
 def joint_rate(model: Model, name: str, bodies: dict[str, BodyState]) -> Any:

@@ -13,6 +13,7 @@ from workbench.model.elements import (
     PLANAR_JOINT_TYPES,
     AppliedForce,
     Body,
+    Contact,
     Drive,
     ForceElement,
     Frame,
@@ -27,6 +28,7 @@ from workbench.model.elements import (
     RollingDisk,
     RollingSphere,
     Shape,
+    SphereContact,
     SpringDamper,
 )
 from workbench.model.model import Model
@@ -37,6 +39,7 @@ __all__ = [
     "PLANAR_JOINT_TYPES",
     "AppliedForce",
     "Body",
+    "Contact",
     "Drive",
     "ForceElement",
     "Frame",
@@ -52,5 +55,6 @@ __all__ = [
     "RollingDisk",
     "RollingSphere",
     "Shape",
+    "SphereContact",
     "SpringDamper",
 ]

@@ -61,9 +61,7 @@ def real_array(
     if shape is not None and array.shape != shape:
         if array.size == int(np.prod(shape)) and shape != ():
             return array.reshape(shape)
-        raise ModelError(
-            f"{where}: {name} must be {expected}, not an array of shape {array.shape}"
-        )
+        raise ModelError(f"{where}: {name} must be {expected}, not an array of shape {array.shape}")
     return array
 
 
@@ -309,6 +307,30 @@ class PlaneContact:
     plane_normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     restitution: float = 0.0
     friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class SphereContact:
+    """A sphere of ``body_a`` (centre ``centre_a`` in its frame, ``radius_a`` > 0) against a
+    sphere of ``body_b`` (``centre_b``, ``radius_b`` > 0; ``body_b`` may be the ground: a
+    fixed sphere). Unilateral: the gap g_N = |c_B - c_A| - r_A - r_B stays >= 0, along the
+    normal n = (c_B - c_A) / |c_B - c_A| from A to B (inertial centres c_A, c_B).
+
+    ``restitution`` and ``friction`` as in :class:`PlaneContact`, at the touching points.
+    """
+
+    name: str
+    body_a: str
+    centre_a: np.ndarray
+    radius_a: float
+    body_b: str
+    centre_b: np.ndarray
+    radius_b: float
+    restitution: float = 0.0
+    friction: float = 0.0
+
+
+Contact = PlaneContact | SphereContact
 
 
 @dataclass(frozen=True)

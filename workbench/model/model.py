@@ -37,6 +37,7 @@ from workbench.errors import ModelError
 from workbench.model.elements import (
     GROUND,
     Body,
+    Contact,
     Drive,
     ForceElement,
     Frame,
@@ -45,6 +46,7 @@ from workbench.model.elements import (
     NonholonomicConstraint,
     PlaneContact,
     Shape,
+    SphereContact,
     real_array,
 )
 from workbench.model.validation import validate_model
@@ -63,7 +65,7 @@ class Model:
     joints: dict[str, Joint] = field(default_factory=dict)
     forces: list[ForceElement] = field(default_factory=list)
     nonholonomic: list[NonholonomicConstraint] = field(default_factory=list)
-    contacts: list[PlaneContact] = field(default_factory=list)
+    contacts: list[Contact] = field(default_factory=list)
     joint_frictions: list[JointFriction] = field(default_factory=list)
     initial_configuration: dict[str, Any] = field(default_factory=dict)
 
@@ -180,6 +182,36 @@ class Model:
             float(real_array(radius, where, "radius", ())),
             real_array(plane_point, where, "plane_point").reshape(-1),
             real_array(plane_normal, where, "plane_normal").reshape(-1),
+            float(real_array(restitution, where, "restitution", ())),
+            float(real_array(friction, where, "friction", ())),
+        )
+        self.contacts.append(contact)
+        return contact
+
+    def add_sphere_contact(
+        self,
+        name: str,
+        body_a: str,
+        radius_a: float,
+        body_b: str,
+        radius_b: float,
+        centre_a: Any = (0.0, 0.0, 0.0),
+        centre_b: Any = (0.0, 0.0, 0.0),
+        restitution: float = 0.0,
+        friction: float = 0.0,
+    ) -> SphereContact:
+        """Add a unilateral contact between a sphere of ``body_a`` and one of ``body_b``
+        (centres in the bodies' frames; ``body_b`` may be the ground)."""
+        self._check_new_name(name)
+        where = f"model {self.name!r}, contact {name!r}"
+        contact = SphereContact(
+            name,
+            body_a,
+            real_array(centre_a, where, "centre_a").reshape(-1),
+            float(real_array(radius_a, where, "radius_a", ())),
+            body_b,
+            real_array(centre_b, where, "centre_b").reshape(-1),
+            float(real_array(radius_b, where, "radius_b", ())),
             float(real_array(restitution, where, "restitution", ())),
             float(real_array(friction, where, "friction", ())),
         )

@@ -21,6 +21,7 @@ from workbench.model.elements import (
     KnifeEdge,
     RollingDisk,
     RollingSphere,
+    SphereContact,
     SpringDamper,
 )
 from workbench.model.model import Model
@@ -149,6 +150,15 @@ def _nonholonomic_rows(constraint: Any, planar: bool) -> list[Row]:
 
 
 def _contact_row(contact: Any, planar: bool) -> Row:
+    if isinstance(contact, SphereContact):
+        return (
+            contact.name,
+            f"unilateral contact of {contact.body_a} with {contact.body_b}",
+            f"sphere r {number(contact.radius_a)} m at {vector(contact.centre_a, planar)} m of "
+            f"{contact.body_a}, sphere r {number(contact.radius_b)} m at "
+            f"{vector(contact.centre_b, planar)} m of {contact.body_b}; restitution e "
+            f"{number(contact.restitution)}, friction mu {number(contact.friction)}",
+        )
     shape = f"sphere r {number(contact.radius)} m" if contact.radius else "point"
     return (
         contact.name,

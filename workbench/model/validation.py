@@ -40,6 +40,7 @@ from workbench.model.elements import (
     PlaneContact,
     RollingDisk,
     RollingSphere,
+    SphereContact,
     SpringDamper,
     real_array,
 )
@@ -480,9 +481,13 @@ def _check_contact(model: Model, contact: Any) -> None:
     """A PlaneContact: a known body, finite geometry, a unit-able normal (in the x-y plane
     of a planar model), radius >= 0, restitution in [0, 1], friction >= 0."""
     what = f"contact {getattr(contact, 'name', contact)!r}"
+    if isinstance(contact, SphereContact):
+        _check_sphere_contact(model, what, contact)
+        return
     if not isinstance(contact, PlaneContact):
         raise ModelError(
-            f"{_where(model, what)}: {type(contact).__name__} is not a contact; use PlaneContact"
+            f"{_where(model, what)}: {type(contact).__name__} is not a contact; use "
+            "PlaneContact or SphereContact"
         )
     _known_body(model, what, "body", contact.body, allow_ground=False)
     _finite_vector(model, what, "point", contact.point)
@@ -494,6 +499,37 @@ def _check_contact(model: Model, contact: Any) -> None:
             f"plane (got {normal.tolist()}); set its z component to 0"
         )
     _check_nonnegative(model, what, "radius", contact.radius)
+    _check_contact_law(model, what, contact)
+
+
+def _check_sphere_contact(model: Model, what: str, contact: SphereContact) -> None:
+    """A SphereContact: two different known bodies (B may be the ground), finite centres,
+    radii > 0, restitution in [0, 1], friction >= 0."""
+    _known_body(model, what, "body_a", contact.body_a, allow_ground=False)
+    _known_body(model, what, "body_b", contact.body_b, allow_ground=True)
+    if contact.body_a == contact.body_b:
+        raise ModelError(
+            f"{_where(model, what)}: body_a and body_b are both {contact.body_a!r}; a sphere "
+            "contact is between two different bodies (a body against a plane: add_contact)"
+        )
+    for side in ("a", "b"):
+        _finite_vector(model, what, f"centre_{side}", getattr(contact, f"centre_{side}"))
+        radius = _finite_scalar(model, what, f"radius_{side}", getattr(contact, f"radius_{side}"))
+        if not radius > 0:
+            raise ModelError(
+                f"{_where(model, what)}: radius_{side} must be > 0 m (got {radius}); a sphere "
+                "contact needs two spheres"
+            )
+    if model.kind == "planar" and abs(contact.centre_a[2] - contact.centre_b[2]) > 1e-12:
+        raise ModelError(
+            f"{_where(model, what)}: in a planar model both centres need the same z (got "
+            f"{contact.centre_a[2]} and {contact.centre_b[2]}); the normal must lie in x-y"
+        )
+    _check_contact_law(model, what, contact)
+
+
+def _check_contact_law(model: Model, what: str, contact: Any) -> None:
+    """Friction >= 0 and restitution in [0, 1] of any contact."""
     _check_nonnegative(model, what, "friction", contact.friction)
     restitution = _finite_scalar(model, what, "restitution", contact.restitution)
     if not 0.0 <= restitution <= 1.0:

@@ -28,6 +28,8 @@ and what the runs of a model share, stored once (a robot's meshes are most of it
     runs/<problem>/model/ground/joints/<joint>  a joint frame fixed on the ground (static)
     runs/<problem>/model/contact_planes/<contact>  a plane the contacts touch (a thin box,
                                        static; named by its first contact)
+    <run>/bodies/<body>/contacts/<contact>  a sphere of a sphere-sphere contact (static;
+                                       on the ground: .../model/ground/contacts/<contact>)
 
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
@@ -275,6 +277,16 @@ class RerunSink:
                 else:  # drawn once per model at every run's pose (_log_geometry)
                     place = (name, shape.frame.position, shape.frame.rotation @ np.diag(shape.size))
                     self._mesh_places.setdefault(key, {})[f"{body_path}/meshes/{index}"] = place
+        for contact in getattr(model, "contacts", None) or []:  # both spheres of a pair
+            if hasattr(contact, "body_a"):
+                for body, centre, radius in (
+                    (contact.body_a, contact.centre_a, contact.radius_a),
+                    (contact.body_b, contact.centre_b, contact.radius_b),
+                ):
+                    owner = "ground" if body == "ground" else entity_path("bodies", body)
+                    sphere = rr.Ellipsoids3D(centers=[centre], half_sizes=[[radius] * 3],
+                                             colors=[(230, 120, 40, 90)])  # fmt: skip
+                    entries.append((f"{owner}/{entity_path('contacts', contact.name)}", [sphere]))
         axis_length = 0.3 * _model_scale(model)
         for joint in model.joints.values():
             ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
@@ -771,6 +783,8 @@ def _contact_planes(model: Any) -> list[tuple[str, list[Any]]]:
 
     planes: dict[tuple[float, ...], str] = {}
     for contact in getattr(model, "contacts", None) or []:
+        if not hasattr(contact, "plane_normal"):  # a sphere pair: drawn on its bodies
+            continue
         normal = np.asarray(contact.plane_normal, dtype=float)
         normal = normal / np.linalg.norm(normal)
         point = np.asarray(contact.plane_point, dtype=float)

@@ -62,7 +62,7 @@ FEATURES = {
     "nonholonomic": "nonholonomic constraints (rolling, knife edge)",
     "rheonomic": "driven joints (prescribed motion)",
     "point-masses": "point masses",
-    "contacts": "unilateral contacts (PlaneContact)",
+    "contacts": "unilateral contacts (PlaneContact, SphereContact)",
 }
 
 
