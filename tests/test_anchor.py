@@ -60,6 +60,7 @@ def test_pinocchio_aba_call_agrees_with_pin_aba_on_a_general_tree(tmp_path) -> N
     through CasADi's buffer call gives pin.aba's accelerations on a tree with a free base and
     spherical joints (nq != nv)."""
     pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    pytest.importorskip("pyperf", reason="pyperf times the benchmark; not in the test extra")
     from benchmarks import peers_pyperf
     from benchmarks.peer_models import pinocchio_model, random_tree
 

@@ -53,6 +53,7 @@ EXPECTED = {
     "sliding-sphere": ({}, 6, 0),  # free 6
     "slider-crank-friction": ({}, 1, 1),  # point-mass-slider-crank with slide friction
     "rocking-block": ({}, 3, 0),  # planar 3
+    "colliding-balls": ({}, 6, 0),  # two planar free bodies, 3 each; the contact removes none
     "woodpecker": ({}, 3, 0),  # prismatic 1 + revolute 1 + revolute 1
     "knife-edge-cart[sleigh]": ({"com_offset": 0.1}, 2, 0),
     "articulated-arm": ({}, 6, 0),
