@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from scipy.optimize import brentq
 
 import workbench.plugin.registry
@@ -59,6 +60,22 @@ def lower_edge_gap(angle: float) -> float:
 
 
 START_SLEEVE = brentq(lower_edge_gap, -0.2, 0.0, xtol=1e-15)  # -0.10353 rad
+
+
+def cycle_lag(
+    times: np.ndarray, poses: np.ndarray, start_t: float = 0.15
+) -> tuple[int, int, float]:
+    """(start sample, lag in samples, mismatch) of the limit cycle in a 1 ms output grid:
+    the lag between 0.100 and 0.160 s after ``start_t`` that best repeats the sleeve's and
+    the bird's orientations over 0.15 s (mismatch: their largest difference there, rad).
+    Ours keeps the exact geometry, so the period is found rather than assumed."""
+    angles = poses[:, 1:, 3:]
+    start = int(np.searchsorted(times, start_t))
+    lags = np.arange(100, 161)
+    window = angles[start : start + 150]
+    mismatch = [np.max(np.abs(angles[start + lag : start + lag + 150] - window)) for lag in lags]
+    best = int(np.argmin(mismatch))
+    return start, int(lags[best]), float(mismatch[best])
 
 
 @workbench.plugin.registry.problem
