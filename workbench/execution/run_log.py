@@ -18,11 +18,10 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-import threading
-import time
 from pathlib import Path
 from typing import Any
 
+from workbench.execution.periodic import Periodic
 from workbench.files import atomic_write, make_dirs, open_no_follow
 
 LOG_DIR = "logs"
@@ -153,37 +152,10 @@ class CapturedOutput:
                 self.raw_file.unlink()  # (unlink removes a link, never its target)
 
 
-class _Trimmer:
-    """The daemon thread of a process that keeps the raw file of the capture under way
-    bounded (:meth:`CapturedOutput._trim` every ``interval`` s). One a process, started at
-    its first capture (again in a forked child): a thread started and joined a run cost
-    0.2 ms of a tiny run's few."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()  # held while checking: none after follow(None)
-        self._capture: CapturedOutput | None = None
-        self._thread: threading.Thread | None = None
-
-    def follow(self, capture: CapturedOutput | None) -> None:
-        with self._lock:
-            self._capture = capture
-            if capture is not None and (self._thread is None or not self._thread.is_alive()):
-                self._thread = threading.Thread(target=self._loop, name="run-log-trim",
-                                                daemon=True)  # fmt: skip
-                self._thread.start()
-
-    def _loop(self) -> None:
-        while True:
-            capture = self._capture
-            time.sleep(capture.interval if capture is not None else 0.5)
-            with self._lock:
-                if self._capture is not None:
-                    self._capture._trim()
-
-
-_TRIMMER = _Trimmer()
-# a child forked while the thread held the lock would wait on it for ever: a fresh one
-os.register_at_fork(after_in_child=lambda: _TRIMMER.__init__())
+# the thread of a process that keeps the raw file of the capture under way bounded
+_TRIMMER = Periodic(
+    "run-log-trim", lambda capture: capture._trim(), lambda c: 0.5 if c is None else c.interval
+)
 
 
 def raw_text(out: Path, run_id: str) -> str:

@@ -20,10 +20,11 @@ import contextlib
 import json
 import math
 import os
-import threading
 import time
 from pathlib import Path
 from typing import Any
+
+from workbench.execution.periodic import Periodic
 
 WRITE_EVERY = 0.25  # s between two writes of the progress file
 
@@ -73,36 +74,10 @@ class RunProgress:
 PROGRESS = RunProgress()  # the run of this process (a worker runs one at a time)
 
 
-class _Writer:
-    """The daemon thread of a process that writes :data:`PROGRESS` every
-    :data:`WRITE_EVERY` s to the file it follows (none: it waits). One a process, started
-    at its first run (again in a forked child, which has no thread of its parent's): a
-    thread started and joined a run cost 0.3 ms of a tiny run's few."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()  # held while writing: no write once follow(None)
-        self._path: Path | None = None
-        self._thread: threading.Thread | None = None
-
-    def follow(self, path: Path | None) -> None:
-        with self._lock:
-            self._path = path
-            if path is not None and (self._thread is None or not self._thread.is_alive()):
-                self._thread = threading.Thread(target=self._loop, name="run-progress",
-                                                daemon=True)  # fmt: skip
-                self._thread.start()
-
-    def _loop(self) -> None:
-        while True:
-            time.sleep(WRITE_EVERY)
-            with self._lock:
-                if self._path is not None:
-                    write_progress(self._path, PROGRESS.snapshot())
-
-
-_WRITER = _Writer()
-# a child forked while the thread held the lock would wait on it for ever: a fresh writer
-os.register_at_fork(after_in_child=lambda: _WRITER.__init__())
+# the thread of a process that writes PROGRESS every WRITE_EVERY s to the file it follows
+_WRITER = Periodic(
+    "run-progress", lambda path: write_progress(path, PROGRESS.snapshot()), lambda _: WRITE_EVERY
+)
 
 
 class ProgressWriter:
