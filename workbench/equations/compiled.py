@@ -259,10 +259,24 @@ def load_generated(generated: Generated) -> ca.Function:
                 trim_cache(keep=path)
     with contextlib.suppress(OSError):
         os.utime(path)  # last use, for trim_cache
-    # finite differences where a CasADi solver needs derivatives (Newton in CVODES)
-    loaded = ca.external(generated.function.name(), str(path), {"enable_fd": True})
+    loaded = load_library(path, generated.function.name())
     STATS.loaded += 1
     return loaded
+
+
+def load_library(path: Path | str, symbol: str) -> ca.Function:
+    """The compiled library ``path``'s function ``symbol`` (``casadi.external``), marked as
+    ours (:func:`library_of`)."""
+    # finite differences where a CasADi solver needs derivatives (Newton in CVODES)
+    loaded = ca.external(symbol, str(path), {"enable_fd": True})
+    loaded._workbench_library = (str(path), symbol)
+    return loaded
+
+
+def library_of(function: ca.Function) -> tuple[str, str] | None:
+    """(library path, symbol) of a Function loaded by :func:`load_generated`, else None
+    (what :mod:`~workbench.equations.fastcall` calls directly)."""
+    return getattr(function, "_workbench_library", None)
 
 
 def compile_function(function: ca.Function, flags: str = DEFAULT_FLAGS) -> ca.Function:

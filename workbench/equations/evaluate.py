@@ -18,6 +18,7 @@ from collections.abc import Callable
 import casadi as ca
 import numpy as np
 
+from workbench.equations import fastcall
 from workbench.equations.compile_policy import vm_seconds_estimate
 from workbench.equations.compiled import Compiler
 
@@ -38,7 +39,9 @@ class FastFunction:
         self.for_c = for_c if for_c is not None else function  # the graph compiled to C
         self.compiler = compiler if compiler is not None and compiler.active else None
         self.name = function.name()
-        self.n_calls = 0
+        self._n_calls = 0  # calls through Python (n_calls adds the direct calls)
+        self._direct: object | None = None  # compiled: the C extension's call (fastcall)
+        self._library: object | None = None  # the library it calls, kept loaded
         self.vm_seconds = 0.0  # compile=auto: a VM call's estimated seconds
         self._pending_bind = True  # compile=auto: no buffers bound yet
         self._inputs = []
@@ -75,6 +78,21 @@ class FastFunction:
         for i, array in enumerate(self._outputs):
             self._buffer.set_res(i, memoryview(array))
         self.into = self._specialized_into()  # type: ignore[method-assign]
+        if self._direct is not None:
+            self._n_calls += self._direct.calls  # type: ignore[attr-defined]
+        self._direct = self._library = None
+        # a library of ours: called from C, without CasADi's buffer call (fastcall.py);
+        # what the C extension does not take (other types, shapes) goes to _into
+        direct = fastcall.caller(function, self._inputs, self._outputs, self._result, self._into)
+        if direct is not None:
+            self._direct, self._library = direct
+            self.into = self._direct  # type: ignore[method-assign]
+
+    @property
+    def n_calls(self) -> int:
+        """Evaluations so far (through Python and directly from C)."""
+        direct = self._direct.calls if self._direct is not None else 0  # type: ignore[attr-defined]
+        return self._n_calls + direct
 
     def _specialized_into(self) -> Callable[..., tuple[np.ndarray, ...]]:
         """:meth:`into` as a closure over the buffers, unrolled for 2 and 3 arguments:
@@ -95,7 +113,7 @@ class FastFunction:
                 except ValueError:
                     return general(x0, x1)
                 evaluate()
-                self.n_calls += 1
+                self._n_calls += 1
                 return result
 
             return into2
@@ -110,7 +128,7 @@ class FastFunction:
                 except ValueError:
                     return general(x0, x1, x2)
                 evaluate()
-                self.n_calls += 1
+                self._n_calls += 1
                 return result
 
             return into3
@@ -161,7 +179,7 @@ class FastFunction:
             for array, value in zip(self._inputs, args, strict=True):
                 array[:] = np.ravel(value) if np.ndim(value) else value
         self._evaluate()
-        self.n_calls += 1
+        self._n_calls += 1
         return self._result
 
     def __call__(self, *args: object) -> tuple[np.ndarray, ...]:
