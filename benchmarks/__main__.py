@@ -167,7 +167,9 @@ def issue36_targets() -> list[Row]:
                     interval=f"all pairs of {row['processes']} processes",
                     note=f"held to the upper end; {row[f'{prefix}ours_us']:.2f} / "
                     f"{row[f'{prefix}pin_aba_us']:.2f} us; load {row['load1_before']:.1f}-"
-                    f"{row['load1_after']:.1f}" + _code_note(row),
+                    f"{row['load1_after']:.1f}" + _code_note(row)
+                    + (f"; ours by the {row['python_call']} call"
+                       if not prefix and "python_call" in row else ""),
                 ))  # fmt: skip
     else:
         rows.append(Row("forward dynamics vs pin.aba over processes (pyperf)", NAN, 0.5,

@@ -15,9 +15,11 @@ checks its accelerations against ``pin.aba`` (to 1e-9); then pyperf times ours
 warm-up and 3 values a process, in CPU time (``time.process_time``: this machine is
 shared). A process's figure is the mean of its values. Like with like: both are called
 from Python as an integrator calls them, ours through ``FastFunction.into(t, y)`` (what
-the SciPy plugins call: the state copied into a preallocated input, then CasADi's
-buffer call), ``pin.aba`` through its boost-python binding on a preallocated ``data``
-and state arrays (where a small model's time goes: docs/performance-targets.md).
+the SciPy plugins call: the state copied into a preallocated input and the generated C
+called by a small C extension, :mod:`workbench.equations.fastcall`, or through CasADi's
+buffer call where that cannot be built: column ``python_call``), ``pin.aba`` through its
+boost-python binding on a preallocated ``data`` and state arrays (where a small model's
+time goes: docs/performance-targets.md).
 
 A second line, like for like in C: both sides through the same CasADi buffer call
 (``Function.buffer()``, the arguments already in place), ours the same compiled library,
@@ -120,9 +122,18 @@ def prepare(kind: str, name: str) -> dict:
         "symbol": generated.function.name(), "instructions": function.n_instructions(),
         "code_bytes": len(generated.code), "library_bytes": generated.path.stat().st_size,
         "graph": "kernels" if function.is_a("MXFunction") else "unrolled",
+        "python_call": python_call(loaded),
         "prepare_cpu_s": time.process_time() - start,
         "types": " ".join(sorted({j.type for j in kinematics.order})),
     }  # fmt: skip
+
+
+def python_call(loaded) -> str:
+    """How ``FastFunction.into`` reaches our library: "direct" (workbench/equations/
+    fastcall.c) or "buffer" (CasADi's buffer call: no Python headers, WORKBENCH_FASTCALL=0)."""
+    from workbench.equations.evaluate import FastFunction
+
+    return "direct" if type(FastFunction(loaded).into).__name__ == "Caller" else "buffer"
 
 
 _TIMED: dict[str, object] = {}
@@ -137,13 +148,14 @@ def timed_call(prepared: dict, who: str):
         import pinocchio as pin
 
         from benchmarks.peers import random_states
+        from workbench.equations import compiled
         from workbench.equations.evaluate import FastFunction
 
         _, pin_model, state = model_of(prepared["kind"], prepared["name"])
         ((q, v),) = random_states(state.kinematics, 1, seed=3)
         q_pin, v_pin = state.state(q, v)
         if who == "ours":
-            fast = FastFunction(ca.external(prepared["symbol"], prepared["library"]))
+            fast = FastFunction(compiled.load_library(prepared["library"], prepared["symbol"]))
             y = np.concatenate([q, v])
             _TIMED[key] = lambda: fast.into(0.0, y)
         elif who == "pin.aba":
@@ -206,8 +218,8 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
     rows = []
     for item in prepared:
         label = f"{item['kind']} {item['name']}"
-        row = {k: item[k] for k in ("kind", "name", "nv", "types", "graph", "instructions",
-                                    "code_bytes", "library_bytes")}  # fmt: skip
+        row = {k: item[k] for k in ("kind", "name", "nv", "types", "graph", "python_call",
+                                    "instructions", "code_bytes", "library_bytes")}  # fmt: skip
         for prefix, (us, them) in (("", PYTHON), ("buffer_", BUFFER)):
             ours = process_means(suite.get_benchmark(f"{label} {us}"))
             pin = process_means(suite.get_benchmark(f"{label} {them}"))

@@ -47,6 +47,8 @@ def extension() -> Any | None:
     compiler = compiled.c_compiler()
     if compiler is None or not include or not Path(include, "Python.h").exists():
         return None
+    if not SOURCE.exists():  # an install without the package data
+        return None
     source = SOURCE.read_text()
     key = "\0".join((source, sys.version, include, compiler, compiled.cpu()))
     digest = hashlib.sha256(key.encode()).hexdigest()[:24]
