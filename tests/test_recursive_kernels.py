@@ -97,3 +97,22 @@ def test_a_compiled_build_above_the_threshold_compiles_the_kernels(monkeypatch, 
         assert rhs.evaluated is not rhs.function  # ran in C
         assert np.max(np.abs(actual - expected)) <= 1e-12 * max(1.0, np.max(np.abs(expected)))
     assert not equations.compile_warnings
+
+
+def test_the_kernels_compile_at_o2_and_the_entry_at_the_flags(monkeypatch, tmp_path) -> None:
+    """The kernels (the functions the graph's entry calls) carry GCC's -O2 mark under the
+    default flags, the entry does not; other flags apply to all; the numbers equal the
+    VM's and an -O0 build's to 1e-12."""
+    monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path))
+    model = kernel_tree(9, 1)
+    kernels, unrolled = rec.ode_function(model, kernels=True), rec.ode_function(model)
+    code = compiled.generate(kernels).code
+    marked = [line for line in code.splitlines() if line.startswith("WB_CALLEE static")]
+    assert len(marked) >= 5 and not any("casadi_f0(" in line for line in marked)
+    assert "WB_CALLEE" not in compiled.generate(kernels, "-O0").code
+    assert "WB_CALLEE static" not in compiled.generate(unrolled).code  # one body, no callees
+    y = random_state(TreeKinematics(model), np.random.default_rng(4))
+    expected = np.asarray(kernels(0.7, y)).ravel()
+    for flags in (compiled.DEFAULT_FLAGS, "-O0"):
+        actual = np.asarray(compiled.compile_function(kernels, flags)(0.7, y)).ravel()
+        assert np.max(np.abs(actual - expected)) <= 1e-12 * max(1.0, np.max(np.abs(expected)))

@@ -169,6 +169,39 @@ def split_long_bodies(code: str, statements_per_part: int) -> str:
     return "\n".join(out)
 
 
+CALLEE_FLAG = "O2"
+CALLEE_MAX_BYTES = 100_000
+_FUNCTION_START = re.compile(r"^static (?:int|void) casadi_f(\d+)(?:_part\d+)?\(", re.M)
+
+
+def optimize_callees(code: str, level: str = CALLEE_FLAG,
+                     max_bytes: int = CALLEE_MAX_BYTES) -> str:  # fmt: skip
+    """``code`` with the functions its entry calls (``casadi_f1``, ... with their parts:
+    an MX graph's kernels, called many times a call) marked for GCC's ``-{level}``,
+    those of at most ``max_bytes`` of C each; the entry (``casadi_f0``) keeps the
+    command line's flags. Why: the recursive formalism's joint-type kernels
+    (plugins/formalisms/recursive_kernels.py) ran 6 % faster at ``-O2`` while a whole
+    library at ``-O2`` ran slower (its large entry) and compiled twice as long; small
+    functions cost little to compile (random tree N = 200: 36.3 against 38.9 µs a
+    call, 4.0 against 3.4 s CPU to compile; docs/performance-targets.md). Other compilers
+    ignore the mark (the macro is empty)."""
+    starts = [(m.start(), int(m.group(1))) for m in _FUNCTION_START.finditer(code)]
+    sizes: dict[int, int] = {}
+    for (start, number), end in zip(starts, [s for s, _ in starts[1:]] + [len(code)], strict=True):
+        sizes[number] = sizes.get(number, 0) + end - start
+    marked = {n for n, size in sizes.items() if n != 0 and size <= max_bytes}
+    if not marked:
+        return code
+
+    def mark(match: re.Match) -> str:
+        return "WB_CALLEE " + match.group(0) if int(match.group(1)) in marked else match.group(0)
+
+    macro = (f"#if defined(__GNUC__) && !defined(__clang__)\n"
+             f"#define WB_CALLEE __attribute__((optimize(\"{level}\")))\n"
+             f"#else\n#define WB_CALLEE\n#endif\n")  # fmt: skip
+    return macro + _FUNCTION_START.sub(mark, code)
+
+
 @functools.cache
 def cpu() -> str:
     """The machine's architecture and CPU model (flags such as ``-march=native`` make a
@@ -241,6 +274,8 @@ def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
         raise RuntimeError(f"no C compiler ({os.environ.get('CC') or 'cc'} not found)")
     function = exported(function)
     code = generate_c(function)
+    if flags == DEFAULT_FLAGS:  # flags of one's own apply to every function
+        code = optimize_callees(code)
     if "#error" in code:  # e.g. LAPACK's LU: CasADi writes an #error, not C for it
         cause = next(line for line in code.splitlines() if "#error" in line).strip()
         raise RuntimeError(f"CasADi cannot generate C for it: {cause}")
