@@ -172,21 +172,31 @@ def test_minimal_ode_beyond_the_symbolic_limit_compiles_and_agrees_with_recursiv
 
 def test_long_bodies_are_split_and_give_the_same_numbers(cache):
     """A 12-link spatial chain's ode right-hand side (~5,000 statements) is compiled as
-    parts of a body sharing the work array; every output equals the VM's bit for bit (the
+    parts of a body sharing the work array when above the locals' threshold, whole with
+    local variables below it; every output equals the VM's bit for bit either way (the
     same operations in the same order); a body with loops is left whole."""
     import casadi as ca
 
     from workbench.plugins.formalisms.recursive import ode_function
 
     function = ode_function(get_problem("spatial-chain")({"n_links": 12}).model())
-    code = compiled.generate_c(function)
+    code = compiled.generate_c(function, locals_max_instructions=0)  # the work array
     parts = code.count("static void casadi_f0_part")
     # one statement per instruction (inputs, constants, operations, outputs)
     assert parts == -(-function.n_instructions() // compiled.STATEMENTS_PER_PART) > 40
-    assert compiled.generate_c(function, statements_per_part=10**9).count("_part") == 0
-    loaded = compiled.compile_function(function)
+    assert compiled.generate_c(function, 10**9, locals_max_instructions=0).count("_part") == 0
+    # below the threshold: local variables, whole (what compile_function compiles here)
+    assert function.n_instructions() <= compiled.LOCALS_MAX_INSTRUCTIONS
+    assert "_part" not in compiled.generate_c(function) and "w[" not in compiled.generate_c(
+        function
+    )
     y = np.random.default_rng(5).uniform(-1, 1, 24)
-    assert np.array_equal(np.asarray(loaded(0.2, y)), np.asarray(function(0.2, y)))
+    for locals_max in (0, compiled.LOCALS_MAX_INSTRUCTIONS):
+        code = compiled.generate_c(compiled.exported(function), locals_max_instructions=locals_max)
+        generated = compiled.generate(function)
+        path = compiled.library_path(code, "-O1", generated.compiler, "split")
+        loaded = compiled.load_generated(dataclasses.replace(generated, code=code, path=path))
+        assert np.array_equal(np.asarray(loaded(0.2, y)), np.asarray(function(0.2, y)))
     x = ca.MX.sym("x", 6, 6)
     looped = compiled.generate_c(ca.Function("looped", [x], [ca.mtimes(x, x)]))
     assert "for (" in looped and compiled.split_long_bodies(looped, 1) == looped
