@@ -4,7 +4,9 @@ whenever the extension cannot be built."""
 
 from __future__ import annotations
 
+import gc
 import pickle
+import weakref
 
 import casadi as ca
 import numpy as np
@@ -106,3 +108,14 @@ def test_compiled_on_first_call_then_direct_counting_every_call(library):
     again = pickle.loads(pickle.dumps(fast))
     np.testing.assert_array_equal(again(0.5, np.array([0.1, 0.2]))[0], fast.outputs[0])
     np.testing.assert_allclose(fast.outputs[0], [0.2, -np.sin(0.1) * 0.5], rtol=1e-15)
+
+
+def test_a_dropped_function_is_collected(library):
+    """The caller's fallback is a method of the FastFunction holding it: the cycle is
+    collected (the caller is known to the garbage collector)."""
+    fast = FastFunction(library)
+    fast.into(0.5, np.ones(4))
+    gone = weakref.ref(fast)
+    del fast
+    gc.collect()
+    assert gone() is None

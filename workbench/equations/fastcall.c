@@ -68,10 +68,30 @@ static PyObject *Caller_vectorcall(PyObject *callable, PyObject *const *args, si
     Py_INCREF(self->result);
     return self->result;
 general:
+    if (self->fallback == NULL) {
+        PyErr_SetString(PyExc_RuntimeError, "the caller was cleared");
+        return NULL;
+    }
     return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
 }
 
+/* The fallback is usually a bound method of the object holding this caller: a cycle the
+   garbage collector must see through. */
+static int Caller_traverse(Caller *self, visitproc visit, void *arg) {
+    Py_VISIT(self->result);
+    Py_VISIT(self->fallback);
+    return 0;
+}
+
+static int Caller_clear(Caller *self) {
+    Py_CLEAR(self->result);
+    Py_CLEAR(self->fallback);
+    return 0;
+}
+
 static void Caller_dealloc(Caller *self) {
+    PyObject_GC_UnTrack(self);
+    Caller_clear(self);
     if (self->views != NULL) {
         for (Py_ssize_t i = 0; i < self->n_in + self->n_out; i++)
             if (self->views[i].obj != NULL) PyBuffer_Release(&self->views[i]);
@@ -82,8 +102,6 @@ static void Caller_dealloc(Caller *self) {
     PyMem_Free(self->res);
     PyMem_Free(self->iw);
     PyMem_Free(self->w);
-    Py_XDECREF(self->result);
-    Py_XDECREF(self->fallback);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -160,9 +178,12 @@ static PyGetSetDef Caller_getset[] = {
 static PyTypeObject CallerType = {
     PyVarObject_HEAD_INIT(NULL, 0).tp_name = "workbench_fastcall.Caller",
     .tp_basicsize = sizeof(Caller),
-    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL | Py_TPFLAGS_HAVE_GC,
     .tp_new = Caller_new,
     .tp_dealloc = (destructor)Caller_dealloc,
+    .tp_traverse = (traverseproc)Caller_traverse,
+    .tp_clear = (inquiry)Caller_clear,
+    .tp_free = PyObject_GC_Del,
     .tp_call = PyVectorcall_Call,
     .tp_vectorcall_offset = offsetof(Caller, vectorcall),
     .tp_getset = Caller_getset,
