@@ -6,6 +6,7 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
 ``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3, or
 ``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4, or
 ``python -m benchmarks.footprint --recording N [--before CHECKOUT]`` for 5, or
+``python -m benchmarks.footprint --read-back [--before CHECKOUT]`` for 6, or
 ``python -m benchmarks.footprint --dask N [N ...]`` for 4's Dask rows alone (10,000
 runs: about 7 min at load 4).
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
@@ -39,6 +40,11 @@ runs: about 7 min at load 4).
 5. A run's recording (:func:`recording_rows`): chunks a run, the CPU of a run's
    recording, and Python's reader's growth against the merged file's size (the 2x target
    of 4 without a sweep: load-independent but for the CPU), before and after.
+
+6. The default sweep's recording (:func:`readback_rows`): the quick suite's sweep, its
+   recording's chunks and component columns by kind, ``rerun rrd verify`` and Python's
+   reader (cold, beyond its start-up, anonymous memory), before and after; about 3 min.
+   Writes ``footprint-readback.csv``.
 
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
 (``footprint-tiny.csv`` for 3).
@@ -365,11 +371,15 @@ def phase_memory(out: Path) -> dict:
     }
 
 
-def read_back(recording: Path) -> dict:
+def read_back(recording: Path, repeats: int = 5) -> dict:
     """``rerun rrd verify`` of ``recording`` (its exit code) and the peak RSS growth of
     Python's reader reading it whole, a chunk at a time (tests/test_recording_readback.py):
     from a cold start, and beyond the reader's start-up (a one-chunk recording read first
-    in the same process: about 6 MiB whatever the file, docs/performance.md)."""
+    in the same process: about 6 MiB whatever the file, docs/performance.md); and, cold,
+    the growth of its anonymous memory at the end of the read, the reader still open
+    (the start-up is almost all pages of rerun-sdk's library mapped from disk, RssFile,
+    not memory the read holds; the kernel keeps no peak of RssAnon). Each the median of
+    ``repeats`` fresh processes (they vary by about 2 MiB: the allocator's arenas)."""
     import shutil
 
     import rerun as rr
@@ -387,18 +397,84 @@ def read_back(recording: Path) -> dict:
     stream.log("box", rr.Boxes3D(half_sizes=[[1.0, 1.0, 1.0]]), static=True)
     stream.flush()
     stream.disconnect()
-    measured = {}
+    measured: dict[str, dict[str, float]] = {}
     for key, extra in (("cold", []), ("warm", [str(one_chunk)])):
-        done = subprocess.run([sys.executable, str(child), str(recording), *extra],
-                              capture_output=True, text=True, check=True)  # fmt: skip
-        measured[key] = json.loads(done.stdout.strip().splitlines()[-1])
+        reads = []
+        for _ in range(repeats):
+            done = subprocess.run([sys.executable, str(child), str(recording), *extra],
+                                  capture_output=True, text=True, check=True)  # fmt: skip
+            reads.append(json.loads(done.stdout.strip().splitlines()[-1]))
+        measured[key] = {name: float(np.median([r[name] for r in reads])) for name in reads[0]}
     one_chunk.unlink()
     return {
         "verify_rc": verified.returncode,
         "read_growth_mib": measured["cold"]["growth"] / 2**20,
         "reader_startup_mib": measured["warm"]["startup"] / 2**20,
         "read_beyond_startup_mib": measured["warm"]["beyond_startup"] / 2**20,
+        "read_anon_mib": measured["cold"]["anon"] / 2**20,
     }
+
+
+def recording_layout(recording: Path) -> dict:
+    """Chunks and component columns of ``recording``'s runs (``/runs/...``), in all and by
+    kind: a body's joint frames, its shapes (static), its poses, a run's series; what
+    Python's reader costs (about 0.35 KiB a chunk and 4 KiB a component column)."""
+    import rerun as rr
+
+    from workbench.outputs.recording import MODEL_PART, split_entity_path
+
+    counts = {"chunks": 0, "columns": 0}
+    for chunk in rr.chunk.RrdReader(recording).stream():
+        parts = split_entity_path(chunk.entity_path)
+        if parts[:1] != ["runs"]:
+            continue
+        if len(parts) < 6 or parts[2] == MODEL_PART:
+            kind = "shared"
+        elif parts[5] == "series":
+            kind = "series"
+        elif "joints" in parts:
+            kind = "joint_frames"
+        elif not chunk.is_static:
+            kind = "poses"
+        else:
+            kind = "shapes"
+        index = {"rerun.controls.RowId", *chunk.timeline_names}
+        columns = sum(1 for name in chunk.to_record_batch().schema.names if name not in index)
+        for key, value in (("chunks", 1), ("columns", columns), (f"{kind}_chunks", 1),
+                           (f"{kind}_columns", columns)):  # fmt: skip
+            counts[key] = counts.get(key, 0) + value
+    return counts
+
+
+def readback_rows(before: str) -> list[dict]:
+    """The default sweep (quick suite, 2 workers, 1 timed repeat) with this code ("after")
+    and a checkout's ("before"), each in a fresh process: the sweep's wall and CPU, its
+    recording's size, layout (:func:`recording_layout`) and read-back (:func:`read_back`).
+    The reader's figures do not depend on the load; the sweep's times do."""
+    rows = []
+    for code, checkout in (("before", before), ("after", "")):
+        if code == "before" and not before:
+            continue
+        with tempfile.TemporaryDirectory() as directory:
+            out = Path(directory) / "out"
+            measured = _sweep("quick", checkout, "--out", str(out))
+            results = pd.read_parquet(out / "results.parquet")
+            recording = out / "recording.rrd"
+            size = recording.stat().st_size / 2**20
+            row = {"measure": "default sweep recording", "code": code,
+                   "runs": int((results["status"] == "ok").sum()),
+                   "sweep_wall_s": measured["wall_s"], "sweep_cpu_s": measured["cpu_s"],
+                   "size_mib": size} | recording_layout(recording)  # fmt: skip
+            back = read_back(recording)
+        row |= back | {
+            "read_growth_x": back["read_growth_mib"] / size,
+            "read_beyond_startup_x": back["read_beyond_startup_mib"] / size,
+            "read_anon_x": back["read_anon_mib"] / size,
+            "load_1min": os.getloadavg()[0],
+        }
+        rows.append(row)
+        print(row, flush=True)
+    return rows
 
 
 def dask_tiny(n: int) -> dict:
@@ -521,6 +597,15 @@ def main(argv: list[str]) -> pd.DataFrame:
         print(f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
         with pd.option_context("display.width", 200, "display.max_columns", 20):
             print(table.round(3).to_string(index=False))
+        return table
+    if "--read-back" in argv:  # --read-back [--before CHECKOUT]: the default sweep's recording
+        before = argv[argv.index("--before") + 1] if "--before" in argv else ""
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        table = pd.DataFrame(readback_rows(before))
+        RESULTS.mkdir(exist_ok=True)
+        table.to_csv(RESULTS / "footprint-readback.csv", index=False)
+        with pd.option_context("display.width", 250, "display.max_columns", 40):
+            print(table.round(2).T.to_string())
         return table
     if argv[:1] == ["--merge-child"]:
         _merge_child(argv[1], argv[2], int(argv[3]))

@@ -888,7 +888,7 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
     archetypes: dict[str, Any] = {}
     for kind, group in by_kind.items():
         # centers and rotations only when some shape has one (each component of a
-        # run's static data costs the reader's manifest about 3 KiB); the fill mode, and
+        # run's static data costs the reader's manifest about 4.5 KiB); the fill mode, and
         # the colour when every shape has a model's default one, are the 3D views'
         # defaults (:func:`shape_defaults`)
         colors = [tuple(s.color) for s in group]
@@ -938,7 +938,7 @@ def default_shape_color() -> tuple[int, int, int]:
 def shape_defaults() -> list[Any]:
     """The 3D views' defaults of the primitive shapes: solid (Rerun draws them as
     wireframes otherwise) and a model's default shape colour. View defaults rather than
-    components of every run's shapes (each costs the reader about 3 KiB a run)."""
+    components of every run's shapes (each costs the reader about 4.5 KiB a run)."""
     import rerun as rr
 
     solid, color = rr.components.FillMode.Solid, [default_shape_color()]
