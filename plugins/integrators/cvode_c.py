@@ -16,10 +16,11 @@ states at every output time and CVODE's statistics back.
   CPU); the right-hand side is the library ``compile = "jit"`` builds for it (from the
   cache), whose symbol's address is handed to the driver with its work sizes, checked here
   first. Both count as the run's compile stage, never as integration.
-* Methods: Adams-Moulton (orders 1-12) or BDF (1-5); the implicit stages solved by
-  fixed-point iteration (``iteration = "functional"``: no Jacobian) or Newton with a dense
-  linear solver on CVODE's difference-quotient Jacobian (``"newton"``: its n right-hand
-  sides a Jacobian are counted in ``n_rhs``).
+* Methods (options as ``casadi-cvodes``'): Adams-Moulton (orders 1-12; the default) or BDF
+  (1-5); the implicit stages solved by fixed-point iteration (``iteration =
+  "functional"``, the default: no Jacobian) or Newton with a dense linear solver on
+  CVODE's difference-quotient Jacobian (``"newton"``: its n right-hand sides a Jacobian
+  are counted in ``n_rhs``). ``max_num_steps`` counts steps towards each output time.
 
 It is offered only where the ode right-hand side can run in C: a formalism built with
 ``compile = "jit"`` or ``"auto"`` (auto compiles it for this integrator whatever the run's
@@ -37,7 +38,7 @@ import re
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import casadi as ca
 import numpy as np
@@ -181,8 +182,10 @@ def check_signature(function: ca.Function, n: int) -> None:
     shapes = [function.sparsity_in(i) for i in range(function.n_in())]
     shapes += [function.sparsity_out(i) for i in range(function.n_out())]
     expected = [1, n, n]
-    if len(shapes) != 3 or [s.nnz() for s in shapes] != expected or not all(
-        s.is_dense() for s in shapes
+    if (
+        len(shapes) != 3
+        or [s.nnz() for s in shapes] != expected
+        or not all(s.is_dense() for s in shapes)
     ):
         got = ", ".join(f"{s.size1()}x{s.size2()} ({s.nnz()} nonzeros)" for s in shapes)
         raise RuntimeError(
@@ -190,11 +193,21 @@ def check_signature(function: ca.Function, n: int) -> None:
         )
 
 
+@dataclass(frozen=True)
+class CvodeCOptions(CvodesOptions):
+    """``casadi-cvodes``' options, with the non-stiff fast path as the default: Adams with
+    fixed-point iteration (no Jacobian). For a stiff mechanism: method bdf, iteration
+    newton."""
+
+    method: Literal["bdf", "adams"] = "adams"
+    iteration: Literal["newton", "functional"] = "functional"
+
+
 @integrator
 class CvodeC(Integrator):
     name = "sundials-cvode-c"
     summary = "SUNDIALS CVODE (Adams or BDF) run in C on the compiled ode right-hand side"
-    Options = CvodesOptions
+    Options = CvodeCOptions
     accepts: ClassVar[dict[str, int]] = {"ode": 0}
 
     def incompatibility(self, equations: Any, options: Any) -> str | None:

@@ -252,9 +252,7 @@ def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
                      compiler, flags)  # fmt: skip
 
 
-def built(
-    code: str, flags: str, compiler: str, path: Path, link: tuple[str, ...] = ()
-) -> Path:
+def built(code: str, flags: str, compiler: str, path: Path, link: tuple[str, ...] = ()) -> Path:
     """``path``, the library of ``code``, compiled first unless the cache holds it: one
     process compiles under a lock, the others wait and find it (call inside
     :func:`counted`). Raises RuntimeError if the compiler fails."""
