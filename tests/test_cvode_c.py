@@ -65,7 +65,16 @@ def test_pendulum_follows_the_exact_angle_and_casadi_cvodes(options, allowance):
 
 
 @needs_compiler
-def test_a_chain_run_matches_the_stored_reference_and_casadi_cvodes(tmp_path):
+def test_a_chain_run_matches_the_stored_reference_and_casadi_cvodes(tmp_path, monkeypatch):
+    """In a fresh compile cache: the driver and the right-hand side are compiled in the
+    run's compile stage, and the run ends within 1e-6 of the stored reference."""
+    from workbench.execution.execute import clear_cache
+
+    monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path / "cache"))
+    clear_cache()
+    cvode_c.driver.cache_clear()
+    cvode_c._prepared.clear()
+    before = compiled.STATS.compiled
     rows = {}
     for name in (NAME, "casadi-cvodes"):
         spec = RunSpec(
@@ -75,7 +84,9 @@ def test_a_chain_run_matches_the_stored_reference_and_casadi_cvodes(tmp_path):
         rows[name] = execute_run(spec, reference_dir=tmp_path).row
     ours, casadi = rows[NAME], rows["casadi-cvodes"]
     assert ours["status"] == casadi["status"] == "ok", ours["message"]
-    assert ours["compile_s"] >= 0.0 and ours["n_rhs"] > 0
+    assert ours["compile_s"] > 0.0 and ours["n_rhs"] > 0
+    assert compiled.STATS.compiled >= before + 2  # the rhs and the driver, in the new cache
+    assert list((tmp_path / "cache").glob("wb_cvode_driver-*.so"))
     assert ours["err_end"] < 1e-6
     # the same method at the same tolerance: end errors of the same size
     assert ours["err_end"] < 10 * casadi["err_end"] + 1e-9
@@ -190,3 +201,11 @@ def test_a_run_without_compiled_equations_is_a_skipped_row(tmp_path):
     row = execute_run(spec, reference_dir=tmp_path).row
     assert row["status"] == "skipped"
     assert "compile" in row["message"] or "C compiler" in row["message"]
+
+
+def test_without_a_compiler_the_refusal_says_so(monkeypatch):
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    with pytest.warns(compiled.CompileWarning, match="no C compiler"):
+        equations = get_formalism("minimal-ode")().build(Pendulum().model(), {"compile": "jit"})
+    plugin = get_integrator(NAME)()
+    assert "no C compiler" in plugin.incompatibility(equations, plugin.parse_options(None))
