@@ -26,7 +26,8 @@ It is offered only where the ode right-hand side can run in C: a formalism built
 ``compile = "jit"`` or ``"auto"`` (auto compiles it for this integrator whatever the run's
 expected calls) and a C compiler; otherwise the pairing is refused with the reason. A
 CVODE failure (flag < 0) is a failed trajectory naming CVODE's flag and message, with the
-states reached; a non-finite right-hand side is a recoverable failure of the step.
+states reached; a right-hand side that is NaN or infinite (or returns an error) stops the
+integration there, named in the message, as the other integrators stop at a NaN.
 """
 
 from __future__ import annotations

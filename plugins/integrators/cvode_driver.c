@@ -14,6 +14,7 @@
  * (scikit-sundae's c_config.pxi). They are only pointers, ints, longs and doubles.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -56,6 +57,7 @@ int CVodeSetUserData(void* cvode_mem, void* user_data);
 int CVodeSetMaxNumSteps(void* cvode_mem, long int mxsteps);
 int CVodeSetMaxStep(void* cvode_mem, sunrealtype hmax);
 int CVodeSetMaxOrd(void* cvode_mem, int maxord);
+int CVodeSetMaxHnilWarns(void* cvode_mem, int mxhnil);
 int CVodeSetNonlinearSolver(void* cvode_mem, SUNNonlinearSolver NLS);
 int CVodeSetLinearSolver(void* cvode_mem, SUNLinearSolver LS, SUNMatrix A);
 int CVode(void* cvode_mem, sunrealtype tout, N_Vector yout, sunrealtype* tret, int itask);
@@ -94,11 +96,13 @@ typedef struct {
   long long* iw;
   double* w;
   long long calls;
-  wb_cvode_result* result;
+  int failed;      /* 1: f returned an error, 2: a value was NaN or infinite */
+  double failed_t; /* where */
 } rhs_data;
 
-/* y' = f(t, y); a non-finite value or an error of f is a recoverable failure (CVODE
-   then retries with a shorter step and fails the run if that does not help). */
+/* y' = f(t, y); an error of f or a non-finite value stops the integration (CVODE's
+   CV_UNREC_RHSFUNC_ERR), as the other integrators stop at a NaN: a shorter step would
+   reach the same singular state, after thousands of steps of 1e-17 s. */
 static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void* user_data) {
   rhs_data* data = (rhs_data*)user_data;
   double* out = N_VGetArrayPointer(ydot);
@@ -107,9 +111,15 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void* user_data) {
   data->arg[0] = &t;
   data->arg[1] = N_VGetArrayPointer(y);
   data->res[0] = out;
-  if (data->f(data->arg, data->res, data->iw, data->w, 0)) return 1;
+  if (data->f(data->arg, data->res, data->iw, data->w, 0)) {
+    data->failed = 1, data->failed_t = t;
+    return -1;
+  }
   for (i = 0; i < data->n; ++i)
-    if (!isfinite(out[i])) return 1;
+    if (!isfinite(out[i])) {
+      data->failed = 2, data->failed_t = t;
+      return -1;
+    }
   return 0;
 }
 
@@ -150,7 +160,7 @@ int wb_cvode_solve(casadi_function f, int n, long long sz_arg, long long sz_res,
   result->t_reached = times[0];
   memcpy(y_out, y0, sizeof(double) * (size_t)n);
   memset(&data, 0, sizeof(data));
-  data.f = f, data.n = n, data.result = result;
+  data.f = f, data.n = n;
   data.arg = (const double**)calloc((size_t)(sz_arg > 2 ? sz_arg : 2), sizeof(double*));
   data.res = (double**)calloc((size_t)(sz_res > 1 ? sz_res : 1), sizeof(double*));
   data.iw = (long long*)calloc((size_t)(sz_iw > 1 ? sz_iw : 1), sizeof(long long));
@@ -178,6 +188,8 @@ int wb_cvode_solve(casadi_function f, int n, long long sz_arg, long long sz_res,
   if ((flag = CVodeSetMaxNumSteps(mem, max_steps)) < 0) goto done;
   if (max_step > 0 && (flag = CVodeSetMaxStep(mem, max_step)) < 0) goto done;
   if (max_order > 0 && (flag = CVodeSetMaxOrd(mem, max_order)) < 0) goto done;
+  /* no "t + h = t" warnings: SUNDIALS' logger would print them to stdout */
+  if ((flag = CVodeSetMaxHnilWarns(mem, -1)) < 0) goto done;
   if (newton) {
     A = SUNDenseMatrix(n, n, sunctx);
     LS = A ? SUNLinSol_Dense(y, A, sunctx) : NULL;
@@ -218,6 +230,9 @@ done:
   }
   result->rhs_calls = data.calls;
   result->flag = flag < 0 ? flag : 0;
+  if (flag < 0 && data.failed)
+    snprintf(result->message, sizeof(result->message), "the right-hand side %s at t = %.10g",
+             data.failed == 1 ? "returned an error" : "was NaN or infinite", data.failed_t);
   if (flag < 0) {
     char* name = CVodeGetReturnFlagName(flag);
     if (name != NULL) {
