@@ -235,7 +235,7 @@ def issue36_targets() -> list[Row]:
             if walls.exists():  # how near the all-compiled anchor itself comes to the target
                 table = pd.read_csv(walls).query("case == @case").set_index("pipeline")
                 if "anchor" in set(table.side):
-                    anchor = table[table.side == "anchor"].wall_s.iloc[0]
+                    anchor = table[table.side == "anchor"].wall_s.min()
                     note += f"; the anchor / that peer {anchor / table.wall_s[row.peer]:.2f}"
             calls = getattr(row, "rhs_calls_ours_side", NAN)
             if not pd.isna(calls):  # where the time goes: calls x (wall a call)
