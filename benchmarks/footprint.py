@@ -47,6 +47,7 @@ On a shared machine wall times mean little: compare CPU seconds and memory.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import resource
@@ -296,19 +297,23 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
     which counts the sweep's fixed costs too (start-up, report, recording merge) - the
     difference between two N removes them ("marginal")."""
     rows = []
+    # every sweep's folder is removed at the end, not after the sweep: on ext4 without a
+    # journal (this machine) a new file skips each inode deleted in the last 60-360 s, so
+    # removing one sweep's 50,000 files made the next sweep's file writes slower
+    kept = contextlib.ExitStack()
     for n in counts:
         for code, checkout in (("before", before), ("after", "")):
             if code == "before" and not before:
                 continue
-            with tempfile.TemporaryDirectory() as directory:
-                out = Path(directory) / "out"
-                spec = Path(directory) / "spec.toml"
-                spec.write_text(resume_spec(out, n))
-                measured = _sweep(spec, checkout)
-                results = pd.read_parquet(out / "results.parquet")
-                recording = out / "recording.rrd"
-                size = recording.stat().st_size if recording.exists() else 0
-                on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
+            directory = kept.enter_context(tempfile.TemporaryDirectory())
+            out = Path(directory) / "out"
+            spec = Path(directory) / "spec.toml"
+            spec.write_text(resume_spec(out, n))
+            measured = _sweep(spec, checkout)
+            results = pd.read_parquet(out / "results.parquet")
+            recording = out / "recording.rrd"
+            size = recording.stat().st_size if recording.exists() else 0
+            on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
             integration = float(results["integrate_cpu_s"].sum())
             row = {"measure": "tiny runs", "n": n, "code": code} | measured | {
                 "runs_per_s": n / measured["wall_s"],
@@ -321,6 +326,7 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
             }  # fmt: skip
             rows.append(row)
             print({k: v for k, v in row.items() if not k.startswith("_")}, flush=True)
+    kept.close()
     for code in ("before", "after"):
         mine = sorted((r for r in rows if r["code"] == code), key=lambda r: r["n"])
         for small, large in zip(mine, mine[1:], strict=False):
