@@ -179,3 +179,36 @@ def test_a_series_file_has_the_bytes_pandas_writes(tmp_path):
             tmp_path / f"pandas{k}.parquet"
         ).read_bytes()
     assert pd.read_parquet(tmp_path / "ours1.parquet").attrs == {"source": "test"}
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism", "options"),
+    [("simple-pendulum", "minimal-ode", {}), ("four-bar", "absolute-dae", {"index": 1})],
+)
+def test_a_recordings_poses_are_the_metrics_poses_of_those_samples(problem, formalism, options):
+    """poses_of_rows after the metrics' along() (the recording of the run just measured,
+    200 of its samples) gives the poses computed at those rows alone, bit for bit, and
+    computes them when the states are others."""
+    problem_ = get_problem(problem)()
+    equations = get_formalism(formalism)().build(problem_.model(), options)
+    state = consistent_initial_state(equations, problem_)
+    integrator = get_integrator("scipy-dop853")()
+    form = integrator.select_form({k: getattr(f, "index", 0) for k, f in equations.forms.items()})
+    times = problem_.sample_times()
+    trajectory = integrator.solve(
+        equations, state.y0(equations, form), state.yp0(equations, form), times, 1e-6, 1e-8,
+        integrator.parse_options({}), form,
+    )  # fmt: skip
+    t, y = np.asarray(trajectory.times), np.atleast_2d(trajectory.y)
+    q, v = y[:, : equations.nq], y[:, equations.nq : equations.nq + equations.nv]
+    rows = np.unique(np.linspace(0, len(t) - 1, 200).round().astype(int))
+    observables = equations.observables
+    alone = observables.poses_along(t[rows], q[rows])
+    observables.along(t, q, v)  # the metrics' call
+    cached = observables.poses_of_rows(t, q, rows)
+    np.testing.assert_array_equal(cached, alone)
+    assert observables.poses_of_rows(t, q + 1e-3, rows).shape == alone.shape  # not the cache
+    np.testing.assert_array_equal(
+        observables.poses_of_rows(t, q + 1e-3, rows),
+        observables.poses_along(t[rows], q[rows] + 1e-3),
+    )
