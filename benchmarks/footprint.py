@@ -8,7 +8,7 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
 ``python -m benchmarks.footprint --recording N [--before CHECKOUT]`` for 5, or
 ``python -m benchmarks.footprint --read-back [--before CHECKOUT]`` for 6, or
 ``python -m benchmarks.footprint --dask N [N ...]`` for 4's Dask rows alone (10,000
-runs: about 7 min at load 4).
+runs: about 7 min at load 4), or ``python -m benchmarks.footprint --loop [N]`` for 7.
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
@@ -45,6 +45,8 @@ runs: about 7 min at load 4).
    recording's chunks and component columns by kind, ``rerun rrd verify`` and Python's
    reader (cold, beyond its start-up, anonymous memory), before and after; about 3 min.
    Writes ``footprint-readback.csv``.
+7. The worker loop in one process (:func:`loop_parts`): a tiny run's CPU outside its
+   integration and in each part (recording, metrics, series and row files), no profiler.
 
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
 (``footprint-tiny.csv`` for 3).
@@ -53,6 +55,7 @@ On a shared machine wall times mean little: compare CPU seconds and memory.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import resource
@@ -302,19 +305,23 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
     which counts the sweep's fixed costs too (start-up, report, recording merge) - the
     difference between two N removes them ("marginal")."""
     rows = []
+    # every sweep's folder is removed at the end, not after the sweep: on ext4 without a
+    # journal (this machine) a new file skips each inode deleted in the last 60-360 s, so
+    # removing one sweep's 50,000 files made the next sweep's file writes slower
+    kept = contextlib.ExitStack()
     for n in counts:
         for code, checkout in (("before", before), ("after", "")):
             if code == "before" and not before:
                 continue
-            with tempfile.TemporaryDirectory() as directory:
-                out = Path(directory) / "out"
-                spec = Path(directory) / "spec.toml"
-                spec.write_text(resume_spec(out, n))
-                measured = _sweep(spec, checkout)
-                results = pd.read_parquet(out / "results.parquet")
-                recording = out / "recording.rrd"
-                size = recording.stat().st_size if recording.exists() else 0
-                on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
+            directory = kept.enter_context(tempfile.TemporaryDirectory())
+            out = Path(directory) / "out"
+            spec = Path(directory) / "spec.toml"
+            spec.write_text(resume_spec(out, n))
+            measured = _sweep(spec, checkout)
+            results = pd.read_parquet(out / "results.parquet")
+            recording = out / "recording.rrd"
+            size = recording.stat().st_size if recording.exists() else 0
+            on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
             integration = float(results["integrate_cpu_s"].sum())
             row = {"measure": "tiny runs", "n": n, "code": code} | measured | {
                 "runs_per_s": n / measured["wall_s"],
@@ -327,6 +334,7 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
             }  # fmt: skip
             rows.append(row)
             print({k: v for k, v in row.items() if not k.startswith("_")}, flush=True)
+    kept.close()
     for code in ("before", "after"):
         mine = sorted((r for r in rows if r["code"] == code), key=lambda r: r["n"])
         for small, large in zip(mine, mine[1:], strict=False):
@@ -338,6 +346,96 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
     for row in rows:
         row.pop("_cpu_outside_s")
     return rows
+
+
+def loop_parts(n: int) -> dict[str, float]:
+    """The worker loop of a tiny sweep (:func:`resume_spec`'s runs) in this process, as
+    :func:`workbench.runs.local_pool._worker_main` runs it, ``n`` runs after 20 to warm up:
+    ms of CPU a run (``time.process_time``, Rerun's threads included wherever they run)
+    outside the integration and in each named part. No profiler: cProfile inflated the
+    pandas and Rerun calls several times (docs/performance.md)."""
+    from collections import defaultdict
+
+    from workbench.execution import execute as execute_module
+    from workbench.execution import metrics as metrics_module
+    from workbench.execution.execute import RunSpec, execute_run
+    from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file
+    from workbench.execution.run_progress import (
+        ProgressWriter,
+        progress_path,
+        release_progress_file,
+    )
+    from workbench.execution.timing import Timing
+    from workbench.outputs.recording import RerunSink, SweepRecorder
+    from workbench.plugin import registry
+    from workbench.runs import local_pool, store
+
+    spent: dict[str, float] = defaultdict(float)
+
+    def timed(name: str, function):
+        def part(*args, **kwargs):
+            started = time.process_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[name] += time.process_time() - started
+
+        return part
+
+    patched = [
+        (RerunSink, "log_run", "recording: logging"),
+        (RerunSink, "end_file", "recording: the run's file"),
+        (RerunSink, "begin_file", "recording: starting it"),
+        (metrics_module, "trajectory_metrics", "metrics"),
+        (store, "write_parquet_atomic", "series file"),
+        (store, "write_json_atomic", "row file"),
+        (execute_module, "state_columns", "series: the states' columns"),
+    ]
+    saved = [(owner, name, getattr(owner, name)) for owner, name, _ in patched]
+    for owner, name, label in patched:
+        setattr(owner, name, timed(label, getattr(owner, name)))
+    registry.REGISTRY.discover()
+    SweepRecorder.prepare()
+    tolerances = np.logspace(-3, -8, (n + 21) // 2)
+    specs = [
+        RunSpec("simple-pendulum", "minimal-ode", integrator, float(t), float(t) * 1e-3)
+        for t in tolerances
+        for integrator in ("scipy-dop853", "scipy-rk45")
+    ][: n + 20]
+    timing = Timing(repeats=1, workers=2).to_dict()
+    sink, total, integration = None, 0.0, 0.0
+    try:
+        with tempfile.TemporaryDirectory() as directory:
+            out = Path(directory)
+            for index, spec in enumerate(specs):
+                if index == 20:
+                    spent.clear()
+                    total = integration = 0.0
+                started = time.process_time()
+                sink = local_pool._begin_recording(SweepRecorder, sink, out, spec.run_id)
+                try:
+                    capture = CapturedOutput(raw_path(out, spec.run_id), reuse=True)
+                    progress = ProgressWriter(progress_path(out, spec.run_id))
+                    with capture, progress:
+                        result = execute_run(
+                            spec, sink=sink, reference_dir=out / "references",
+                            timing=Timing.from_dict(timing),
+                        )  # fmt: skip
+                    result.row["log"] = local_pool.write_log(out, spec.run_id, capture.kept())
+                    store.write_run(out, result.row, result.series, True)
+                finally:
+                    local_pool._end_recording(sink)
+                total += time.process_time() - started
+                integration += result.row["integrate_cpu_s"]
+            release_raw_file()
+            release_progress_file()
+    finally:
+        for owner, name, function in saved:
+            setattr(owner, name, function)
+    runs = len(specs) - 20
+    parts = {"outside the integration": 1000 * (total - integration) / runs,
+             "integration": 1000 * integration / runs}  # fmt: skip
+    return parts | {name: 1000 * seconds / runs for name, seconds in spent.items()}
 
 
 # ---- the issue's targets ----------------------------------------------------------------
@@ -581,6 +679,13 @@ def main(argv: list[str]) -> pd.DataFrame:
         with pd.option_context("display.width", 250, "display.max_columns", 30):
             print(table.round(2).to_string(index=False))
         return table
+    if argv[:1] == ["--loop"]:  # --loop N: the worker loop's parts in this process
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        parts = loop_parts(int(argv[1]) if len(argv) > 1 else 400)
+        for name, ms in parts.items():
+            print(f"{name:32s} {ms:7.3f} ms a run")
+        print(f"load average at end: {os.getloadavg()[0]:.2f}")
+        return pd.DataFrame([parts])
     if argv[:1] == ["--dask"]:  # --dask N [N ...]: tiny runs through a local Dask cluster
         print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
         table = pd.DataFrame([{"n": int(a)} | dask_tiny(int(a)) for a in argv[1:]])

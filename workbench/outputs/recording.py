@@ -300,9 +300,13 @@ class RerunSink:
         if n == 0:
             return
         rows = np.unique(np.linspace(0, n - 1, min(n, self.max_frames)).round().astype(int))
-        poses = equations.observables.poses_along(times[rows], y[rows, : equations.nq])
+        observables = equations.observables
+        if hasattr(observables, "poses_of_rows"):  # the metrics' poses of these states
+            poses = observables.poses_of_rows(times[:n], y[:n, : equations.nq], rows)
+        else:
+            poses = observables.poses_along(times[rows], y[rows, : equations.nq])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
-        for b, name in enumerate(equations.observables.body_names):
+        for b, name in enumerate(observables.body_names):
             self.recording.send_columns(
                 f"{path}/{entity_path('bodies', name)}",
                 indexes=[timeline],
