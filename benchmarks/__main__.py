@@ -118,14 +118,21 @@ def targets() -> list[Row]:
             rows.append(Row(f"whole simulation, {row.case}, {pairs[row.pair]}", row.ratio,
                             row.target, low=row.low, high=row.high, interval="95 % CI",
                             note=note))  # fmt: skip
-    sweep = RESULTS / "default_sweep.csv"
-    if sweep.exists():
+    for sweep in sorted(RESULTS.glob("default_sweep*.csv")):
+        if "_stages" in sweep.name:
+            continue
         row = pd.read_csv(sweep).iloc[0]
+        suite = row.command.split()[2] if row.command.split()[2] != "--out" else "full"
+        full = suite == "full"  # the targets were set for the full comparison
         load = f"load {row.load_1min:.1f}" if "load_1min" in row else ""
-        rows.append(Row("default sweep, peak memory of all processes (GiB)",
-                        row.peak_pss_gib, 1.0, note=f"{row.runs} runs"))  # fmt: skip
-        rows.append(Row("default sweep, share of the runs' time outside the integrators",
-                        row.outside_share_of_stages, 0.1, note=load))  # fmt: skip
+        what = f"sweep {suite} ({row.runs} runs)"
+        rows.append(Row(f"{what}, peak memory of all processes (GiB)", row.peak_pss_gib,
+                        1.0 if full else NAN, note=load))  # fmt: skip
+        rows.append(Row(f"{what}, share of the runs' time outside the integrators",
+                        row.outside_share_of_stages, 0.1 if full else NAN,
+                        note=load if full else f"{load}; the target is the full sweep's: "
+                        f"a quick run's {row.outside_per_run_ms:.0f} ms outside its "
+                        f"integration is most of it"))  # fmt: skip
     dask = RESULTS / "dask_sweep.csv"
     if dask.exists():  # python -m benchmarks.dask_sweep: not part of `python -m benchmarks`
         row = pd.read_csv(dask).iloc[0]  # the first repeat (the docs say why)
@@ -146,6 +153,31 @@ def _code_note(row: dict) -> str:
     if "graph" not in row or "code_bytes" not in row:
         return ""
     return f"; {row['graph']}, {row['code_bytes'] / 1e6:.2f} MB of C"
+
+
+def issue35_targets() -> list[Row]:
+    """The targets of issue 35 as ``python -m benchmarks.footprint --targets`` measured them
+    (``footprint-targets.csv``: its own limits and verdicts, one line each)."""
+    targets = RESULTS / "footprint-targets.csv"
+    if not targets.exists():
+        return [Row("footprint (issue 35)", NAN, NAN,
+                    note="run python -m benchmarks.footprint --targets")]  # fmt: skip
+    newer = {}  # a later measurement of one target alone (--tiny) replaces the --targets one
+    tiny = RESULTS / "footprint-tiny.csv"
+    if tiny.exists():
+        last = pd.read_csv(tiny).dropna(subset=["marginal_outside_cpu_ms"])
+        if len(last):
+            row = last.iloc[-1]
+            newer["time outside integration, marginal at 10,000 runs"] = (
+                row.marginal_outside_cpu_ms, f"load {row.load_1min:.1f}; footprint-tiny.csv")
+    rows = []
+    for row in pd.read_csv(targets).itertuples():
+        name = row.target.strip()
+        unit = row.unit if isinstance(row.unit, str) else ""
+        value, note = newer.get(name, (row.measured, f"load {row.load_1min:.1f}"))
+        rows.append(Row(f"{name} ({unit})" if unit else name, value, row.limit,
+                        note=note))  # fmt: skip
+    return rows
 
 
 def issue36_targets() -> list[Row]:
@@ -205,7 +237,7 @@ def issue36_targets() -> list[Row]:
             if walls.exists():  # how near the all-compiled anchor itself comes to the target
                 table = pd.read_csv(walls).query("case == @case").set_index("pipeline")
                 if "anchor" in set(table.side):
-                    anchor = table[table.side == "anchor"].wall_s.iloc[0]
+                    anchor = table[table.side == "anchor"].wall_s.min()
                     note += f"; the anchor / that peer {anchor / table.wall_s[row.peer]:.2f}"
             calls = getattr(row, "rhs_calls_ours_side", NAN)
             if not pd.isna(calls):  # where the time goes: calls x (wall a call)
@@ -252,6 +284,8 @@ def summary() -> None:
     else:
         print("issue targets (value [interval]; verdict):")
         print_rows(rows)
+    print("issue 35 targets (footprint; value, target, verdict):")
+    print_rows(issue35_targets())
     print("issue 36 targets (value [interval]; verdict):")
     print_rows(issue36_targets())
     calls = RESULTS / "overhead.csv"

@@ -10,6 +10,8 @@ the header versions (about a minute of CPU cold: Pinocchio's serialization heade
 The model travels as Pinocchio's own text serialization (``Model.saveToText``), read by
 ``anchor_load``. The integrator is built once per (tolerance, output times) and only
 called in the timed rounds: that is what an all-compiled program would do.
+:meth:`Anchor.run_c` integrates the same right-hand side with SUNDIALS CVODE driven from
+C (the ``sundials-cvode-c`` plugin's driver): no CasADi between steps either.
 
 :func:`build` raises :class:`AnchorUnavailable` with the reason (no compiler, a missing
 header or library, a compile error) so that the benchmark says "not measured" and why.
@@ -136,6 +138,7 @@ class Anchor:
             loader = ctypes.CDLL(str(library))  # the same handle casadi.external opens
             loader.anchor_load.argtypes = [ctypes.c_char_p]
             nv = loader.anchor_load(str(text).encode())
+        self.loader = loader
         if nv != order.size:
             raise AnchorUnavailable(f"the anchor read nv = {nv}, expected {order.size}")
         self.rhs = ca.external("anchor_rhs", str(library), {"enable_fd": True})
@@ -161,6 +164,45 @@ class Anchor:
             dae = {"t": t, "x": y, "ode": self.rhs(t, y)}
             self.built[rtol] = ca.integrator("anchor", "cvodes", dae, 0.0, self.times, options)
         return self.built[rtol]
+
+    def run_c(self, rtol: float) -> tuple[np.ndarray, float, tuple[float, float]]:
+        """As :meth:`run` with SUNDIALS CVODE driven from C (the driver of the
+        ``sundials-cvode-c`` plugin, Adams with fixed-point iteration) calling
+        ``anchor_rhs`` directly: no CasADi between steps either. RuntimeError on a failure
+        or where the driver cannot be built."""
+        from workbench.plugins.integrators import cvode_c
+
+        try:
+            solve = cvode_c.driver().wb_cvode_solve
+        except cvode_c.Unavailable as error:
+            raise RuntimeError(str(error)) from None
+        address = ctypes.cast(self.loader.anchor_rhs, ctypes.c_void_p).value
+        grid = np.asarray(self.times, dtype=float)
+        y = np.empty((grid.size, 2 * self.n))
+        result = cvode_c.Result()
+        solve(
+            address,
+            2 * self.n,
+            2,
+            1,
+            0,
+            0,
+            grid,
+            grid.size,
+            self.x0,
+            y,
+            cvode_c.METHODS["adams"],
+            0,
+            rtol,
+            rtol / 100,
+            100_000,
+            0.0,
+            0,
+            ctypes.byref(result),
+        )  # fmt: skip  (anchor_rhs_work: sz_arg 2, sz_res 1, no iw, no w)
+        if result.flag < 0:
+            raise RuntimeError(f"anchor CVODE: {result.flag_name.decode()} ({result.flag})")
+        return y[-1][self.back], 0.0, (float(result.steps), float(result.rhs_calls))
 
     def run(self, rtol: float) -> tuple[np.ndarray, float, tuple[float, float]]:
         """(final state in our coordinates, 0 s excluded, (steps, rhs calls)); RuntimeError

@@ -21,7 +21,8 @@ nothing is resumed), as a subprocess and measures:
   row's min, median and max) and left out of the workers' time, with the median load
   average the runs saw.
 
-Prints a table, writes ``benchmarks/results/default_sweep.csv`` (one row) and the
+Prints a table, writes ``benchmarks/results/default_sweep.csv`` (one row; another
+suite's ``default_sweep-SUITE.csv``) and the
 seconds spent in each stage summed over runs, per formalism, in
 ``benchmarks/results/default_sweep_stages.csv``.
 """
@@ -141,6 +142,14 @@ def repeat_seconds(ran: pd.DataFrame) -> pd.Series:
     return (total - ran.integrate_s).where(n > 1, 0.0).clip(lower=0.0)
 
 
+def results_name(suite: str, part: str = "") -> str:
+    """The CSV of a suite's measurement: ``default_sweep.csv`` for the full sweep (what
+    ``python -m benchmarks`` runs and the summary's targets read), ``default_sweep-quick.csv``
+    and so on for the others, so that a quick look never replaces the full measurement."""
+    name = "" if suite == "full" else "-" + Path(suite).stem
+    return f"default_sweep{part}{name}.csv"
+
+
 def _share_outside(ran: pd.DataFrame) -> float:
     total = float(ran[["pairing_s", *STAGES]].to_numpy().sum())
     return 1 - float(ran.integrate_s.sum()) / total if total > 0 else float("nan")
@@ -166,8 +175,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     row = {**measured, **shares, "load_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
     table = pd.DataFrame([row])
     RESULTS.mkdir(exist_ok=True)
-    table.to_csv(RESULTS / "default_sweep.csv", index=False)
-    per_formalism.to_csv(RESULTS / "default_sweep_stages.csv")
+    table.to_csv(RESULTS / results_name(args.suite), index=False)
+    per_formalism.to_csv(RESULTS / results_name(args.suite, "_stages"))
     shown = {k: v for k, v in row.items() if not k.startswith("total_")}
     print(pd.Series(shown).to_string(float_format=lambda x: f"{x:.3g}"))
     print("\nseconds per stage, summed over runs:")

@@ -6,8 +6,9 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
 ``python -m benchmarks.footprint --tiny 1000 10000 [--before CHECKOUT]`` for 3, or
 ``python -m benchmarks.footprint --targets [1000 10000] [--dask 1000]`` for 4, or
 ``python -m benchmarks.footprint --recording N [--before CHECKOUT]`` for 5, or
+``python -m benchmarks.footprint --read-back [--before CHECKOUT]`` for 6, or
 ``python -m benchmarks.footprint --dask N [N ...]`` for 4's Dask rows alone (10,000
-runs: about 7 min at load 4).
+runs: about 7 min at load 4), or ``python -m benchmarks.footprint --loop [N]`` for 7.
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``).
 
 1. Merge: N per-run recordings like a sweep's workers write (a 2-body model with its
@@ -40,6 +41,13 @@ runs: about 7 min at load 4).
    recording, and Python's reader's growth against the merged file's size (the 2x target
    of 4 without a sweep: load-independent but for the CPU), before and after.
 
+6. The default sweep's recording (:func:`readback_rows`): the quick suite's sweep, its
+   recording's chunks and component columns by kind, ``rerun rrd verify`` and Python's
+   reader (cold, beyond its start-up, anonymous memory), before and after; about 3 min.
+   Writes ``footprint-readback.csv``.
+7. The worker loop in one process (:func:`loop_parts`): a tiny run's CPU outside its
+   integration and in each part (recording, metrics, series and row files), no profiler.
+
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
 (``footprint-tiny.csv`` for 3).
 On a shared machine wall times mean little: compare CPU seconds and memory.
@@ -47,6 +55,7 @@ On a shared machine wall times mean little: compare CPU seconds and memory.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import resource
@@ -296,19 +305,23 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
     which counts the sweep's fixed costs too (start-up, report, recording merge) - the
     difference between two N removes them ("marginal")."""
     rows = []
+    # every sweep's folder is removed at the end, not after the sweep: on ext4 without a
+    # journal (this machine) a new file skips each inode deleted in the last 60-360 s, so
+    # removing one sweep's 50,000 files made the next sweep's file writes slower
+    kept = contextlib.ExitStack()
     for n in counts:
         for code, checkout in (("before", before), ("after", "")):
             if code == "before" and not before:
                 continue
-            with tempfile.TemporaryDirectory() as directory:
-                out = Path(directory) / "out"
-                spec = Path(directory) / "spec.toml"
-                spec.write_text(resume_spec(out, n))
-                measured = _sweep(spec, checkout)
-                results = pd.read_parquet(out / "results.parquet")
-                recording = out / "recording.rrd"
-                size = recording.stat().st_size if recording.exists() else 0
-                on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
+            directory = kept.enter_context(tempfile.TemporaryDirectory())
+            out = Path(directory) / "out"
+            spec = Path(directory) / "spec.toml"
+            spec.write_text(resume_spec(out, n))
+            measured = _sweep(spec, checkout)
+            results = pd.read_parquet(out / "results.parquet")
+            recording = out / "recording.rrd"
+            size = recording.stat().st_size if recording.exists() else 0
+            on_disk = sum(f.stat().st_size for f in out.rglob("*.rrd"))
             integration = float(results["integrate_cpu_s"].sum())
             row = {"measure": "tiny runs", "n": n, "code": code} | measured | {
                 "runs_per_s": n / measured["wall_s"],
@@ -321,6 +334,7 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
             }  # fmt: skip
             rows.append(row)
             print({k: v for k, v in row.items() if not k.startswith("_")}, flush=True)
+    kept.close()
     for code in ("before", "after"):
         mine = sorted((r for r in rows if r["code"] == code), key=lambda r: r["n"])
         for small, large in zip(mine, mine[1:], strict=False):
@@ -332,6 +346,96 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
     for row in rows:
         row.pop("_cpu_outside_s")
     return rows
+
+
+def loop_parts(n: int) -> dict[str, float]:
+    """The worker loop of a tiny sweep (:func:`resume_spec`'s runs) in this process, as
+    :func:`workbench.runs.local_pool._worker_main` runs it, ``n`` runs after 20 to warm up:
+    ms of CPU a run (``time.process_time``, Rerun's threads included wherever they run)
+    outside the integration and in each named part. No profiler: cProfile inflated the
+    pandas and Rerun calls several times (docs/performance.md)."""
+    from collections import defaultdict
+
+    from workbench.execution import execute as execute_module
+    from workbench.execution import metrics as metrics_module
+    from workbench.execution.execute import RunSpec, execute_run
+    from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file
+    from workbench.execution.run_progress import (
+        ProgressWriter,
+        progress_path,
+        release_progress_file,
+    )
+    from workbench.execution.timing import Timing
+    from workbench.outputs.recording import RerunSink, SweepRecorder
+    from workbench.plugin import registry
+    from workbench.runs import local_pool, store
+
+    spent: dict[str, float] = defaultdict(float)
+
+    def timed(name: str, function):
+        def part(*args, **kwargs):
+            started = time.process_time()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[name] += time.process_time() - started
+
+        return part
+
+    patched = [
+        (RerunSink, "log_run", "recording: logging"),
+        (RerunSink, "end_file", "recording: the run's file"),
+        (RerunSink, "begin_file", "recording: starting it"),
+        (metrics_module, "trajectory_metrics", "metrics"),
+        (store, "write_parquet_atomic", "series file"),
+        (store, "write_json_atomic", "row file"),
+        (execute_module, "state_columns", "series: the states' columns"),
+    ]
+    saved = [(owner, name, getattr(owner, name)) for owner, name, _ in patched]
+    for owner, name, label in patched:
+        setattr(owner, name, timed(label, getattr(owner, name)))
+    registry.REGISTRY.discover()
+    SweepRecorder.prepare()
+    tolerances = np.logspace(-3, -8, (n + 21) // 2)
+    specs = [
+        RunSpec("simple-pendulum", "minimal-ode", integrator, float(t), float(t) * 1e-3)
+        for t in tolerances
+        for integrator in ("scipy-dop853", "scipy-rk45")
+    ][: n + 20]
+    timing = Timing(repeats=1, workers=2).to_dict()
+    sink, total, integration = None, 0.0, 0.0
+    try:
+        with tempfile.TemporaryDirectory() as directory:
+            out = Path(directory)
+            for index, spec in enumerate(specs):
+                if index == 20:
+                    spent.clear()
+                    total = integration = 0.0
+                started = time.process_time()
+                sink = local_pool._begin_recording(SweepRecorder, sink, out, spec.run_id)
+                try:
+                    capture = CapturedOutput(raw_path(out, spec.run_id), reuse=True)
+                    progress = ProgressWriter(progress_path(out, spec.run_id))
+                    with capture, progress:
+                        result = execute_run(
+                            spec, sink=sink, reference_dir=out / "references",
+                            timing=Timing.from_dict(timing),
+                        )  # fmt: skip
+                    result.row["log"] = local_pool.write_log(out, spec.run_id, capture.kept())
+                    store.write_run(out, result.row, result.series, True)
+                finally:
+                    local_pool._end_recording(sink)
+                total += time.process_time() - started
+                integration += result.row["integrate_cpu_s"]
+            release_raw_file()
+            release_progress_file()
+    finally:
+        for owner, name, function in saved:
+            setattr(owner, name, function)
+    runs = len(specs) - 20
+    parts = {"outside the integration": 1000 * (total - integration) / runs,
+             "integration": 1000 * integration / runs}  # fmt: skip
+    return parts | {name: 1000 * seconds / runs for name, seconds in spent.items()}
 
 
 # ---- the issue's targets ----------------------------------------------------------------
@@ -365,11 +469,15 @@ def phase_memory(out: Path) -> dict:
     }
 
 
-def read_back(recording: Path) -> dict:
+def read_back(recording: Path, repeats: int = 5) -> dict:
     """``rerun rrd verify`` of ``recording`` (its exit code) and the peak RSS growth of
     Python's reader reading it whole, a chunk at a time (tests/test_recording_readback.py):
     from a cold start, and beyond the reader's start-up (a one-chunk recording read first
-    in the same process: about 6 MiB whatever the file, docs/performance.md)."""
+    in the same process: about 6 MiB whatever the file, docs/performance.md); and, cold,
+    the growth of its anonymous memory at the end of the read, the reader still open
+    (the start-up is almost all pages of rerun-sdk's library mapped from disk, RssFile,
+    not memory the read holds; the kernel keeps no peak of RssAnon). Each the median of
+    ``repeats`` fresh processes (they vary by about 2 MiB: the allocator's arenas)."""
     import shutil
 
     import rerun as rr
@@ -387,18 +495,84 @@ def read_back(recording: Path) -> dict:
     stream.log("box", rr.Boxes3D(half_sizes=[[1.0, 1.0, 1.0]]), static=True)
     stream.flush()
     stream.disconnect()
-    measured = {}
+    measured: dict[str, dict[str, float]] = {}
     for key, extra in (("cold", []), ("warm", [str(one_chunk)])):
-        done = subprocess.run([sys.executable, str(child), str(recording), *extra],
-                              capture_output=True, text=True, check=True)  # fmt: skip
-        measured[key] = json.loads(done.stdout.strip().splitlines()[-1])
+        reads = []
+        for _ in range(repeats):
+            done = subprocess.run([sys.executable, str(child), str(recording), *extra],
+                                  capture_output=True, text=True, check=True)  # fmt: skip
+            reads.append(json.loads(done.stdout.strip().splitlines()[-1]))
+        measured[key] = {name: float(np.median([r[name] for r in reads])) for name in reads[0]}
     one_chunk.unlink()
     return {
         "verify_rc": verified.returncode,
         "read_growth_mib": measured["cold"]["growth"] / 2**20,
         "reader_startup_mib": measured["warm"]["startup"] / 2**20,
         "read_beyond_startup_mib": measured["warm"]["beyond_startup"] / 2**20,
+        "read_anon_mib": measured["cold"]["anon"] / 2**20,
     }
+
+
+def recording_layout(recording: Path) -> dict:
+    """Chunks and component columns of ``recording``'s runs (``/runs/...``), in all and by
+    kind: a body's joint frames, its shapes (static), its poses, a run's series; what
+    Python's reader costs (about 0.35 KiB a chunk and 4 KiB a component column)."""
+    import rerun as rr
+
+    from workbench.outputs.recording import MODEL_PART, split_entity_path
+
+    counts = {"chunks": 0, "columns": 0}
+    for chunk in rr.chunk.RrdReader(recording).stream():
+        parts = split_entity_path(chunk.entity_path)
+        if parts[:1] != ["runs"]:
+            continue
+        if len(parts) < 6 or parts[2] == MODEL_PART:
+            kind = "shared"
+        elif parts[5] == "series":
+            kind = "series"
+        elif "joints" in parts:
+            kind = "joint_frames"
+        elif not chunk.is_static:
+            kind = "poses"
+        else:
+            kind = "shapes"
+        index = {"rerun.controls.RowId", *chunk.timeline_names}
+        columns = sum(1 for name in chunk.to_record_batch().schema.names if name not in index)
+        for key, value in (("chunks", 1), ("columns", columns), (f"{kind}_chunks", 1),
+                           (f"{kind}_columns", columns)):  # fmt: skip
+            counts[key] = counts.get(key, 0) + value
+    return counts
+
+
+def readback_rows(before: str) -> list[dict]:
+    """The default sweep (quick suite, 2 workers, 1 timed repeat) with this code ("after")
+    and a checkout's ("before"), each in a fresh process: the sweep's wall and CPU, its
+    recording's size, layout (:func:`recording_layout`) and read-back (:func:`read_back`).
+    The reader's figures do not depend on the load; the sweep's times do."""
+    rows = []
+    for code, checkout in (("before", before), ("after", "")):
+        if code == "before" and not before:
+            continue
+        with tempfile.TemporaryDirectory() as directory:
+            out = Path(directory) / "out"
+            measured = _sweep("quick", checkout, "--out", str(out))
+            results = pd.read_parquet(out / "results.parquet")
+            recording = out / "recording.rrd"
+            size = recording.stat().st_size / 2**20
+            row = {"measure": "default sweep recording", "code": code,
+                   "runs": int((results["status"] == "ok").sum()),
+                   "sweep_wall_s": measured["wall_s"], "sweep_cpu_s": measured["cpu_s"],
+                   "size_mib": size} | recording_layout(recording)  # fmt: skip
+            back = read_back(recording)
+        row |= back | {
+            "read_growth_x": back["read_growth_mib"] / size,
+            "read_beyond_startup_x": back["read_beyond_startup_mib"] / size,
+            "read_anon_x": back["read_anon_mib"] / size,
+            "load_1min": os.getloadavg()[0],
+        }
+        rows.append(row)
+        print(row, flush=True)
+    return rows
 
 
 def dask_tiny(n: int) -> dict:
@@ -505,6 +679,13 @@ def main(argv: list[str]) -> pd.DataFrame:
         with pd.option_context("display.width", 250, "display.max_columns", 30):
             print(table.round(2).to_string(index=False))
         return table
+    if argv[:1] == ["--loop"]:  # --loop N: the worker loop's parts in this process
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        parts = loop_parts(int(argv[1]) if len(argv) > 1 else 400)
+        for name, ms in parts.items():
+            print(f"{name:32s} {ms:7.3f} ms a run")
+        print(f"load average at end: {os.getloadavg()[0]:.2f}")
+        return pd.DataFrame([parts])
     if argv[:1] == ["--dask"]:  # --dask N [N ...]: tiny runs through a local Dask cluster
         print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
         table = pd.DataFrame([{"n": int(a)} | dask_tiny(int(a)) for a in argv[1:]])
@@ -521,6 +702,15 @@ def main(argv: list[str]) -> pd.DataFrame:
         print(f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
         with pd.option_context("display.width", 200, "display.max_columns", 20):
             print(table.round(3).to_string(index=False))
+        return table
+    if "--read-back" in argv:  # --read-back [--before CHECKOUT]: the default sweep's recording
+        before = argv[argv.index("--before") + 1] if "--before" in argv else ""
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        table = pd.DataFrame(readback_rows(before))
+        RESULTS.mkdir(exist_ok=True)
+        table.to_csv(RESULTS / "footprint-readback.csv", index=False)
+        with pd.option_context("display.width", 250, "display.max_columns", 40):
+            print(table.round(2).T.to_string())
         return table
     if argv[:1] == ["--merge-child"]:
         _merge_child(argv[1], argv[2], int(argv[3]))

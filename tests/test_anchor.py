@@ -53,6 +53,10 @@ def test_anchor_agrees_with_pinocchio_on_the_ur5() -> None:
     # once a step, and the same integrator run again takes the same steps
     assert 0 < steps <= calls
     assert tree.run(1e-11)[2] == (steps, calls)
+    # the same right-hand side under SUNDIALS CVODE driven from C (sundials-cvode-c's driver)
+    end_c, _, (steps_c, calls_c) = tree.run_c(1e-11)
+    assert np.abs(end_c - np.asarray(peer.y)[-1]).max() < 1e-7
+    assert 0 < steps_c <= calls_c
 
 
 def test_pinocchio_aba_call_agrees_with_pin_aba_on_a_general_tree(tmp_path) -> None:

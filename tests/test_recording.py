@@ -128,19 +128,17 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
     chunks = read_chunks(path)
     base = "/" + run
     expected = {
-        f"{base}/bodies/arm",
+        f"{base}/bodies/arm",  # its pose and, static, its shapes
         f"{base}/bodies/tip",
-        f"{base}/bodies/arm/boxes",
-        f"{base}/bodies/arm/capsules",
-        f"{base}/bodies/arm/cylinders",
-        f"{base}/bodies/tip/spheres",
-        "/runs/fake-problem/model/ground/joints/hinge",  # the same in every run: once
-        f"{base}/bodies/arm/joints/hinge",
-        f"{base}/bodies/arm/joints/slide",
-        f"{base}/bodies/tip/joints/slide",
+        "/runs/fake-problem/model/ground/joints",  # the same in every run: once
+        f"{base}/bodies/arm/joints",  # both joint frames on the arm, one batch
+        f"{base}/bodies/tip/joints",
         f"{base}/series",
     }
     assert expected <= set(chunks)
+    (arm_shapes,) = [frame for frame in chunks[f"{base}/bodies/arm"] if "sim_time" not in frame]
+    # the arm's box, capsule and cylinder in one chunk (each costs the reader per column)
+    assert {"Boxes3D:half_sizes", "Capsules3D:lengths", "Cylinders3D:radii"} <= set(arm_shapes)
     # drift_nh all NaN (not drawn), penetration not a contact model's (no column)
     assert series_present(chunks[f"{base}/series"]) == [
         "drift_pos", "drift_vel", "energy_err", "ref_err"
@@ -163,9 +161,15 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
     translations = np.array([v[0] for v in tip["Transform3D:translation"]])
     np.testing.assert_allclose(translations[:, 0], trajectory.times, rtol=1e-6)
 
-    joint = column(chunks[f"{base}/bodies/arm/joints/slide"], "Transform3D:translation")
-    np.testing.assert_allclose(joint["Transform3D:translation"].iloc[0][0], [1.0, 0.0, 0.0])
-    assert "TransformAxes3D:axis_length" in joint
+    # the arm's frames: the hinge's child frame at its origin, the slide's parent frame
+    # at (1, 0, 0); one TransformAxes3D drawn at each instance pose
+    joints = column(chunks[f"{base}/bodies/arm/joints"], "InstancePoses3D:translations")
+    np.testing.assert_allclose(
+        np.stack(joints["InstancePoses3D:translations"].iloc[0]), [[0, 0, 0], [1, 0, 0]]
+    )
+    assert "TransformAxes3D:axis_length" in joints
+    tip_joints = chunks[f"{base}/bodies/tip/joints"][0]  # one frame, at the tip's origin
+    assert "InstancePoses3D:translations" not in tip_joints
 
 
 def blueprint_views(path: Path) -> dict[str, dict[str, list]]:
@@ -370,10 +374,11 @@ def test_contact_plane_is_drawn_once_per_model(tmp_path: Path) -> None:
 
 
 def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) -> None:
-    """Each component of a run's data costs Python's reader about 3 KiB (the footer's
-    manifest): a shape at its body's origin has no centers, an unrotated one no
-    quaternions, no shape carries a fill mode (solid is the 3D views' default), and a
-    joint frame on an unrotated body frame no rotation."""
+    """Each component column of a run's data costs Python's reader about 4 KiB (the
+    footer's manifest): a shape at its body's origin has no centers, an unrotated one no
+    quaternions, no shape carries a fill mode (solid is the 3D views' default) nor the
+    default colour (a view default too), and joint frames on unrotated frames no
+    rotation."""
     sink = RerunSink()
     run = sink.log_run(*_args(fake_run()))
     path = sink.save(tmp_path)
@@ -384,9 +389,23 @@ def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) ->
     }
     base = "/" + run
     assert not any(name.endswith(":fill_mode") for names in columns.values() for name in names)
-    assert "Ellipsoids3D:centers" not in columns[f"{base}/bodies/tip/spheres"]
-    assert "Cylinders3D:quaternions" not in columns[f"{base}/bodies/arm/cylinders"]
-    assert "Boxes3D:centers" in columns[f"{base}/bodies/arm/boxes"]
-    assert "Transform3D:mat3x3" not in columns[f"{base}/bodies/arm/joints/slide"]
+    assert "Ellipsoids3D:centers" not in columns[f"{base}/bodies/tip"]
+    assert "Cylinders3D:quaternions" not in columns[f"{base}/bodies/arm"]
+    assert "Boxes3D:centers" in columns[f"{base}/bodies/arm"]
+    assert "InstancePoses3D:mat3x3" not in columns[f"{base}/bodies/arm/joints"]
+    # the arm's shapes have the default colour (a view default), the tip's sphere its own
+    assert not any(name.endswith(":colors") for name in columns[f"{base}/bodies/arm"])
+    assert "Ellipsoids3D:colors" in columns[f"{base}/bodies/tip"]
     views = blueprint_views(path)
     assert views["fake-problem"]["class_identifier"] == ["3D"]
+    # which the 3D views hold as defaults: solid, in a shape's default colour
+    reader = rr.chunk.RrdReader(path)
+    defaults: dict[str, list] = {}
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        if chunk.entity_path.endswith("/defaults"):
+            for name, values in chunk.to_record_batch().to_pydict().items():
+                defaults.setdefault(name, []).extend(v for v in values if v is not None)
+    default_color = int.from_bytes(bytes([*Shape("box", (1.0,) * 3).color, 255]), "big")
+    for archetype in ("Boxes3D", "Ellipsoids3D", "Cylinders3D", "Capsules3D"):
+        assert defaults[f"{archetype}:colors"] == [[default_color]]
+        assert f"{archetype}:fill_mode" in defaults

@@ -41,7 +41,7 @@ def test_the_merged_recording_holds_every_runs_chunks(tmp_path) -> None:
     expected = sum((run_chunks(file) for file in files), Counter())
     # the problem's view coordinates, logged by every run, are kept once
     expected[("/runs/fake-problem", 1)] = 1
-    expected[("/runs/fake-problem/model/ground/joints/hinge", 1)] = 1  # and the ground's frames
+    expected[("/runs/fake-problem/model/ground/joints", 1)] = 1  # and the ground's frames
     assert run_chunks(merged) == expected
     assert len({path for path, _ in expected if path.endswith("/series")}) == 5
     assert rr.chunk.RrdReader(merged).blueprints()  # the blueprint joins at the end
@@ -102,8 +102,8 @@ def test_the_merge_memory_does_not_grow_with_the_runs(tmp_path) -> None:
 
     few, many = merge(50), merge(200)
     assert many["inputs"] > 3.5 * few["inputs"]
-    assert many["growth"] - few["growth"] < 0.5 * (many["inputs"] - few["inputs"])
+    assert many["growth"] - few["growth"] < 0.5 * (many["inputs"] - few["inputs"]), (few, many)
     # with a footer (small merges) the manifest grows with the chunks: about 2.8x the
     # inputs (a run's series in one chunk: fewer bytes, about the same manifest)
     footer = merge(200, footer_limit=2**40)
-    assert footer["growth"] < 3.2 * footer["inputs"]
+    assert footer["growth"] < 3.2 * footer["inputs"], footer

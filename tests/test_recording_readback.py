@@ -51,20 +51,23 @@ def status(field):
         if line.startswith(field + ":"):
             return int(line.split()[1]) * 1024
 
-def read(path):  # a chunk at a time, as the merge reads
-    return sum(chunk.to_record_batch().num_rows for chunk in rr.chunk.RrdReader(path).stream())
+def read(path):  # a chunk at a time, as the merge reads; and the anonymous memory at
+    reader = rr.chunk.RrdReader(path)  # its end, the reader (its manifest) still held
+    return sum(chunk.to_record_batch().num_rows for chunk in reader.stream()), status("RssAnon")
 
 Path("/proc/self/clear_refs").write_text("5")  # the peak restarts here
 start = startup_end = status("VmRSS")
+anon_start = status("RssAnon")
 startup = 0
 if len(sys.argv) > 2:  # a one-chunk recording first: the reader's start-up, whatever the file
     read(sys.argv[2])
     startup, startup_end = status("VmHWM") - start, status("VmRSS")
     Path("/proc/self/clear_refs").write_text("5")
-rows = read(sys.argv[1])
+rows, anon_end = read(sys.argv[1])
 peak = status("VmHWM")
 print(json.dumps({"growth": max(startup, peak - start), "startup": startup,
-                  "beyond_startup": peak - startup_end, "rows": rows}))
+                  "beyond_startup": peak - startup_end, "anon": anon_end - anon_start,
+                  "rows": rows}))
 """
 
 

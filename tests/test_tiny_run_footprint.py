@@ -98,20 +98,117 @@ def test_the_run_id_is_computed_once_and_is_the_hash_of_the_spec():
 
 
 def test_one_progress_thread_serves_every_run_and_none_writes_after_its_stop(tmp_path):
-    """The progress file of each run (written at its start, removed at its end) by one
-    thread a process, not a thread a run; a stopped run's file is never written again."""
+    """The progress file of each run (written at its start) by one thread a process, not a
+    thread a run; a stopped run's file is never written again; one file throughout, renamed
+    from run to run (no file made and deleted a run), deleted when the process releases it."""
+    import os
     import threading
     import time
 
-    from workbench.execution.run_progress import WRITE_EVERY, ProgressWriter, read_progress
+    from workbench.execution.run_progress import (
+        WRITE_EVERY,
+        ProgressWriter,
+        read_progress,
+        release_progress_file,
+    )
 
-    paths = [tmp_path / f"run{k}.progress" for k in range(4)]
-    threads = []
-    for path in paths:
+    (tmp_path / "logs").mkdir()
+    paths = [tmp_path / "logs" / f".run{k}.progress" for k in range(4)]
+    threads, inodes = [], set()
+    for k, path in enumerate(paths):
         with ProgressWriter(path):
-            assert read_progress(path).keys() >= {"stage", "t_reached", "wall_s"}
+            inodes.add(path.stat().st_ino)
+            assert json_of(path).keys() >= {"stage", "t_reached", "wall_s"}
             threads += [t for t in threading.enumerate() if t.name == "run-progress"]
-        assert not path.exists()
+        assert [p for p in paths if p.exists()] == [path]  # the earlier runs' names are gone
+        stopped = path.read_bytes(), path.stat().st_mtime_ns
+        time.sleep(3 * WRITE_EVERY if k == 0 else 0)  # the thread goes on ticking
+        assert (path.read_bytes(), path.stat().st_mtime_ns) == stopped  # follows no file
     assert len(threads) == len(paths) and all(t is threads[0] for t in threads)
-    time.sleep(3 * WRITE_EVERY)  # the thread went on ticking: it follows no file
+    assert len(inodes) == 1  # one file, renamed
+    assert read_progress(paths[-1])["stage"] is not None  # what a killed run's pool reads
+    release_progress_file()
     assert not any(path.exists() for path in paths)
+    assert os.listdir(tmp_path / "logs") == []
+
+
+def json_of(path):
+    import json
+
+    return json.loads(path.read_text())
+
+
+def test_a_workers_raw_output_file_is_renamed_from_run_to_run_not_made_again(tmp_path):
+    """CapturedOutput(reuse=True), as a pool worker runs it: each run's output under its
+    own raw file's name (where the pool salvages a killed run's output), one file renamed
+    and emptied from run to run, each run's kept output its own; released at the end."""
+    import os
+
+    from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file
+
+    inodes, kept = set(), []
+    for k in range(3):
+        raw = raw_path(tmp_path, f"run{k}")
+        capture = CapturedOutput(raw, reuse=True)
+        with capture:
+            os.write(1, f"output of run {k}\n".encode())
+            assert raw.read_bytes() == f"output of run {k}\n".encode()
+            inodes.add(raw.stat().st_ino)
+        kept.append(capture.kept())
+        assert [p.name for p in (tmp_path / "logs").iterdir()] == [raw.name]
+    assert kept == [f"output of run {k}\n".encode() for k in range(3)]
+    assert len(inodes) == 1
+    release_raw_file()
+    assert list((tmp_path / "logs").iterdir()) == []
+
+
+def test_a_series_file_has_the_bytes_pandas_writes(tmp_path):
+    """write_parquet_atomic (pyarrow in memory) writes what ``DataFrame.to_parquet``
+    writes, attrs included: the series and results files read back as before."""
+    import pandas as pd
+
+    from workbench.files import write_parquet_atomic
+
+    result = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
+    other = pd.DataFrame({"a": [1, 2], "b": ["x", None], "c": [1.5, math.nan]}, index=[4, 5])
+    other.attrs = {"source": "test"}
+    for k, frame in enumerate([result.series, other]):
+        frame.to_parquet(tmp_path / f"pandas{k}.parquet", index=False)
+        write_parquet_atomic(frame, tmp_path / f"ours{k}.parquet")
+        assert (tmp_path / f"ours{k}.parquet").read_bytes() == (
+            tmp_path / f"pandas{k}.parquet"
+        ).read_bytes()
+    assert pd.read_parquet(tmp_path / "ours1.parquet").attrs == {"source": "test"}
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism", "options"),
+    [("simple-pendulum", "minimal-ode", {}), ("four-bar", "absolute-dae", {"index": 1})],
+)
+def test_a_recordings_poses_are_the_metrics_poses_of_those_samples(problem, formalism, options):
+    """poses_of_rows after the metrics' along() (the recording of the run just measured,
+    200 of its samples) gives the poses computed at those rows alone, bit for bit, and
+    computes them when the states are others."""
+    problem_ = get_problem(problem)()
+    equations = get_formalism(formalism)().build(problem_.model(), options)
+    state = consistent_initial_state(equations, problem_)
+    integrator = get_integrator("scipy-dop853")()
+    form = integrator.select_form({k: getattr(f, "index", 0) for k, f in equations.forms.items()})
+    times = problem_.sample_times()
+    trajectory = integrator.solve(
+        equations, state.y0(equations, form), state.yp0(equations, form), times, 1e-6, 1e-8,
+        integrator.parse_options({}), form,
+    )  # fmt: skip
+    t, y = np.asarray(trajectory.times), np.atleast_2d(trajectory.y)
+    q, v = y[:, : equations.nq], y[:, equations.nq : equations.nq + equations.nv]
+    rows = np.unique(np.linspace(0, len(t) - 1, 200).round().astype(int))
+    observables = equations.observables
+    alone = observables.poses_along(t[rows], q[rows])
+    observables.along(t, q, v)  # the metrics' call
+    cached = observables.poses_of_rows(t, q, rows)
+    np.testing.assert_array_equal(cached, alone)
+    assert observables.poses_of_rows(t, q + 1e-3, rows).shape == alone.shape  # not the cache
+    np.testing.assert_array_equal(
+        observables.poses_of_rows(t, q + 1e-3, rows),
+        observables.poses_along(t[rows], q[rows] + 1e-3),
+    )

@@ -237,9 +237,12 @@ def library_path(code: str, flags: str, compiler: str, name: str) -> Path:
     return cache_dir() / f"{name}-{digest}.so"
 
 
-def build_library(code: str, flags: str, compiler: str, path: Path) -> None:
+def build_library(
+    code: str, flags: str, compiler: str, path: Path, link: tuple[str, ...] = ()
+) -> None:
     """Compile ``code`` into the shared library ``path`` (temporary file + atomic rename;
-    not synced to disk: the cache can always compile again)."""
+    not synced to disk: the cache can always compile again); ``link``: libraries and
+    linker options after the source."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".build-") as work:
         source = Path(work) / "code.c"
@@ -247,7 +250,8 @@ def build_library(code: str, flags: str, compiler: str, path: Path) -> None:
         command = [compiler, *shlex.split(flags), "-fPIC", "-shared", str(source), "-o"]
 
         def compile_to(output: str) -> None:
-            done = subprocess.run([*command, output, "-lm"], capture_output=True, text=True)
+            arguments = [*command, output, *link, "-lm"]
+            done = subprocess.run(arguments, capture_output=True, text=True)
             if done.returncode != 0:
                 cause = compiler_error(done.stderr)
                 raise RuntimeError(f"{Path(compiler).name} {flags} failed: {cause}")
@@ -298,17 +302,25 @@ def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
                      compiler, flags)  # fmt: skip
 
 
+def built(code: str, flags: str, compiler: str, path: Path, link: tuple[str, ...] = ()) -> Path:
+    """``path``, the library of ``code``, compiled first unless the cache holds it: one
+    process compiles under a lock, the others wait and find it (call inside
+    :func:`counted`). Raises RuntimeError if the compiler fails."""
+    if not path.exists():
+        with file_lock(path.with_suffix(".lock")):  # one process compiles, others wait
+            if not path.exists():
+                build_library(code, flags, compiler, path, link)
+                trim_cache(keep=path)
+    with contextlib.suppress(OSError):
+        os.utime(path)  # last use, for trim_cache
+    return path
+
+
 def load_generated(generated: Generated) -> ca.Function:
     """The library of ``generated`` loaded with ``casadi.external``, compiled first unless
     cached (call inside :func:`counted`). Raises RuntimeError if the compiler fails."""
     path = generated.path
-    if not path.exists():
-        with file_lock(path.with_suffix(".lock")):  # one process compiles, others wait
-            if not path.exists():
-                build_library(generated.code, generated.flags, generated.compiler, path)
-                trim_cache(keep=path)
-    with contextlib.suppress(OSError):
-        os.utime(path)  # last use, for trim_cache
+    built(generated.code, generated.flags, generated.compiler, path)
     loaded = load_library(path, generated.function.name())
     STATS.loaded += 1
     return loaded

@@ -56,6 +56,16 @@ class Observables:
         positions, rotations = self._map("frames", times.size, times[None], np.atleast_2d(q).T)
         return _poses(positions, rotations, len(self.body_names))
 
+    def poses_of_rows(self, times: np.ndarray, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(len(rows), n_bodies, 7) poses at the rows ``rows`` of the n configurations
+        ``times``, ``q``: taken from the last :meth:`along` call when it measured these n
+        states (a recording logs some samples of the run just measured), else computed at
+        those rows only."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        if self._last and _same(self._last[:2], (times, q)):
+            return self._last[2][rows]
+        return self.poses_along(times[rows], np.atleast_2d(q)[rows])
+
     def along(self, times: np.ndarray, q: np.ndarray, v: np.ndarray) -> SampledObservables:
         """Every quantity at n states: ``times`` (n,), ``q`` (n, nq), ``v`` (n, nv).
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.execution.periodic import Periodic
-from workbench.files import atomic_write, make_dirs, open_no_follow
+from workbench.files import RenamedFile, atomic_write, make_dirs, open_no_follow
 
 LOG_DIR = "logs"
 KEEP_BYTES = 64 * 1024  # kept from the start and from the end of a run's output
@@ -72,7 +72,10 @@ class CapturedOutput:
 
     ``raw_file`` is ``<out>/logs/.<run_id>.raw`` (:func:`raw_path`): it is opened without
     following a link (:func:`workbench.files.open_no_follow`, below ``<out>``), and read,
-    emptied and removed through that open file, never through its name again."""
+    emptied and removed through that open file, never through its name again.
+    ``reuse``: the file is not removed by :meth:`kept` but kept open and renamed to the
+    next run's raw file (a worker's runs: no file made and deleted a run, see
+    :class:`workbench.files.RenamedFile`; :func:`release_raw_file` deletes it)."""
 
     def __init__(
         self,
@@ -80,8 +83,10 @@ class CapturedOutput:
         keep: int = KEEP_BYTES,
         raw_limit: int = RAW_LIMIT_BYTES,
         interval: float = 0.5,
+        reuse: bool = False,
     ) -> None:
         self.raw_file = Path(raw_file)
+        self.reuse = reuse
         self.keep, self.raw_limit, self.interval = keep, raw_limit, interval
         self._saved: list[int] = []
         self._head: bytes | None = None  # set at the first emptying
@@ -95,7 +100,10 @@ class CapturedOutput:
         out = self.raw_file.parent.parent
         flags = os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
         make_dirs(self.raw_file.parent, out)
-        target = open_no_follow(self.raw_file, flags, out)
+        if self.reuse:  # the process's raw file of its last run, renamed (RenamedFile)
+            target = os.dup(_RAW_FILE.open(self.raw_file, flags, out))
+        else:
+            target = open_no_follow(self.raw_file, flags, out)
         self._fd = os.dup(target)
         try:
             self._saved = [os.dup(1), os.dup(2)]
@@ -148,8 +156,17 @@ class CapturedOutput:
             return b""
         finally:
             os.close(fd)
-            with contextlib.suppress(OSError):
-                self.raw_file.unlink()  # (unlink removes a link, never its target)
+            if not self.reuse:  # (kept for the next run: emptied and renamed there)
+                with contextlib.suppress(OSError):
+                    self.raw_file.unlink()  # (unlink removes a link, never its target)
+
+
+_RAW_FILE = RenamedFile()  # this process's raw file, reused run after run (reuse=True)
+
+
+def release_raw_file() -> None:
+    """Delete the raw file this process kept for its next run (a worker that stops)."""
+    _RAW_FILE.remove()
 
 
 # the thread of a process that keeps the raw file of the capture under way bounded

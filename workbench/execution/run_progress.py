@@ -3,7 +3,7 @@
 A run killed at its time limit writes no row itself; the pool writes a ``timeout`` row for
 it. So that this row says where the time went (reference, build, initial state or
 integration, and how far the integration got), a worker keeps a small progress file beside
-the run's raw log, rewritten (atomically) by a daemon thread every
+the run's raw log, rewritten in place by a daemon thread every
 :data:`WRITE_EVERY` seconds: ``{"stage", "t_reached", "t_end", "wall_s"}``. The pool reads it
 when it kills the worker (:func:`read_progress`).
 
@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.execution.periodic import Periodic
+from workbench.files import LinkRefusedError, RenamedFile
 
 WRITE_EVERY = 0.25  # s between two writes of the progress file
 
@@ -76,29 +77,49 @@ PROGRESS = RunProgress()  # the run of this process (a worker runs one at a time
 
 # the thread of a process that writes PROGRESS every WRITE_EVERY s to the file it follows
 _WRITER = Periodic(
-    "run-progress", lambda path: write_progress(path, PROGRESS.snapshot()), lambda _: WRITE_EVERY
+    "run-progress", lambda writer: writer.write(PROGRESS.snapshot()), lambda _: WRITE_EVERY
 )
+_FILE = RenamedFile()  # this process's progress file, reused run after run
 
 
 class ProgressWriter:
-    """Has this process's progress thread write :data:`PROGRESS` to ``path`` until
-    :meth:`stop` (then the file is removed; nothing is written to it afterwards)."""
+    """Has this process's progress thread write :data:`PROGRESS` to ``path`` (below
+    ``<out>/logs``, no link followed) until :meth:`stop`; nothing is written to it afterwards.
+
+    The file is not deleted at the stop: the process keeps it open, and the next run's
+    writer renames it to its own path and rewrites it in place (no file made and deleted
+    a run: :class:`workbench.files.RenamedFile`); :func:`release_progress_file` deletes it.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        _WRITER.follow(self.path)
+        self._size = 0  # bytes written last: a shorter text is padded to it
+
+    def write(self, snapshot: dict[str, Any]) -> None:
+        """The snapshot as JSON, over the file's whole content in one write (padded with
+        spaces, which JSON ignores): a reader after a kill finds the last whole one."""
+        text = json.dumps(snapshot, allow_nan=True).encode()
+        data, self._size = text.ljust(self._size), max(self._size, len(text))
+        with contextlib.suppress(OSError, TypeError):  # (TypeError: no file open)
+            os.pwrite(_FILE.fd, data, 0)
 
     def stop(self) -> None:
         _WRITER.follow(None)
-        with contextlib.suppress(OSError):
-            self.path.unlink()
 
     def __enter__(self) -> ProgressWriter:
-        write_progress(self.path, PROGRESS.snapshot())
+        with contextlib.suppress(OSError, LinkRefusedError):  # (then none: not written)
+            _FILE.open(self.path, os.O_RDWR, self.path.parent.parent)
+        self.write(PROGRESS.snapshot())
+        _WRITER.follow(self)
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def release_progress_file() -> None:
+    """Delete the progress file this process kept for its next run (a worker that stops)."""
+    _FILE.remove()
 
 
 def progress_path(out: Path, run_id: str) -> Path:
@@ -107,14 +128,6 @@ def progress_path(out: Path, run_id: str) -> Path:
 
     raw = raw_path(Path(out), run_id)
     return raw.with_name(raw.name.replace(".raw", ".progress"))
-
-
-def write_progress(path: Path, snapshot: dict[str, Any]) -> None:
-    """Write ``snapshot`` as JSON to ``path`` atomically (a reader never sees half a file)."""
-    temporary = path.with_name(path.name + ".new")
-    with contextlib.suppress(OSError):
-        temporary.write_text(json.dumps(snapshot, allow_nan=True))
-        os.replace(temporary, path)
 
 
 def read_progress(path: Path) -> dict[str, Any]:

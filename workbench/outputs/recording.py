@@ -8,9 +8,11 @@ file. Open it with ``workbench view PATH`` (or ``rerun PATH``).
 Entity layout of one run (``<run>`` = ``runs/<problem>/<formalism>/<integrator>/rtol=<r>``,
 each plugin with its options if it has any: ``rk4[step=0.01]``)::
 
-    <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose)
-    <run>/bodies/<body>/<kind>s        its shapes (boxes, cylinders, spheres, capsules), static
-    <run>/bodies/<body>/joints/<joint> the joint's frame on that body (parent P or child C)
+    <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose);
+                                       static, in one chunk, its shapes (Boxes3D,
+                                       Cylinders3D, Ellipsoids3D, Capsules3D: a batch a kind)
+    <run>/bodies/<body>/joints         the frames of its joints (parent or child side):
+                                       static TransformAxes3D at each InstancePoses3D pose
     <run>/series                       Scalars on ``sim_time``, one instance a quantity:
                                        drift_pos, drift_vel, drift_nh, energy_err,
                                        ref_err, penetration (m; a contact model's deepest
@@ -25,7 +27,7 @@ and what the runs of a model share, stored once (a robot's meshes are most of it
                                        InstancePoses3D on ``sim_time``: that body's pose in
                                        every run (an instance a run), so each run is drawn
     .../meshes/<i>/instance_runs       which run each instance is (static)
-    runs/<problem>/model/ground/joints/<joint>  a joint frame fixed on the ground (static)
+    runs/<problem>/model/ground/joints the joint frames fixed on the ground (static, as above)
     runs/<problem>/model/contact_planes/<contact>  a plane the contacts touch (a thin box,
                                        static; named by its first contact)
     <run>/bodies/<body>/contacts/<contact>  a sphere of a sphere-sphere contact (static;
@@ -83,12 +85,6 @@ order of :data:`SERIES_QUANTITIES` (NaN where the run has none), sent in one col
 chunk: a chunk a quantity cost the reader about 11 KiB each (its footer's manifest)."""
 SERIES_PRESENT = "quantities"
 """The static component of ``<run>/series`` naming the quantities the run has values of."""
-SHAPE_ENTITIES = {
-    "box": "boxes",
-    "cylinder": "cylinders",
-    "sphere": "spheres",
-    "capsule": "capsules",
-}
 
 
 def entity_path(*parts: str) -> str:
@@ -257,17 +253,29 @@ class RerunSink:
 
     def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
         """(entity path below the run, archetypes) of the shapes and joint frames; made
-        once per model ``key`` (problem and options): the runs of a sweep share models."""
-        import rerun as rr
+        once per model ``key`` (problem and options): the runs of a sweep share models.
 
+        A body's primitive shapes (one archetype a kind) are one entry on the body's own
+        entity (one log call, one chunk), its joint frames one more: each chunk and each
+        component column costs Python's reader far more than its bytes (docs/performance.md)."""
         if key in self._geometry_cache:
             return self._geometry_cache[key]
         entries: list[tuple[str, list[Any]]] = []
         warnings: list[str] = self._geometry_warnings.setdefault(key, [])
+        axis_length = 0.3 * _model_scale(model)
+        frames: dict[str, list[Any]] = {}  # body (or "ground") -> its joints' frames
+        for joint in model.joints.values():
+            frames.setdefault(joint.parent, []).append(joint.parent_frame)
+            frames.setdefault(joint.child, []).append(joint.child_frame)
+        if frames.get("ground"):  # the same in every run: once per model (_log_geometry)
+            entries.append(("ground/joints", _joint_axes(frames["ground"], axis_length)))
         for name, body in model.bodies.items():
             body_path = entity_path("bodies", name)
-            for kind, archetype in _shape_archetypes(body.shapes).items():
-                entries.append((f"{body_path}/{SHAPE_ENTITIES[kind]}", [archetype]))
+            shapes = list(_shape_archetypes(body.shapes).values())
+            if shapes:  # all kinds in one log call: one chunk
+                entries.append((body_path, shapes))
+            if frames.get(name):
+                entries.append((f"{body_path}/joints", _joint_axes(frames[name], axis_length)))
             meshes = [shape for shape in body.shapes if shape.kind == "mesh"]
             for index, shape in enumerate(meshes):  # a robot file's visual meshes
                 archetypes, warning = _mesh_archetypes(shape)
@@ -277,31 +285,7 @@ class RerunSink:
                 else:  # drawn once per model at every run's pose (_log_geometry)
                     place = (name, shape.frame.position, shape.frame.rotation @ np.diag(shape.size))
                     self._mesh_places.setdefault(key, {})[f"{body_path}/meshes/{index}"] = place
-        for contact in getattr(model, "contacts", None) or []:  # both spheres of a pair
-            if hasattr(contact, "body_a"):
-                for body, centre, radius in (
-                    (contact.body_a, contact.centre_a, contact.radius_a),
-                    (contact.body_b, contact.centre_b, contact.radius_b),
-                ):
-                    owner = "ground" if body == "ground" else entity_path("bodies", body)
-                    sphere = rr.Ellipsoids3D(centers=[centre], half_sizes=[[radius] * 3],
-                                             colors=[(230, 120, 40, 90)])  # fmt: skip
-                    entries.append((f"{owner}/{entity_path('contacts', contact.name)}", [sphere]))
-        axis_length = 0.3 * _model_scale(model)
-        for joint in model.joints.values():
-            ends = ((joint.parent, joint.parent_frame), (joint.child, joint.child_frame))
-            for body, frame in ends:
-                owner = "ground" if body == "ground" else entity_path("bodies", body)
-                # a frame at the body's origin, or unrotated, leaves that field out
-                placed = {}
-                if np.any(frame.position):
-                    placed["translation"] = frame.position
-                if np.any(frame.rotation != np.eye(3)):
-                    placed["mat3x3"] = frame.rotation
-                frame_archetypes = [rr.TransformAxes3D(axis_length)]
-                if placed:
-                    frame_archetypes.insert(0, rr.Transform3D(**placed))
-                entries.append((f"{owner}/{entity_path('joints', joint.name)}", frame_archetypes))
+        entries.extend(_contact_spheres(model))
         self._geometry_cache[key] = entries
         return entries
 
@@ -316,9 +300,13 @@ class RerunSink:
         if n == 0:
             return
         rows = np.unique(np.linspace(0, n - 1, min(n, self.max_frames)).round().astype(int))
-        poses = equations.observables.poses_along(times[rows], y[rows, : equations.nq])
+        observables = equations.observables
+        if hasattr(observables, "poses_of_rows"):  # the metrics' poses of these states
+            poses = observables.poses_of_rows(times[:n], y[:n, : equations.nq], rows)
+        else:
+            poses = observables.poses_along(times[rows], y[rows, : equations.nq])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
-        for b, name in enumerate(equations.observables.body_names):
+        for b, name in enumerate(observables.body_names):
             self.recording.send_columns(
                 f"{path}/{entity_path('bodies', name)}",
                 indexes=[timeline],
@@ -385,10 +373,10 @@ class RerunSink:
         problems = list(dict.fromkeys(problem for problem, _label in self.runs.values()))
         spatial = [
             rrb.Spatial3DView(
-                origin=entity_path("runs", problem), name=problem, defaults=solid_shapes()
+                origin=entity_path("runs", problem), name=problem, defaults=shape_defaults()
             )
             for problem in problems
-        ] or [rrb.Spatial3DView(origin="runs", name="runs", defaults=solid_shapes())]
+        ] or [rrb.Spatial3DView(origin="runs", name="runs", defaults=shape_defaults())]
         plots = [
             rrb.TimeSeriesView(
                 name=quantity,
@@ -806,6 +794,48 @@ def _contact_planes(model: Any) -> list[tuple[str, list[Any]]]:
     return entries
 
 
+def _contact_spheres(model: Any) -> list[tuple[str, list[Any]]]:
+    """(entity below the run, archetypes) of both spheres of each sphere-sphere contact,
+    on its body (or the ground: then once per model, as its joint frames)."""
+    import rerun as rr
+
+    entries = []
+    for contact in getattr(model, "contacts", None) or []:
+        if hasattr(contact, "body_a"):
+            for body, centre, radius in (
+                (contact.body_a, contact.centre_a, contact.radius_a),
+                (contact.body_b, contact.centre_b, contact.radius_b),
+            ):
+                owner = "ground" if body == "ground" else entity_path("bodies", body)
+                sphere = rr.Ellipsoids3D(centers=[centre], half_sizes=[[radius] * 3],
+                                         colors=[(230, 120, 40, 90)])  # fmt: skip
+                entries.append((f"{owner}/{entity_path('contacts', contact.name)}", [sphere]))
+    return entries
+
+
+def _joint_axes(frames: Sequence[Any], length: float) -> list[Any]:
+    """The joint frames on one body (or the ground) as one entity: TransformAxes3D drawn
+    at each pose of an InstancePoses3D (Rerun draws axes instanced since
+    rerun-io/rerun#11970), one batch rather than an entity a frame: each chunk and
+    component column costs the reader more than its bytes (docs/performance.md).
+    Frames that coincide are drawn once; translations are left out when every frame is
+    at the body's origin, rotations when none is rotated."""
+    import rerun as rr
+
+    unique: dict[tuple[float, ...], Any] = {}
+    for frame in frames:
+        key = tuple(np.round(np.concatenate([frame.position, frame.rotation.ravel()]), 12))
+        unique.setdefault(key, frame)
+    placed = list(unique.values())
+    poses: dict[str, Any] = {}
+    if any(np.any(frame.position) for frame in placed):
+        poses["translations"] = [frame.position for frame in placed]
+    if any(np.any(frame.rotation != np.eye(3)) for frame in placed):
+        poses["mat3x3"] = [frame.rotation for frame in placed]
+    axes = [rr.TransformAxes3D(length)]
+    return axes + [rr.InstancePoses3D(**poses)] if poses else axes
+
+
 PLACEHOLDER_HALF_SIZE = 0.05
 """Half the edge (m) of the box drawn where a mesh file cannot be read."""
 
@@ -862,9 +892,13 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
     archetypes: dict[str, Any] = {}
     for kind, group in by_kind.items():
         # centers and rotations only when some shape has one (each component of a
-        # run's static data costs the reader's manifest about 3 KiB); the fill mode is
-        # the 3D views' default (:func:`solid_shapes`)
-        placed = {"colors": [tuple(s.color) for s in group]}
+        # run's static data costs the reader's manifest about 4.5 KiB); the fill mode, and
+        # the colour when every shape has a model's default one, are the 3D views'
+        # defaults (:func:`shape_defaults`)
+        colors = [tuple(s.color) for s in group]
+        placed: dict[str, Any] = {}
+        if any(color != default_shape_color() for color in colors):
+            placed["colors"] = colors
         if any(np.any(s.frame.rotation != np.eye(3)) for s in group):
             rotations = [s.frame.rotation for s in group]
             placed["quaternions"] = [rr.Quaternion(xyzw=matrix_xyzw(r)) for r in rotations]
@@ -896,14 +930,24 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
     return archetypes
 
 
-def solid_shapes() -> list[Any]:
-    """The 3D views' default fill mode of the primitive shapes: solid (Rerun draws them as
-    wireframes otherwise). A view default rather than a component of every run's shapes."""
+def default_shape_color() -> tuple[int, int, int]:
+    """The colour of a :class:`workbench.model.Shape` given none."""
+    import dataclasses
+
+    from workbench.model import Shape
+
+    return next(f.default for f in dataclasses.fields(Shape) if f.name == "color")
+
+
+def shape_defaults() -> list[Any]:
+    """The 3D views' defaults of the primitive shapes: solid (Rerun draws them as
+    wireframes otherwise) and a model's default shape colour. View defaults rather than
+    components of every run's shapes (each costs the reader about 4.5 KiB a run)."""
     import rerun as rr
 
-    solid = rr.components.FillMode.Solid
+    solid, color = rr.components.FillMode.Solid, [default_shape_color()]
     return [
-        archetype.from_fields(fill_mode=solid)
+        archetype.from_fields(fill_mode=solid, colors=color)
         for archetype in (rr.Boxes3D, rr.Ellipsoids3D, rr.Cylinders3D, rr.Capsules3D)
     ]
 

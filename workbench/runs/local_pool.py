@@ -31,8 +31,12 @@ from typing import Any
 
 from workbench.errors import WorkbenchError
 from workbench.execution.execute import RunSpec, equations_key, execute_run
-from workbench.execution.run_log import CapturedOutput, raw_path, write_log
-from workbench.execution.run_progress import ProgressWriter, progress_path
+from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file, write_log
+from workbench.execution.run_progress import (
+    ProgressWriter,
+    progress_path,
+    release_progress_file,
+)
 from workbench.execution.timing import Timing
 from workbench.execution.worker_env import pin_threads
 from workbench.files import check_no_links, make_dirs, remove_file
@@ -91,12 +95,14 @@ def _worker_main(
     while True:
         message = conn.recv()
         if message is None:
+            release_raw_file()  # kept for a next run (CapturedOutput's reuse)
+            release_progress_file()
             return
         spec = RunSpec.from_dict(message)
         try:
             sink = _begin_recording(recorder, sink, Path(out), spec.run_id)
             try:
-                capture = CapturedOutput(raw_path(Path(out), spec.run_id))
+                capture = CapturedOutput(raw_path(Path(out), spec.run_id), reuse=True)
                 progress = ProgressWriter(progress_path(Path(out), spec.run_id))
                 with capture, progress:  # output to its bounded log; progress for a timeout
                     result = execute_run(
