@@ -29,7 +29,8 @@ sample and iteration): sample k's way from the projection of sample k-1 is taken
 step of the continuation, the step the walk itself would take with its step length
 uncapped, and is accepted when it passes the walk's own tests with a third of their turn
 (:data:`FAST_TURN`), the constraint Jacobian is well conditioned at both of its ends and
-at sample k's projection (sigma_rank / sigma_1 >= :data:`FAST_RATIO`), and it lands on
+at sample k's projection (sigma_rank / sigma_1 >= :data:`FAST_RATIO`, and sigma_rank at
+least that fraction of sigma_1 at the start), and it lands on
 sample k's projection's sheet of the manifold (the chord between them within the
 tangent space). Then sample k's projection is the followed point and its distance is
 its drift. Every other sample (near a singular configuration, a sharp bend, a change of
@@ -57,7 +58,8 @@ SMALLEST_STEP = 1e-9  # relative to 1 + max |q|: below it the continuation gives
 MOST_STEPS = 200_000  # continuation steps a run at most (then: not decided)
 NEWTON = 8  # corrector iterations a step
 FAST_TURN = MAX_TURN / 3  # rad: a sample's way taken in one step (:class:`_Shortcut`) turns less
-FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq is at least this at its ends
+FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq is at least this at its ends (and
+# sigma_rank at least this times sigma_1 at the start)
 GRAM_RATIO = 1e-5  # below it a sample's projection is by SVD (J J^T squares the condition)
 BATCH_VALUES = 1 << 22  # Jacobian entries evaluated at once (32 MiB): samples in batches
 
@@ -163,7 +165,10 @@ class _Shortcut:
         moved_on = np.any(start != before, axis=1)  # rheonomic constraints
         if moved_on.any():
             values_a[moved_on] = np.linalg.svd(start_jacobian[moved_on], compute_uv=False)
+        # well conditioned at both ends, and not shrunk (a single row that tends to 0)
+        least = FAST_RATIO * values_y[0, 0]
         started &= (_ratio(values_a, rank) >= FAST_RATIO) & (_ratio(values_y, rank) >= FAST_RATIO)
+        started &= (values_a[:, rank - 1] >= least) & (values_y[:, rank - 1] >= least)
         way = q - start
         with np.errstate(all="ignore"):
             direction = way - self._normal_part(start_jacobian, way)
