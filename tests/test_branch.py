@@ -66,7 +66,7 @@ def rows(n: int, formalism: str, options: dict, rtol: float, span: float,
             walked, _, _ = _departure(constraints_of(equations), np.asarray(trajectory.times),
                                       y[:, : equations.nq], shortcut=False)  # fmt: skip
             left_at = row["branch_left_at"]
-            assert walked == left_at or math.isnan(walked) and math.isnan(left_at), case
+            assert walked == left_at or math.isnan(walked) and math.isnan(left_at), samples
             yield (samples, perturbation), defect, row["warnings"], row["branch_left_at"]
 
 

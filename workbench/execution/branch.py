@@ -122,8 +122,8 @@ def _departure(constraints: Constraints, times: np.ndarray, q: np.ndarray,
         if distance > DRIFT_FACTOR * drift + floor:
             return t, distance, walked
         # back on the sample's projection (within what the test above resolves)
-        on_shortcut = shortcut and bool(fast.projected[k]) and (
-            float(np.linalg.norm(x - fast.y[k])) <= floor
+        on_shortcut = (
+            shortcut and bool(fast.projected[k]) and (float(np.linalg.norm(x - fast.y[k])) <= floor)
         )
         if on_shortcut:
             x = fast.y[k]
