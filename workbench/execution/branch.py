@@ -24,18 +24,19 @@ grows with the distance travelled from the crossing. Coordinates are the formali
 
 Most of a run is far from any singular configuration, where the continuation is a single
 step a sample. :class:`_Shortcut` takes those steps for all samples at once (one mapped
-evaluation of the constraints and one stacked SVD per Newton iteration, not one per
-sample and iteration): sample k's way from the projection of sample k-1 is taken as one
-step of the continuation, the step the walk itself would take with its step length
-uncapped, and is accepted when it passes the walk's own tests with a third of their turn
-(:data:`FAST_TURN`), the constraint Jacobian is well conditioned at both of its ends and
-at sample k's projection (sigma_rank / sigma_1 >= :data:`FAST_RATIO`, and sigma_rank at
-least that fraction of sigma_1 at the start), and it lands on
-sample k's projection's sheet of the manifold (the chord between them within the
-tangent space). Then sample k's projection is the followed point and its distance is
-its drift. Every other sample (near a singular configuration, a sharp bend, a change of
-branch) is walked by the continuation from the point followed before it, as without the
-shortcut, and the shortcut resumes once the walk is back on the sample's projection.
+evaluation of the constraints and one stacked solve per Newton iteration, by the Gram
+matrix J J^T when the rows are independent, not one SVD per sample and iteration): sample
+k's way from the projection of sample k-1 is taken as one step of the continuation, the
+step the walk itself would take with its step length uncapped, and is accepted when it
+passes the walk's own tests with a third of their turn (:data:`FAST_TURN`), the
+constraint Jacobian is well conditioned at the step's start and at sample k's projection
+(sigma_rank / sigma_1 >= :data:`FAST_RATIO`, and sigma_rank at least that fraction of
+sigma_1 at the start), and it ends on the sheet of the manifold through sample k's
+projection (the chord between them short and within the tangent space). Then sample k's
+projection is the followed point and its distance is its drift. Every other sample (near
+a singular configuration, a sharp bend, a change of branch) is walked by the continuation
+from the point followed before it, as without the shortcut, and the shortcut resumes once
+the walk is back on the sample's projection.
 """
 
 from __future__ import annotations
