@@ -29,9 +29,9 @@ matrix J J^T when the rows are independent, not one SVD per sample and iteration
 k's way from the projection of sample k-1 is taken as one step of the continuation, the
 step the walk itself would take with its step length uncapped, and is accepted when it
 passes the walk's own tests with a third of their turn (:data:`FAST_TURN`), the
-constraint Jacobian is well conditioned at the step's start and at sample k's projection
-(sigma_rank / sigma_1 >= :data:`FAST_RATIO`, and sigma_rank at least that fraction of
-sigma_1 at the start), and it ends on the sheet of the manifold through sample k's
+constraint Jacobian is far from rank loss at the step's start and at sample k's projection
+(sigma_rank / sigma_1 and sigma_rank both at least :data:`FAST_RATIO` times their largest
+along the run), and it ends on the sheet of the manifold through sample k's
 projection (the chord between them short and within the tangent space). Then sample k's
 projection is the followed point and its distance is its drift. Every other sample (near
 a singular configuration, a sharp bend, a change of branch) is walked by the continuation
@@ -59,8 +59,8 @@ SMALLEST_STEP = 1e-9  # relative to 1 + max |q|: below it the continuation gives
 MOST_STEPS = 200_000  # continuation steps a run at most (then: not decided)
 NEWTON = 8  # corrector iterations a step
 FAST_TURN = MAX_TURN / 3  # rad: a sample's way taken in one step (:class:`_Shortcut`) turns less
-FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq is at least this at its ends (and
-# sigma_rank at least this times sigma_1 at the start)
+FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq, and sigma_rank, are at its ends at
+# least this fraction of their largest along the run (far from rank loss)
 GRAM_RATIO = 1e-5  # below it a sample's projection is by SVD (J J^T squares the condition)
 BATCH_VALUES = 1 << 22  # Jacobian entries evaluated at once (32 MiB): samples in batches
 
@@ -166,9 +166,15 @@ class _Shortcut:
         moved_on = np.any(start != before, axis=1)  # rheonomic constraints
         if moved_on.any():
             values_a[moved_on] = np.linalg.svd(start_jacobian[moved_on], compute_uv=False)
-        # well conditioned at both ends, and not shrunk (a single row that tends to 0)
-        least = FAST_RATIO * values_y[0, 0]
-        started &= (_ratio(values_a, rank) >= FAST_RATIO) & (_ratio(values_y, rank) >= FAST_RATIO)
+        # both ends far from rank loss: sigma_rank / sigma_1 and sigma_rank (a single row
+        # that tends to 0) within FAST_RATIO of their best along the run
+        ratio_y, ratio_a = _ratio(values_y, rank), _ratio(values_a, rank)
+        best = self.projected & np.isfinite(ratio_y)
+        if not best.any():
+            return
+        ratio_least = FAST_RATIO * float(np.max(ratio_y[best]))
+        least = FAST_RATIO * float(np.max(values_y[best, rank - 1]))
+        started &= (ratio_a >= ratio_least) & (ratio_y >= ratio_least)
         started &= (values_a[:, rank - 1] >= least) & (values_y[:, rank - 1] >= least)
         way = q - start
         with np.errstate(all="ignore"):
