@@ -129,6 +129,9 @@ def test_a_jump_to_the_crossing_branch_is_never_taken_in_one_step() -> None:
     assert left_at == 10.0 and distance == pytest.approx(0.1) and walked == 1
     through = np.column_stack([np.linspace(-1, 1, 20), np.zeros(20)])
     assert math.isnan(_departure(crossing, times, through)[0])
+    # a failed run's samples after its failure are NaN: the departure before them stands
+    failed = np.vstack([left, np.full((3, 2), np.nan)])
+    assert _departure(crossing, np.arange(23.0), failed)[0] == 10.0
 
 
 def test_a_smooth_run_is_taken_by_the_shortcut_with_the_same_distance() -> None:

@@ -144,16 +144,19 @@ class _Shortcut:
         self.gram = rank == rows  # independent rows: solves by the Gram matrix J J^T
         n = len(times)
         self.along = _Batches(along, n, (rank + 1) * q.shape[1])
+        finite = np.all(np.isfinite(q), axis=1)  # (a failed run's last samples: not projected)
+        q = np.where(finite[:, None], q, 0.0)
         scale = 1.0 + np.max(np.abs(q), axis=1)
         self.y, self.projected, y_jacobian = self._project(times, q)
-        values_y = np.linalg.svd(y_jacobian, compute_uv=False)
+        self.projected &= finite
+        values_y = _singular_values(y_jacobian)
         redo = ~self.projected | (_ratio(values_y, rank) < GRAM_RATIO)
         if self.gram and redo.any():  # near rank loss: by SVD, as the walk projects
             self.gram, gram = False, self.gram
             again, converged, jacobian = self._project(times[redo], q[redo])
             self.gram = gram
-            self.y[redo], self.projected[redo] = again, converged
-            values_y[redo] = np.linalg.svd(jacobian, compute_uv=False)
+            self.y[redo], self.projected[redo] = again, converged & finite[redo]
+            values_y[redo] = _singular_values(jacobian)
         self.drift = np.where(self.projected, np.linalg.norm(q - self.y, axis=1), 0.0)
         self.certified = np.zeros(n, dtype=bool)
         if n < 2:
@@ -165,7 +168,7 @@ class _Shortcut:
         values_a = np.vstack([values_y[:1], values_y[:-1]])
         moved_on = np.any(start != before, axis=1)  # rheonomic constraints
         if moved_on.any():
-            values_a[moved_on] = np.linalg.svd(start_jacobian[moved_on], compute_uv=False)
+            values_a[moved_on] = _singular_values(start_jacobian[moved_on])
         # both ends far from rank loss: sigma_rank / sigma_1 and sigma_rank (a single row
         # that tends to 0) within FAST_RATIO of their best along the run
         ratio_y, ratio_a = _ratio(values_y, rank), _ratio(values_a, rank)
@@ -229,7 +232,7 @@ class _Shortcut:
         its projection on the tangent space, as :meth:`_Follower._tangent_direction`)."""
         if self.gram:
             return self._solve(jacobians, np.einsum("kmi,ki->km", jacobians, w), self.rank)
-        _, _, vt = np.linalg.svd(jacobians, full_matrices=True)
+        _, _, vt = np.linalg.svd(_finite(jacobians), full_matrices=True)
         normal = vt[:, : self.rank]
         return np.einsum("kri,kr->ki", normal, np.einsum("kri,ki->kr", normal, w))
 
@@ -316,6 +319,17 @@ def _one_at_a_time(constraints: Constraints) -> Along:
     return along
 
 
+def _finite(matrices: np.ndarray) -> np.ndarray:
+    """The stacked matrices, those with a non-finite entry replaced by zeros (LAPACK
+    refuses NaN; a zero matrix is never well conditioned, so never certified)."""
+    bad = ~np.all(np.isfinite(matrices), axis=(1, 2))
+    return np.where(bad[:, None, None], 0.0, matrices) if bad.any() else matrices
+
+
+def _singular_values(matrices: np.ndarray) -> np.ndarray:
+    return np.linalg.svd(_finite(matrices), compute_uv=False)
+
+
 def _ratio(values: np.ndarray, rank: int) -> np.ndarray:
     """sigma_rank / sigma_1 of each stacked matrix's singular values (0 for a zero one)."""
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -324,7 +338,7 @@ def _ratio(values: np.ndarray, rank: int) -> np.ndarray:
 
 def _truncated_solves(matrices: np.ndarray, rhs: np.ndarray, rank: int) -> np.ndarray:
     """:func:`_truncated_solve` of each stacked system (k, m, n) x = (k, m)."""
-    u, values, vt = np.linalg.svd(matrices, full_matrices=False)
+    u, values, vt = np.linalg.svd(_finite(matrices), full_matrices=False)
     tiny = values <= values[:, :1] * 1e-14
     keep = (np.arange(values.shape[1]) < rank) & ~tiny
     with np.errstate(divide="ignore", invalid="ignore"):
