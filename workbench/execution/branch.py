@@ -351,6 +351,7 @@ class _Follower:
 
     def __init__(self, constraints: Constraints, rank: int) -> None:
         self.constraints, self.rank = constraints, rank
+        self._normal: tuple[tuple[float, bytes], np.ndarray] | None = None
         self.step = FIRST_STEP
         self.steps = 0
 
@@ -377,10 +378,14 @@ class _Follower:
 
     def _tangent_direction(self, t: float, x: np.ndarray, way: np.ndarray) -> np.ndarray:
         """``way`` projected on the tangent space (the null space of the rank-``rank``
-        part of dg/dq at x)."""
-        _, jacobian = self._evaluate(t, x)
-        _, _, vt = np.linalg.svd(jacobian, full_matrices=True)
-        normal = vt[: self.rank]
+        part of dg/dq at x). The last point's normal space is kept: a step's end is
+        asked twice (its tangent test, then the next step's direction)."""
+        key = (t, x.tobytes())
+        if self._normal is None or self._normal[0] != key:
+            _, jacobian = self._evaluate(t, x)
+            _, _, vt = np.linalg.svd(jacobian, full_matrices=True)
+            self._normal = (key, vt[: self.rank])
+        normal = self._normal[1]
         return way - normal.T @ (normal @ way)
 
     def walk(self, t: float, x: np.ndarray, target: np.ndarray) -> np.ndarray | None:
