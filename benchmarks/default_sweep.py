@@ -15,7 +15,9 @@ nothing is resumed), as a subprocess and measures:
   were not skipped), and of the workers' whole time (jobs x runs phase, which also counts idle
   workers at the end and process start-up). Issue target: < 10 %. Beside them: the
   median integration time, the mean seconds a run spends outside the integrator, and
-  the share outside for the runs that integrate for at least 0.1 s. A run's integration
+  the share outside for the runs that integrate for at least 0.1 s. Runs killed at the
+  time limit (or whose worker died) are counted apart (``runs_killed``, ``killed_s``: no
+  stage of theirs was timed). A run's integration
   counts once (its median sample, ``integrate_s``); the extra timed samples
   (:mod:`workbench.execution.timing`) are reported apart (``repeat_s``, estimated from each
   row's min, median and max) and left out of the workers' time, with the median load
@@ -44,6 +46,7 @@ import psutil
 RESULTS = Path(__file__).parent / "results"
 STAGES = ("build_s", "compile_s", "init_s", "integrate_s", "metrics_s", "reference_s", "log_s")
 NOT_IN_WALL = ("reference_s", "log_s")
+KILLED = ("timeout", "unfinished")  # rows of runs killed mid-way: wall_s only, no stages
 REPEAT_COLUMNS = ("repeats", "integrate_s_min", "integrate_s_max", "integrate_cpu_s", "load_avg")
 GIB = 1024**3
 
@@ -93,24 +96,43 @@ def run_sweep_command(out: Path, jobs: int | None, suite: str = "full") -> dict:
 
 
 def time_shares(out: Path, jobs: int, runs_phase: float) -> tuple[dict, pd.DataFrame]:
-    """Shares of time outside the integrators, and stage seconds per formalism."""
+    """Shares of time outside the integrators, and stage seconds per formalism.
+
+    A run killed at the sweep's time limit (``timeout``, or ``unfinished``: its worker
+    died) has no stage columns, only the wall time until it was killed (from its
+    progress file, ``wall_s``): it is counted apart (``runs_killed``, ``killed_s``), not
+    in the stages (it was once all counted as pairing, the residual wall_s less the
+    stages: 395 of the full sweep's "pairing" seconds on 2026-11-27 were 13 timeouts)."""
     from workbench import load_results
 
-    rows = load_results(out)
+    return shares_of(load_results(out), jobs, runs_phase)
+
+
+def shares_of(rows: pd.DataFrame, jobs: int, runs_phase: float) -> tuple[dict, pd.DataFrame]:
+    """:func:`time_shares` of a sweep's rows."""
     ran = rows[rows.status != "skipped"].copy()
     for column in (*STAGES, "wall_s", "cpu_s", *REPEAT_COLUMNS):
         ran[column] = pd.to_numeric(ran.get(column, 0.0), errors="coerce").fillna(0.0)
-    ran["repeat_s"] = repeat_seconds(ran)
+    killed = ran.status.isin(KILLED)
+    ran["killed_s"] = ran.wall_s.where(killed, 0.0)
+    timed = ran[~killed].copy()
+    timed["repeat_s"] = repeat_seconds(timed)
     # wall_s = pairing + build + compile + init + integrate + metrics (pairing: model,
     # options, compatibility; it has no column of its own)
-    ran["pairing_s"] = ran.wall_s - ran[[s for s in STAGES if s not in NOT_IN_WALL]].sum(axis=1)
-    stage_total = ran[["pairing_s", *STAGES]].sum()
+    timed["pairing_s"] = timed.wall_s - timed[[s for s in STAGES if s not in NOT_IN_WALL]].sum(
+        axis=1
+    )
+    stage_total = timed[["pairing_s", *STAGES]].sum()
     in_runs = float(stage_total.sum())
     integrate = float(stage_total["integrate_s"])
-    repeats = float(ran.repeat_s.sum())
+    repeats = float(timed.repeat_s.sum())
     shares = {
         "runs": len(rows),
         "ran": len(ran),
+        "runs_killed": int(killed.sum()),
+        # wall seconds of the killed runs until their limit: in the workers' time, not in
+        # the stages (no stage was timed)
+        "killed_s": float(ran.killed_s.sum()),
         "jobs": jobs,
         "stages_s": in_runs,
         "integrate_s": integrate,
@@ -118,19 +140,22 @@ def time_shares(out: Path, jobs: int, runs_phase: float) -> tuple[dict, pd.DataF
         "outside_share_of_worker_time": 1 - integrate / (jobs * runs_phase - repeats),
         # the same in CPU time (stages pairing .. metrics: reference and log have no CPU
         # column), steadier than wall time on a busy machine
-        "outside_share_of_cpu": 1 - float(ran.integrate_cpu_s.sum()) / float(ran.cpu_s.sum()),
+        "outside_share_of_cpu": 1 - float(timed.integrate_cpu_s.sum()) / float(timed.cpu_s.sum()),
         # why the share is what it is: many short runs, each with a fixed cost around it
-        "median_integrate_s": float(ran.integrate_s.median()),
+        "median_integrate_s": float(timed.integrate_s.median()),
         # the integration's extra timed samples (workbench.execution.timing): the integrator
         # runs then, but they are not the run's result; neither inside nor outside
-        "repeat_s": float(ran.repeat_s.sum()),
-        "runs_repeated": int((ran.repeats > 1).sum()),
-        "load_avg_median": float(ran.load_avg.median()),
-        "outside_per_run_ms": 1e3 * (in_runs - integrate) / max(len(ran), 1),
-        "outside_share_runs_over_100ms": _share_outside(ran[ran.integrate_s >= 0.1]),
+        "repeat_s": repeats,
+        "runs_repeated": int((timed.repeats > 1).sum()),
+        "load_avg_median": float(timed.load_avg.median()),
+        "outside_per_run_ms": 1e3 * (in_runs - integrate) / max(len(timed), 1),
+        "outside_share_runs_over_100ms": _share_outside(timed[timed.integrate_s >= 0.1]),
         **{f"total_{stage}": float(stage_total[stage]) for stage in stage_total.index},
     }
-    per_formalism = ran.groupby("formalism")[["pairing_s", *STAGES]].sum()
+    killed_s = ran.groupby("formalism").killed_s.sum()
+    per_formalism = timed.groupby("formalism")[["pairing_s", *STAGES]].sum()
+    per_formalism = per_formalism.reindex(killed_s.index).fillna(0.0)
+    per_formalism["killed_s"] = killed_s
     return shares, per_formalism
 
 
@@ -186,6 +211,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
           f"stages, {row['outside_share_of_worker_time']:.0%} of the workers' time "
           f"(target < 10 %); of the runs' CPU time {row['outside_share_of_cpu']:.0%} "
           f"(load average {row['load_avg_median']:.1f}, {row['cpu_count']} CPUs)")  # fmt: skip
+    print(f"  {row['runs_killed']} runs killed at the time limit held workers "
+          f"{row['killed_s']:.0f} s (not in the stages)")  # fmt: skip
     print(f"  median integration {1e3 * row['median_integrate_s']:.0f} ms, "
           f"{row['outside_per_run_ms']:.1f} ms a run outside it; runs integrating >= 0.1 s: "
           f"{row['outside_share_runs_over_100ms']:.0%} outside")  # fmt: skip

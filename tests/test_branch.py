@@ -11,15 +11,20 @@ coupler translates (joint angle left_i = -pin_{i-1}), modulo 2 pi.
 
 Which rows leave depends on the machine's rounding (a chaotic passage), so each row is
 checked for what holds on every path: a row that left the branch at a sample carries the
-warning; a row that stayed on it at every sample does not.
+warning; a row that stayed on it at every sample does not. Every row's departure time is
+also the one the continuation alone finds (without the shortcut that takes the samples
+far from any singular configuration at once).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
+from workbench.execution.branch import _departure, _Shortcut, constraints_of
 from workbench.execution.metrics import trajectory_metrics
 from workbench.execution.references import ReferencePoses
 from workbench.plugin.registry import get_formalism, get_integrator, get_problem
@@ -58,6 +63,10 @@ def rows(n: int, formalism: str, options: dict, rtol: float, span: float,
             row, _ = trajectory_metrics("x", problem, equations, np.asarray(trajectory.times), y,
                                         trajectory.success, reference, rtol)  # fmt: skip
             defect = branch_defect(equations, y[:, : equations.nq], n).max()
+            walked, _, _ = _departure(constraints_of(equations), np.asarray(trajectory.times),
+                                      y[:, : equations.nq], shortcut=False)  # fmt: skip
+            left_at = row["branch_left_at"]
+            assert walked == left_at or math.isnan(walked) and math.isnan(left_at), samples
             yield (samples, perturbation), defect, row["warnings"], row["branch_left_at"]
 
 
@@ -100,3 +109,47 @@ def test_forty_windows_warned_exactly_when_they_leave_the_branch() -> None:
     left, stayed = check(rows(40, "recursive", {"index": 1}, 1e-6, 3.0, **cases))
     a, b = check(rows(40, "recursive", {"index": 1}, 1e-11, 1.0, **cases))
     assert left + a + stayed + b >= 4  # most of the 8 rows are one or the other
+
+
+def crossing(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """g = x y: two branches (the axes) crossing at a singular point (dg/dq = 0 there)."""
+    return np.array([x[0] * x[1]]), np.array([[x[1], x[0]]])
+
+
+def test_a_jump_to_the_crossing_branch_is_never_taken_in_one_step() -> None:
+    """Along the x axis to (-0.1, 0), then up the y axis from (0, 0.1): the way between the
+    two samples is a step the shortcut must refuse (its end is on another sheet), and the
+    run is found off its branch there; straight through the crossing it stays."""
+    times = np.arange(20.0)
+    left = np.column_stack([np.r_[np.linspace(-1, -0.1, 10), np.zeros(10)],
+                            np.r_[np.zeros(10), np.linspace(0.1, 1, 10)]])  # fmt: skip
+    fast = _Shortcut(lambda t, x: _stacked(crossing, t, x), times, left, 1, 1)
+    assert fast.certified[1:10].all() and not fast.certified[10]
+    left_at, distance, walked = _departure(crossing, times, left)
+    assert left_at == 10.0 and distance == pytest.approx(0.1) and walked == 1
+    through = np.column_stack([np.linspace(-1, 1, 20), np.zeros(20)])
+    assert math.isnan(_departure(crossing, times, through)[0])
+    # a failed run's samples after its failure are NaN: the departure before them stands
+    failed = np.vstack([left, np.full((3, 2), np.nan)])
+    assert _departure(crossing, np.arange(23.0), failed)[0] == 10.0
+
+
+def test_a_smooth_run_is_taken_by_the_shortcut_with_the_same_distance() -> None:
+    """A circle's points, 1e-7 off it: no sample needs the continuation, and the distance
+    from the branch is the drift, as the continuation alone finds it."""
+    angles = np.linspace(0.0, 6.0, 200)
+    q = np.column_stack([np.cos(angles), np.sin(angles)]) * (1 + 1e-7)
+
+    def circle(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([x @ x - 1.0]), 2 * x[None, :]
+
+    left_at, distance, walked = _departure(circle, angles, q)
+    alone = _departure(circle, angles, q, shortcut=False)
+    assert math.isnan(left_at) and math.isnan(alone[0])
+    assert walked == 0 and alone[2] == 199
+    assert distance == pytest.approx(1e-7, rel=1e-6) == alone[1]
+
+
+def _stacked(constraints, times, x):
+    pairs = [constraints(t, x_k) for t, x_k in zip(times, x, strict=True)]
+    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])

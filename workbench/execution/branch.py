@@ -21,6 +21,22 @@ The run has left the branch at the first sample farther from the followed branch
 :data:`FLOOR` (relative): on the branch that distance is the drift; on another branch it
 grows with the distance travelled from the crossing. Coordinates are the formalism's q
 (rad and m mixed, as the constraints see them).
+
+Most of a run is far from any singular configuration, where the continuation is a single
+step a sample. :class:`_Shortcut` takes those steps for all samples at once (one mapped
+evaluation of the constraints and one stacked solve per Newton iteration, by the Gram
+matrix J J^T when the rows are independent, not one SVD per sample and iteration): sample
+k's way from the projection of sample k-1 is taken as one step of the continuation, the
+step the walk itself would take with its step length uncapped, and is accepted when it
+passes the walk's own tests with a third of their turn (:data:`FAST_TURN`), the
+constraint Jacobian is far from rank loss at the step's start and at sample k's projection
+(sigma_rank / sigma_1 and sigma_rank both at least :data:`FAST_RATIO` times their largest
+along the run), and it ends on the sheet of the manifold through sample k's
+projection (the chord between them short and within the tangent space). Then sample k's
+projection is the followed point and its distance is its drift. Every other sample (near
+a singular configuration, a sharp bend, a change of branch) is walked by the continuation
+from the point followed before it, as without the shortcut, and the shortcut resumes once
+the walk is back on the sample's projection.
 """
 
 from __future__ import annotations
@@ -29,8 +45,10 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
+from workbench.equations.evaluate import evaluate_along
 from workbench.numerics.linalg import independent_rows
 
 DRIFT_FACTOR = 100.0  # a sample this many times farther than its drift: off the branch
@@ -40,9 +58,15 @@ FIRST_STEP = 0.05  # continuation step (in |q|) to start with; adapted to the cu
 SMALLEST_STEP = 1e-9  # relative to 1 + max |q|: below it the continuation gives up
 MOST_STEPS = 200_000  # continuation steps a run at most (then: not decided)
 NEWTON = 8  # corrector iterations a step
+FAST_TURN = MAX_TURN / 3  # rad: a sample's way taken in one step (:class:`_Shortcut`) turns less
+FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq, and sigma_rank, are at its ends at
+# least this fraction of their largest along the run (far from rank loss)
+GRAM_RATIO = 1e-5  # below it a sample's projection is by SVD (J J^T squares the condition)
+BATCH_VALUES = 1 << 22  # Jacobian entries evaluated at once (32 MiB): samples in batches
 
 
 Constraints = Callable[[float, np.ndarray], tuple[np.ndarray, np.ndarray]]
+Along = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def branch_departure(constraints: Constraints, times: np.ndarray,
@@ -52,36 +76,274 @@ def branch_departure(constraints: Constraints, times: np.ndarray,
     largest distance over the run when it stays); (NaN, NaN) when it cannot be decided
     (no position constraints, or the continuation could not go on).
 
-    ``constraints(t, q)`` -> (g (m,), dg/dq (m, nq)).
+    ``constraints(t, q)`` -> (g (m,), dg/dq (m, nq)); its attribute ``along(times, q)``,
+    if it has one, -> (g (n, m), dg/dq (n, m, nq)) at n points in one call.
     """
+    left_at, distance, _ = _departure(constraints, times, q)
+    return left_at, distance
+
+
+def _departure(constraints: Constraints, times: np.ndarray, q: np.ndarray,
+               shortcut: bool = True) -> tuple[float, float, int]:  # fmt: skip
+    """:func:`branch_departure` and the number of samples walked by the continuation
+    (the others were taken by :class:`_Shortcut`; none with ``shortcut`` False)."""
     if len(times) < 2:
-        return math.nan, math.nan
+        return math.nan, math.nan, 0
     g0, jacobian0 = constraints(float(times[0]), q[0])
     if np.size(g0) == 0:
-        return math.nan, math.nan
+        return math.nan, math.nan, 0
     rank = len(independent_rows(np.atleast_2d(jacobian0)))
     if rank == 0:
-        return math.nan, math.nan
+        return math.nan, math.nan, 0
     follower = _Follower(constraints, rank)
-    x = follower.project(float(times[0]), q[0])
-    if x is None:
-        return math.nan, math.nan
-    farthest = 0.0
+    along = getattr(constraints, "along", None) or _one_at_a_time(constraints)
+    rows = int(np.size(g0))
+    fast = _Shortcut(along, np.asarray(times, dtype=float), np.asarray(q, dtype=float), rank, rows)
+    if not fast.projected[0]:
+        return math.nan, math.nan, 0
+    x, on_shortcut = fast.y[0], shortcut  # the point followed: sample 0's projection
+    farthest, walked = 0.0, 0
     for k in range(1, len(times)):
+        if on_shortcut and fast.certified[k]:
+            x = fast.y[k]
+            farthest = max(farthest, float(fast.drift[k]))
+            continue
+        walked += 1
         t = float(times[k])
         x = follower.project(t, x)  # the manifold at t (rheonomic constraints move)
         if x is None:
-            return math.nan, math.nan
+            return math.nan, math.nan, walked
         x = follower.walk(t, x, q[k])
         if x is None:  # the continuation could not go on: not decided
-            return math.nan, math.nan
-        sample = follower.project(t, q[k])
-        drift = float(np.linalg.norm(q[k] - sample)) if sample is not None else 0.0
+            return math.nan, math.nan, walked
+        drift = float(fast.drift[k])
         distance = float(np.linalg.norm(q[k] - x))
         farthest = max(farthest, distance)
-        if distance > DRIFT_FACTOR * drift + FLOOR * (1.0 + float(np.max(np.abs(q[k])))):
-            return t, distance
-    return math.nan, farthest
+        floor = FLOOR * (1.0 + float(np.max(np.abs(q[k]))))
+        if distance > DRIFT_FACTOR * drift + floor:
+            return t, distance, walked
+        # back on the sample's projection (within what the test above resolves)
+        on_shortcut = (
+            shortcut and bool(fast.projected[k]) and (float(np.linalg.norm(x - fast.y[k])) <= floor)
+        )
+        if on_shortcut:
+            x = fast.y[k]
+    return math.nan, farthest, walked
+
+
+class _Shortcut:
+    """All samples' projections, drifts and one-step continuations at once (module
+    docstring). ``projected[k]``: sample k's projection ``y[k]`` onto g(t_k, .) = 0
+    converged (its ``drift[k]`` = |q_k - y_k|, else 0, as the walk counts it);
+    ``certified[k]``: the way from ``y[k-1]`` to sample k is one step the walk accepts,
+    within the tighter tests, ending on ``y[k]``'s sheet (never for k = 0)."""
+
+    def __init__(self, along: Along, times: np.ndarray, q: np.ndarray, rank: int,
+                 rows: int) -> None:  # fmt: skip
+        self.rank = rank
+        self.gram = rank == rows  # independent rows: solves by the Gram matrix J J^T
+        n = len(times)
+        self.along = _Batches(along, n, (rank + 1) * q.shape[1])
+        finite = np.all(np.isfinite(q), axis=1)  # (a failed run's last samples: not projected)
+        q = np.where(finite[:, None], q, 0.0)
+        scale = 1.0 + np.max(np.abs(q), axis=1)
+        self.y, self.projected, y_jacobian = self._project(times, q)
+        self.projected &= finite
+        values_y = _singular_values(y_jacobian)
+        redo = ~self.projected | (_ratio(values_y, rank) < GRAM_RATIO)
+        if self.gram and redo.any():  # near rank loss: by SVD, as the walk projects
+            self.gram, gram = False, self.gram
+            again, converged, jacobian = self._project(times[redo], q[redo])
+            self.gram = gram
+            self.y[redo], self.projected[redo] = again, converged & finite[redo]
+            values_y[redo] = _singular_values(jacobian)
+        self.drift = np.where(self.projected, np.linalg.norm(q - self.y, axis=1), 0.0)
+        self.certified = np.zeros(n, dtype=bool)
+        if n < 2:
+            return
+        # the walk's start at sample k: y_{k-1} moved onto g(t_k, .) = 0
+        before = np.vstack([self.y[:1], self.y[:-1]])
+        start, started, start_jacobian = self._project(times, before)
+        started &= np.concatenate([[False], self.projected[:-1]]) & self.projected
+        values_a = np.vstack([values_y[:1], values_y[:-1]])
+        moved_on = np.any(start != before, axis=1)  # rheonomic constraints
+        if moved_on.any():
+            values_a[moved_on] = _singular_values(start_jacobian[moved_on])
+        # both ends far from rank loss: sigma_rank / sigma_1 and sigma_rank (a single row
+        # that tends to 0) within FAST_RATIO of their best along the run
+        ratio_y, ratio_a = _ratio(values_y, rank), _ratio(values_a, rank)
+        best = self.projected & np.isfinite(ratio_y)
+        if not best.any():
+            return
+        ratio_least = FAST_RATIO * float(np.max(ratio_y[best]))
+        least = FAST_RATIO * float(np.max(values_y[best, rank - 1]))
+        started &= (ratio_a >= ratio_least) & (ratio_y >= ratio_least)
+        started &= (values_a[:, rank - 1] >= least) & (values_y[:, rank - 1] >= least)
+        way = q - start
+        with np.errstate(all="ignore"):
+            direction = way - self._normal_part(start_jacobian, way)
+        length = np.linalg.norm(direction, axis=1)
+        scale_a = 1.0 + np.max(np.abs(start), axis=1)
+        still = length <= 1e-10 * scale_a  # the walk would stay at its start
+        started &= np.isfinite(length)
+        unit = np.where(started[:, None], direction, 0.0) / np.where(still, 1.0, length)[:, None]
+        moved, corrected, moved_jacobian = self._corrected(
+            times, start + length[:, None] * unit, unit, started & ~still
+        )
+        moved = np.where(still[:, None], start, moved)
+        corrected |= still
+        travelled = moved - start
+        norm = np.linalg.norm(travelled, axis=1)
+        chord = self.y - moved
+        chord_length = np.linalg.norm(chord, axis=1)
+        with np.errstate(all="ignore"):
+            cosine = np.einsum("ki,ki->k", travelled, unit) / norm
+            kept = np.linalg.norm(unit - self._normal_part(moved_jacobian, unit), axis=1)
+            chord_normal = np.linalg.norm(self._normal_part(moved_jacobian, chord), axis=1)
+        turn = np.arccos(np.clip(np.where(norm > 0, cosine, 1.0), -1.0, 1.0))
+        step_ok = still | ((turn <= FAST_TURN) & (norm <= 2 * length)
+                           & (kept >= math.cos(FAST_TURN)))  # fmt: skip
+        # on y_k's sheet: the chord from the step's end to y_k short and in its tangent space
+        slack = 1e-9 * scale
+        on_sheet = (chord_length <= FAST_TURN * length + slack) & (
+            chord_normal <= math.sin(FAST_TURN) * chord_length + slack
+        )
+        self.certified = started & corrected & step_ok & on_sheet
+        self.certified[0] = False
+
+    def _solve(self, matrices: np.ndarray, rhs: np.ndarray, rank: int,
+               active: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        """Minimum-norm solutions of the stacked systems (:func:`_truncated_solve`); only
+        the ``active`` ones (default all) are needed."""
+        if self.gram:
+            with np.errstate(all="ignore"):
+                try:
+                    gram = matrices @ matrices.transpose(0, 2, 1)
+                    if active is not None:  # (an idle one may be singular: no matter)
+                        gram[~active] = np.eye(gram.shape[1])
+                    solved = np.linalg.solve(gram, rhs[..., None])[..., 0]
+                    return np.einsum("kmi,km->ki", matrices, solved)
+                except np.linalg.LinAlgError:  # an exactly singular one
+                    pass
+        return _truncated_solves(matrices, rhs, rank)
+
+    def _normal_part(self, jacobians: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Each w's part in the row space of the rank-``rank`` part of its dg/dq (w less
+        its projection on the tangent space, as :meth:`_Follower._tangent_direction`)."""
+        if self.gram:
+            return self._solve(jacobians, np.einsum("kmi,ki->km", jacobians, w), self.rank)
+        _, _, vt = np.linalg.svd(_finite(jacobians), full_matrices=True)
+        normal = vt[:, : self.rank]
+        return np.einsum("kri,kr->ki", normal, np.einsum("kri,ki->kr", normal, w))
+
+    def _project(self, times: np.ndarray,
+                 x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """:meth:`_Follower.project` of every row of x at its time: (points, converged,
+        dg/dq at the points)."""
+        x = np.array(x, dtype=float)
+        scale = 1.0 + np.max(np.abs(x), axis=1)
+        active = np.ones(len(x), dtype=bool)
+        failed = np.zeros(len(x), dtype=bool)
+        for _ in range(2 * NEWTON):
+            g, jacobian = self.along(times, x)
+            failed |= active & ~np.all(np.isfinite(g), axis=1)
+            active &= ~failed & (np.max(np.abs(g), axis=1, initial=0.0) > 1e-13 * scale)
+            if not active.any():
+                return x, ~failed, jacobian
+            step = self._solve(jacobian, g, self.rank, active)
+            step[~active] = 0.0
+            x -= step
+            active &= np.linalg.norm(step, axis=1) > 1e-15 * scale  # a stalled one: as it is
+        g, jacobian = self.along(times, x)
+        with np.errstate(invalid="ignore"):
+            close = np.max(np.abs(g), axis=1, initial=0.0) <= 1e-9 * scale
+        return x, ~failed & (close | ~active), jacobian
+
+    def _corrected(self, times: np.ndarray, predicted: np.ndarray, unit: np.ndarray,
+                   wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """:meth:`_Follower._corrected` of the ``wanted`` rows: (points, converged, dg/dq
+        there)."""
+        y = predicted.copy()
+        scale = 1.0 + np.max(np.abs(y), axis=1)
+        active = wanted.copy()
+        failed = np.zeros(len(y), dtype=bool)
+        for _ in range(NEWTON):
+            g, jacobian = self.along(times, y)
+            failed |= active & ~np.all(np.isfinite(g), axis=1)
+            residual = np.concatenate(
+                [g, np.einsum("ki,ki->k", unit, y - predicted)[:, None]], axis=1
+            )
+            active &= ~failed & (np.max(np.abs(residual), axis=1) > 1e-12 * scale)
+            if not active.any():
+                return y, ~failed, jacobian
+            matrix = np.concatenate([jacobian, unit[:, None, :]], axis=1)
+            step = self._solve(matrix, residual, self.rank + 1, active)
+            step[~active] = 0.0
+            y -= step
+        g, jacobian = self.along(times, y)
+        with np.errstate(invalid="ignore"):
+            close = np.max(np.abs(g), axis=1, initial=0.0) <= 1e-9 * scale
+        return y, ~failed & close, jacobian
+
+
+class _Batches:
+    """``along`` over all n samples in batches of about :data:`BATCH_VALUES` matrix
+    entries at most (each batch the same size, the last padded: one mapped Function)."""
+
+    def __init__(self, along: Along, n: int, values_per_point: int) -> None:
+        self.along = along
+        self.size = max(1, min(n, BATCH_VALUES // max(1, values_per_point)))
+
+    def __call__(self, times: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = len(x)
+        parts = []
+        for begin in range(0, n, self.size):
+            end = min(begin + self.size, n)
+            pad = self.size - (end - begin)
+            t_part = np.concatenate([times[begin:end], np.repeat(times[end - 1], pad)])
+            x_part = np.concatenate([x[begin:end], np.repeat(x[end - 1 : end], pad, axis=0)])
+            g, jacobian = self.along(t_part, x_part)
+            parts.append((g[: end - begin], jacobian[: end - begin]))
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def _one_at_a_time(constraints: Constraints) -> Along:
+    """``along`` for constraints that have none: one call a point."""
+
+    def along(times: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pairs = [constraints(float(t), x_k) for t, x_k in zip(times, x, strict=True)]
+        g = np.array([np.ravel(p[0]) for p in pairs], dtype=float)
+        jacobian = np.array([np.reshape(p[1], (g.shape[1], x.shape[1])) for p in pairs])
+        return g, jacobian
+
+    return along
+
+
+def _finite(matrices: np.ndarray) -> np.ndarray:
+    """The stacked matrices, those with a non-finite entry replaced by zeros (LAPACK
+    refuses NaN; a zero matrix is never well conditioned, so never certified)."""
+    bad = ~np.all(np.isfinite(matrices), axis=(1, 2))
+    return np.where(bad[:, None, None], 0.0, matrices) if bad.any() else matrices
+
+
+def _singular_values(matrices: np.ndarray) -> np.ndarray:
+    return np.linalg.svd(_finite(matrices), compute_uv=False)
+
+
+def _ratio(values: np.ndarray, rank: int) -> np.ndarray:
+    """sigma_rank / sigma_1 of each stacked matrix's singular values (0 for a zero one)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(values[:, 0] > 0, values[:, rank - 1] / values[:, 0], 0.0)
+
+
+def _truncated_solves(matrices: np.ndarray, rhs: np.ndarray, rank: int) -> np.ndarray:
+    """:func:`_truncated_solve` of each stacked system (k, m, n) x = (k, m)."""
+    u, values, vt = np.linalg.svd(_finite(matrices), full_matrices=False)
+    tiny = values <= values[:, :1] * 1e-14
+    keep = (np.arange(values.shape[1]) < rank) & ~tiny
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coefficients = np.where(keep, np.einsum("kmr,km->kr", u, rhs) / values, 0.0)
+    return np.einsum("kri,kr->ki", vt, coefficients)
 
 
 class _Follower:
@@ -89,6 +351,7 @@ class _Follower:
 
     def __init__(self, constraints: Constraints, rank: int) -> None:
         self.constraints, self.rank = constraints, rank
+        self._normal: tuple[tuple[float, bytes], np.ndarray] | None = None
         self.step = FIRST_STEP
         self.steps = 0
 
@@ -115,10 +378,14 @@ class _Follower:
 
     def _tangent_direction(self, t: float, x: np.ndarray, way: np.ndarray) -> np.ndarray:
         """``way`` projected on the tangent space (the null space of the rank-``rank``
-        part of dg/dq at x)."""
-        _, jacobian = self._evaluate(t, x)
-        _, _, vt = np.linalg.svd(jacobian, full_matrices=True)
-        normal = vt[: self.rank]
+        part of dg/dq at x). The last point's normal space is kept: a step's end is
+        asked twice (its tangent test, then the next step's direction)."""
+        key = (t, x.tobytes())
+        if self._normal is None or self._normal[0] != key:
+            _, jacobian = self._evaluate(t, x)
+            _, _, vt = np.linalg.svd(jacobian, full_matrices=True)
+            self._normal = (key, vt[: self.rank])
+        normal = self._normal[1]
         return way - normal.T @ (normal @ way)
 
     def walk(self, t: float, x: np.ndarray, target: np.ndarray) -> np.ndarray | None:
@@ -183,8 +450,11 @@ def _truncated_solve(matrix: np.ndarray, rhs: np.ndarray, rank: int) -> np.ndarr
 def constraints_of(equations: Any) -> Constraints | None:
     """(t, q) -> (g, dg/dq) of a run's equations: the mechanical form's holonomic rows, or,
     when the formalism eliminated the loops (minimal velocities), the joints' position
-    residuals on the body poses (observables); None without position constraints."""
+    residuals on the body poses (observables); None without position constraints. Its
+    ``along`` evaluates n points in one mapped call of the symbolic Functions (made once
+    per equations)."""
     mechanical = equations.forms.get("mechanical")
+    made = equations.__dict__.setdefault("_branch_functions", {})
     if mechanical is not None and int(getattr(mechanical, "n_holonomic", 0) or 0) > 0:
         nq = equations.nq
 
@@ -194,12 +464,24 @@ def constraints_of(equations: Any) -> Constraints | None:
             g = np.array(g, dtype=float).ravel()
             return g, np.array(jacobian, dtype=float).reshape(g.size, nq)
 
+        if "holonomic" not in made:
+            g_function = mechanical.position_constraints.function
+            jacobian_function = mechanical.position_jacobian.function
+            t, x = ca.MX.sym("t"), ca.MX.sym("q", nq)
+            made["holonomic"] = ca.Function(
+                "g_and_g_q", [t, x], [g_function(t, x), jacobian_function(t, x)]
+            )
+        holonomic.along = _mapped_along(made["holonomic"], made, 0)  # type: ignore[attr-defined]
         return holonomic
     if equations.model.cut_joints and hasattr(equations.observables, "residuals"):
-        function = equations.observables.residuals.function
-        names_in, names_out = function.name_in(), function.name_out()
-        both = function.factory("residuals_and_jacobian", list(names_in),
-                                [names_out[0], f"jac:{names_out[0]}:{names_in[1]}"])  # fmt: skip
+        if "residuals" not in made:
+            function = equations.observables.residuals.function
+            names_in, names_out = function.name_in(), function.name_out()
+            made["residuals"] = function.factory(
+                "residuals_and_jacobian", list(names_in),
+                [names_out[0], f"jac:{names_out[0]}:{names_in[1]}"],
+            )  # fmt: skip
+        both = made["residuals"]
         zero_v = np.zeros(equations.nv)
 
         def residuals(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -207,5 +489,20 @@ def constraints_of(equations: Any) -> Constraints | None:
             g = np.array(g, dtype=float).ravel()
             return g, np.array(jacobian, dtype=float).reshape(g.size, x.size)
 
+        residuals.along = _mapped_along(both, made, equations.nv)  # type: ignore[attr-defined]
         return residuals
     return None
+
+
+def _mapped_along(function: ca.Function, cache: dict, nv: int) -> Along:
+    """``along`` of a Function (t, q[, v]) -> (g, dg/dq): one mapped call (v = 0)."""
+
+    def along(times: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = len(times)
+        args = [np.asarray(times, dtype=float)[None], np.asarray(x, dtype=float).T]
+        if nv:
+            args.append(np.zeros((nv, n)))
+        g, jacobian = evaluate_along(function, n, args, cache)
+        return g.reshape(n, -1), jacobian
+
+    return along
