@@ -510,7 +510,8 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         V_parent = ZERO6 if link.parent < 0 else V[link.parent]
         V[i] = transform_motion(link.E, link.r, V_parent) + link.v_J
         c_J = ZERO6 if link.local else link.c_J  # c_J = 0 in a joint's local velocities
-        c[i] = c_J + motion_cross(V[i], link.v_J)
+        # a root's V_i is v_J,i, and v x v = 0: CasADi would not see it for a free joint
+        c[i] = c_J if link.parent < 0 else c_J + motion_cross(V[i], link.v_J)
         I_A[i] = link.inertia
         p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
 
