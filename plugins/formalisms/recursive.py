@@ -102,6 +102,7 @@ from workbench.plugin.formalism import ConstraintOptions, Formalism
 from workbench.plugin.registry import formalism
 
 ZERO6 = ca.SX.zeros(6, 1)
+TURN_MAX_NONZEROS = 5  # a revolute joint's congruence turns first (:class:`Turn`) up to these
 
 
 def _sx(value: Any) -> Any:
@@ -247,7 +248,12 @@ def joint_model(
     turn = None
     if kind == "revolute":
         R_z, frame = _rotation_z(q[0]), _sx((L_R @ A).T)
-        E, turn = ca.mtimes(R_z.T, frame), Turn(R_z[0, 0], R_z[1, 0], frame)
+        E = ca.mtimes(R_z.T, frame)
+        # the turn first pays where the constant rotation is sparse (an axis permutation
+        # or a turn about a coordinate axis: Talos 12,208 -> 11,191 instructions); with a
+        # general one (a random tree's rotated frames) it cost 3 % more
+        if np.count_nonzero(_snap(L_R @ A)) <= TURN_MAX_NONZEROS:
+            turn = Turn(R_z[0, 0], R_z[1, 0], frame)
         r, S = _sx(L_r), _unit_columns([2])
     elif kind == "prismatic":
         E, r, S = _sx((L_R @ A).T), _sx(L_r) + _sx(axis) * q[0], _unit_columns([5])
