@@ -61,6 +61,30 @@ def test_congruence_equals_the_dense_transform(seed: int) -> None:
 
 
 @pytest.mark.parametrize("seed", range(4))
+def test_rotate_z_inertia_equals_the_congruence_of_the_rotation(seed: int) -> None:
+    """rotate_z_inertia(cos, sin, I) = X^T I X for X = plucker(R_z^T, 0) (a revolute
+    joint's turn, applied before its constant placement in the articulated-body
+    algorithm), for a symbolic angle; and an articulated inertia's zero rows and columns
+    of the z axis stay structurally zero (no instructions for them)."""
+    rng = np.random.default_rng(seed)
+    inertia = random_symmetric(rng)
+    angle = ca.SX.sym("q")
+    c, s = ca.cos(angle), ca.sin(angle)
+    R_z = ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
+    dense = sp.congruence(R_z.T, ca.SX.zeros(3), ca.SX(ca.DM(inertia)))
+    turned = sp.rotate_z_inertia(c, s, ca.SX(ca.DM(inertia)))
+    evaluate = ca.Function("both", [angle], [dense, turned])
+    for q in rng.uniform(-4, 4, 5):
+        expected, got = (np.asarray(x) for x in evaluate(q))
+        assert np.array_equal(got, got.T)
+        assert np.abs(got - expected).max() <= 1e-13 * np.abs(expected).max()
+    articulated = ca.SX(ca.DM(inertia))
+    articulated[2, :], articulated[:, 2] = 0, 0
+    turned = ca.evalf(ca.substitute(sp.rotate_z_inertia(c, s, articulated), angle, 0.7))
+    assert np.all(np.asarray(turned)[2, :] == 0) and np.all(np.asarray(turned)[:, 2] == 0)
+
+
+@pytest.mark.parametrize("seed", range(4))
 def test_motion_and_force_cross_products(seed: int) -> None:
     """v x m is the matrix of v x applied to m; v x* is its negative transpose dual:
     f . (v x m) = -(v x* f) . m, for every f and m (power is frame independent)."""

@@ -92,6 +92,7 @@ from workbench.numerics.spatial import (
     congruence,
     force_cross,
     motion_cross,
+    rotate_z_inertia,
     spatial_inertia,
     symmetric,
     transform_force_back,
@@ -101,6 +102,7 @@ from workbench.plugin.formalism import ConstraintOptions, Formalism
 from workbench.plugin.registry import formalism
 
 ZERO6 = ca.SX.zeros(6, 1)
+TURN_MAX_NONZEROS = 5  # a revolute joint's congruence turns first (:class:`Turn`) up to these
 
 
 def _sx(value: Any) -> Any:
@@ -191,6 +193,20 @@ class JointMotion(NamedTuple):
     v_J: Any
     c_J: Any
     local: LocalVelocities | None = None
+    turn: Turn | None = None
+
+
+class Turn(NamedTuple):
+    """A revolute joint's X_i = X_z(q) X_F: the constant placement F (its rotation
+    ``frame`` (3, 3) and the offset r, numbers) followed by the rotation about J_i's z
+    axis by the joint angle (``cos``, ``sin``), so E = R_z(q)^T ``frame``. The
+    articulated-body algorithm's congruence X_i^T I X_i turns I about z first
+    (:func:`~workbench.numerics.spatial.rotate_z_inertia`) and then moves it by the
+    numbers of F, whose zeros and unit entries (aligned axes) cost nothing."""
+
+    cos: Any
+    sin: Any
+    frame: Any
 
 
 class LocalVelocities(NamedTuple):
@@ -229,8 +245,15 @@ def joint_model(
         return JointMotion(_sx((L_R @ A).T), _sx(L_r), ca.SX(6, 0), ZERO6, ZERO6)
     q, v = _sx(q), _sx(v)
     axis = _snap(L_R @ A[:, 2]) if kind in ("prismatic", "cylindrical") else None
+    turn = None
     if kind == "revolute":
-        E = ca.mtimes(_rotation_z(q[0]).T, _sx((L_R @ A).T))
+        R_z, frame = _rotation_z(q[0]), _sx((L_R @ A).T)
+        E = ca.mtimes(R_z.T, frame)
+        # the turn first pays where the constant rotation is sparse (an axis permutation
+        # or a turn about a coordinate axis: Talos 12,208 -> 11,191 instructions); with a
+        # general one (a random tree's rotated frames) it cost 3 % more
+        if np.count_nonzero(_snap(L_R @ A)) <= TURN_MAX_NONZEROS:
+            turn = Turn(R_z[0, 0], R_z[1, 0], frame)
         r, S = _sx(L_r), _unit_columns([2])
     elif kind == "prismatic":
         E, r, S = _sx((L_R @ A).T), _sx(L_r) + _sx(axis) * q[0], _unit_columns([5])
@@ -248,8 +271,8 @@ def joint_model(
     if joint.drive is not None:
         # prescribed motion: its acceleration is known, so it moves into c_J
         _, _, a_drive = jk.drive_values(joint, t)
-        return JointMotion(E, r, ca.SX(6, 0), v_J, ca.mtimes(S, _sx(a_drive)))
-    return JointMotion(E, r, S, v_J, ZERO6)
+        return JointMotion(E, r, ca.SX(6, 0), v_J, ca.mtimes(S, _sx(a_drive)), turn=turn)
+    return JointMotion(E, r, S, v_J, ZERO6, turn=turn)
 
 
 def _rotation_z(angle: Any) -> Any:
@@ -333,6 +356,15 @@ class Link:
     tau: Any  # (n_i,) the model's joint forces
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
     local: LocalVelocities | None = None  # ABA's velocities nu = T v (free joints)
+    turn: Turn | None = None  # X_i = X_z(q) X_F of a revolute joint
+
+    def congruence(self, inertia: Any) -> Any:
+        """X_i^T I X_i (6, 6) for a symmetric I in J_i coordinates: I in the parent's
+        joint frame (a revolute joint's turned about z first, :class:`Turn`)."""
+        if self.turn is None:
+            return congruence(self.E, self.r, inertia)
+        turned = rotate_z_inertia(self.turn.cos, self.turn.sin, inertia)
+        return congruence(self.turn.frame, self.r, turned)
 
     @property
     def nv(self) -> int:
@@ -391,6 +423,7 @@ class SpatialTree:
                     tau=tau,
                     v_slice=v_slice,
                     local=X.local,
+                    turn=X.turn,
                 )
             )
             index[joint.child] = len(self.links) - 1
@@ -483,7 +516,8 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         V_parent = ZERO6 if link.parent < 0 else V[link.parent]
         V[i] = transform_motion(link.E, link.r, V_parent) + link.v_J
         c_J = ZERO6 if link.local else link.c_J  # c_J = 0 in a joint's local velocities
-        c[i] = c_J + motion_cross(V[i], link.v_J)
+        # a root's V_i is v_J,i, and v x v = 0: CasADi would not see it for a free joint
+        c[i] = c_J if link.parent < 0 else c_J + motion_cross(V[i], link.v_J)
         I_A[i] = link.inertia
         p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
 
@@ -511,7 +545,7 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
-            I_A[link.parent] = I_A[link.parent] + congruence(link.E, link.r, I_a)
+            I_A[link.parent] = I_A[link.parent] + link.congruence(I_a)
             p_A[link.parent] = p_A[link.parent] + transform_force_back(link.E, link.r, p_a)
 
     # 3. outward: accelerations
@@ -582,7 +616,7 @@ def composite_rigid_body_mass(tree: SpatialTree) -> Any:
     for i in reversed(range(len(links))):
         link = links[i]
         if link.parent >= 0:
-            I_C[link.parent] = I_C[link.parent] + congruence(link.E, link.r, I_C[i])
+            I_C[link.parent] = I_C[link.parent] + link.congruence(I_C[i])
 
     # each joint i against itself and every joint j on its path to the root
     M = ca.SX.zeros(tree.nv, tree.nv)

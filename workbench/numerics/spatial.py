@@ -175,6 +175,44 @@ def congruence(E: Any, r: Any, inertia: Any) -> Any:
     return _blocks([[top, P], [P.T, C1]])
 
 
+def rotate_z_inertia(cos: Any, sin: Any, inertia: Any) -> Any:
+    """R I R^T (6, 6) blockwise, R = R_z(angle) given by its ``cos`` and ``sin``: a
+    symmetric 6 x 6 (articulated) inertia I turned about z, as the congruence of a
+    revolute joint's rotation (X = diag(R^T, R^T)). Each 2 x 2 block B of the xy plane
+    keeps its trace and its antisymmetric part, so it needs only
+    e = s^2 (B_yy - B_xx) - c s (B_xy + B_yx) and g = c s (B_yy - B_xx) + s^2 (B_xy + B_yx)
+    (B'_xx = B_xx + e, B'_yy = B_yy - e, B'_xy = B_xy - g, B'_yx = B_yx - g); the z rows
+    and columns turn as vectors. About half the products of the general congruence, and
+    zero entries (an articulated inertia's rows of its joint axis) stay zero."""
+    ss, cs = sin * sin, cos * sin
+
+    def plane(xx: Any, xy: Any, yx: Any, yy: Any) -> tuple[Any, Any, Any, Any]:
+        delta, sigma = yy - xx, xy + yx
+        e = ss * delta - cs * sigma
+        g = cs * delta + ss * sigma
+        return xx + e, xy - g, yx - g, yy - e
+
+    def turn(x: Any, y: Any) -> tuple[Any, Any]:  # R [x; y] in the plane
+        return cos * x - sin * y, sin * x + cos * y
+
+    out = ca.SX(6, 6)
+    for i0, j0 in ((0, 0), (0, 3), (3, 3)):
+        block = [[inertia[i0 + i, j0 + j] for j in range(3)] for i in range(3)]
+        (xx, xy, yx, yy), z = plane(*block[0][:2], *block[1][:2]), 2
+        rows = [[xx, xy, None], [yx, yy, None], [None, None, block[z][z]]]
+        rows[0][z], rows[1][z] = turn(block[0][z], block[1][z])
+        if i0 == j0:  # a symmetric block: its lower triangle is its upper
+            rows[1][0], (rows[z][0], rows[z][1]) = rows[0][1], (rows[0][z], rows[1][z])
+        else:
+            rows[z][0], rows[z][1] = turn(block[z][0], block[z][1])
+        for i in range(3):
+            for j in range(3):
+                out[i0 + i, j0 + j] = rows[i][j]
+                if i0 != j0:
+                    out[j0 + j, i0 + i] = rows[i][j]
+    return out
+
+
 def articulated_update(I_A: Any, U: Any, D_inv_U: Any, zero: tuple[int, ...] = ()) -> Any:
     """I^a = I^A - U D^-1 U^T (6, 6): an articulated inertia I^A (6, 6) seen through a
     joint with motion subspace S (6, n): U = I^A S (6, n), D = S^T U (n, n), and
