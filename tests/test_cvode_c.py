@@ -197,6 +197,16 @@ def test_equations_in_the_virtual_machine_are_refused():
         solve(equations, state, np.linspace(0.0, 1.0, 3), 1e-6, None)
 
 
+@needs_compiler
+def test_with_compile_auto_the_row_says_the_right_hand_side_ran_in_c(tmp_path):
+    """compile=auto leaves a short run's functions in the VM, but this integrator runs the
+    right-hand side's C itself: the row's notes must not count it among the VM's."""
+    spec = RunSpec("double-pendulum", "recursive", NAME, 1e-6, 1e-8, {}, {"compile": "auto"})
+    row = execute_run(spec, reference_dir=tmp_path).row
+    assert row["status"] == "ok", row["message"]
+    assert "in C ode_rhs" in row["notes"], row["notes"]
+
+
 def test_a_run_without_compiled_equations_is_a_skipped_row(tmp_path):
     spec = RunSpec("double-pendulum", "recursive", NAME, 1e-6, 1e-8, {}, {"compile": "none"})
     row = execute_run(spec, reference_dir=tmp_path).row

@@ -237,6 +237,7 @@ class CvodeC(Integrator):
         try:
             solve = driver().wb_cvode_solve
             rhs = compiled_rhs(task.form.rhs, n)
+            task.form.rhs.compiler.ran_in_c(task.form.rhs.name)  # for the row's notes
         except (Unavailable, RuntimeError) as error:
             trajectory.success = False
             trajectory.message = f"{self.name}: {error}"

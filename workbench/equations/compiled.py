@@ -406,6 +406,11 @@ class Compiler:
         """Functions may run compiled (the graphs are built so that C can be generated)."""
         return self.mode != "none"
 
+    def ran_in_c(self, name: str) -> None:
+        """compile=auto: ``name`` ran in C this run by another route than its FastFunction
+        (an integrator that calls the compiled library itself), for the row's notes."""
+        self.in_c[name] = "C"
+
     @property
     def waiting(self) -> list[Any]:
         """compile=auto: the FastFunctions called so far that run in the VM this run."""
@@ -470,7 +475,7 @@ class Compiler:
         if self.mode != "auto":
             return ""
         in_c = ", ".join(sorted(self.in_c))
-        vm = len(self.waiting)
+        vm = sum(fast.name not in self.in_c for fast in self.waiting)
         parts = [f"in C {in_c}" if in_c else "",
                  f"{vm} function{'s' * (vm != 1)} in the VM (too few calls to repay a compile)"
                  if vm else ""]  # fmt: skip
