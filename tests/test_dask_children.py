@@ -43,6 +43,13 @@ def cluster():
             yield local, client
 
 
+def workers(client) -> dict:
+    """The cluster's two workers, once both are registered: on a loaded machine the client
+    can connect before the second worker has (CI once found one)."""
+    client.wait_for_workers(2, timeout=HUNG)
+    return client.scheduler_info()["workers"]
+
+
 def submit(client, spec, limit: float, worker: str):
     """One run as a task on ``worker`` (the task run_dask submits)."""
     paths = [os.getcwd(), *sys.path]
@@ -74,7 +81,7 @@ def test_a_worker_child_keeps_its_equations_and_survives_a_timeout(
     tmp_path,
 ) -> None:
     _, client = cluster
-    worker = sorted(client.scheduler_info()["workers"])[0]
+    worker = sorted(workers(client))[0]
     first, second = runs_of(tmp_path, '["test-rk45"]')  # same equations, two tolerances
     (hung, _) = runs_of(tmp_path, '["test-hang"]')
     row, series = submit(client, first, HUNG, worker).result(timeout=HUNG)
@@ -100,7 +107,7 @@ def test_a_child_killed_from_outside_is_no_row_and_the_next_run_works(
     tmp_path,
 ) -> None:
     _, client = cluster
-    worker = sorted(client.scheduler_info()["workers"])[1]
+    worker = sorted(workers(client))[1]
     (hung, _) = runs_of(tmp_path, '["test-hang"]')
     future = submit(client, hung, HUNG, worker)
     deadline = time.monotonic() + HUNG
