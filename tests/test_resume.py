@@ -335,7 +335,7 @@ def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
         lost_once = sweep_on_a_cluster("kill-parent-once")
     assert (tmp_path / "killed").exists()  # a Dask worker was killed
-    assert lost_once.counts == {"ok": 1} and lost_once.unfinished == {}
+    assert lost_once.counts == {"ok": 1} and lost_once.unfinished == {}, lost_once.unfinished
     killed = sweep_on_a_cluster("kill", fresh=True)
     assert killed.counts == {"unfinished": 1}
     (reason,) = killed.unfinished.values()
