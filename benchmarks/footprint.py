@@ -369,6 +369,7 @@ def loop_parts(n: int) -> dict[str, float]:
     from workbench.outputs.recording import RerunSink, SweepRecorder
     from workbench.plugin import registry
     from workbench.runs import local_pool, store
+    from workbench.runs.recording_batches import RecordingBatch
 
     spent: dict[str, float] = defaultdict(float)
 
@@ -384,8 +385,9 @@ def loop_parts(n: int) -> dict[str, float]:
 
     patched = [
         (RerunSink, "log_run", "recording: logging"),
-        (RerunSink, "end_file", "recording: the run's file"),
+        (RerunSink, "end_file", "recording: the runs' file"),
         (RerunSink, "begin_file", "recording: starting it"),
+        (RecordingBatch, "logged", "recording: journal"),
         (metrics_module, "trajectory_metrics", "metrics"),
         (store, "write_parquet_atomic", "series file"),
         (store, "write_json_atomic", "row file"),
@@ -403,30 +405,31 @@ def loop_parts(n: int) -> dict[str, float]:
         for integrator in ("scipy-dop853", "scipy-rk45")
     ][: n + 20]
     timing = Timing(repeats=1, workers=2).to_dict()
-    sink, total, integration = None, 0.0, 0.0
+    total, integration = 0.0, 0.0
     try:
         with tempfile.TemporaryDirectory() as directory:
             out = Path(directory)
+            batch = RecordingBatch(SweepRecorder, out, "loop")
             for index, spec in enumerate(specs):
                 if index == 20:
                     spent.clear()
                     total = integration = 0.0
                 started = time.process_time()
-                sink = local_pool._begin_recording(SweepRecorder, sink, out, spec.run_id)
-                try:
-                    capture = CapturedOutput(raw_path(out, spec.run_id), reuse=True)
-                    progress = ProgressWriter(progress_path(out, spec.run_id))
-                    with capture, progress:
-                        result = execute_run(
-                            spec, sink=sink, reference_dir=out / "references",
-                            timing=Timing.from_dict(timing),
-                        )  # fmt: skip
-                    result.row["log"] = local_pool.write_log(out, spec.run_id, capture.kept())
-                    store.write_run(out, result.row, result.series, True)
-                finally:
-                    local_pool._end_recording(sink)
+                sink = batch.begin_run(spec)
+                capture = CapturedOutput(raw_path(out, spec.run_id), reuse=True)
+                progress = ProgressWriter(progress_path(out, spec.run_id))
+                with capture, progress:
+                    result = execute_run(
+                        spec, sink=sink, reference_dir=out / "references",
+                        timing=Timing.from_dict(timing),
+                    )  # fmt: skip
+                batch.logged(spec.run_id)
+                result.row["log"] = local_pool.write_log(out, spec.run_id, capture.kept())
+                store.write_run(out, result.row, result.series, True)
+                batch.end_run()
                 total += time.process_time() - started
                 integration += result.row["integrate_cpu_s"]
+            batch.close()
             release_raw_file()
             release_progress_file()
     finally:

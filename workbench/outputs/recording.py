@@ -208,7 +208,10 @@ class RerunSink:
         label = f"{parts[2]} / {parts[3]} {parts[4]}"
         self.runs[path] = (parts[1], label)
         model = equations.model
-        self.recording.log(entity_path("runs", parts[1]), view_coordinates(model), static=True)
+        problem_path = entity_path("runs", parts[1])
+        if problem_path not in self._shared_logged:  # once a file: shared by its runs
+            self._shared_logged[problem_path] = ""
+            self.recording.log(problem_path, view_coordinates(model), static=True)
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
         key = f"{spec.problem} {options} {model.name}"
         shared = entity_path("runs", parts[1], MODEL_PART)
@@ -442,6 +445,14 @@ class RerunSink:
         self.quantities.clear()
         self.instances.clear()
         self._shared_logged.clear()
+
+    def fits(self, spec: Any) -> bool:
+        """Whether the run ``spec`` can join the file begun (a file of several runs, as a
+        sweep's worker writes them): not when the file holds a run of the same entity path
+        (a file a run kept the first of them) or one whose poses instance a shared mesh
+        (:meth:`send_instances` puts the runs of one file on one time grid), so that the
+        merged recording is the one per-run files make."""
+        return not self.instances and entity_path(*run_parts(spec)) not in self.runs
 
     def end_file(self) -> Path | None:
         """Write what was logged since :meth:`begin_file` to its file (atomically: a

@@ -6,9 +6,11 @@ enforces each run's time limit by killing the worker (row ``timeout``) and start
 fresh one. A worker that crashes mid-run (segfault, abort) gives a ``failed`` row
 "worker process died (exit code ...)"; one killed from outside (SIGKILL, SIGTERM) is no
 result: its run is tried once more, then left without a row (see
-:mod:`workbench.runs.unfinished`). A worker records each run through the
-``recorder`` it is given (a class with ``begin_file(path)`` / ``end_file()``, made once a
-worker), so this layer knows no recording format.
+:mod:`workbench.runs.unfinished`). A worker records its runs through the ``recorder`` it
+is given (a class with ``begin_file(path)`` / ``fits(spec)`` / ``end_file()``, made once
+a worker), a file a batch of runs (:mod:`workbench.runs.recording_batches`), so this
+layer knows no recording format; the runs a killed worker had not yet written to a file
+are recorded again by another (their rows kept).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import sys
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -39,11 +41,19 @@ from workbench.execution.run_progress import (
 )
 from workbench.execution.timing import Timing
 from workbench.execution.worker_env import pin_threads
-from workbench.files import check_no_links, make_dirs, remove_file
+from workbench.files import check_no_links, remove_file
 from workbench.plugin import registry
 from workbench.plugin.local_modules import import_plugin_modules, imported_from_file
 from workbench.runs import store
 from workbench.runs.parent_watch import exit_with_parent
+from workbench.runs.recording_batches import (
+    RECORDINGS_DIR,
+    RecordingBatch,
+    forget_journals,
+    journals,
+    listed_runs,
+    new_token,
+)
 from workbench.runs.unfinished import (
     RETRIES,
     died_message,
@@ -66,15 +76,18 @@ def _worker_main(
     timing: dict[str, Any] | None = None,
     scratch: bool = False,
     states: bool = True,
+    token: str = "",
 ) -> None:
-    """A pool worker: ready, then run specs received on ``conn`` until None.
+    """A pool worker: ready, then run specs received on ``conn`` until None; a message
+    ``("record", spec)`` records a done run again, its row and series left as they are.
 
     ``parent``: the pid of a parent that is not multiprocessing's (:func:`exit_with_parent`);
     ``scratch``: ``out`` is this worker's own directory, removed if the parent dies;
     ``reference_dir``: where references are cached (default ``<out>/references``);
     ``timing``: how each integration is timed (:meth:`Timing.to_dict`); ``states``: store
-    the trajectory in the series (:func:`~workbench.runs.store.write_run`). Also the worker
-    loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
+    the trajectory in the series (:func:`~workbench.runs.store.write_run`); ``token``: the
+    name of its recordings' journal (:mod:`workbench.runs.recording_batches`). Also the
+    worker loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
@@ -91,57 +104,36 @@ def _worker_main(
             recorder.prepare()
     conn.send(("ready", os.getpid()))
     references = Path(reference_dir) if reference_dir else Path(out) / "references"
-    sink = None  # one recording sink for all of this worker's runs, a file a run
+    # one recording sink for all of this worker's runs, a file a batch of runs
+    batch = RecordingBatch(recorder, Path(out), token or new_token()) if recorder else None
     while True:
         message = conn.recv()
         if message is None:
+            if batch is not None:
+                batch.close()  # its last runs' file, then its journal goes
             release_raw_file()  # kept for a next run (CapturedOutput's reuse)
             release_progress_file()
             return
-        spec = RunSpec.from_dict(message)
+        record_only = isinstance(message, tuple)  # ("record", spec)
+        spec = RunSpec.from_dict(message[1] if record_only else message)
         try:
-            sink = _begin_recording(recorder, sink, Path(out), spec.run_id)
-            try:
-                capture = CapturedOutput(raw_path(Path(out), spec.run_id), reuse=True)
-                progress = ProgressWriter(progress_path(Path(out), spec.run_id))
-                with capture, progress:  # output to its bounded log; progress for a timeout
-                    result = execute_run(
-                        spec, sink=sink, reference_dir=references, timing=Timing.from_dict(timing)
-                    )
+            sink = batch.begin_run(spec) if batch is not None else None
+            capture = CapturedOutput(raw_path(Path(out), spec.run_id), reuse=True)
+            progress = ProgressWriter(progress_path(Path(out), spec.run_id))
+            with capture, progress:  # output to its bounded log; progress for a timeout
+                result = execute_run(
+                    spec, sink=sink, reference_dir=references, timing=Timing.from_dict(timing)
+                )
+            if batch is not None:
+                batch.logged(spec.run_id)  # in its journal before its row is written
+            if not record_only:
                 result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
                 store.write_run(Path(out), result.row, result.series, states)
-            finally:
-                _end_recording(sink)
+            if batch is not None:
+                batch.end_run()
             conn.send(("done", spec.run_id, result.row["status"]))
         except Exception as error:  # noqa: BLE001 - reported to the parent as a row
             conn.send(("error", spec.run_id, f"{type(error).__name__}: {error}"))
-
-
-RECORDINGS_DIR = "recordings"
-
-
-def _begin_recording(recorder: Any, sink: Any, out: Path, run_id: str) -> Any:
-    """The worker's sink (``recorder()``, made at its first run), now writing the file of
-    one run beside its row (merged at the end); None without a recorder or where it cannot
-    be used: a recording is a view of the results, never a failure."""
-    if recorder is None:
-        return None
-    try:
-        if sink is None:
-            sink = recorder()
-        path = out / RECORDINGS_DIR / f"{run_id}.{recorder.suffix}"
-        make_dirs(path.parent, out)  # no link below out (workbench.files)
-        sink.begin_file(path)
-        return sink
-    except Exception:  # noqa: BLE001
-        return None
-
-
-def _end_recording(sink: Any) -> None:
-    """Close the run's file (none is left for a run skipped or failed before integrating)."""
-    if sink is not None:
-        with contextlib.suppress(Exception):
-            sink.end_file()
 
 
 def merge_run_recordings(recorder: Any, out: Path) -> tuple[Path | None, bool]:
@@ -151,7 +143,9 @@ def merge_run_recordings(recorder: Any, out: Path) -> tuple[Path | None, bool]:
     the merged file is durable, so the disk holds one copy; a crash before that leaves
     them for the next merge. Without new files the merged file is kept as it is."""
     directory = out / RECORDINGS_DIR
-    files = sorted(directory.glob(f"*.{recorder.suffix}")) if directory.is_dir() else []
+    files = list(directory.glob(f"*.{recorder.suffix}")) if directory.is_dir() else []
+    # the newest file first: a run recorded again (redone) is taken from its last file
+    files.sort(key=lambda file: (file.stat().st_mtime_ns, file.name), reverse=True)
     merged = getattr(recorder, "merged_file", None)
     if not files:
         kept = out / merged if merged is not None else None
@@ -174,6 +168,9 @@ class _Worker:
     deadline: float = math.inf
     pair: tuple[str, ...] | None = None  # equations_key of its last run: built, cached
     stamp: tuple[int, int] | None = None  # row_stamp of its run when it was handed over
+    token: str = ""  # its recordings' journal (workbench.runs.recording_batches)
+    record_only: bool = False  # its run is a done run recorded again
+    recorded: list[str] = field(default_factory=list)  # runs it recorded (done, not failed)
 
 
 Keyed = tuple[tuple[str, ...], RunSpec]  # (equations_key, run), the key computed once
@@ -253,27 +250,47 @@ def run_local(
     recorder: Any = None,
     timing: Timing | None = None,
     states: bool = True,
+    rebuild: list[RunSpec] = (),
 ) -> dict[str, str]:
     """Run ``todo`` (timed as ``timing`` says, default :class:`Timing` with ``jobs``
     workers; ``states``: store each trajectory, :func:`~workbench.runs.store.write_run`);
     return the runs left without a row (run id -> why): those whose
-    worker was killed from outside twice (:mod:`workbench.runs.unfinished`)."""
+    worker was killed from outside twice (:mod:`workbench.runs.unfinished`).
+
+    ``rebuild``: done runs to record again (their recording was left unwritten by a
+    killed worker; rows kept); so are those of a worker killed here, once each."""
     context = _context()
     timed = (timing or Timing(workers=jobs)).to_dict()
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
+    rebuilds: deque[Keyed] = deque((equations_key(spec), spec) for spec in rebuild)
+    specs = {spec.run_id: spec for spec in [*todo, *rebuild]}
+    recorded_again: Counter[str] = Counter()  # run id -> times queued to be recorded again
     workers: list[_Worker] = []
+    gone: list[_Worker] = []  # workers retired, for their journals
     start_failures = 0
     lost: Counter[str] = Counter()  # run id -> attempts whose worker was killed from outside
     unfinished: dict[str, str] = {}
+
+    def record_again(worker: _Worker) -> None:
+        """Queue the runs a retired worker recorded but had not written to a file (its
+        journals), except those queued to run again anyway; once each."""
+        if recorder is None:
+            return
+        queued = {spec.run_id for _key, spec in queue}
+        for run_id in sorted(listed_runs(journals(out, worker.token))):
+            if run_id in specs and run_id not in queued and not recorded_again[run_id]:
+                recorded_again[run_id] += 1
+                rebuilds.append((equations_key(specs[run_id]), specs[run_id]))
 
     # a forkserver's child is the forkserver's, not ours (it exits when we do): watched so
 
     def start() -> _Worker:
         parent_end, child_end = context.Pipe()
+        token = new_token()
         process = context.Process(
             target=_worker_main,
             args=(child_end, plugins, str(out), list(sys.path), recorder),
-            kwargs={"timing": timed, "states": states},
+            kwargs={"timing": timed, "states": states, "token": token},
             daemon=True,
         )
         # a forked worker's garbage collector would visit every object it inherited and
@@ -284,7 +301,7 @@ def run_local(
         finally:
             gc.unfreeze()
         child_end.close()
-        return _Worker(process, parent_end)
+        return _Worker(process, parent_end, token=token)
 
     def retire(worker: _Worker) -> None:
         if worker.process.is_alive():
@@ -292,20 +309,24 @@ def run_local(
         worker.process.join(timeout=10)
         worker.conn.close()
         workers.remove(worker)
+        gone.append(worker)
 
     try:
-        while queue or any(w.spec for w in workers):
+        while queue or rebuilds or any(w.spec for w in workers):
             busy = sum(1 for w in workers if w.spec)
-            while len(workers) < min(jobs, len(queue) + busy):
+            while len(workers) < min(jobs, len(queue) + len(rebuilds) + busy):
                 workers.append(start())
             now = time.monotonic()
             for worker in workers:
-                if worker.ready and worker.spec is None and queue:
+                if worker.ready and worker.spec is None and (queue or rebuilds):
                     others = {w.pair for w in workers if w is not worker}
-                    worker.pair, worker.spec = _take_next(queue, worker.pair, others)
+                    worker.record_only = not queue  # the runs to do first, then those
+                    taken = _take_next(queue or rebuilds, worker.pair, others)
+                    worker.pair, worker.spec = taken
                     worker.deadline = now + limit
                     worker.stamp = row_stamp(out, worker.spec.run_id)
-                    worker.conn.send(worker.spec.to_dict())
+                    data = worker.spec.to_dict()
+                    worker.conn.send(("record", data) if worker.record_only else data)
             deadline = min((w.deadline for w in workers), default=math.inf)
             timeout = max(0.0, min(deadline - now, 1.0))
             waitables = [w.conn for w in workers] + [w.process.sentinel for w in workers]
@@ -318,14 +339,16 @@ def run_local(
                         if message[0] == "ready":
                             worker.ready, start_failures = True, 0
                         elif message[0] == "done" and worker.spec is not None:
-                            record(message[2])
+                            if not worker.record_only:  # (recorded again: counted once)
+                                record(message[2])
+                            worker.recorded.append(worker.spec.run_id)
                             worker.spec, worker.deadline = None, math.inf
                         elif message[0] == "error" and worker.spec is not None:
-                            record(
-                                record_unfinished(
+                            if not worker.record_only:  # its row stands otherwise
+                                status = record_unfinished(
                                     out, worker.spec, "failed", message[2], worker.stamp
                                 )
-                            )
+                                record(status)
                             worker.spec, worker.deadline = None, math.inf
                 except (EOFError, OSError):
                     pass  # the process died: handled below
@@ -336,7 +359,9 @@ def run_local(
                     code = worker.process.exitcode
                     spec, stamp = worker.spec, worker.stamp
                     written = spec and written_status(out, spec.run_id, stamp)
-                    if spec is not None and not written and killed_from_outside(code):
+                    if spec is not None and worker.record_only:
+                        pass  # a done run recorded again: its row stands (record_again)
+                    elif spec is not None and not written and killed_from_outside(code):
                         lost[spec.run_id] += 1
                         if lost[spec.run_id] <= RETRIES:
                             queue.appendleft((equations_key(spec), spec))  # once more
@@ -355,15 +380,41 @@ def run_local(
                                 "check that the plugin modules import"
                             )
                     retire(worker)
+                    record_again(worker)
                 elif worker.spec is not None and now > worker.deadline:
                     spec, stamp = worker.spec, worker.stamp
                     retire(worker)
-                    record(record_unfinished(out, spec, "timeout", timeout_message(limit), stamp))
+                    if not worker.record_only:
+                        status = record_unfinished(
+                            out, spec, "timeout", timeout_message(limit), stamp
+                        )
+                        record(status)
+                    record_again(worker)
+        _stop(workers, retire)
+        if recorder is not None:  # the journals whose runs are now in files go
+            written = {  # recorded by a worker and not left in its journals
+                run for w in gone for run in set(w.recorded) - listed_runs(journals(out, w.token))
+            }
+            forget_journals(out, written, set(specs))
         return unfinished
     finally:
-        for worker in list(workers):
-            with contextlib.suppress(Exception):
-                if worker.spec is None and worker.process.is_alive():
-                    worker.conn.send(None)
-            worker.process.join(timeout=1)
-            retire(worker)
+        _stop(workers, retire)
+
+
+STOP_SECONDS = 30.0
+"""How long a worker told to stop may take (it writes its last recordings' file)."""
+
+
+def _stop(workers: list[_Worker], retire: Callable[[_Worker], None]) -> None:
+    """Tell the idle workers to stop and wait for them; kill the others (retire)."""
+    told = []
+    for worker in workers:
+        with contextlib.suppress(Exception):
+            if worker.spec is None and worker.process.is_alive():
+                worker.conn.send(None)
+                told.append(worker)
+    deadline = time.monotonic() + STOP_SECONDS
+    for worker in list(workers):
+        if worker in told:
+            worker.process.join(timeout=max(0.0, deadline - time.monotonic()))
+        retire(worker)

@@ -38,6 +38,7 @@ from workbench.runs.estimate import estimate_lines, known_costs
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
+from workbench.runs.recording_batches import unwritten_runs
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
@@ -122,7 +123,14 @@ def run_sweep(
         store.remove_stale_temporaries(out_dir)  # from a sweep killed mid-write
         plan = plan_resume(sweep.runs, out_dir, frozenset(rerun), fresh)
         todo = plan.todo
-        for line in plan.lines() + _estimate(sweep, todo, out_dir, jobs, limit, scheduler):
+        rebuild = _unwritten_recordings(sweep, todo, out_dir) if recorder and not scheduler else []
+        lines = plan.lines() + _estimate(sweep, todo, out_dir, jobs, limit, scheduler)
+        if rebuild:
+            lines.append(
+                f"{len(rebuild)} done run(s) have no recording (their worker was killed "
+                "before writing it): recording them again, rows kept"
+            )
+        for line in lines:
             (say or _stderr)(line)
         make_dirs(out_dir / store.RUNS_DIR, out_dir)
         make_dirs(out_dir / "references", out_dir)
@@ -160,6 +168,7 @@ def run_sweep(
                     recorder,
                     timing,
                     states,
+                    rebuild,
                 )
         sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
@@ -191,6 +200,16 @@ def run_sweep(
         unfinished=unfinished,
         unchanged=unchanged,
     )
+
+
+def _unwritten_recordings(sweep: SweepSpec, todo: list[Any], out_dir: Path) -> list[Any]:
+    """The done runs of ``sweep`` (not in ``todo``) whose recording a killed worker left
+    unwritten (:mod:`workbench.runs.recording_batches`): to be recorded again."""
+    unwritten = unwritten_runs(out_dir)
+    if not unwritten:
+        return []
+    doing = {spec.run_id for spec in todo}
+    return [spec for spec in sweep.runs if spec.run_id in unwritten - doing]
 
 
 def _estimate(
