@@ -1,0 +1,146 @@
+"""A worker's recordings a batch of runs a file (issue 35.4): the merged recording is the
+one per-run files made, and the runs a killed worker had not written are recorded again
+(in the sweep, or by the resume of a sweep killed as a whole), their rows kept."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+import rerun as rr
+
+from tests.test_recording import fake_equations, fake_run
+from tests.test_sweep import spec_text
+from workbench.outputs.recording import SweepRecorder, merge_recordings, split_entity_path
+from workbench.runs import store
+from workbench.runs.recording_batches import (
+    RECORDINGS_DIR,
+    RecordingBatch,
+    journal_path,
+    journals,
+    unwritten_runs,
+)
+from workbench.runs.sweep import parse_spec, run_sweep
+
+FALLING = '["test-falling"]'
+KILL_MARKER = "WORKBENCH_TEST_KILL_MARKER"
+
+
+@pytest.fixture(autouse=True)
+def fresh_workers(monkeypatch):
+    """Workers started by spawn: they import this module, whose recorder they are given."""
+    import multiprocessing
+
+    from workbench.runs import local_pool
+
+    monkeypatch.setattr(local_pool, "_context", lambda: multiprocessing.get_context("spawn"))
+
+
+def content(path: Path) -> dict[str, list[str]]:
+    """What a recording holds of its runs: each entity's rows (static or not, values
+    and times; not Rerun's row and chunk ids, which differ between writes), sorted."""
+    rows: dict[str, list[str]] = defaultdict(list)
+    for chunk in rr.chunk.RrdReader(path).stream():
+        if split_entity_path(chunk.entity_path)[:1] != ["runs"]:
+            continue
+        batch = chunk.to_record_batch()
+        names = [name for name in batch.schema.names if "RowId" not in name]
+        for row in batch.select(names).to_pylist():
+            rows[chunk.entity_path].append(json.dumps([chunk.is_static, row], default=str))
+    return {entity: sorted(values) for entity, values in rows.items()}
+
+
+def record(directory: Path, runs: list, equations, batched: bool) -> list[Path]:
+    """The runs' recordings as a sweep's worker writes them: a file a batch
+    (:class:`RecordingBatch`), or a file a run (as before batches)."""
+    directory.mkdir()
+    batch = RecordingBatch(SweepRecorder, directory, "test")
+    for spec, trajectory, series in runs:
+        sink = batch.begin_run(spec)
+        sink.log_run(spec, equations, None, trajectory, series)
+        batch.logged(spec.run_id)
+        if not batched:
+            batch.write()
+    batch.close()
+    assert not journals(directory)  # gone with the worker's clean stop
+    return sorted((directory / RECORDINGS_DIR).glob("*.rrd"))
+
+
+def test_a_batch_file_merges_to_the_recording_per_run_files_make(tmp_path) -> None:
+    runs = [fake_run(10.0**-k) for k in range(3, 7)]
+    per_run = record(tmp_path / "per-run", runs, fake_equations(), batched=False)
+    batched = record(tmp_path / "batched", runs, fake_equations(), batched=True)
+    assert len(per_run) == 4 and len(batched) == 1  # one file for the four runs
+    merged = content(merge_recordings(per_run, tmp_path / "a.rrd"))
+    assert sum(entity.endswith("/series") for entity in merged) == 4
+    assert content(batched[0]) == merged
+    assert content(merge_recordings(batched, tmp_path / "b.rrd")) == content(tmp_path / "a.rrd")
+
+
+def test_a_robots_run_and_a_runs_second_copy_end_a_batch(tmp_path) -> None:
+    """A file holds one run whose poses instance a shared mesh (a file's runs share one
+    time grid) and one run a path (a file a run kept the first): the merge is unchanged."""
+    from tests.test_recording_meshes import meshed_equations
+
+    runs = [fake_run(1e-3, n=50), fake_run(1e-4, n=80), fake_run(1e-4, n=60)]
+    equations = meshed_equations(tmp_path)
+    per_run = record(tmp_path / "per-run", runs, equations, batched=False)
+    batched = record(tmp_path / "batched", runs, equations, batched=True)
+    assert len(batched) == 3
+    merged = content(merge_recordings(batched, tmp_path / "b.rrd"))
+    assert merged == content(merge_recordings(per_run, tmp_path / "a.rrd"))
+
+
+class KillingRecorder(SweepRecorder):
+    """Kills its worker (SIGKILL, as an operator would) the first time a run would join a
+    batch that holds another: that run's row is done, its recording not written."""
+
+    def fits(self, spec) -> bool:
+        marker = Path(os.environ[KILL_MARKER])
+        if not marker.exists():
+            marker.touch()
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().fits(spec)
+
+
+def test_a_worker_killed_with_runs_unwritten_has_them_recorded_again(
+    fake_plugins, tmp_path, monkeypatch
+) -> None:
+    text = spec_text(tmp_path, '["test-rk45"]', problems=FALLING).replace(
+        "tolerances = [1e-4, 1e-6]", "tolerances = [1e-3, 1e-4, 1e-5, 1e-6]"
+    )
+    monkeypatch.setenv(KILL_MARKER, str(tmp_path / "killed"))
+    summary = run_sweep(parse_spec(text), jobs=1, show_progress=False, recorder=KillingRecorder)
+    assert (tmp_path / "killed").exists()  # a worker was killed with a batch unwritten
+    assert summary.counts == {"ok": 4} and summary.unfinished == {}  # each run counted once
+    assert len(SweepRecorder().add_recording(summary.recording)) == 4
+    assert not list((tmp_path / RECORDINGS_DIR).iterdir())  # merged; no journal left
+
+
+def test_a_resume_records_again_the_runs_a_killed_sweep_left_unwritten(
+    fake_plugins, tmp_path
+) -> None:
+    """A sweep killed as a whole leaves its workers' journals: the next sweep records
+    those runs again, their rows untouched, and says so in one line."""
+    text = spec_text(tmp_path, '["test-rk45"]', problems=FALLING)
+    run_sweep(parse_spec(text), show_progress=False)  # rows, no recording
+    rows = {path.name: path.stat().st_mtime_ns for path in (tmp_path / "runs").glob("*.json")}
+    run_ids = sorted(store.load_results(tmp_path)["run_id"])
+    journal = journal_path(tmp_path, "killed-worker")  # as a worker killed before its batch
+    journal.parent.mkdir()
+    journal.write_text("".join(f"{run_id}\n" for run_id in run_ids))
+    assert unwritten_runs(tmp_path) == set(run_ids)
+
+    lines: list[str] = []
+    summary = run_sweep(
+        parse_spec(text), show_progress=False, say=lines.append, recorder=SweepRecorder
+    )
+    assert summary.already_done == 2 and summary.counts == {}
+    assert any("2 done run(s) have no recording" in line for line in lines), lines
+    assert len(SweepRecorder().add_recording(summary.recording)) == 2
+    assert not journals(tmp_path)  # its runs are recorded now
+    assert rows == {p.name: p.stat().st_mtime_ns for p in (tmp_path / "runs").glob("*.json")}
