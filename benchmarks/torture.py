@@ -12,7 +12,8 @@ catalog problems through two formalisms and two integrators):
   k rows), then ``workbench sweep`` again (resume) until it exits 0. Counted: rows lost,
   duplicated or corrupted (a row or series that does not load), rows that differ from the
   uninterrupted sweep (every column but timings), tracebacks printed, hangs, and worker
-  processes left alive after their parent was killed.
+  processes left alive after their parent was killed; for the local kills also the runs
+  the uninterrupted sweep's recording holds and the resumed sweep's does not.
 - **disk**: a sweep into a 6 MB tmpfs (full disk: the rows fit, the recording does not),
   then resumed after the file system is grown; a sweep into a read-only OUT that holds
   earlier results (files hashed before and after).
@@ -244,17 +245,17 @@ def dask_cluster(base: Path):
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     env = dict(os.environ, DASK_DISTRIBUTED__WORKER__DAEMON="False")
-    bin_dir = Path(sys.executable).parent
+    script = Path(sys.executable).parent / "dask"  # else this Python's `-m dask` (a venv
+    dask = [str(script)] if script.exists() else [sys.executable, "-m", "dask"]  # without it)
     scheduler = subprocess.Popen(
-        [str(bin_dir / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
-         "--no-dashboard"],
+        [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
         cwd=base, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True, env=env,
     )  # fmt: skip
 
     def worker() -> subprocess.Popen:
         return subprocess.Popen(
-            [str(bin_dir / "dask"), "worker", address, "--nthreads", "1", "--nworkers", "1",
+            [*dask, "worker", address, "--nthreads", "1", "--nworkers", "1",
              "--no-dashboard", "--no-nanny"],
             cwd=base, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             start_new_session=True, env=env,
@@ -298,7 +299,16 @@ def dask_kill(base: Path, kind: str, k: int, clean, expected) -> dict:
     figures["resumes"] = tries
     figures.update(integrity(out, expected))
     figures["differ"] = differing_rows(out, clean)
+    figures["recordings_lost"] = len(recorded_runs(base / "clean" / "out") - recorded_runs(out))
     return figures
+
+
+def recorded_runs(out: Path) -> set[str]:
+    """The runs in a finished sweep's ``recording.rrd`` (none if it has none)."""
+    from workbench.outputs.recording import RECORDING_FILE, SweepRecorder
+
+    merged = out / RECORDING_FILE
+    return set(SweepRecorder().add_recording(merged)) if merged.is_file() else set()
 
 
 def kills(base: Path, repeats: int, rng: np.random.Generator) -> list[dict]:
@@ -502,6 +512,7 @@ def non_finite(value) -> bool:
 
 MUST_BE_ZERO = (
     "lost", "duplicated", "corrupted", "differ", "tracebacks", "hung", "orphans",
+    "recordings_lost",
     "non_finite_accepted", "files_changed", "partial_left",
 )  # fmt: skip
 

@@ -41,10 +41,11 @@ run id appended.
 The recording is kept in memory until :meth:`RerunSink.save`; a sink used in worker
 processes must be saved by each worker (one file each, same recording id: the viewer
 merges files of one recording id), since a recording stream cannot be pickled. A sweep's
-worker keeps one sink for all its runs and writes a file a run with
-:meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file`: one recording stream given a
-new in-memory binary stream a run (written to the run's file at its end), because a new
-recording stream a run leaks memory in rerun-sdk (docs/performance.md has the figures).
+worker keeps one sink for all its runs and writes a file a batch of runs with
+:meth:`RerunSink.begin_file` / :meth:`RerunSink.end_file` (:meth:`RerunSink.fits` says
+whether a run may join the file begun; :mod:`workbench.runs.recording_batches`): one
+recording stream given a new in-memory binary stream a file, because a new recording
+stream a run leaks memory in rerun-sdk (docs/performance.md has the figures).
 :func:`merge_recordings` adds those files to the sweep's one ``recording.rrd`` (after
 which the sweep removes them) and :func:`extract_run` copies one run back out of it.
 """
@@ -435,10 +436,10 @@ class RerunSink:
 
     def begin_file(self, path: str | Path) -> None:
         """Send what is logged from now on to the file ``path``, forgetting the runs
-        logged before: one file a run through one recording stream (see the module
-        docstring). The run is kept in memory (a Rerun binary stream) until
-        :meth:`end_file` writes it, which costs less than a file sink a run (its thread
-        start-up and flush; docs/performance.md)."""
+        logged before: a file a run, or a batch of runs (:meth:`fits`), through one
+        recording stream (see the module docstring). The runs are kept in memory (a Rerun
+        binary stream) until :meth:`end_file` writes them, which costs less than a file
+        sink (its thread start-up and flush; docs/performance.md)."""
         self._stream = self.recording.binary_stream()
         self._file = Path(path)
         self.runs.clear()
@@ -965,8 +966,8 @@ def shape_defaults() -> list[Any]:
 
 class SweepRecorder(RerunSink):
     """What a sweep's workers record with (``run_sweep(..., recorder=SweepRecorder)``): at
-    most 200 poses a run, a ``.rrd`` file a run beside its row, merged at the end into
-    ``<out>/recording.rrd``."""
+    most 200 poses a run, a ``.rrd`` file a batch of a worker's runs in ``<out>/recordings``,
+    merged at the end into ``<out>/recording.rrd``."""
 
     suffix = "rrd"
     merged_file = RECORDING_FILE  # merged again only when the runs' files change

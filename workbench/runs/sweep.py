@@ -87,7 +87,8 @@ def run_sweep(
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
     ``recorder``: what records each run of the local pool (a class, made once a worker:
-    ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``end_file()``; class
+    ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``fits(spec)`` (whether
+    a run may join the file begun: :mod:`workbench.runs.recording_batches`), ``end_file()``; class
     attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
     ``prepare()`` and ``merged_file``, the name of merge's file in ``out``: it is then
     merged again only when the runs' files changed), e.g.
