@@ -212,7 +212,7 @@ def sweep(
         typer.Argument(
             help="Sweep specification (TOML file) or suite name (quick, full, iftomm, ivp); "
             "default: quick, a first look in about a minute.",
-        ),
+        )
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
     scheduler: Annotated[
@@ -343,7 +343,11 @@ def sweep(
         typer.echo(
             f"{len(summary.unfinished)} run(s) could not be completed, not by their own fault "
             f"(runs {runs}; e.g. run {first}: {why}); they have no row: resume with `{again}`"
-            + (f" (Dask's own messages: {summary.out / 'logs' / CLIENT_LOG})" if scheduler else ""),
+            + (
+                f" (Dask's own messages: {summary.out / 'logs' / CLIENT_LOG})"
+                if scheduler
+                else ""
+            ),
             err=True,
         )
         raise typer.Exit(1)

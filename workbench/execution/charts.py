@@ -150,5 +150,6 @@ def switch_note(atlas: Any, trajectory: Any) -> str:
     shown = ", ".join(f"t = {t:.4g} s to {atlas.name(chart)}" for t, chart in switches[:6])
     more = f" and {len(switches) - 6} more" if len(switches) > 6 else ""
     return (
-        f"{len(switches)} chart switches (re-partitioned where the chart degraded): {shown}{more}"
+        f"{len(switches)} chart switches (re-partitioned where the chart degraded): "
+        f"{shown}{more}"
     )

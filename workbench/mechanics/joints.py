@@ -285,11 +285,8 @@ def drive_values(joint: Joint, t: Any) -> tuple[Any, Any, Any]:
     """(q, v, v') prescribed by a driven joint at time t, as vectors."""
     drive = joint.drive
     assert drive is not None and drive.velocity is not None and drive.acceleration is not None
-    return (
-        _as_vector(drive.position(t)),
-        _as_vector(drive.velocity(t)),
-        _as_vector(drive.acceleration(t)),
-    )
+    return (_as_vector(drive.position(t)), _as_vector(drive.velocity(t)),
+            _as_vector(drive.acceleration(t)))
 
 
 def _as_vector(value: Any) -> Any:

@@ -39,9 +39,8 @@ class BodyState:
         return self.position + ca.mtimes(self.rotation, ca.DM(local))
 
     def point_velocity(self, local: np.ndarray) -> Any:
-        return self.velocity + ca.cross(
-            self.angular_velocity, ca.mtimes(self.rotation, ca.DM(local))
-        )
+        return self.velocity + ca.cross(self.angular_velocity, ca.mtimes(self.rotation,
+                                                                          ca.DM(local)))
 
     def frame(self, frame: Frame) -> tuple[Any, Any]:
         return self.point(frame.position), ca.mtimes(self.rotation, ca.DM(frame.rotation))
@@ -118,16 +117,10 @@ class TreeKinematics:
         self._joint_v: dict[str, Any] = {}
         self.bodies: dict[str, BodyState] = {}
         self._forward()
-        self.qdot = (
-            ca.vertcat(
-                *[
-                    jk.coordinate_rates(j, self._joint_q[j.name], self._joint_v[j.name])
-                    for j in self.free_joints
-                ]
-            )
-            if self.free_joints
-            else ca.SX(0, 1)
-        )
+        self.qdot = ca.vertcat(
+            *[jk.coordinate_rates(j, self._joint_q[j.name], self._joint_v[j.name])
+              for j in self.free_joints]
+        ) if self.free_joints else ca.SX(0, 1)
         self._constraints()
 
     # -- forward kinematics, outward ---------------------------------------------------
@@ -178,9 +171,8 @@ class TreeKinematics:
             rows.append(residual)
             names += [f"{joint.name}[{i}]" for i in range(residual.numel())]
         for constraint in self.model.nonholonomic:
-            holonomic, nonholonomic = contact_rows(
-                self.planar, self.body(constraint.body), constraint
-            )
+            holonomic, nonholonomic = contact_rows(self.planar, self.body(constraint.body),
+                                                   constraint)
             if holonomic is not None:
                 rows.append(holonomic)
                 names.append(f"{constraint.name}.height")
@@ -242,9 +234,8 @@ def contact_rows(planar: bool, body: BodyState, constraint: Any) -> tuple[Any, A
     return height, tangential
 
 
-def initial_joint_values(
-    model: Model, kinematics: TreeKinematics, values: dict[str, Any], velocities: bool
-) -> np.ndarray:
+def initial_joint_values(model: Model, kinematics: TreeKinematics, values: dict[str, Any],
+                         velocities: bool) -> np.ndarray:
     """Stack per-joint initial values into the free-joint vector (neutral/zero if absent)."""
     size = kinematics.nv if velocities else kinematics.nq
     out = np.zeros(size)
@@ -277,7 +268,8 @@ def initial_joint_values(
             )
         if not np.all(np.isfinite(value)):
             raise ModelError(
-                f"{where}: initial {what} {value.tolist()} contains NaN or inf; give finite numbers"
+                f"{where}: initial {what} {value.tolist()} contains NaN or inf; give finite "
+                "numbers"
             )
         if not velocities and joint.type in ("spherical", "free") and not np.any(value[-4:]):
             raise ModelError(

@@ -6,7 +6,7 @@ generalized forces Q_nc(t, q, v) as CasADi SX expressions in the symbols of a
 :class:`~workbench.mechanics.kinematics.TreeKinematics`, from the same formalism-neutral
 kinematics and force elements every formalism uses. Q_nc is the workbench's generalized
 force minus its conservative part -dV/dq, so it is valid only where q' = v, i.e. without
-spherical or free joints (:func:`quaternion_joints`)."""
+spherical or free joints (:func:`quaternion_joints`). """
 
 from __future__ import annotations
 

@@ -214,7 +214,9 @@ class RankConfiguration:
     assembled: bool
 
 
-def reference_configuration(model: Model, kinematics: TreeKinematics | JointLayout) -> np.ndarray:
+def reference_configuration(
+    model: Model, kinematics: TreeKinematics | JointLayout
+) -> np.ndarray:
     """The model's ``initial_configuration`` as tree coordinates (nq), neutral where a
     joint is not given, unit quaternions."""
     q = initial_joint_values(model, kinematics, model.initial_configuration, velocities=False)

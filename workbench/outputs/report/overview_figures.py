@@ -82,11 +82,8 @@ def heat_map_figure(
         "overview-heat-map",
         f"Cost ({name}) of each pair at scd >= {target:g}, divided by the least cost of any "
         "pair on that problem"
-        + (
-            f"; the {columns} pairs within reach of the best on the most problems of {pairs}"
-            if shown
-            else ""
-        ),  # fmt: skip
+        + (f"; the {columns} pairs within reach of the best on the most problems of {pairs}"
+           if shown else ""),  # fmt: skip
     )
 
 
