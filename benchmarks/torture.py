@@ -236,6 +236,7 @@ def local_kill(base: Path, kind: str, k: int, clean, expected) -> dict:
     figures["resumes"] = tries
     figures.update(integrity(out, expected))
     figures["differ"] = differing_rows(out, clean)
+    figures["recordings_lost"] = len(recorded_runs(base / "clean" / "out") - recorded_runs(out))
     return figures
 
 
@@ -299,7 +300,6 @@ def dask_kill(base: Path, kind: str, k: int, clean, expected) -> dict:
     figures["resumes"] = tries
     figures.update(integrity(out, expected))
     figures["differ"] = differing_rows(out, clean)
-    figures["recordings_lost"] = len(recorded_runs(base / "clean" / "out") - recorded_runs(out))
     return figures
 
 

@@ -88,8 +88,8 @@ def run_sweep(
 
     ``recorder``: what records each run of the local pool (a class, made once a worker:
     ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``fits(spec)`` (whether
-    a run may join the file begun: :mod:`workbench.runs.recording_batches`), ``end_file()``; class
-    attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
+    a run may join the file begun: :mod:`workbench.runs.recording_batches`) and
+    ``end_file()``; class attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
     ``prepare()`` and ``merged_file``, the name of merge's file in ``out``: it is then
     merged again only when the runs' files changed), e.g.
     :class:`workbench.outputs.recording.RerunSink`; None records nothing. Passed in, so
