@@ -144,3 +144,16 @@ def test_a_resume_records_again_the_runs_a_killed_sweep_left_unwritten(
     assert len(SweepRecorder().add_recording(summary.recording)) == 2
     assert not journals(tmp_path)  # its runs are recorded now
     assert rows == {p.name: p.stat().st_mtime_ns for p in (tmp_path / "runs").glob("*.json")}
+
+
+def test_a_batch_holding_many_values_is_written_before_the_next_run(tmp_path, monkeypatch):
+    """A batch's runs stay in memory until its file is written: bounded by their values."""
+    from workbench.outputs import recording
+
+    sink = SweepRecorder()
+    sink.begin_file(tmp_path / "batch.rrd")
+    first, second = fake_run(1e-3, n=50), fake_run(1e-4, n=50)
+    sink.log_run(first[0], fake_equations(), None, *first[1:])
+    assert sink.fits(second[0])
+    monkeypatch.setattr(recording, "FILE_VALUES_LIMIT", 50 * 6)  # the first run's series
+    assert not sink.fits(second[0])

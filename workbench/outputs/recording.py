@@ -84,6 +84,9 @@ SERIES_ENTITY = "series"
 """``<run>/series``: all of a run's time series, one Scalars instance a quantity in the
 order of :data:`SERIES_QUANTITIES` (NaN where the run has none), sent in one column
 chunk: a chunk a quantity cost the reader about 11 KiB each (its footer's manifest)."""
+FILE_VALUES_LIMIT = 2**22
+"""Values (poses and series, 8 bytes each) a file of several runs takes before it is
+written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
 SERIES_PRESENT = "quantities"
 """The static component of ``<run>/series`` naming the quantities the run has values of."""
 
@@ -175,6 +178,7 @@ class RerunSink:
         self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
         self.quantities: set[str] = set()  # series logged by at least one run
         self._file = Path()  # the file of begin_file
+        self._file_values = 0  # values (poses, series) logged to it: its size in memory
         self._stream: Any = None  # its binary stream, until end_file
         self._geometry_cache: dict[str, list[tuple[str, list[Any]]]] = {}
         self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
@@ -310,6 +314,7 @@ class RerunSink:
         else:
             poses = observables.poses_along(times[rows], y[rows, : equations.nq])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
+        self._file_values += poses.size
         for b, name in enumerate(observables.body_names):
             self.recording.send_columns(
                 f"{path}/{entity_path('bodies', name)}",
@@ -354,6 +359,7 @@ class RerunSink:
             return
         table[~finite] = np.nan
         self.quantities.update(present)
+        self._file_values += table.size
         series_path = f"{path}/{SERIES_ENTITY}"
         self.recording.log(
             series_path,
@@ -442,6 +448,7 @@ class RerunSink:
         sink (its thread start-up and flush; docs/performance.md)."""
         self._stream = self.recording.binary_stream()
         self._file = Path(path)
+        self._file_values = 0
         self.runs.clear()
         self.quantities.clear()
         self.instances.clear()
@@ -452,8 +459,13 @@ class RerunSink:
         sweep's worker writes them): not when the file holds a run of the same entity path
         (a file a run kept the first of them) or one whose poses instance a shared mesh
         (:meth:`send_instances` puts the runs of one file on one time grid), so that the
-        merged recording is the one per-run files make."""
-        return not self.instances and entity_path(*run_parts(spec)) not in self.runs
+        merged recording is the one per-run files make; nor when it holds
+        :data:`FILE_VALUES_LIMIT` values (kept in memory until :meth:`end_file`)."""
+        return (
+            not self.instances
+            and self._file_values < FILE_VALUES_LIMIT
+            and entity_path(*run_parts(spec)) not in self.runs
+        )
 
     def end_file(self) -> Path | None:
         """Write what was logged since :meth:`begin_file` to its file (atomically: a
