@@ -1,7 +1,7 @@
 """A worker's recordings written a batch of runs a file, and the runs a killed worker left
 unwritten (issue 35.4).
 
-A file a run cost the worker and the merge about 0.75 ms a run (the file, Rerun's flush
+A file a run cost the worker and the merge 0.75-1.5 ms a run (the file, Rerun's flush
 of its stream, the reader opening it: docs/performance.md), so a worker of the local pool
 records several finished runs into one file (:class:`RecordingBatch`): it writes the file
 after :data:`BATCH_RUNS` runs or :data:`BATCH_SECONDS`, when the recorder says the next
