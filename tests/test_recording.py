@@ -9,6 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 import rerun as rr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from workbench.cli import app
@@ -255,6 +257,21 @@ def test_entity_paths_escape_and_split() -> None:
     path = entity_path("runs", "a/b", "rtol=1e-06", "x y")
     assert split_entity_path(path) == ["runs", "a/b", "rtol=1e-06", "x y"]
     np.testing.assert_array_equal(quaternion_xyzw(np.array([1.0, 2, 3, 4])), [2, 3, 4, 1])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.text(alphabet="ab/=\\ .[]", max_size=6), min_size=1, max_size=5))
+def test_split_entity_path_parses_as_the_regular_expressions_do(parts) -> None:
+    """The split without regular expressions where no part has an escape is the split
+    with them, on Rerun's escaped paths and on raw text."""
+    import re
+
+    def by_regex(path: str) -> list[str]:
+        pieces = re.split(r"(?<!\\)/", path.strip("/"))
+        return [re.sub(r"\\(.)", r"\1", piece) for piece in pieces if piece]
+
+    for path in (entity_path(*parts), "/".join(parts)):
+        assert split_entity_path(path) == by_regex(path)
 
 
 def test_sink_in_the_runner(tmp_path: Path) -> None:

@@ -632,9 +632,12 @@ def _rotation_matrices(scalar_first: np.ndarray) -> np.ndarray:
 
 
 def split_entity_path(path: str) -> list[str]:
-    """An entity path's parts, unescaped (the inverse of :func:`entity_path`)."""
-    parts = re.split(r"(?<!\\)/", path.strip("/"))
-    return [re.sub(r"\\(.)", r"\1", part) for part in parts if part]
+    """An entity path's parts, unescaped (the inverse of :func:`entity_path`); the
+    regular expressions only where a part has an escape (the merge parses every chunk's
+    path: they were a fifth of its CPU)."""
+    path = path.strip("/")
+    parts = re.split(r"(?<!\\)/", path) if "\\/" in path else path.split("/")
+    return [re.sub(r"\\(.)", r"\1", part) if "\\" in part else part for part in parts if part]
 
 
 def merge_recordings(
