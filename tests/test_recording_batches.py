@@ -96,25 +96,35 @@ def test_a_robots_run_and_a_runs_second_copy_end_a_batch(tmp_path) -> None:
 
 
 class KillingRecorder(SweepRecorder):
-    """Kills its worker (SIGKILL, as an operator would) the first time a run would join a
-    batch that holds another: that run's row is done, its recording not written."""
+    """Kills its worker (SIGKILL, as an operator would) the first time it would write a
+    batch's file: after a run (the batch full or old enough) or as the worker stops,
+    whichever comes first at the machine's load; the batch's rows are done."""
 
-    def fits(self, spec) -> bool:
+    def end_file(self):
         marker = Path(os.environ[KILL_MARKER])
         if not marker.exists():
             marker.touch()
             os.kill(os.getpid(), signal.SIGKILL)
-        return super().fits(spec)
+        return super().end_file()
 
 
+class KillingRecorderOfSingleRuns(KillingRecorder):
+    """As :class:`KillingRecorder`, a file a run: killed at the second run's start (or at
+    the end of a run), while the pool waits for that run."""
+
+    def fits(self, spec) -> bool:
+        return False
+
+
+@pytest.mark.parametrize("recorder", [KillingRecorder, KillingRecorderOfSingleRuns])
 def test_a_worker_killed_with_runs_unwritten_has_them_recorded_again(
-    fake_plugins, tmp_path, monkeypatch
+    fake_plugins, tmp_path, monkeypatch, recorder
 ) -> None:
     text = spec_text(tmp_path, '["test-rk45"]', problems=FALLING).replace(
         "tolerances = [1e-4, 1e-6]", "tolerances = [1e-3, 1e-4, 1e-5, 1e-6]"
     )
     monkeypatch.setenv(KILL_MARKER, str(tmp_path / "killed"))
-    summary = run_sweep(parse_spec(text), jobs=1, show_progress=False, recorder=KillingRecorder)
+    summary = run_sweep(parse_spec(text), jobs=1, show_progress=False, recorder=recorder)
     assert (tmp_path / "killed").exists()  # a worker was killed with a batch unwritten
     assert summary.counts == {"ok": 4} and summary.unfinished == {}  # each run counted once
     assert len(SweepRecorder().add_recording(summary.recording)) == 4

@@ -312,85 +312,91 @@ def run_local(
         gone.append(worker)
 
     try:
-        while queue or rebuilds or any(w.spec for w in workers):
-            busy = sum(1 for w in workers if w.spec)
-            while len(workers) < min(jobs, len(queue) + len(rebuilds) + busy):
-                workers.append(start())
-            now = time.monotonic()
-            for worker in workers:
-                if worker.ready and worker.spec is None and (queue or rebuilds):
-                    others = {w.pair for w in workers if w is not worker}
-                    worker.record_only = not queue  # the runs to do first, then those
-                    taken = _take_next(queue or rebuilds, worker.pair, others)
-                    worker.pair, worker.spec = taken
-                    worker.deadline = now + limit
-                    worker.stamp = row_stamp(out, worker.spec.run_id)
-                    data = worker.spec.to_dict()
-                    worker.conn.send(("record", data) if worker.record_only else data)
-            deadline = min((w.deadline for w in workers), default=math.inf)
-            timeout = max(0.0, min(deadline - now, 1.0))
-            waitables = [w.conn for w in workers] + [w.process.sentinel for w in workers]
-            multiprocessing.connection.wait(waitables, timeout)
-            tick()
-            for worker in list(workers):
-                try:
-                    while worker.conn.poll():
-                        message = worker.conn.recv()
-                        if message[0] == "ready":
-                            worker.ready, start_failures = True, 0
-                        elif message[0] == "done" and worker.spec is not None:
-                            if not worker.record_only:  # (recorded again: counted once)
-                                record(message[2])
-                            worker.recorded.append(worker.spec.run_id)
-                            worker.spec, worker.deadline = None, math.inf
-                        elif message[0] == "error" and worker.spec is not None:
-                            if not worker.record_only:  # its row stands otherwise
-                                status = record_unfinished(
-                                    out, worker.spec, "failed", message[2], worker.stamp
+        while True:  # until no worker left runs unwritten (killed as it stopped too)
+            while queue or rebuilds or any(w.spec for w in workers):
+                busy = sum(1 for w in workers if w.spec)
+                while len(workers) < min(jobs, len(queue) + len(rebuilds) + busy):
+                    workers.append(start())
+                now = time.monotonic()
+                for worker in workers:
+                    if worker.ready and worker.spec is None and (queue or rebuilds):
+                        others = {w.pair for w in workers if w is not worker}
+                        worker.record_only = not queue  # the runs to do first, then those
+                        taken = _take_next(queue or rebuilds, worker.pair, others)
+                        worker.pair, worker.spec = taken
+                        worker.deadline = now + limit
+                        worker.stamp = row_stamp(out, worker.spec.run_id)
+                        data = worker.spec.to_dict()
+                        worker.conn.send(("record", data) if worker.record_only else data)
+                deadline = min((w.deadline for w in workers), default=math.inf)
+                timeout = max(0.0, min(deadline - now, 1.0))
+                waitables = [w.conn for w in workers] + [w.process.sentinel for w in workers]
+                multiprocessing.connection.wait(waitables, timeout)
+                tick()
+                for worker in list(workers):
+                    try:
+                        while worker.conn.poll():
+                            message = worker.conn.recv()
+                            if message[0] == "ready":
+                                worker.ready, start_failures = True, 0
+                            elif message[0] == "done" and worker.spec is not None:
+                                if not worker.record_only:  # (recorded again: counted once)
+                                    record(message[2])
+                                worker.recorded.append(worker.spec.run_id)
+                                worker.spec, worker.deadline = None, math.inf
+                            elif message[0] == "error" and worker.spec is not None:
+                                if not worker.record_only:  # its row stands otherwise
+                                    status = record_unfinished(
+                                        out, worker.spec, "failed", message[2], worker.stamp
+                                    )
+                                    record(status)
+                                worker.spec, worker.deadline = None, math.inf
+                    except (EOFError, OSError):
+                        pass  # the process died: handled below
+                now = time.monotonic()
+                for worker in list(workers):
+                    if not worker.process.is_alive():
+                        worker.process.join()
+                        code = worker.process.exitcode
+                        spec, stamp = worker.spec, worker.stamp
+                        written = spec and written_status(out, spec.run_id, stamp)
+                        if spec is not None and worker.record_only:
+                            pass  # a done run recorded again: its row stands (record_again)
+                        elif spec is not None and not written and killed_from_outside(code):
+                            lost[spec.run_id] += 1
+                            if lost[spec.run_id] <= RETRIES:
+                                queue.appendleft((equations_key(spec), spec))  # once more
+                            else:
+                                unfinished[spec.run_id] = (
+                                    f"{died_message(code)} {lost[spec.run_id]} times"
                                 )
-                                record(status)
-                            worker.spec, worker.deadline = None, math.inf
-                except (EOFError, OSError):
-                    pass  # the process died: handled below
-            now = time.monotonic()
-            for worker in list(workers):
-                if not worker.process.is_alive():
-                    worker.process.join()
-                    code = worker.process.exitcode
-                    spec, stamp = worker.spec, worker.stamp
-                    written = spec and written_status(out, spec.run_id, stamp)
-                    if spec is not None and worker.record_only:
-                        pass  # a done run recorded again: its row stands (record_again)
-                    elif spec is not None and not written and killed_from_outside(code):
-                        lost[spec.run_id] += 1
-                        if lost[spec.run_id] <= RETRIES:
-                            queue.appendleft((equations_key(spec), spec))  # once more
-                        else:
-                            unfinished[spec.run_id] = (
-                                f"{died_message(code)} {lost[spec.run_id]} times"
+                                record("unfinished")
+                        elif spec is not None:
+                            why = died_message(code)
+                            record(record_unfinished(out, spec, "failed", why, stamp))
+                        elif not worker.ready:
+                            start_failures += 1
+                            if start_failures >= 3:
+                                raise WorkbenchError(
+                                    f"worker processes fail to start ({died_message(code)}); "
+                                    "check that the plugin modules import"
+                                )
+                        retire(worker)
+                        record_again(worker)
+                    elif worker.spec is not None and now > worker.deadline:
+                        spec, stamp = worker.spec, worker.stamp
+                        retire(worker)
+                        if not worker.record_only:
+                            status = record_unfinished(
+                                out, spec, "timeout", timeout_message(limit), stamp
                             )
-                            record("unfinished")
-                    elif spec is not None:
-                        record(record_unfinished(out, spec, "failed", died_message(code), stamp))
-                    elif not worker.ready:
-                        start_failures += 1
-                        if start_failures >= 3:
-                            raise WorkbenchError(
-                                f"worker processes fail to start ({died_message(code)}); "
-                                "check that the plugin modules import"
-                            )
-                    retire(worker)
-                    record_again(worker)
-                elif worker.spec is not None and now > worker.deadline:
-                    spec, stamp = worker.spec, worker.stamp
-                    retire(worker)
-                    if not worker.record_only:
-                        status = record_unfinished(
-                            out, spec, "timeout", timeout_message(limit), stamp
-                        )
-                        record(status)
-                    record_again(worker)
-        _stop(workers, retire)
+                            record(status)
+                        record_again(worker)
+            _stop(workers, retire)
+            for worker in gone:  # (each run once: record_again)
+                record_again(worker)
+            if not rebuilds:
+                break
         if recorder is not None:  # the journals whose runs are now in files go
             written = {  # recorded by a worker and not left in its journals
                 run for w in gone for run in set(w.recorded) - listed_runs(journals(out, w.token))
