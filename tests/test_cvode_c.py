@@ -73,7 +73,7 @@ def test_a_chain_run_matches_the_stored_reference_and_casadi_cvodes(tmp_path, mo
     monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path / "cache"))
     clear_cache()
     cvode_c.driver.cache_clear()
-    cvode_c._prepared.clear()
+    cvode_c.loaded_rhs.cache_clear()
     before = compiled.STATS.compiled
     rows = {}
     for name in (NAME, "casadi-cvodes"):
@@ -220,3 +220,54 @@ def test_without_a_compiler_the_refusal_says_so(monkeypatch):
         equations = get_formalism("minimal-ode")().build(Pendulum().model(), {"compile": "jit"})
     plugin = get_integrator(NAME)()
     assert "no C compiler" in plugin.incompatibility(equations, plugin.parse_options(None))
+
+
+# one run of a fresh process: what the compile cache did, and the run's end state's bits
+FRESH_RUN = """
+import json, sys
+from workbench.equations import compiled
+real = compiled.generate_c
+generated = []
+def counting(function, *args, **kwargs):
+    generated.append(function.name())
+    return real(function, *args, **kwargs)
+compiled.generate_c = counting
+from workbench.execution.execute import RunSpec, execute_run
+spec = RunSpec("double-pendulum", "recursive", "sundials-cvode-c", 1e-8, 1e-10, {},
+               {"compile": "jit"}, {"method": "adams", "iteration": "functional"})
+result = execute_run(spec, reference_dir=sys.argv[1])
+states = result.series.filter(like="state:").to_numpy()
+print(json.dumps({"status": result.row["status"], "message": result.row["message"],
+                  "compiled": compiled.STATS.compiled, "generated": generated,
+                  "states": states.tobytes().hex(), "shape": list(states.shape)}))
+"""
+
+
+@needs_compiler
+def test_the_driver_calls_the_formalisms_library_and_a_second_process_compiles_nothing(tmp_path):
+    """The driver runs the library the formalism's compile loaded: the right-hand side's
+    C is generated once a process (it was generated a second time to find the driver's
+    copy). A second process finds the driver and every library in the compile cache: no
+    compiler runs, and the trajectory is the same to the bit."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "WORKBENCH_CACHE": str(tmp_path / "cache")}
+    runs = []
+    for _ in range(2):
+        done = subprocess.run(
+            [sys.executable, "-c", FRESH_RUN, str(tmp_path)], capture_output=True, text=True,
+            env=env,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr[-2000:]
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    for run in runs:
+        assert run["status"] == "ok", run["message"]
+        assert run["generated"].count(compiled.SYMBOL_PREFIX + "ode_rhs") == 1, run["generated"]
+        assert run["shape"][0] > 2
+    assert first["compiled"] >= 2  # the right-hand side and the driver, into the new cache
+    assert second["compiled"] == 0, second
+    assert second["states"] == first["states"]

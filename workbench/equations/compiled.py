@@ -457,18 +457,39 @@ class Compiler:
             return None
         if calls < calls_to_repay(vm_seconds, code_bytes_estimate(function)):
             return None
+        try:
+            loaded = self.loaded_once(function)
+        except RuntimeError as error:
+            self._failed(function, error)
+            self.loaded_bytes[name] = -1
+            return None
+        self.in_c[name] = "C"
+        return loaded
+
+    def loaded_once(self, function: ca.Function) -> ca.Function:
+        """The compiled ``function``, loaded once a process (:attr:`loaded`) from the cache
+        or compiled; RuntimeError if it cannot be compiled."""
+        name = function.name()
         if name not in self.loaded:
             with counted():
-                try:
-                    generated = generate(function, self.flags)
-                    self.loaded[name] = load_generated(generated)
-                    self.loaded_bytes[name] = len(generated.code)
-                except RuntimeError as error:
-                    self._failed(function, error)
-                    self.loaded_bytes[name] = -1
-                    return None
-        self.in_c[name] = "C"
+                generated = generate(function, self.flags)
+                self.loaded[name] = load_generated(generated)
+                self.loaded_bytes[name] = len(generated.code)
         return self.loaded[name]
+
+    def library(self, fast: Any) -> tuple[str, str]:
+        """(library path, symbol) of the compiled C of the FastFunction ``fast``, for a
+        caller that runs it itself (an integrator's C driver): the library its own
+        compile loaded if it runs in C, else (compile=auto, left in the VM for this run)
+        the one loaded once a process for that. Its C is generated once a process, not
+        again to find the library. RuntimeError if it cannot be compiled."""
+        if self.mode == "jit":
+            fast.compile()  # what its first call does (a no-op after it)
+        found = library_of(fast.evaluated)
+        if found is None:
+            found = library_of(self.loaded_once(fast.for_c))
+        assert found is not None, "load_library marks what it loads"
+        return found
 
     def summary(self) -> str:
         """compile=auto: which functions run in C and which in the VM (for a row's notes)."""
