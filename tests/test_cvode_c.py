@@ -10,6 +10,7 @@ tested everywhere.
 from __future__ import annotations
 
 import ctypes
+import re
 
 import numpy as np
 import pytest
@@ -163,6 +164,56 @@ def test_too_few_steps_give_a_failed_row_naming_cvodes_flag():
     assert "CV_TOO_MUCH_WORK" in trajectory.message and "mxstep" in trajectory.message
     assert trajectory.times.size == trajectory.y.shape[0] >= 1
     assert trajectory.stats.n_steps >= 5
+
+
+@needs_compiler
+@pytest.mark.parametrize("options", [ADAMS, BDF])
+def test_a_failure_reports_cvodes_steps_calls_and_time_up_to_it(options):
+    """The pendulum to 0.1, 0.2, 0.3, then 4 s at 60 steps an output at most: the last
+    interval exhausts them. CVODE's statistics after its failure are those of the run to
+    0.3 s (the same steps, states equal to the bit) plus the 60 steps of the failed call,
+    and the message gives the time CVODE reached, inside the failed interval. CasADi's
+    CVODES loses a failed call's statistics: its row says -1 (not known), not the steps
+    before the failed interval (nor 0 when that is the first), and names the interval."""
+    equations, state = compiled_build(Pendulum())
+    times, steps = np.array([0.0, 0.1, 0.2, 0.3, 4.0]), 60
+    options = {**options, "max_num_steps": steps}
+    failed = solve(equations, state, times, 1e-10, options)
+    reached = solve(equations, state, times[:4], 1e-10, options)
+    assert not failed.success and reached.success, reached.message
+    assert "CV_TOO_MUCH_WORK" in failed.message
+    assert np.array_equal(failed.times, times[:4]) and np.array_equal(failed.y, reached.y)
+    assert failed.stats.n_steps == reached.stats.n_steps + steps
+    assert failed.stats.n_rhs > reached.stats.n_rhs + steps  # one or more a step
+    t_cvode = float(re.search(r"at t = (\S+):", failed.message).group(1))
+    assert 0.3 < t_cvode < 4.0
+    casadi = solve(equations, state, times, 1e-10, options, "casadi-cvodes")
+    assert not casadi.success and "between t = 0.3 and 4:" in casadi.message, casadi.message
+    stats = casadi.stats
+    assert stats.n_steps == stats.n_rhs == stats.n_rejected == stats.n_jac == -1
+    first = solve(equations, state, times, 1e-10, {**options, "max_num_steps": 2},
+                  "casadi-cvodes")  # fmt: skip
+    assert "between t = 0 and 0.1:" in first.message, first.message
+    assert first.stats.n_steps == first.stats.n_rhs == -1
+
+
+@needs_compiler
+def test_without_cvode_memory_the_statistics_are_not_known():
+    """CVodeCreate refuses the method (as it would fail to allocate): the driver reports
+    a failure with -1 (not read) for CVODE's counts, 0 right-hand-side calls (its own
+    count) and the initial state."""
+    times, y = np.linspace(0.0, 1.0, 3), np.full((3, 2), np.nan)
+    result = cvode_c.Result()
+    rhs = CASADI_SIGNATURE(lambda arg, res, iw, w, mem: 0)
+    reached = cvode_c.driver().wb_cvode_solve(
+        ctypes.cast(rhs, ctypes.c_void_p).value, 2, 2, 1, 0, 0, times, times.size,
+        np.array([THETA0, 0.0]), y, 3, 0, 1e-7, 1e-7, 100, 0.0, 0, ctypes.byref(result),
+    )  # fmt: skip
+    assert reached == 1 and result.flag < 0
+    assert result.steps == result.rhs_evals == result.err_test_fails == -1
+    assert result.nonlin_iters == -1 and result.rhs_calls == 0
+    assert result.lin_setups == result.jac_evals == 0  # no linear solver: none of its work
+    assert np.array_equal(y[0], [THETA0, 0.0])
 
 
 @needs_compiler

@@ -27,9 +27,11 @@ states at every output time and CVODE's statistics back.
 It is offered only where the ode right-hand side can run in C: a formalism built with
 ``compile = "jit"`` or ``"auto"`` (auto compiles it for this integrator whatever the run's
 expected calls) and a C compiler; otherwise the pairing is refused with the reason. A
-CVODE failure (flag < 0) is a failed trajectory naming CVODE's flag and message, with the
-states reached; a right-hand side that is NaN or infinite (or returns an error) stops the
-integration there, named in the message, as the other integrators stop at a NaN.
+CVODE failure (flag < 0) is a failed trajectory naming CVODE's flag, message and the time
+it reached, with the states at the output times reached and CVODE's statistics up to the
+failure (-1, not known, if CVODE could not even allocate its memory); a right-hand side
+that is NaN or infinite (or returns an error) stops the integration there, named in the
+message, as the other integrators stop at a NaN.
 """
 
 from __future__ import annotations
