@@ -306,6 +306,7 @@ def test_a_run_whose_worker_is_killed_twice_has_no_row_and_resume_redoes_it(
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # 52-108 s at load 7-10; a hung scatter held it forever
 def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
     fake_plugins,
     tmp_path,
