@@ -38,6 +38,7 @@ import shlex
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -272,15 +273,24 @@ class Generated:
     flags: str
 
 
+_COUNTING = threading.local()  # depth of counted() blocks open in this thread
+
+
 @contextlib.contextmanager
 def counted() -> Any:
-    """Count the wall and CPU time of the block in :data:`STATS` (the compile stage)."""
+    """Count the wall and CPU time of the block in :data:`STATS` (the compile stage); a
+    block inside another (a library loaded for a caller that counts its own) is counted
+    once, by the outer one."""
     wall, cpu_start = time.perf_counter(), time.process_time()
+    depth = getattr(_COUNTING, "depth", 0)
+    _COUNTING.depth = depth + 1
     try:
         yield
     finally:
-        STATS.seconds += time.perf_counter() - wall
-        STATS.cpu_seconds += time.process_time() - cpu_start
+        _COUNTING.depth = depth
+        if depth == 0:
+            STATS.seconds += time.perf_counter() - wall
+            STATS.cpu_seconds += time.process_time() - cpu_start
 
 
 def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
