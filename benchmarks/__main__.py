@@ -169,15 +169,43 @@ def issue35_targets() -> list[Row]:
         if len(last):
             row = last.iloc[-1]
             newer["time outside integration, marginal at 10,000 runs"] = (
-                row.marginal_outside_cpu_ms, f"load {row.load_1min:.1f}; footprint-tiny.csv")
+                row.marginal_outside_cpu_ms,
+                f"load {row.load_1min:.1f}; footprint-tiny.csv",
+            )
+    read = readback_rows()  # the reader on the default sweep's recording, measured alone
     rows = []
     for row in pd.read_csv(targets).itertuples():
         name = row.target.strip()
+        if read and name.startswith("Python reader"):
+            rows.extend(read)
+            read = []
+            continue
         unit = row.unit if isinstance(row.unit, str) else ""
         value, note = newer.get(name, (row.measured, f"load {row.load_1min:.1f}"))
         rows.append(Row(f"{name} ({unit})" if unit else name, value, row.limit,
                         note=note))  # fmt: skip
     return rows
+
+
+def readback_rows() -> list[Row]:
+    """Python's reader on the default sweep's recording as ``python -m benchmarks.footprint
+    --read-back`` measured it last (``footprint-readback.csv``, its "after" row): growth
+    cold and beyond the reader's start-up, each against 2x the file."""
+    measured = RESULTS / "footprint-readback.csv"
+    if not measured.exists():
+        return []
+    after = pd.read_csv(measured).query("code == 'after'")
+    if after.empty:
+        return []
+    row = after.iloc[-1]
+    note = (f"{row.size_mib:.2f} MiB file, {row.runs:.0f} runs; load {row.load_1min:.1f}; "
+            "footprint-readback.csv")  # fmt: skip
+    limit = 2 * row.size_mib
+    return [
+        Row("Python reader: peak growth, cold (MiB)", row.read_growth_mib, limit, note=note),
+        Row("Python reader: growth beyond its start-up (MiB)", row.read_beyond_startup_mib,
+            limit, note=f"start-up {row.reader_startup_mib:.1f} MiB; " + note),
+    ]  # fmt: skip
 
 
 def issue36_targets() -> list[Row]:

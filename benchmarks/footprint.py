@@ -42,9 +42,11 @@ runs: about 7 min at load 4), or ``python -m benchmarks.footprint --loop [N]`` f
    of 4 without a sweep: load-independent but for the CPU), before and after.
 
 6. The default sweep's recording (:func:`readback_rows`): the quick suite's sweep, its
-   recording's chunks and component columns by kind, ``rerun rrd verify`` and Python's
-   reader (cold, beyond its start-up, anonymous memory), before and after; about 3 min.
-   Writes ``footprint-readback.csv``.
+   recording's chunks, component columns and (entity, component) pairs by kind (the
+   pairs are what the reader's memory follows), ``rerun rrd verify`` and Python's reader
+   (cold, beyond its start-up, anonymous memory), before and after; about 3 min at load 2
+   (8 at load 11). Writes ``footprint-readback.csv``, which ``python -m benchmarks
+   --summary`` reads for the reader's lines of issue 35.
 7. The worker loop in one process (:func:`loop_parts`): a tiny run's CPU outside its
    integration and in each part (recording, metrics, series and row files), no profiler.
 
@@ -517,14 +519,18 @@ def read_back(recording: Path, repeats: int = 5) -> dict:
 
 
 def recording_layout(recording: Path) -> dict:
-    """Chunks and component columns of ``recording``'s runs (``/runs/...``), in all and by
-    kind: a body's joint frames, its shapes (static), its poses, a run's series; what
-    Python's reader costs (about 0.35 KiB a chunk and 4 KiB a component column)."""
+    """Chunks, component columns and (entity, component) pairs of ``recording``'s runs
+    (``/runs/...``), in all and by kind: a body's joint frames (an entity of their own),
+    its shapes (static; with the axes of joint frames at its origin), its poses, a run's
+    series. What Python's reader costs: about 5 KiB a pair (its manifest's schema holds
+    a field a pair, plus about 10 bytes a character of its entity path), 0.2-0.35 KiB a
+    chunk (docs/performance.md)."""
     import rerun as rr
 
     from workbench.outputs.recording import MODEL_PART, split_entity_path
 
-    counts = {"chunks": 0, "columns": 0}
+    counts = {"chunks": 0, "columns": 0, "pairs": 0}
+    seen: set[tuple[str, str]] = set()
     for chunk in rr.chunk.RrdReader(recording).stream():
         parts = split_entity_path(chunk.entity_path)
         if parts[:1] != ["runs"]:
@@ -540,9 +546,12 @@ def recording_layout(recording: Path) -> dict:
         else:
             kind = "shapes"
         index = {"rerun.controls.RowId", *chunk.timeline_names}
-        columns = sum(1 for name in chunk.to_record_batch().schema.names if name not in index)
-        for key, value in (("chunks", 1), ("columns", columns), (f"{kind}_chunks", 1),
-                           (f"{kind}_columns", columns)):  # fmt: skip
+        names = [name for name in chunk.to_record_batch().schema.names if name not in index]
+        pairs = {(chunk.entity_path, name) for name in names} - seen
+        seen |= pairs
+        for key, value in (("chunks", 1), ("columns", len(names)), ("pairs", len(pairs)),
+                           (f"{kind}_chunks", 1), (f"{kind}_columns", len(names)),
+                           (f"{kind}_pairs", len(pairs))):  # fmt: skip
             counts[key] = counts.get(key, 0) + value
     return counts
 

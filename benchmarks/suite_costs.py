@@ -1,8 +1,8 @@
 """Measure a shipped suite and write its cost table (what ``workbench sweep`` estimates from).
 
-Run: ``python -m benchmarks.suite_costs [SUITE] [--out DIR] [--jobs N] [--time-limit S]``
-(default: quick). Runs ``workbench sweep SUITE --fresh`` in a child process, then writes
-``workbench/runs/suites/SUITE.costs.json``: each run's seconds on an idle machine
+Run: ``python -m benchmarks.suite_costs [SUITE] [--out DIR] [--jobs N] [--time-limit S]
+[--missing]`` (default: quick). Runs ``workbench sweep SUITE --fresh`` in a child process,
+then writes ``workbench/runs/suites/SUITE.costs.json``: each run's seconds on an idle machine
 (:func:`workbench.runs.estimate.run_seconds`: its CPU share of its worker's wall time, so a
 busy machine still measures the work; at most the suite's time limit, since a run timed out
 costs that much) and ``overhead_s``, the CPU seconds of the whole
@@ -13,6 +13,10 @@ time limit times the median CPU / wall ratio of the other runs. On a busy machin
 are measured instead of counted as timeouts. Prints the command's wall
 time, its CPU time and the load average before and after, and appends a line to
 benchmarks/results/suite_costs.csv.
+
+``--missing`` measures only the runs the suite's table lacks (a suite over ``"all"``
+problems gains runs when the catalog grows; a run's id changes with its options) and adds
+them to the table, keeping the entries of its other runs and its ``overhead_s``: it sweeps the suite restricted to the problems of those runs.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import statistics
 import subprocess
@@ -33,7 +38,7 @@ import pandas as pd
 
 from workbench.runs.estimate import cost_table, duration, run_seconds
 from workbench.runs.store import load_results
-from workbench.runs.sweep_spec import load_spec
+from workbench.runs.sweep_spec import load_spec, suite_text
 
 SUITES = Path(__file__).resolve().parents[1] / "workbench" / "runs" / "suites"
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -44,11 +49,27 @@ def children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def measure(suite: str, out: Path, jobs: int | None, time_limit: float | None) -> dict:
-    """Run the suite once into ``out``; its rows and what the whole command cost."""
+def restricted_to(suite: str, problems: list[str], folder: Path) -> Path:
+    """A copy of the suite's specification over ``problems`` only, written in ``folder``."""
+    text, count = re.subn(
+        r"^problems\s*=.*$", f"problems = {json.dumps(problems)}", suite_text(suite), flags=re.M
+    )
+    if count != 1:
+        sys.exit(f"suite {suite}: no single-line `problems = ...` to restrict; measure it whole")
+    path = folder / f"{suite}-missing.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def measure(
+    suite: str, out: Path, jobs: int | None, time_limit: float | None, spec_file: Path | None = None
+) -> dict:
+    """Run the suite (or ``spec_file``, a part of it) once into ``out``; its rows and what the
+    whole command cost."""
     spec = load_spec(suite)
     limit = time_limit or 3 * spec.time_limit
-    command = [sys.executable, "-m", "workbench", "sweep", suite, "--out", str(out), "--fresh"]
+    source = str(spec_file or suite)
+    command = [sys.executable, "-m", "workbench", "sweep", source, "--out", str(out), "--fresh"]
     command += ["--time-limit", str(limit)] + (["--jobs", str(jobs)] if jobs else [])
     load_before, cpu_before, started = os.getloadavg()[0], children_cpu(), time.perf_counter()
     subprocess.run(command, check=False, stdout=subprocess.DEVNULL)
@@ -86,7 +107,13 @@ def main() -> None:
     parser.add_argument("--out", help="results directory (default: a temporary one)")
     parser.add_argument("--jobs", type=int)
     parser.add_argument("--time-limit", type=float, help="s per run (default: 3x the suite's)")
+    parser.add_argument(
+        "--missing", action="store_true", help="measure only the runs the table lacks, add them"
+    )
     args = parser.parse_args()
+    if args.missing:
+        add_missing(args)
+        return
     with tempfile.TemporaryDirectory() as scratch:
         found = measure(args.suite, Path(args.out or scratch), args.jobs, args.time_limit)
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
@@ -113,6 +140,39 @@ def main() -> None:
         f"{found['overhead_s']} s: about {duration(idle)} on {found['jobs']} idle cores"
     )
     print(f"wrote {target} and a line of {csv}")
+
+
+def add_missing(args: argparse.Namespace) -> None:
+    """Measure the suite's runs its cost table lacks and add them to the table."""
+    target = SUITES / f"{args.suite}.costs.json"
+    table = json.loads(target.read_text(encoding="utf-8"))
+    known = {line[0] for line in table["runs"]}
+    runs = load_spec(args.suite).runs
+    missing = {run.run_id: run for run in runs if run.run_id not in known}
+    if not missing:
+        print(f"suite {args.suite}: every run has a measured cost in {target}")
+        return
+    problems = sorted({run.problem for run in missing.values()})
+    with tempfile.TemporaryDirectory() as scratch:
+        spec_file = restricted_to(args.suite, problems, Path(scratch))
+        out = Path(args.out or Path(scratch) / "out")
+        found = measure(args.suite, out, args.jobs, args.time_limit, spec_file)
+    added = [line for line in found["table"] if line[0] in missing]
+    when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    table["measured"] += (
+        f"; {len(added)} runs added {when} (--missing: {len(problems)} problems), load "
+        f"{found['load_before']} -> {found['load_after']}"
+    )
+    current = {run.run_id for run in runs}  # entries of runs the suite no longer has go
+    table["runs"] = [line for line in table["runs"] if line[0] in current] + added
+    target.write_text(json.dumps(table, indent=0) + "\n", encoding="utf-8")
+    left = len(missing) - len(added)
+    print(
+        f"suite {args.suite}: {len(added)} of {len(missing)} missing runs measured "
+        f"({found['wall_s']} s wall, load {found['load_before']} -> {found['load_after']})"
+        + (f"; {left} still missing (their runs did not finish)" if left else "")
+    )
+    print(f"wrote {target}")
 
 
 if __name__ == "__main__":

@@ -342,3 +342,18 @@ def test_the_cache_command_shows_and_clears_the_compiled_libraries(cache):
     cleared = runner.invoke(app, ["cache", "clear", "--yes"])
     assert cleared.exit_code == 0 and "removed 2 compiled libraries" in cleared.output
     assert list(cache.glob("*.so")) == []
+
+
+def test_a_compile_block_inside_another_is_counted_once() -> None:
+    """The sundials-cvode-c driver counts its loading of the right-hand side's library,
+    which counts its own compile: counted twice, the compile stage would exceed the time
+    that passed, and the integration (from which it is subtracted) would shrink."""
+    import time
+
+    seconds = compiled.STATS.seconds
+    start = time.perf_counter()
+    with compiled.counted():
+        with compiled.counted():
+            time.sleep(0.05)
+    passed = time.perf_counter() - start
+    assert 0.05 <= compiled.STATS.seconds - seconds <= passed

@@ -10,6 +10,7 @@ tested everywhere.
 from __future__ import annotations
 
 import ctypes
+import re
 
 import numpy as np
 import pytest
@@ -73,7 +74,7 @@ def test_a_chain_run_matches_the_stored_reference_and_casadi_cvodes(tmp_path, mo
     monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path / "cache"))
     clear_cache()
     cvode_c.driver.cache_clear()
-    cvode_c._prepared.clear()
+    cvode_c.loaded_rhs.cache_clear()
     before = compiled.STATS.compiled
     rows = {}
     for name in (NAME, "casadi-cvodes"):
@@ -166,6 +167,56 @@ def test_too_few_steps_give_a_failed_row_naming_cvodes_flag():
 
 
 @needs_compiler
+@pytest.mark.parametrize("options", [ADAMS, BDF])
+def test_a_failure_reports_cvodes_steps_calls_and_time_up_to_it(options):
+    """The pendulum to 0.1, 0.2, 0.3, then 4 s at 60 steps an output at most: the last
+    interval exhausts them. CVODE's statistics after its failure are those of the run to
+    0.3 s (the same steps, states equal to the bit) plus the 60 steps of the failed call,
+    and the message gives the time CVODE reached, inside the failed interval. CasADi's
+    CVODES loses a failed call's statistics: its row says -1 (not known), not the steps
+    before the failed interval (nor 0 when that is the first), and names the interval."""
+    equations, state = compiled_build(Pendulum())
+    times, steps = np.array([0.0, 0.1, 0.2, 0.3, 4.0]), 60
+    options = {**options, "max_num_steps": steps}
+    failed = solve(equations, state, times, 1e-10, options)
+    reached = solve(equations, state, times[:4], 1e-10, options)
+    assert not failed.success and reached.success, reached.message
+    assert "CV_TOO_MUCH_WORK" in failed.message
+    assert np.array_equal(failed.times, times[:4]) and np.array_equal(failed.y, reached.y)
+    assert failed.stats.n_steps == reached.stats.n_steps + steps
+    assert failed.stats.n_rhs > reached.stats.n_rhs + steps  # one or more a step
+    t_cvode = float(re.search(r"at t = (\S+):", failed.message).group(1))
+    assert 0.3 < t_cvode < 4.0
+    casadi = solve(equations, state, times, 1e-10, options, "casadi-cvodes")
+    assert not casadi.success and "between t = 0.3 and 4:" in casadi.message, casadi.message
+    stats = casadi.stats
+    assert stats.n_steps == stats.n_rhs == stats.n_rejected == stats.n_jac == -1
+    first = solve(equations, state, times, 1e-10, {**options, "max_num_steps": 2},
+                  "casadi-cvodes")  # fmt: skip
+    assert "between t = 0 and 0.1:" in first.message, first.message
+    assert first.stats.n_steps == first.stats.n_rhs == -1
+
+
+@needs_compiler
+def test_without_cvode_memory_the_statistics_are_not_known():
+    """CVodeCreate refuses the method (as it would fail to allocate): the driver reports
+    a failure with -1 (not read) for CVODE's counts, 0 right-hand-side calls (its own
+    count) and the initial state."""
+    times, y = np.linspace(0.0, 1.0, 3), np.full((3, 2), np.nan)
+    result = cvode_c.Result()
+    rhs = CASADI_SIGNATURE(lambda arg, res, iw, w, mem: 0)
+    reached = cvode_c.driver().wb_cvode_solve(
+        ctypes.cast(rhs, ctypes.c_void_p).value, 2, 2, 1, 0, 0, times, times.size,
+        np.array([THETA0, 0.0]), y, 3, 0, 1e-7, 1e-7, 100, 0.0, 0, ctypes.byref(result),
+    )  # fmt: skip
+    assert reached == 1 and result.flag < 0
+    assert result.steps == result.rhs_evals == result.err_test_fails == -1
+    assert result.nonlin_iters == -1 and result.rhs_calls == 0
+    assert result.lin_setups == result.jac_evals == 0  # no linear solver: none of its work
+    assert np.array_equal(y[0], [THETA0, 0.0])
+
+
+@needs_compiler
 def test_a_nan_right_hand_side_fails_where_it_becomes_nan():
     equations, state = compiled_build(Oscillator(failing=True))
     times = np.linspace(0.0, 1.0, 11)
@@ -220,3 +271,54 @@ def test_without_a_compiler_the_refusal_says_so(monkeypatch):
         equations = get_formalism("minimal-ode")().build(Pendulum().model(), {"compile": "jit"})
     plugin = get_integrator(NAME)()
     assert "no C compiler" in plugin.incompatibility(equations, plugin.parse_options(None))
+
+
+# one run of a fresh process: what the compile cache did, and the run's end state's bits
+FRESH_RUN = """
+import json, sys
+from workbench.equations import compiled
+real = compiled.generate_c
+generated = []
+def counting(function, *args, **kwargs):
+    generated.append(function.name())
+    return real(function, *args, **kwargs)
+compiled.generate_c = counting
+from workbench.execution.execute import RunSpec, execute_run
+spec = RunSpec("double-pendulum", "recursive", "sundials-cvode-c", 1e-8, 1e-10, {},
+               {"compile": "jit"}, {"method": "adams", "iteration": "functional"})
+result = execute_run(spec, reference_dir=sys.argv[1])
+states = result.series.filter(like="state:").to_numpy()
+print(json.dumps({"status": result.row["status"], "message": result.row["message"],
+                  "compiled": compiled.STATS.compiled, "generated": generated,
+                  "states": states.tobytes().hex(), "shape": list(states.shape)}))
+"""
+
+
+@needs_compiler
+def test_the_driver_calls_the_formalisms_library_and_a_second_process_compiles_nothing(tmp_path):
+    """The driver runs the library the formalism's compile loaded: the right-hand side's
+    C is generated once a process (it was generated a second time to find the driver's
+    copy). A second process finds the driver and every library in the compile cache: no
+    compiler runs, and the trajectory is the same to the bit."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "WORKBENCH_CACHE": str(tmp_path / "cache")}
+    runs = []
+    for _ in range(2):
+        done = subprocess.run(
+            [sys.executable, "-c", FRESH_RUN, str(tmp_path)], capture_output=True, text=True,
+            env=env,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr[-2000:]
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    for run in runs:
+        assert run["status"] == "ok", run["message"]
+        assert run["generated"].count(compiled.SYMBOL_PREFIX + "ode_rhs") == 1, run["generated"]
+        assert run["shape"][0] > 2
+    assert first["compiled"] >= 2  # the right-hand side and the driver, into the new cache
+    assert second["compiled"] == 0, second
+    assert second["states"] == first["states"]

@@ -21,6 +21,7 @@ from workbench.outputs.recording import (
     entity_path,
     merge_recordings,
     quaternion_xyzw,
+    series_quantities,
     split_entity_path,
 )
 
@@ -114,9 +115,14 @@ def series_of(frames: list[pd.DataFrame], quantity: str) -> tuple[np.ndarray, np
     return seconds(logged["sim_time"])[keep], values[keep]
 
 
-def series_present(frames: list[pd.DataFrame]) -> list[str]:
-    """The quantities a run's ``series`` entity says it has values of (static)."""
-    return list(column(frames, "quantities")["quantities"].iloc[0])
+def series_present(path: Path, run: str) -> list[str]:
+    """The quantities a run's ``series`` entity has values of (read from its values)."""
+    return [
+        quantity
+        for chunk in rr.chunk.RrdReader(path).stream()
+        if chunk.entity_path == f"/{run}/series"
+        for quantity in series_quantities(chunk.to_record_batch())
+    ]
 
 
 def test_log_run_is_read_back(tmp_path: Path) -> None:
@@ -134,18 +140,20 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
         f"{base}/bodies/tip",
         "/runs/fake-problem/model/ground/joints",  # the same in every run: once
         f"{base}/bodies/arm/joints",  # both joint frames on the arm, one batch
-        f"{base}/bodies/tip/joints",
         f"{base}/series",
     }
     assert expected <= set(chunks)
+    assert f"{base}/bodies/tip/joints" not in chunks  # its one frame: at its origin
     (arm_shapes,) = [frame for frame in chunks[f"{base}/bodies/arm"] if "sim_time" not in frame]
     # the arm's box, capsule and cylinder in one chunk (each costs the reader per column)
     assert {"Boxes3D:half_sizes", "Capsules3D:lengths", "Cylinders3D:radii"} <= set(arm_shapes)
     # drift_nh all NaN (not drawn), penetration not a contact model's (no column)
-    assert series_present(chunks[f"{base}/series"]) == [
+    assert series_present(path, run) == [
         "drift_pos", "drift_vel", "energy_err", "ref_err"
     ]  # fmt: skip
     assert len(chunks[f"{base}/series"]) == 2  # its names (static) and all its values
+    (names,) = [frame for frame in chunks[f"{base}/series"] if "sim_time" not in frame]
+    assert set(names) == {"rerun.controls.RowId", "SeriesLines:names"}
     for quantity in ("drift_nh", "penetration"):
         assert len(series_of(chunks[f"{base}/series"], quantity)[1]) == 0
     for quantity in ("drift_pos", "drift_vel", "energy_err", "ref_err"):
@@ -170,8 +178,11 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
         np.stack(joints["InstancePoses3D:translations"].iloc[0]), [[0, 0, 0], [1, 0, 0]]
     )
     assert "TransformAxes3D:axis_length" in joints
-    tip_joints = chunks[f"{base}/bodies/tip/joints"][0]  # one frame, at the tip's origin
-    assert "InstancePoses3D:translations" not in tip_joints
+    # the tip's one frame (the slide's child frame) is at its origin: axes drawn at its
+    # pose, from its own static chunk (beside its sphere), no entity of their own
+    (tip_static,) = [frame for frame in chunks[f"{base}/bodies/tip"] if "sim_time" not in frame]
+    assert {"TransformAxes3D:axis_length", "Ellipsoids3D:half_sizes"} <= set(tip_static)
+    assert not any(name.startswith("InstancePoses3D") for name in tip_static)
 
 
 def blueprint_views(path: Path) -> dict[str, dict[str, list]]:
@@ -407,12 +418,14 @@ def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) ->
     base = "/" + run
     assert not any(name.endswith(":fill_mode") for names in columns.values() for name in names)
     assert "Ellipsoids3D:centers" not in columns[f"{base}/bodies/tip"]
+    assert "quantities" not in columns[f"{base}/series"]  # read from the values
     assert "Cylinders3D:quaternions" not in columns[f"{base}/bodies/arm"]
     assert "Boxes3D:centers" in columns[f"{base}/bodies/arm"]
     assert "InstancePoses3D:mat3x3" not in columns[f"{base}/bodies/arm/joints"]
-    # the arm's shapes have the default colour (a view default), the tip's sphere its own
+    # the arm's shapes have the default colour (a view default), the tip's sphere the
+    # model's one sphere colour (its problem's view default): no run's shape has colours
     assert not any(name.endswith(":colors") for name in columns[f"{base}/bodies/arm"])
-    assert "Ellipsoids3D:colors" in columns[f"{base}/bodies/tip"]
+    assert not any(name.endswith(":colors") for name in columns[f"{base}/bodies/tip"])
     views = blueprint_views(path)
     assert views["fake-problem"]["class_identifier"] == ["3D"]
     # which the 3D views hold as defaults: solid, in a shape's default colour
@@ -423,6 +436,37 @@ def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) ->
             for name, values in chunk.to_record_batch().to_pydict().items():
                 defaults.setdefault(name, []).extend(v for v in values if v is not None)
     default_color = int.from_bytes(bytes([*Shape("box", (1.0,) * 3).color, 255]), "big")
-    for archetype in ("Boxes3D", "Ellipsoids3D", "Cylinders3D", "Capsules3D"):
+    for archetype in ("Boxes3D", "Cylinders3D", "Capsules3D"):
         assert defaults[f"{archetype}:colors"] == [[default_color]]
         assert f"{archetype}:fill_mode" in defaults
+    assert defaults["Ellipsoids3D:colors"] == [[int.from_bytes(bytes([200, 50, 50, 255]), "big")]]
+
+
+def test_a_run_holds_one_component_column_a_thing_it_draws(tmp_path: Path) -> None:
+    """Python's reader holds about 5 KiB for each (entity, component) pair of a recording
+    whatever its bytes (docs/performance.md): a run of the 2-body model has 17 of them,
+    each needed to draw it (19 before its series' ``quantities`` were read from their
+    values, the tip's one sphere colour became its view's default and its one joint frame,
+    at its origin, moved to its own entity)."""
+    sink = RerunSink()
+    run = sink.log_run(*_args(fake_run()))
+    pairs = {
+        (chunk.entity_path.removeprefix(f"/{run}/"), name)
+        for chunk in rr.chunk.RrdReader(sink.save(tmp_path)).stream()
+        if chunk.entity_path.startswith(f"/{run}/")
+        for name in chunk.to_record_batch().schema.names
+        if name not in ("rerun.controls.RowId", "sim_time")
+    }
+    pose = {"Transform3D:translation", "Transform3D:quaternion"}
+    assert pairs == {
+        *(("bodies/arm", name) for name in pose),
+        ("bodies/arm", "Boxes3D:half_sizes"), ("bodies/arm", "Boxes3D:centers"),
+        ("bodies/arm", "Capsules3D:radii"), ("bodies/arm", "Capsules3D:lengths"),
+        ("bodies/arm", "Capsules3D:translations"),
+        ("bodies/arm", "Cylinders3D:radii"), ("bodies/arm", "Cylinders3D:lengths"),
+        ("bodies/arm/joints", "TransformAxes3D:axis_length"),
+        ("bodies/arm/joints", "InstancePoses3D:translations"),
+        *(("bodies/tip", name) for name in pose),
+        ("bodies/tip", "Ellipsoids3D:half_sizes"), ("bodies/tip", "TransformAxes3D:axis_length"),
+        ("series", "Scalars:scalars"), ("series", "SeriesLines:names"),
+    }  # fmt: skip

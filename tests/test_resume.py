@@ -306,6 +306,7 @@ def test_a_run_whose_worker_is_killed_twice_has_no_row_and_resume_redoes_it(
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # 52-108 s at load 7-10; a hung scatter held it forever
 def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
     fake_plugins,
     tmp_path,
@@ -320,6 +321,17 @@ def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
         "tolerances = [1e-4, 1e-6]", "tolerances = [1e-6]"
     )
     monkeypatch.setenv(FLAKY_MARKER, str(tmp_path / "killed"))
+    # the keys of the data the sweep ships: one reused just after its release could be
+    # freed under the retry (its run left unfinished) or hang the broadcast's replication
+    keys = []
+    scatter = distributed.Client.scatter
+
+    def scatter_and_note(client, *args, **kwargs):
+        futures = scatter(client, *args, **kwargs)
+        keys.extend(future.key for future in futures)
+        return futures
+
+    monkeypatch.setattr(distributed.Client, "scatter", scatter_and_note)
 
     def sweep_on_a_cluster(mode: str, **options):
         monkeypatch.setenv(FLAKY, mode)  # before the cluster: its workers' environment
@@ -336,6 +348,7 @@ def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
         lost_once = sweep_on_a_cluster("kill-parent-once")
     assert (tmp_path / "killed").exists()  # a Dask worker was killed
     assert lost_once.counts == {"ok": 1} and lost_once.unfinished == {}, lost_once.unfinished
+    assert len(keys) >= 4 and len(set(keys)) == len(keys), keys  # shipped again, new keys
     killed = sweep_on_a_cluster("kill", fresh=True)
     assert killed.counts == {"unfinished": 1}
     (reason,) = killed.unfinished.values()

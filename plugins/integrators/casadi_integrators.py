@@ -33,9 +33,12 @@ evaluations, error-test failures (rejected steps), Newton iterations and linear 
 (CasADi re-evaluates the Jacobian at each setup, so that is also ``n_jac``); the
 collocation plugin reports only its steps.
 
-Failures: the SUNDIALS plugins raise on a failed step; the time reached is taken from
-the stats, and the integration is repeated on the output times before it to return
-them (cheap, and only on failure). A failed implicit step of the fixed-step plugins may
+Failures: the SUNDIALS plugins raise on a failed step; the last output time reached is
+taken from the stats, and the integration is repeated on the output times before it to
+return them (cheap, and only on failure). CasADi reads SUNDIALS' statistics only after an
+output interval completes, so a failed call's are not known: the row shows -1, and the
+message names the output interval where it failed (``sundials-cvode-c`` reports CVODE's
+statistics and time at the failure). A failed implicit step of the fixed-step plugins may
 also pass unreported (CasADi keeping the last state and returning success), so a stalled
 state — unchanged over an output interval although its derivative is not zero, or a
 non-finite derivative at an output — is reported as the failure.
@@ -182,10 +185,13 @@ class CasadiBase(Integrator):
         self.fill_stats(trajectory, stats)
         times = task.times
         if error is not None:
+            # CasADi reads SUNDIALS' statistics after each output interval it completes:
+            # those of the failed one are lost, and its time is the last completed one's
+            times, n_out = times[times <= float(stats.get("tcur", times[0]))], times.size - 1
+            failed_in = f"between t = {times[-1]:g} and {task.times[min(times.size, n_out)]:g}"
             trajectory.success = False
-            t_failed = float(stats.get("tcur", times[0]))
-            trajectory.message = f"{self.name}: at t = {t_failed:g}: {_error_line(error)}"
-            times = times[times <= t_failed]
+            trajectory.message = f"{self.name}: {failed_in}: {_error_line(error)}"
+            self.unknown_stats(trajectory)
             result = None
             if times.size >= 2:  # repeat up to the last output time reached
                 _, result, _ = self.run(task, layout, times)
@@ -193,6 +199,13 @@ class CasadiBase(Integrator):
             trajectory.times, trajectory.y = task.times[:1], task.y0[None, :].copy()
             return
         trajectory.times, trajectory.y = times, self.states(result, layout, n)
+
+    @staticmethod
+    def unknown_stats(trajectory: Trajectory) -> None:
+        """A failed call's statistics, which CasADi does not keep: -1 (not known), not
+        those of the output intervals before the failure (0 if it failed in the first)."""
+        s = trajectory.stats
+        s.n_steps = s.n_rhs = s.n_rejected = s.n_newton = s.n_lu = s.n_jac = -1
 
     def fill_stats(self, trajectory: Trajectory, stats: dict[str, Any]) -> None:
         s = trajectory.stats

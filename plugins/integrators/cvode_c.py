@@ -13,9 +13,11 @@ states at every output time and CVODE's statistics back.
   wheel has no C headers: the driver declares the few prototypes it uses (SUNDIALS 7).
 * The driver is compiled once with the machine's C compiler and kept in the compile cache
   (:mod:`workbench.equations.compiled`, keyed by its source, flags, libraries, compiler and
-  CPU); the right-hand side is the library ``compile = "jit"`` builds for it (from the
-  cache), whose symbol's address is handed to the driver with its work sizes, checked here
-  first. Both count as the run's compile stage, never as integration.
+  CPU); the right-hand side is the very library the formalism's compile loaded (from the
+  cache; under ``compile = "auto"`` one loaded once a process if the run left it in the
+  VM), whose symbol's address is handed to the driver with its work sizes, checked here
+  first: its C is generated once a process, and a process that finds both in the cache
+  compiles nothing. Both count as the run's compile stage, never as integration.
 * Methods (options as ``casadi-cvodes``'): Adams-Moulton (orders 1-12; the default) or BDF
   (1-5); the implicit stages solved by fixed-point iteration (``iteration =
   "functional"``, the default: no Jacobian) or Newton with a dense linear solver on
@@ -25,9 +27,11 @@ states at every output time and CVODE's statistics back.
 It is offered only where the ode right-hand side can run in C: a formalism built with
 ``compile = "jit"`` or ``"auto"`` (auto compiles it for this integrator whatever the run's
 expected calls) and a C compiler; otherwise the pairing is refused with the reason. A
-CVODE failure (flag < 0) is a failed trajectory naming CVODE's flag and message, with the
-states reached; a right-hand side that is NaN or infinite (or returns an error) stops the
-integration there, named in the message, as the other integrators stop at a NaN.
+CVODE failure (flag < 0) is a failed trajectory naming CVODE's flag, message and the time
+it reached, with the states at the output times reached and CVODE's statistics up to the
+failure (-1, not known, if CVODE could not even allocate its memory); a right-hand side
+that is NaN or infinite (or returns an error) stops the integration there, named in the
+message, as the other integrators stop at a NaN.
 """
 
 from __future__ import annotations
@@ -36,7 +40,6 @@ import ctypes
 import functools
 import importlib.util
 import re
-from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -57,7 +60,7 @@ SUNDIALS = ("sundials_cvode", "sundials_nvecserial", "sundials_sunmatrixdense",
 SUNDIALS_MAJOR = 7  # the driver's declarations are SUNDIALS 7's
 METHODS = {"adams": 1, "bdf": 2}  # CV_ADAMS, CV_BDF
 MAX_WORK = 1 << 31  # a generated function's work sizes above this are not believed
-PREPARED_LIMIT = 8  # right-hand sides whose compiled address is kept, least recent out
+PREPARED_LIMIT = 8  # right-hand side libraries whose address is kept, least recent out
 
 
 class Unavailable(RuntimeError):
@@ -139,43 +142,39 @@ class CompiledRhs:
     library: ctypes.CDLL
 
 
-_prepared: OrderedDict[int, tuple[Any, CompiledRhs]] = OrderedDict()
-
-
 def compiled_rhs(rhs: Any, n: int) -> CompiledRhs:
     """The compiled C of the ode right-hand side ``rhs`` (a FastFunction built with an
-    active compiler), from the compile cache or compiled now, once a process; its
-    signature and work sizes checked so that the driver cannot be handed a wrong one.
-    RuntimeError if it cannot be compiled or does not have the ode signature."""
-    graph = rhs.for_c
-    key = id(graph)
-    if key in _prepared:
-        _prepared.move_to_end(key)
-        return _prepared[key][1]
-    with compiled.counted():
-        generated = compiled.generate(graph, rhs.compiler.flags)
-        compiled.built(generated.code, generated.flags, generated.compiler, generated.path)
-        library = ctypes.CDLL(str(generated.path))
-    name = generated.function.name()
-    check_signature(generated.function, n)
-    counts = getattr(library, f"{name}_n_in"), getattr(library, f"{name}_n_out")
+    active compiler): the library the formalism's compile loaded (:meth:`Compiler.library
+    <workbench.equations.compiled.Compiler.library>`: from the compile cache, or compiled,
+    once a process), its signature and work sizes checked so that the driver cannot be
+    handed a wrong one. RuntimeError if it cannot be compiled or does not have the ode
+    signature."""
+    check_signature(rhs.for_c, n)
+    with compiled.counted():  # loading or compiling it is the compile stage
+        path, symbol = rhs.compiler.library(rhs)
+        return loaded_rhs(path, symbol)
+
+
+@functools.lru_cache(maxsize=PREPARED_LIMIT)
+def loaded_rhs(path: str, symbol: str) -> CompiledRhs:
+    """The function ``symbol`` of the compiled library ``path``: its address and work
+    sizes, read once a process. RuntimeError unless it takes (t, y) to y' with plausible
+    work sizes."""
+    library = ctypes.CDLL(path)
+    counts = getattr(library, f"{symbol}_n_in"), getattr(library, f"{symbol}_n_out")
     for count in counts:
         count.restype = ctypes.c_longlong
     if (counts[0](), counts[1]()) != (2, 1):
-        raise RuntimeError(f"{name}: the compiled function does not take (t, y) to y'")
+        raise RuntimeError(f"{symbol}: the compiled function does not take (t, y) to y'")
     sizes = [ctypes.c_longlong() for _ in range(4)]
-    work = getattr(library, f"{name}_work")
+    work = getattr(library, f"{symbol}_work")
     if work(*map(ctypes.byref, sizes)) != 0:
-        raise RuntimeError(f"{name}: its work sizes could not be read")
+        raise RuntimeError(f"{symbol}: its work sizes could not be read")
     values = tuple(int(size.value) for size in sizes)
     if not (values[0] >= 2 and values[1] >= 1 and all(0 <= v < MAX_WORK for v in values)):
-        raise RuntimeError(f"{name}: implausible work sizes {values} (sz_arg, sz_res, iw, w)")
-    address = ctypes.cast(getattr(library, name), ctypes.c_void_p).value
-    prepared = CompiledRhs(int(address or 0), values, library)  # type: ignore[arg-type]
-    _prepared[key] = (graph, prepared)  # the graph kept alive: its id is not reused
-    while len(_prepared) > PREPARED_LIMIT:
-        _prepared.popitem(last=False)
-    return prepared
+        raise RuntimeError(f"{symbol}: implausible work sizes {values} (sz_arg, sz_res, iw, w)")
+    address = ctypes.cast(getattr(library, symbol), ctypes.c_void_p).value
+    return CompiledRhs(int(address or 0), values, library)  # type: ignore[arg-type]
 
 
 def check_signature(function: ca.Function, n: int) -> None:

@@ -138,7 +138,8 @@ static void keep_message(int line, const char* func, const char* file, const cha
    fixed-point iteration, 1 for Newton with a dense linear solver and CVODE's
    difference-quotient Jacobian. max_steps: steps towards each output time; max_step: 0
    for none; max_order: 0 for the method's highest. Returns the number of output times
-   reached (>= 1); result holds the statistics and, on a failure, CVODE's flag. */
+   reached (>= 1); result holds the statistics (read from CVODE after a failure too; -1
+   where there was no CVODE memory to read them from) and, on a failure, CVODE's flag. */
 int wb_cvode_solve(casadi_function f, int n, long long sz_arg, long long sz_res,
                    long long sz_iw, long long sz_w, const double* times, int n_times,
                    const double* y0, double* y_out, int method, int newton, double rtol,
@@ -156,6 +157,10 @@ int wb_cvode_solve(casadi_function f, int n, long long sz_arg, long long sz_res,
   int k, flag = 0;
 
   memset(result, 0, sizeof(*result));
+  /* -1: not read (no CVODE memory to read it from); no linear solver: none of its work */
+  result->steps = result->rhs_evals = result->err_test_fails = result->nonlin_iters = -1;
+  result->nonlin_conv_fails = -1;
+  result->lin_rhs_evals = result->lin_setups = result->jac_evals = newton ? -1 : 0;
   result->reached = 1;
   result->t_reached = times[0];
   memcpy(y_out, y0, sizeof(double) * (size_t)n);

@@ -38,6 +38,7 @@ import shlex
 import shutil
 import subprocess
 import tempfile
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -272,15 +273,24 @@ class Generated:
     flags: str
 
 
+_COUNTING = threading.local()  # depth of counted() blocks open in this thread
+
+
 @contextlib.contextmanager
 def counted() -> Any:
-    """Count the wall and CPU time of the block in :data:`STATS` (the compile stage)."""
+    """Count the wall and CPU time of the block in :data:`STATS` (the compile stage); a
+    block inside another (a library loaded for a caller that counts its own) is counted
+    once, by the outer one."""
     wall, cpu_start = time.perf_counter(), time.process_time()
+    depth = getattr(_COUNTING, "depth", 0)
+    _COUNTING.depth = depth + 1
     try:
         yield
     finally:
-        STATS.seconds += time.perf_counter() - wall
-        STATS.cpu_seconds += time.process_time() - cpu_start
+        _COUNTING.depth = depth
+        if depth == 0:
+            STATS.seconds += time.perf_counter() - wall
+            STATS.cpu_seconds += time.process_time() - cpu_start
 
 
 def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
@@ -457,18 +467,39 @@ class Compiler:
             return None
         if calls < calls_to_repay(vm_seconds, code_bytes_estimate(function)):
             return None
+        try:
+            loaded = self.loaded_once(function)
+        except RuntimeError as error:
+            self._failed(function, error)
+            self.loaded_bytes[name] = -1
+            return None
+        self.in_c[name] = "C"
+        return loaded
+
+    def loaded_once(self, function: ca.Function) -> ca.Function:
+        """The compiled ``function``, loaded once a process (:attr:`loaded`) from the cache
+        or compiled; RuntimeError if it cannot be compiled."""
+        name = function.name()
         if name not in self.loaded:
             with counted():
-                try:
-                    generated = generate(function, self.flags)
-                    self.loaded[name] = load_generated(generated)
-                    self.loaded_bytes[name] = len(generated.code)
-                except RuntimeError as error:
-                    self._failed(function, error)
-                    self.loaded_bytes[name] = -1
-                    return None
-        self.in_c[name] = "C"
+                generated = generate(function, self.flags)
+                self.loaded[name] = load_generated(generated)
+                self.loaded_bytes[name] = len(generated.code)
         return self.loaded[name]
+
+    def library(self, fast: Any) -> tuple[str, str]:
+        """(library path, symbol) of the compiled C of the FastFunction ``fast``, for a
+        caller that runs it itself (an integrator's C driver): the library its own
+        compile loaded if it runs in C, else (compile=auto, left in the VM for this run)
+        the one loaded once a process for that. Its C is generated once a process, not
+        again to find the library. RuntimeError if it cannot be compiled."""
+        if self.mode == "jit":
+            fast.compile()  # what its first call does (a no-op after it)
+        found = library_of(fast.evaluated)
+        if found is None:
+            found = library_of(self.loaded_once(fast.for_c))
+        assert found is not None, "load_library marks what it loads"
+        return found
 
     def summary(self) -> str:
         """compile=auto: which functions run in C and which in the VM (for a row's notes)."""

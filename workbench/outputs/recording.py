@@ -11,18 +11,26 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
     <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose);
                                        static, in one chunk, its shapes (Boxes3D,
                                        Cylinders3D, Ellipsoids3D, Capsules3D: a batch a kind)
-    <run>/bodies/<body>/joints         the frames of its joints (parent or child side):
-                                       static TransformAxes3D at each InstancePoses3D pose
+                                       and, when all its joint frames are at its origin
+                                       unrotated, their TransformAxes3D
+    <run>/bodies/<body>/joints         otherwise the frames of its joints (parent or child
+                                       side): static TransformAxes3D at each InstancePoses3D
+                                       pose
     <run>/series                       Scalars on ``sim_time``, one instance a quantity:
                                        drift_pos, drift_vel, drift_nh, energy_err,
                                        ref_err, penetration (m; a contact model's deepest
-                                       penetration), NaN where the run has none; static
-                                       ``quantities`` names those it has. The blueprint's
-                                       plot of a quantity shows its instance only
-                                       (SeriesLines' ``visible_series``, a view default)
+                                       penetration), NaN where the run has none (the
+                                       quantities it has: :func:`series_quantities`). The
+                                       blueprint's plot of a quantity shows its instance
+                                       only (SeriesLines' ``visible_series``, a view default)
 
 and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
 
+    runs/<problem>                     static: the view's up axis (ViewCoordinates) and,
+                                       when a shape kind has one colour in the whole model
+                                       other than the default, ``shape_colors`` (JSON: the
+                                       3D view's default colour a kind; the runs' shapes
+                                       then carry none)
     runs/<problem>/model/bodies/<body>/meshes/<i>   the mesh (Asset3D / Mesh3D), static, and
                                        InstancePoses3D on ``sim_time``: that body's pose in
                                        every run (an instance a run), so each run is drawn
@@ -88,7 +96,15 @@ FILE_VALUES_LIMIT = 2**22
 """Values (poses and series, 8 bytes each) a file of several runs takes before it is
 written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
 SERIES_PRESENT = "quantities"
-"""The static component of ``<run>/series`` naming the quantities the run has values of."""
+"""The static component of ``<run>/series`` that named the quantities a run has values of
+in files written before 2026-11-27 (now read from its values: :func:`series_quantities`)."""
+SHAPE_COLORS = "shape_colors"
+"""The static component of ``runs/<problem>`` (JSON: archetype -> RGBA) giving the 3D
+view's default colour of each shape kind that has one colour in the whole model."""
+SHAPE_ARCHETYPES = {
+    "box": "Boxes3D", "sphere": "Ellipsoids3D", "cylinder": "Cylinders3D",
+    "capsule": "Capsules3D",
+}  # fmt: skip
 
 
 def entity_path(*parts: str) -> str:
@@ -177,10 +193,12 @@ class RerunSink:
         self.max_frames = max(2, int(max_frames))
         self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
         self.quantities: set[str] = set()  # series logged by at least one run
+        self.shape_colors: dict[str, dict[str, list[int]]] = {}  # problem part -> archetype
         self._file = Path()  # the file of begin_file
         self._file_values = 0  # values (poses, series) logged to it: its size in memory
         self._stream: Any = None  # its binary stream, until end_file
         self._geometry_cache: dict[str, list[tuple[str, list[Any]]]] = {}
+        self._colors_cache: dict[str, dict[str, list[int]]] = {}  # per model key
         self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
         self.run_warnings: list[str] = []  # of the last run logged (for its row)
         self._batches_cache: dict[str, list[tuple[str, list[Any]]]] = {}
@@ -203,6 +221,8 @@ class RerunSink:
         series: columns t and :data:`SERIES_QUANTITIES` (a ``run_id`` column is filtered on).
         Returns the run's entity path.
         """
+        import rerun as rr
+
         parts = run_parts(spec)
         path = entity_path(*parts)
         run_id = getattr(spec, "run_id", None)  # a hash: computed once
@@ -213,12 +233,17 @@ class RerunSink:
         label = f"{parts[2]} / {parts[3]} {parts[4]}"
         self.runs[path] = (parts[1], label)
         model = equations.model
+        options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
+        key = f"{spec.problem} {options} {model.name}"
+        colors = self._model_colors(model, key)
+        problem_data = [view_coordinates(model)]
+        if colors:  # one component for the problem, none in each run's shapes
+            self.shape_colors[parts[1]] = colors
+            problem_data.append(rr.AnyValues(**{SHAPE_COLORS: json.dumps(colors)}))
         problem_path = entity_path("runs", parts[1])
         if problem_path not in self._shared_logged:  # once a file: shared by its runs
             self._shared_logged[problem_path] = ""
-            self.recording.log(problem_path, view_coordinates(model), static=True)
-        options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
-        key = f"{spec.problem} {options} {model.name}"
+            self.recording.log(problem_path, *problem_data, static=True)
         shared = entity_path("runs", parts[1], MODEL_PART)
         self._log_geometry(path, shared, model, key)
         self.run_warnings = list(self._geometry_warnings.get(key, []))
@@ -259,13 +284,33 @@ class RerunSink:
                 self._shared_logged[f"{shared}/{relative}"] = ""
                 self.recording.log(f"{shared}/{relative}", batches, static=True)
 
+    def _model_colors(self, model: Any, key: str) -> dict[str, list[int]]:
+        """Archetype -> colour of each primitive shape kind that has one colour in the whole
+        model other than the default: the model's 3D view default (:func:`shape_defaults`),
+        so that no run's shapes carry it (each component of a run's static data costs
+        Python's reader about 5 KiB; docs/performance.md)."""
+        if key not in self._colors_cache:
+            by_kind: dict[str, set[tuple[int, ...]]] = {}
+            for body in model.bodies.values():
+                for shape in body.shapes:
+                    if shape.kind in SHAPE_ARCHETYPES:
+                        by_kind.setdefault(shape.kind, set()).add(tuple(shape.color))
+            self._colors_cache[key] = {
+                SHAPE_ARCHETYPES[kind]: [int(c) for c in next(iter(colors))]
+                for kind, colors in by_kind.items()
+                if len(colors) == 1 and next(iter(colors)) != tuple(default_shape_color())
+            }
+        return self._colors_cache[key]
+
     def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
         """(entity path below the run, archetypes) of the shapes and joint frames; made
         once per model ``key`` (problem and options): the runs of a sweep share models.
 
         A body's primitive shapes (one archetype a kind) are one entry on the body's own
-        entity (one log call, one chunk), its joint frames one more: each chunk and each
-        component column costs Python's reader far more than its bytes (docs/performance.md)."""
+        entity (one log call, one chunk), and so are its joint frames when all are at its
+        origin unrotated (else an entity of their own, drawn at instance poses): each
+        entity, chunk and component column costs Python's reader far more than its bytes
+        (docs/performance.md)."""
         if key in self._geometry_cache:
             return self._geometry_cache[key]
         entries: list[tuple[str, list[Any]]] = []
@@ -277,13 +322,17 @@ class RerunSink:
             frames.setdefault(joint.child, []).append(joint.child_frame)
         if frames.get("ground"):  # the same in every run: once per model (_log_geometry)
             entries.append(("ground/joints", _joint_axes(frames["ground"], axis_length)))
+        colors = self._model_colors(model, key)
         for name, body in model.bodies.items():
             body_path = entity_path("bodies", name)
-            shapes = list(_shape_archetypes(body.shapes).values())
-            if shapes:  # all kinds in one log call: one chunk
-                entries.append((body_path, shapes))
-            if frames.get(name):
-                entries.append((f"{body_path}/joints", _joint_axes(frames[name], axis_length)))
+            static = list(_shape_archetypes(body.shapes, colors).values())
+            axes = _joint_axes(frames[name], axis_length) if frames.get(name) else []
+            if len(axes) > 1:  # placed by instance poses, which would move the shapes too
+                entries.append((f"{body_path}/joints", axes))
+            else:  # at the body's origin: axes drawn at the body's own pose
+                static += axes
+            if static:  # all kinds in one log call: one chunk
+                entries.append((body_path, static))
             meshes = [shape for shape in body.shapes if shape.kind == "mesh"]
             for index, shape in enumerate(meshes):  # a robot file's visual meshes
                 archetypes, warning = _mesh_archetypes(shape)
@@ -361,11 +410,10 @@ class RerunSink:
         self.quantities.update(present)
         self._file_values += table.size
         series_path = f"{path}/{SERIES_ENTITY}"
+        # the legend's name of each line; which quantities the run has is read from the
+        # values (a component column of static data a run costs the reader about 5 KiB)
         self.recording.log(
-            series_path,
-            rr.SeriesLines(names=[label] * len(SERIES_QUANTITIES)),
-            rr.AnyValues(**{SERIES_PRESENT: present}),
-            static=True,
+            series_path, rr.SeriesLines(names=[label] * len(SERIES_QUANTITIES)), static=True
         )
         self.recording.send_columns(
             series_path,
@@ -383,7 +431,9 @@ class RerunSink:
         problems = list(dict.fromkeys(problem for problem, _label in self.runs.values()))
         spatial = [
             rrb.Spatial3DView(
-                origin=entity_path("runs", problem), name=problem, defaults=shape_defaults()
+                origin=entity_path("runs", problem),
+                name=problem,
+                defaults=shape_defaults(self.shape_colors.get(problem)),
             )
             for problem in problems
         ] or [rrb.Spatial3DView(origin="runs", name="runs", defaults=shape_defaults())]
@@ -451,6 +501,7 @@ class RerunSink:
         self._file_values = 0
         self.runs.clear()
         self.quantities.clear()
+        self.shape_colors.clear()
         self.instances.clear()
         self._shared_logged.clear()
 
@@ -544,6 +595,12 @@ class RerunSink:
                 continue  # another problem's
             if len(parts) == 2 or (len(parts) > 2 and parts[2] == MODEL_PART):
                 shared = entity_path(*parts)
+                if len(parts) == 2 and chunk.is_static:  # the problem's view defaults
+                    batch = chunk.to_record_batch()
+                    if SHAPE_COLORS in batch.schema.names:
+                        colors = batch.column(SHAPE_COLORS)[0].as_py()
+                        text = colors[0] if isinstance(colors, list) else colors
+                        self.shape_colors.setdefault(parts[1], json.loads(text))
                 if parts[-1] == INSTANCE_RUNS:  # which run each instance of the parent is
                     runs = chunk.to_record_batch().column(INSTANCE_RUNS)[0].as_py()
                     named[entity_path(*parts[:-1])] = [str(run) for run in runs]
@@ -561,10 +618,11 @@ class RerunSink:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
                 found.append(run)
-            if len(parts) == 6 and parts[5] == SERIES_ENTITY and chunk.is_static:
+            if len(parts) == 6 and parts[5] == SERIES_ENTITY:
                 batch = chunk.to_record_batch()
-                if SERIES_PRESENT in batch.schema.names:
+                if SERIES_PRESENT in batch.schema.names:  # a file written before 2026-11-27
                     self.quantities.update(map(str, batch.column(SERIES_PRESENT)[0].as_py()))
+                self.quantities.update(series_quantities(batch))
             self.recording.send_chunks(chunk)
         for shared, pieces in poses.items():
             runs = named.get(shared) or found[:1]  # a run's own file names none: its run
@@ -581,6 +639,19 @@ class RerunSink:
                 if run not in known and run not in gathered:
                     gathered[run] = (times[order], translation[:, k], matrix[:, k])
         return found
+
+
+def series_quantities(batch: Any) -> list[str]:
+    """The quantities (:data:`SERIES_QUANTITIES`) that have a finite value in a record
+    batch of a run's ``series`` entity; none if it holds no such values."""
+    name = "Scalars:scalars"
+    if name not in batch.schema.names or batch.num_rows == 0:
+        return []
+    values = np.asarray(batch.column(name).flatten(), dtype=float)
+    if values.size != batch.num_rows * len(SERIES_QUANTITIES):
+        return []  # not written by this module
+    finite = np.isfinite(values.reshape(batch.num_rows, -1)).any(axis=0)
+    return [quantity for quantity, has in zip(SERIES_QUANTITIES, finite, strict=True) if has]
 
 
 def run_path_of_row(row: dict[str, Any]) -> str:
@@ -909,8 +980,12 @@ def _mesh_archetypes(shape: Any) -> tuple[list[Any], str]:
     ], ""
 
 
-def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
-    """One Rerun archetype per shape kind, each shape placed at its frame in the body."""
+def _shape_archetypes(
+    shapes: Sequence[Any], model_colors: dict[str, list[int]] | None = None
+) -> dict[str, Any]:
+    """One Rerun archetype per shape kind, each shape placed at its frame in the body;
+    ``model_colors``: archetype -> the colour its 3D view draws by default (the model's
+    own, when all its shapes of that kind have it), which the shapes then leave out."""
     import rerun as rr
 
     by_kind: dict[str, list[Any]] = {}
@@ -919,12 +994,14 @@ def _shape_archetypes(shapes: Sequence[Any]) -> dict[str, Any]:
     archetypes: dict[str, Any] = {}
     for kind, group in by_kind.items():
         # centers and rotations only when some shape has one (each component of a
-        # run's static data costs the reader's manifest about 4.5 KiB); the fill mode, and
-        # the colour when every shape has a model's default one, are the 3D views'
+        # run's static data costs the reader's manifest about 5 KiB); the fill mode, and
+        # the colour when every shape has the view's default one, are the 3D views'
         # defaults (:func:`shape_defaults`)
         colors = [tuple(s.color) for s in group]
+        view_color = (model_colors or {}).get(SHAPE_ARCHETYPES.get(kind, ""))
+        view_color = tuple(view_color) if view_color else tuple(default_shape_color())
         placed: dict[str, Any] = {}
-        if any(color != default_shape_color() for color in colors):
+        if any(color != view_color for color in colors):
             placed["colors"] = colors
         if any(np.any(s.frame.rotation != np.eye(3)) for s in group):
             rotations = [s.frame.rotation for s in group]
@@ -966,15 +1043,19 @@ def default_shape_color() -> tuple[int, int, int]:
     return next(f.default for f in dataclasses.fields(Shape) if f.name == "color")
 
 
-def shape_defaults() -> list[Any]:
+def shape_defaults(colors: dict[str, list[int]] | None = None) -> list[Any]:
     """The 3D views' defaults of the primitive shapes: solid (Rerun draws them as
-    wireframes otherwise) and a model's default shape colour. View defaults rather than
-    components of every run's shapes (each costs the reader about 4.5 KiB a run)."""
+    wireframes otherwise) and a colour, ``colors`` (archetype -> the model's colour of
+    that kind, :data:`SHAPE_COLORS`) or a shape's default colour. View defaults rather
+    than components of every run's shapes (each costs the reader about 5 KiB a run)."""
     import rerun as rr
 
-    solid, color = rr.components.FillMode.Solid, [default_shape_color()]
+    solid, colors = rr.components.FillMode.Solid, colors or {}
     return [
-        archetype.from_fields(fill_mode=solid, colors=color)
+        archetype.from_fields(
+            fill_mode=solid,
+            colors=[tuple(colors.get(archetype.__name__, default_shape_color()))],
+        )
         for archetype in (rr.Boxes3D, rr.Ellipsoids3D, rr.Cylinders3D, rr.Capsules3D)
     ]
 

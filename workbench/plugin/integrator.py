@@ -259,8 +259,10 @@ class Integrator:
         trajectory.stats.integrate_s = time.perf_counter() - wall - trajectory.stats.setup_s
         trajectory.stats.cpu_s = time.process_time() - cpu
         calls = {key: f.n_calls - before[key] for key, f in counted.items()}
-        trajectory.stats.n_rhs = max(trajectory.stats.n_rhs, calls["rhs"])
-        trajectory.stats.n_jac = max(trajectory.stats.n_jac, calls["jac"])
+        for name, key in (("n_rhs", "rhs"), ("n_jac", "jac")):
+            reported = getattr(trajectory.stats, name)
+            if reported >= 0 or calls[key] > 0:  # -1 (not known) stays if none were counted
+                setattr(trajectory.stats, name, max(reported, calls[key]))
         _check_shapes(self.name, trajectory, times, y0, _state_widths(equations, form, y0))
         _check_result(trajectory, times)
         trajectory.message = one_line_text(trajectory.message)

@@ -492,16 +492,22 @@ def _run_dask(
         """The local plugin modules' files (``problem`` None, read once) or the problem's
         computed references in ``OUT/references`` (read again when they change), scattered
         once: sent to every worker, not with every task (a copy on each, so a lost worker
-        does not take the only one; a task that fails scatters them again)."""
+        does not take the only one; a task that fails scatters them again).
+
+        Each scatter has a key of its own (``hash=False``): scattered again under its
+        content's hash, the data took the key the client had just released, and the
+        release could reach the scheduler or the workers after the new copy, which it
+        then freed: the retried task lost its input (left unfinished), or the broadcast's
+        replication waited for that copy forever (a sweep hung, seen at load 9)."""
         names = [] if problem is None else reference_names(Path(reference_dir), problem)
         if problem not in shipped or shipped[problem][0] != names:
             packed = pack_modules(plugins) if problem is None else pack_references(
                 Path(reference_dir), problem
             )  # fmt: skip
             try:
-                future = client.scatter([packed], hash=True, broadcast=True, timeout=SCATTER_S)[0]
+                future = client.scatter([packed], hash=False, broadcast=True, timeout=SCATTER_S)[0]
             except Exception:  # noqa: BLE001 - e.g. a lost worker still restarting: one copy
-                future = client.scatter([packed], hash=True, timeout=LOST_AFTER_S)[0]
+                future = client.scatter([packed], hash=False, timeout=LOST_AFTER_S)[0]
             shipped[problem] = (names, future)
         return shipped[problem][1]
 
