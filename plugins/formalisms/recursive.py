@@ -92,6 +92,7 @@ from workbench.numerics.spatial import (
     congruence,
     force_cross,
     motion_cross,
+    rigid_bias_force,
     rotate_z_inertia,
     spatial_inertia,
     symmetric,
@@ -357,6 +358,15 @@ class Link:
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
     local: LocalVelocities | None = None  # ABA's velocities nu = T v (free joints)
     turn: Turn | None = None  # X_i = X_z(q) X_F of a revolute joint
+    body_parts: tuple[float, np.ndarray, np.ndarray] | None = None  # m, c, I_c: I_i's
+
+    def bias_force(self, V: Any) -> Any:
+        """V x* I_i V (6): the body's velocity-product force at its velocity V (6),
+        through its centre of mass (:func:`~workbench.numerics.spatial.rigid_bias_force`:
+        36 products against 42 through I_i V)."""
+        if self.body_parts is None:
+            return force_cross(V, ca.mtimes(self.inertia, V))
+        return rigid_bias_force(*self.body_parts, V)
 
     def congruence(self, inertia: Any) -> Any:
         """X_i^T I X_i (6, 6) for a symmetric I in J_i coordinates: I in the parent's
@@ -399,8 +409,9 @@ class SpatialTree:
             frames[joint.child] = J_R, J_p = joint_frame(joint, frames.get(joint.parent))
             v_slice = k.joint_slices[joint.name][1] if X.S.size2() else None
             body = model.bodies[joint.child]
-            com = J_R.T @ (np.asarray(body.com, dtype=float) - J_p)
-            inertia = spatial_inertia(body.mass, com, J_R.T @ body.inertia @ J_R)
+            com = _snap(J_R.T @ (np.asarray(body.com, dtype=float) - J_p))
+            com_inertia = _snap(J_R.T @ body.inertia @ J_R)
+            inertia = spatial_inertia(body.mass, com, com_inertia)
             rotation = k.bodies[joint.child].rotation
             force, torque = wrenches[joint.child]
             force = ca.mtimes(rotation.T, force)
@@ -424,6 +435,7 @@ class SpatialTree:
                     v_slice=v_slice,
                     local=X.local,
                     turn=X.turn,
+                    body_parts=(float(body.mass), com, com_inertia),
                 )
             )
             index[joint.child] = len(self.links) - 1
@@ -495,6 +507,34 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
     return ca.vertcat(*x)
 
 
+def _joint_solve(D: Any, U: Any, u: Any, rows: tuple[int, ...]) -> tuple[Any, Any]:
+    """(D^-1 U^T (n, 6), D^-1 u (n)) of a joint with D = S^T U (n, n), U = I^A S (6, n),
+    u (n). Where S's columns are unit vectors e_k (``rows``: the k), U's rows k are D, so
+    D^-1 U^T has unit columns there: exact ones and zeros, not solved for."""
+    others = [k for k in range(6) if k not in rows]
+    D_inv = _solve_symmetric(D, ca.horzcat(U[others, :].T, u))
+    D_inv_U = ca.SX(D.size1(), 6)
+    D_inv_U[:, others] = D_inv[:, :-1]
+    for column, row in enumerate(rows):
+        D_inv_U[column, row] = 1
+    return D_inv_U, D_inv[:, -1]
+
+
+def _unit_joint_accelerations(
+    a_prime: Any, D_inv_U: Any, D_inv_u: Any, rows: tuple[int, ...]
+) -> tuple[Any, Any]:
+    """(a_i (6), v'_i (n)) of a joint whose S has unit columns e_k (``rows``: the k):
+    a_i = a' + S v' with v' = D^-1 u - D^-1 U^T a' differs from a' only in the rows k,
+    where it is D^-1 u minus the other columns of D^-1 U^T (whose columns k are unit
+    columns, :func:`_joint_solve`) times a': a'_k cancels, and v' = a_i,k - a'_k."""
+    others = [k for k in range(6) if k not in rows]
+    accelerations = D_inv_u - ca.mtimes(D_inv_U[:, others], a_prime[others])
+    a = ca.SX(a_prime)
+    for column, row in enumerate(rows):
+        a[row] = accelerations[column]
+    return a, accelerations - a_prime[list(rows)]
+
+
 def _aba_subspace(link: Link) -> Any:
     """The motion subspace the articulated-body algorithm works with: S_nu of a joint's
     local velocities (:class:`LocalVelocities`), else S."""
@@ -519,11 +559,11 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         # a root's V_i is v_J,i, and v x v = 0: CasADi would not see it for a free joint
         c[i] = c_J if link.parent < 0 else c_J + motion_cross(V[i], link.v_J)
         I_A[i] = link.inertia
-        p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
+        p_A[i] = link.bias_force(V[i]) - link.f_ext
 
     # 2. inward: articulated inertias and bias forces, each handed to the parent (a root
     # hands nothing on: its D_i and u_i are kept for pass 3, I^a_i is not formed)
-    U, D_inv_U, D_inv_u = [None] * n, [None] * n, [None] * n
+    U, D_inv_U, D_inv_u, rows = [None] * n, [None] * n, [None] * n, [()] * n
     root_D, root_u = {}, {}
     for i in reversed(range(n)):
         link, S = links[i], _aba_subspace(links[i])
@@ -535,12 +575,11 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
             if link.parent < 0:
                 root_D[i], root_u[i] = D, u
                 continue
-            D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
-            D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
-            rows = _unit_rows(S)
-            I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows)
+            rows[i] = _unit_rows(S)
+            D_inv_U[i], D_inv_u[i] = _joint_solve(D, U[i], u, rows[i])
+            I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows[i])
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
-            for column, row in enumerate(rows):  # S^T p^a = tau exactly
+            for column, row in enumerate(rows[i]):  # S^T p^a = tau exactly
                 p_a[row] = tau_i[column]
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
@@ -555,6 +594,10 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         a_parent = tree.base_acceleration if link.parent < 0 else a[link.parent]
         a_prime = transform_motion(link.E, link.r, a_parent) + c[i]
         if link.nv:
+            if rows[i]:  # unit columns e_k: a_i differs from a' in its rows k only
+                a[i], vdot_i = _unit_joint_accelerations(a_prime, D_inv_U[i], D_inv_u[i], rows[i])
+                vdot[link.v_slice] = vdot_i
+                continue
             if i in root_D:
                 vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
             else:
@@ -591,7 +634,7 @@ def recursive_newton_euler(tree: SpatialTree, vdot: Any) -> Any:
         if link.nv:
             a[i] = a[i] + ca.mtimes(link.S, vdot[link.v_slice])
         I = link.inertia
-        f[i] = ca.mtimes(I, a[i]) + force_cross(V[i], ca.mtimes(I, V[i])) - link.f_ext
+        f[i] = ca.mtimes(I, a[i]) + link.bias_force(V[i]) - link.f_ext
 
     # inward: joint forces, and each body's force handed to its parent
     tau = ca.SX.zeros(tree.nv)

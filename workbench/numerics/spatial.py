@@ -229,6 +229,29 @@ def articulated_update(I_A: Any, U: Any, D_inv_U: Any, zero: tuple[int, ...] = (
     return symmetric(entry, 6)
 
 
+def rigid_bias_force(mass: float, com: Any, com_inertia: Any, V: Any) -> Any:
+    """V x* I V (6) for a rigid body's spatial inertia I = :func:`spatial_inertia` of
+    ``mass`` m, centre of mass c (3) and inertia tensor I_c (3, 3) about it (numbers), and
+    a motion V = [w; v] (6), through the centre of mass: with the momentum
+    h = m (v + w x c) (m times the centre of mass's velocity), f = w x h and
+    V x* I V = [w x I_c w + c x f; f] (the moment of the dense form
+    w x (I_o w + m c x v) + v x h reduced by Jacobi's identity, since v_c x h = 0).
+    36 products and 24 sums for a general body, against 42 and 30 through I V."""
+    w, v = V[:3], V[3:]
+    first_moment = _constant(mass * np.asarray(com, dtype=float), V)
+    com, com_inertia = _constant(com, V), _constant(com_inertia, V)
+    momentum = mass * v + _cross(w, first_moment)
+    force = _cross(w, momentum)
+    return _stack(_cross(w, _mtimes(com_inertia, w)) + _cross(com, force), force)
+
+
+def _constant(value: Any, like: Any) -> Any:
+    """Numbers as a constant of ``like``'s kind (SX: structural zeros folded)."""
+    if isinstance(like, ca.SX):
+        return ca.SX(ca.DM(np.asarray(value, dtype=float)))
+    return value if _is_casadi(like) else np.asarray(value, dtype=float)
+
+
 def spatial_inertia(mass: Any, com: Any, inertia: Any) -> Any:
     """I (6, 6) = [I_c + m c~ c~^T, m c~; m c~^T, m 1]: the spatial inertia of a body of
     ``mass`` m (kg) about its frame's origin, from its centre of mass c (3, m) and its
