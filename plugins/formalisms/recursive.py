@@ -96,6 +96,7 @@ from workbench.numerics.spatial import (
     rotate_z_inertia,
     spatial_inertia,
     symmetric,
+    symmetric_sum,
     transform_force_back,
     transform_motion,
 )
@@ -489,14 +490,14 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
             3,
         )
         return ca.mtimes(cofactor * _reciprocal(ca.dot(D[0, :].T, cofactor[:, 0])), B)
-    L, d, d_inv = [[None] * n for _ in range(n)], [None] * n, [None] * n
+    # W = L diag(d) column by column (W_jj = d_j), so each update is one product
+    W, L, d_inv = [[None] * n for _ in range(n)], [[None] * n for _ in range(n)], [None] * n
     for j in range(n):
-        d[j] = D[j, j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
-        d_inv[j] = _reciprocal(d[j])
+        for i in range(j, n):
+            W[i][j] = D[i, j] - sum((W[i][k] * L[j][k] for k in range(j)), ca.SX(0))
+        d_inv[j] = _reciprocal(W[j][j])
         for i in range(j + 1, n):
-            L[i][j] = (
-                D[i, j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
-            ) * d_inv[j]
+            L[i][j] = W[i][j] * d_inv[j]
     x = [B[j, :] for j in range(n)]
     for j in range(n):  # L y = B
         x[j] = x[j] - sum((L[j][k] * x[k] for k in range(j)), ca.SX.zeros(1, B.size2()))
@@ -584,7 +585,7 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
-            I_A[link.parent] = I_A[link.parent] + link.congruence(I_a)
+            I_A[link.parent] = symmetric_sum(I_A[link.parent], link.congruence(I_a))
             p_A[link.parent] = p_A[link.parent] + transform_force_back(link.E, link.r, p_a)
 
     # 3. outward: accelerations

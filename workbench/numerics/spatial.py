@@ -146,6 +146,12 @@ def symmetric(entry: Callable[[int, int], Any], n: int) -> Any:
     return out
 
 
+def symmetric_sum(A: Any, B: Any) -> Any:
+    """A + B for symmetric n x n A and B, its upper triangle summed once and mirrored
+    (an elementwise sum would add both triangles: 36 sums for 6 x 6, not 21)."""
+    return symmetric(lambda i, j: A[i, j] + B[i, j], A.shape[0])
+
+
 def rotate_symmetric(E: Any, A: Any) -> Any:
     """E^T A E (3, 3) for a symmetric A (3, 3) and a rotation E (3, 3): the six unique
     entries only."""
