@@ -508,11 +508,16 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
     return ca.vertcat(*x)
 
 
+def _other_rows(rows: tuple[int, ...]) -> list[int]:
+    """The rows of a spatial vector (6) that are not in ``rows``."""
+    return [k for k in range(6) if k not in rows]
+
+
 def _joint_solve(D: Any, U: Any, u: Any, rows: tuple[int, ...]) -> tuple[Any, Any]:
     """(D^-1 U^T (n, 6), D^-1 u (n)) of a joint with D = S^T U (n, n), U = I^A S (6, n),
     u (n). Where S's columns are unit vectors e_k (``rows``: the k), U's rows k are D, so
     D^-1 U^T has unit columns there: exact ones and zeros, not solved for."""
-    others = [k for k in range(6) if k not in rows]
+    others = _other_rows(rows)
     D_inv = _solve_symmetric(D, ca.horzcat(U[others, :].T, u))
     D_inv_U = ca.SX(D.size1(), 6)
     D_inv_U[:, others] = D_inv[:, :-1]
@@ -521,19 +526,16 @@ def _joint_solve(D: Any, U: Any, u: Any, rows: tuple[int, ...]) -> tuple[Any, An
     return D_inv_U, D_inv[:, -1]
 
 
-def _unit_joint_accelerations(
-    a_prime: Any, D_inv_U: Any, D_inv_u: Any, rows: tuple[int, ...]
-) -> tuple[Any, Any]:
-    """(a_i (6), v'_i (n)) of a joint whose S has unit columns e_k (``rows``: the k):
-    a_i = a' + S v' with v' = D^-1 u - D^-1 U^T a' differs from a' only in the rows k,
-    where it is D^-1 u minus the other columns of D^-1 U^T (whose columns k are unit
-    columns, :func:`_joint_solve`) times a': a'_k cancels, and v' = a_i,k - a'_k."""
-    others = [k for k in range(6) if k not in rows]
-    accelerations = D_inv_u - ca.mtimes(D_inv_U[:, others], a_prime[others])
+def _unit_joint_accelerations(a_prime: Any, a_rows: Any, rows: tuple[int, ...]) -> tuple[Any, Any]:
+    """(a_i (6), v'_i (n)) of a joint whose S has unit columns e_k (``rows``: the k), from
+    a' (6) and ``a_rows`` (n), a_i's rows k. a_i = a' + S v' differs from a' only in rows
+    k, and v' = D^-1 (u - U^T a') where U's rows k are D: so a_i,k = D^-1 (u - U_o^T a'_o)
+    over the other rows o (a'_k cancels, and a free base's U^T a' is not formed at all),
+    and v' = a_i,k - a'_k."""
     a = ca.SX(a_prime)
     for column, row in enumerate(rows):
-        a[row] = accelerations[column]
-    return a, accelerations - a_prime[list(rows)]
+        a[row] = a_rows[column]
+    return a, a_rows - a_prime[list(rows)]
 
 
 def _aba_subspace(link: Link) -> Any:
@@ -573,10 +575,10 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
             D = ca.mtimes(S.T, U[i])
             tau_i = link.local.tau(tau[link.v_slice]) if link.local else tau[link.v_slice]
             u = tau_i - ca.mtimes(S.T, p_A[i])
+            rows[i] = _unit_rows(S)
             if link.parent < 0:
                 root_D[i], root_u[i] = D, u
                 continue
-            rows[i] = _unit_rows(S)
             D_inv_U[i], D_inv_u[i] = _joint_solve(D, U[i], u, rows[i])
             I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows[i])
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
@@ -595,15 +597,20 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         a_parent = tree.base_acceleration if link.parent < 0 else a[link.parent]
         a_prime = transform_motion(link.E, link.r, a_parent) + c[i]
         if link.nv:
-            if rows[i]:  # unit columns e_k: a_i differs from a' in its rows k only
-                a[i], vdot_i = _unit_joint_accelerations(a_prime, D_inv_U[i], D_inv_u[i], rows[i])
-                vdot[link.v_slice] = vdot_i
-                continue
-            if i in root_D:
-                vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
+            if rows[i]:  # S's columns are unit vectors e_k: a_i differs from a' in rows k only
+                others = _other_rows(rows[i])
+                if i in root_D:
+                    rest = root_u[i] - ca.mtimes(U[i][others, :].T, a_prime[others])
+                    a_rows = _solve_symmetric(root_D[i], rest)
+                else:
+                    a_rows = D_inv_u[i] - ca.mtimes(D_inv_U[i][:, others], a_prime[others])
+                a[i], vdot_i = _unit_joint_accelerations(a_prime, a_rows, rows[i])
             else:
-                vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
-            a[i] = a_prime + ca.mtimes(_aba_subspace(link), vdot_i)
+                if i in root_D:
+                    vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
+                else:
+                    vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
+                a[i] = a_prime + ca.mtimes(_aba_subspace(link), vdot_i)
             vdot[link.v_slice] = link.local.rates(vdot_i) if link.local else vdot_i
         else:
             a[i] = a_prime
