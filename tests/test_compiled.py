@@ -280,23 +280,6 @@ def test_a_function_named_like_a_libm_function_compiles():
         np.testing.assert_allclose(np.ravel(loaded([0.3, 0.7])), expected, rtol=1e-15)
 
 
-@pytest.mark.parametrize("locals_max", [0, compiled.LOCALS_MAX_INSTRUCTIONS])
-def test_casadis_scalar_helpers_are_static_inline(cache, locals_max: int) -> None:
-    """CasADi defines ``casadi_sq`` (x * x), ``casadi_fabs``, ... with external linkage, so
-    in a shared library every use was a call through the PLT, which clobbers every
-    floating-point register (Talos's right-hand side: 36 of them a call). They are
-    ``static inline`` now, with locals and with the work array, and compute the same."""
-    x = ca.SX.sym("x", 2)
-    outputs = ca.vertcat(x[0] * x[0], ca.fabs(x[1]), ca.fmin(x[0], x[1]), ca.sign(x[1]))
-    function = compiled.exported(ca.Function("helpers", [x], [outputs]))
-    code = compiled.generate_c(function, locals_max_instructions=locals_max)
-    helpers = [line for line in code.splitlines() if "casadi_real casadi_" in line and "(" in line]
-    assert any("casadi_sq(" in line for line in helpers)
-    assert all(line.startswith("static inline casadi_real casadi_") for line in helpers), helpers
-    loaded = compiled.compile_function(ca.Function("helpers", [x], [outputs]))
-    np.testing.assert_array_equal(np.ravel(loaded([0.3, -0.7])), [0.09, 0.7, -0.7, -1.0])
-
-
 def test_the_numeric_linear_solvers_the_formalisms_use_compile():
     """Beyond the symbolic-solve limit the KKT system is solved numerically inside the graph:
     with a solver CasADi generates C for (not LAPACK's LU, whose code is an ``#error``)."""

@@ -129,20 +129,7 @@ def generate_c(
         function.name(), {"with_header": False, "avoid_stack": not small, "verbose": False}
     )
     generator.add(function)
-    code = static_helpers(generator.dump())
-    return code if small else split_long_bodies(code, statements_per_part)
-
-
-_HELPER = re.compile(r"^casadi_real (casadi_\w+)\(", re.M)
-
-
-def static_helpers(code: str) -> str:
-    """``code`` with CasADi's scalar helpers (``casadi_sq``, ``casadi_fabs``, ...) made
-    ``static inline``. CasADi defines them with external linkage, so in a shared library
-    (``-fPIC``) every use is a call through the PLT that the compiler may not inline,
-    and each call clobbers every floating-point register: Talos's right-hand side made
-    36 calls to ``casadi_sq`` (x * x) a call, spilling what was live around each."""
-    return _HELPER.sub(r"static inline casadi_real \1(", code)
+    return generator.dump() if small else split_long_bodies(generator.dump(), statements_per_part)
 
 
 def compiler_error(stderr: str) -> str:
