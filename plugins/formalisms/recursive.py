@@ -36,6 +36,12 @@ Articulated-body algorithm (forward dynamics, v' for given tau):
 3. outward  a'_i = X_i a_lambda(i) + c_i,  v'_i = D_i^-1 (u_i - U_i^T a'_i),
             a_i = a'_i + S_i v'_i.
 
+Operations the mathematics does not need are left out: p^A_i through the centre of mass
+(:func:`~workbench.numerics.spatial.rigid_bias_force`); for S_i of unit columns e_k (a
+joint in its own frame) the columns k of D_i^-1 U_i^T are exact ones, and a_i differs
+from a'_i only in rows k, where a'_i,k cancels (:func:`_unit_joint_accelerations`);
+symmetric inertias summed on one triangle.
+
 Recursive Newton-Euler (inverse dynamics, tau for given v'): outward
 a_i = X_i a_lambda(i) + S_i v'_i + c_i and f_i = I_i a_i + V_i x* I_i V_i - f^x_i; inward
 tau_i = S_i^T f_i and f_lambda(i) += X_i^T f_i. Composite rigid bodies (the mass matrix):
