@@ -200,3 +200,43 @@ def test_numpy_and_casadi_paths_agree(seed: int) -> None:
         (value,) = ca.Function("operation", symbols, [expression]).call([ca.DM(a) for a in args])
         value = np.asarray(value, dtype=float)
         assert np.allclose(value.reshape(numeric.shape), numeric, rtol=0, atol=1e-13), name
+
+
+def arithmetic(function: ca.Function) -> int:
+    """Operations of an SX Function: its instructions without inputs, outputs, constants."""
+    skip = (ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_PARAMETER)
+    return sum(function.instruction_id(k) not in skip for k in range(function.n_instructions()))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_rigid_bias_force_equals_v_cross_star_i_v_in_fewer_operations(seed: int) -> None:
+    """V x* I V of a rigid body through its centre of mass ([w x I_c w + c x f; f],
+    f = m w x (v + w x c)) equals the dense form force_cross(V, I V) for NumPy and CasADi,
+    in at most 60 operations for a general body against 72 through I V."""
+    rng = np.random.default_rng(seed)
+    mass, com, inertia_c = random_body_inertia(rng)
+    inertia = sp.spatial_inertia(mass, com, inertia_c)
+    V = rng.uniform(-2, 2, 6)
+    dense = sp.force_cross(V, inertia @ V)
+    assert np.allclose(sp.rigid_bias_force(mass, com, inertia_c, V), dense, rtol=0, atol=1e-13)
+    V_sym = ca.SX.sym("V", 6)
+    through_com = ca.Function("com", [V_sym], [sp.rigid_bias_force(mass, com, inertia_c, V_sym)])
+    through_I = ca.Function(
+        "dense", [V_sym], [sp.force_cross(V_sym, ca.mtimes(ca.SX(ca.DM(inertia)), V_sym))]
+    )
+    assert np.allclose(np.ravel(through_com(V)), dense, rtol=0, atol=1e-13)
+    assert arithmetic(through_com) <= 60 < arithmetic(through_I)
+
+
+def test_symmetric_sum_adds_one_triangle() -> None:
+    """A + B of symmetric 6 x 6 matrices: 21 sums (the upper triangle mirrored), not 36,
+    and the same matrix."""
+    rng = np.random.default_rng(5)
+    A, B = random_symmetric(rng), random_symmetric(rng)
+    a = sp.symmetric(lambda i, j: ca.SX.sym(f"a{i}{j}"), 6)
+    b = sp.symmetric(lambda i, j: ca.SX.sym(f"b{i}{j}"), 6)
+    symbols = [ca.vertcat(*[x[i, j] for i in range(6) for j in range(i, 6)]) for x in (a, b)]
+    total = ca.Function("sum", symbols, [sp.symmetric_sum(a, b)])
+    assert arithmetic(total) == 21
+    upper = [np.array([x[i, j] for i in range(6) for j in range(i, 6)]) for x in (A, B)]
+    assert np.array_equal(np.asarray(total(*upper)), A + B)

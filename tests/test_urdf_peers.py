@@ -36,6 +36,8 @@ ROBOTS = {
     # a planar joint (axis z of a tilted joint frame) carrying a pendulum
     "planar-carriage": (LOCAL / "planar.urdf", {}),
 }
+# timed against pin.aba (benchmarks/peers_pyperf.py), checked here only by the recursive ABA
+HUMANOID = {"talos": ("talos_data/robots/talos_reduced.urdf", {"floating_base": True})}
 STATES = 3
 RELATIVE = 1e-9
 
@@ -43,7 +45,7 @@ RELATIVE = 1e-9
 @functools.cache
 def imported(robot: str, torques: bool = True):
     """The imported robot, with a constant random torque on every actuated joint."""
-    relative, options = ROBOTS[robot]
+    relative, options = {**ROBOTS, **HUMANOID}[robot]
     if isinstance(relative, Path):  # a test file: its meshes (if any) beside it
         path, where = relative, {}
     else:  # example-robot-data: the folder holding the packages its meshes name
@@ -100,6 +102,30 @@ def in_joint_coordinates(equations, q: np.ndarray, v: np.ndarray) -> bool:
         and np.allclose(q_f, q)
         and np.allclose(v_f, v)
     )
+
+
+@pytest.mark.parametrize("robot, most", [("solo12", 3_450), ("talos", 10_900)])
+def test_the_legged_robots_aba_graph_stays_lean_and_equals_pinocchio_aba(
+    robot: str, most: int
+) -> None:
+    """The recursive formalism's ode right-hand side of Solo12 and Talos (free base, aligned
+    revolute joints, with joint torques): at most ``most`` CasADi instructions (3,690 and
+    11,258 before the bias force went through the centre of mass, unit-column joints
+    skipped D^-1 D and U^T a' and sums went on one triangle: 3,385 and 10,802), and v'
+    equal to pin.aba's."""
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    from workbench.plugins.formalisms.recursive import ode_function
+
+    function = ode_function(imported(robot).model)
+    assert function.n_instructions() <= most
+    peers = PinocchioMap(imported(robot), pinocchio_model(imported(robot)))
+    data, tau = peers.pin_model.createData(), torque_vector(robot, peers)
+    for q, v in states(robot, peers):
+        q_pin, v_pin, t_matrix = peers.state(q, v)
+        expected = pin.aba(peers.pin_model, data, q_pin, v_pin, t_matrix @ tau)
+        rates = np.ravel(function(0.0, np.concatenate([q, v])))
+        ours = peers.accelerations(q, v, rates[q.size :])
+        np.testing.assert_allclose(ours, expected, rtol=0, atol=RELATIVE * np.abs(expected).max())
 
 
 @pytest.mark.parametrize("robot", list(ROBOTS))

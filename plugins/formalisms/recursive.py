@@ -36,6 +36,12 @@ Articulated-body algorithm (forward dynamics, v' for given tau):
 3. outward  a'_i = X_i a_lambda(i) + c_i,  v'_i = D_i^-1 (u_i - U_i^T a'_i),
             a_i = a'_i + S_i v'_i.
 
+Operations the mathematics does not need are left out: p^A_i through the centre of mass
+(:func:`~workbench.numerics.spatial.rigid_bias_force`); for S_i of unit columns e_k (a
+joint in its own frame) the columns k of D_i^-1 U_i^T are exact ones, and a_i differs
+from a'_i only in rows k, where a'_i,k cancels (:func:`_unit_joint_accelerations`);
+symmetric inertias summed on one triangle.
+
 Recursive Newton-Euler (inverse dynamics, tau for given v'): outward
 a_i = X_i a_lambda(i) + S_i v'_i + c_i and f_i = I_i a_i + V_i x* I_i V_i - f^x_i; inward
 tau_i = S_i^T f_i and f_lambda(i) += X_i^T f_i. Composite rigid bodies (the mass matrix):
@@ -92,9 +98,11 @@ from workbench.numerics.spatial import (
     congruence,
     force_cross,
     motion_cross,
+    rigid_bias_force,
     rotate_z_inertia,
     spatial_inertia,
     symmetric,
+    symmetric_sum,
     transform_force_back,
     transform_motion,
 )
@@ -357,6 +365,15 @@ class Link:
     v_slice: slice | None  # the joint's velocities in v (None if driven or fixed)
     local: LocalVelocities | None = None  # ABA's velocities nu = T v (free joints)
     turn: Turn | None = None  # X_i = X_z(q) X_F of a revolute joint
+    body_parts: tuple[float, np.ndarray, np.ndarray] | None = None  # m, c, I_c: I_i's
+
+    def bias_force(self, V: Any) -> Any:
+        """V x* I_i V (6): the body's velocity-product force at its velocity V (6),
+        through its centre of mass (:func:`~workbench.numerics.spatial.rigid_bias_force`:
+        36 products against 42 through I_i V)."""
+        if self.body_parts is None:
+            return force_cross(V, ca.mtimes(self.inertia, V))
+        return rigid_bias_force(*self.body_parts, V)
 
     def congruence(self, inertia: Any) -> Any:
         """X_i^T I X_i (6, 6) for a symmetric I in J_i coordinates: I in the parent's
@@ -399,8 +416,9 @@ class SpatialTree:
             frames[joint.child] = J_R, J_p = joint_frame(joint, frames.get(joint.parent))
             v_slice = k.joint_slices[joint.name][1] if X.S.size2() else None
             body = model.bodies[joint.child]
-            com = J_R.T @ (np.asarray(body.com, dtype=float) - J_p)
-            inertia = spatial_inertia(body.mass, com, J_R.T @ body.inertia @ J_R)
+            com = _snap(J_R.T @ (np.asarray(body.com, dtype=float) - J_p))
+            com_inertia = _snap(J_R.T @ body.inertia @ J_R)
+            inertia = spatial_inertia(body.mass, com, com_inertia)
             rotation = k.bodies[joint.child].rotation
             force, torque = wrenches[joint.child]
             force = ca.mtimes(rotation.T, force)
@@ -424,6 +442,7 @@ class SpatialTree:
                     v_slice=v_slice,
                     local=X.local,
                     turn=X.turn,
+                    body_parts=(float(body.mass), com, com_inertia),
                 )
             )
             index[joint.child] = len(self.links) - 1
@@ -477,14 +496,14 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
             3,
         )
         return ca.mtimes(cofactor * _reciprocal(ca.dot(D[0, :].T, cofactor[:, 0])), B)
-    L, d, d_inv = [[None] * n for _ in range(n)], [None] * n, [None] * n
+    # W = L diag(d) column by column (W_jj = d_j), so each update is one product
+    W, L, d_inv = [[None] * n for _ in range(n)], [[None] * n for _ in range(n)], [None] * n
     for j in range(n):
-        d[j] = D[j, j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
-        d_inv[j] = _reciprocal(d[j])
+        for i in range(j, n):
+            W[i][j] = D[i, j] - sum((W[i][k] * L[j][k] for k in range(j)), ca.SX(0))
+        d_inv[j] = _reciprocal(W[j][j])
         for i in range(j + 1, n):
-            L[i][j] = (
-                D[i, j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), ca.SX(0))
-            ) * d_inv[j]
+            L[i][j] = W[i][j] * d_inv[j]
     x = [B[j, :] for j in range(n)]
     for j in range(n):  # L y = B
         x[j] = x[j] - sum((L[j][k] * x[k] for k in range(j)), ca.SX.zeros(1, B.size2()))
@@ -493,6 +512,36 @@ def _solve_symmetric(D: Any, B: Any) -> Any:
             (L[k][j] * x[k] for k in range(j + 1, n)), ca.SX.zeros(1, B.size2())
         )
     return ca.vertcat(*x)
+
+
+def _other_rows(rows: tuple[int, ...]) -> list[int]:
+    """The rows of a spatial vector (6) that are not in ``rows``."""
+    return [k for k in range(6) if k not in rows]
+
+
+def _joint_solve(D: Any, U: Any, u: Any, rows: tuple[int, ...]) -> tuple[Any, Any]:
+    """(D^-1 U^T (n, 6), D^-1 u (n)) of a joint with D = S^T U (n, n), U = I^A S (6, n),
+    u (n). Where S's columns are unit vectors e_k (``rows``: the k), U's rows k are D, so
+    D^-1 U^T has unit columns there: exact ones and zeros, not solved for."""
+    others = _other_rows(rows)
+    D_inv = _solve_symmetric(D, ca.horzcat(U[others, :].T, u))
+    D_inv_U = ca.SX(D.size1(), 6)
+    D_inv_U[:, others] = D_inv[:, :-1]
+    for column, row in enumerate(rows):
+        D_inv_U[column, row] = 1
+    return D_inv_U, D_inv[:, -1]
+
+
+def _unit_joint_accelerations(a_prime: Any, a_rows: Any, rows: tuple[int, ...]) -> tuple[Any, Any]:
+    """(a_i (6), v'_i (n)) of a joint whose S has unit columns e_k (``rows``: the k), from
+    a' (6) and ``a_rows`` (n), a_i's rows k. a_i = a' + S v' differs from a' only in rows
+    k, and v' = D^-1 (u - U^T a') where U's rows k are D: so a_i,k = D^-1 (u - U_o^T a'_o)
+    over the other rows o (a'_k cancels, and a free base's U^T a' is not formed at all),
+    and v' = a_i,k - a'_k."""
+    a = ca.SX(a_prime)
+    for column, row in enumerate(rows):
+        a[row] = a_rows[column]
+    return a, a_rows - a_prime[list(rows)]
 
 
 def _aba_subspace(link: Link) -> Any:
@@ -519,11 +568,11 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         # a root's V_i is v_J,i, and v x v = 0: CasADi would not see it for a free joint
         c[i] = c_J if link.parent < 0 else c_J + motion_cross(V[i], link.v_J)
         I_A[i] = link.inertia
-        p_A[i] = force_cross(V[i], ca.mtimes(link.inertia, V[i])) - link.f_ext
+        p_A[i] = link.bias_force(V[i]) - link.f_ext
 
     # 2. inward: articulated inertias and bias forces, each handed to the parent (a root
     # hands nothing on: its D_i and u_i are kept for pass 3, I^a_i is not formed)
-    U, D_inv_U, D_inv_u = [None] * n, [None] * n, [None] * n
+    U, D_inv_U, D_inv_u, rows = [None] * n, [None] * n, [None] * n, [()] * n
     root_D, root_u = {}, {}
     for i in reversed(range(n)):
         link, S = links[i], _aba_subspace(links[i])
@@ -532,20 +581,19 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
             D = ca.mtimes(S.T, U[i])
             tau_i = link.local.tau(tau[link.v_slice]) if link.local else tau[link.v_slice]
             u = tau_i - ca.mtimes(S.T, p_A[i])
+            rows[i] = _unit_rows(S)
             if link.parent < 0:
                 root_D[i], root_u[i] = D, u
                 continue
-            D_inv = _solve_symmetric(D, ca.horzcat(U[i].T, u))
-            D_inv_U[i], D_inv_u[i] = D_inv[:, :6], D_inv[:, 6]
-            rows = _unit_rows(S)
-            I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows)
+            D_inv_U[i], D_inv_u[i] = _joint_solve(D, U[i], u, rows[i])
+            I_a = articulated_update(I_A[i], U[i], D_inv_U[i], rows[i])
             p_a = p_A[i] + ca.mtimes(I_a, c[i]) + ca.mtimes(U[i], D_inv_u[i])
-            for column, row in enumerate(rows):  # S^T p^a = tau exactly
+            for column, row in enumerate(rows[i]):  # S^T p^a = tau exactly
                 p_a[row] = tau_i[column]
         else:  # no unknown (fixed or driven joint): the whole inertia passes to the parent
             I_a, p_a = I_A[i], p_A[i] + ca.mtimes(I_A[i], c[i])
         if link.parent >= 0:
-            I_A[link.parent] = I_A[link.parent] + link.congruence(I_a)
+            I_A[link.parent] = symmetric_sum(I_A[link.parent], link.congruence(I_a))
             p_A[link.parent] = p_A[link.parent] + transform_force_back(link.E, link.r, p_a)
 
     # 3. outward: accelerations
@@ -555,11 +603,20 @@ def articulated_body_accelerations(tree: SpatialTree, tau: Any) -> Any:
         a_parent = tree.base_acceleration if link.parent < 0 else a[link.parent]
         a_prime = transform_motion(link.E, link.r, a_parent) + c[i]
         if link.nv:
-            if i in root_D:
-                vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
+            if rows[i]:  # S's columns are unit vectors e_k: a_i differs from a' in rows k only
+                others = _other_rows(rows[i])
+                if i in root_D:
+                    rest = root_u[i] - ca.mtimes(U[i][others, :].T, a_prime[others])
+                    a_rows = _solve_symmetric(root_D[i], rest)
+                else:
+                    a_rows = D_inv_u[i] - ca.mtimes(D_inv_U[i][:, others], a_prime[others])
+                a[i], vdot_i = _unit_joint_accelerations(a_prime, a_rows, rows[i])
             else:
-                vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
-            a[i] = a_prime + ca.mtimes(_aba_subspace(link), vdot_i)
+                if i in root_D:
+                    vdot_i = _solve_symmetric(root_D[i], root_u[i] - ca.mtimes(U[i].T, a_prime))
+                else:
+                    vdot_i = D_inv_u[i] - ca.mtimes(D_inv_U[i], a_prime)
+                a[i] = a_prime + ca.mtimes(_aba_subspace(link), vdot_i)
             vdot[link.v_slice] = link.local.rates(vdot_i) if link.local else vdot_i
         else:
             a[i] = a_prime
@@ -591,7 +648,7 @@ def recursive_newton_euler(tree: SpatialTree, vdot: Any) -> Any:
         if link.nv:
             a[i] = a[i] + ca.mtimes(link.S, vdot[link.v_slice])
         I = link.inertia
-        f[i] = ca.mtimes(I, a[i]) + force_cross(V[i], ca.mtimes(I, V[i])) - link.f_ext
+        f[i] = ca.mtimes(I, a[i]) + link.bias_force(V[i]) - link.f_ext
 
     # inward: joint forces, and each body's force handed to its parent
     tau = ca.SX.zeros(tree.nv)

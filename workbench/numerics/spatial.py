@@ -146,6 +146,12 @@ def symmetric(entry: Callable[[int, int], Any], n: int) -> Any:
     return out
 
 
+def symmetric_sum(A: Any, B: Any) -> Any:
+    """A + B for symmetric n x n A and B, its upper triangle summed once and mirrored
+    (an elementwise sum would add both triangles: 36 sums for 6 x 6, not 21)."""
+    return symmetric(lambda i, j: A[i, j] + B[i, j], A.shape[0])
+
+
 def rotate_symmetric(E: Any, A: Any) -> Any:
     """E^T A E (3, 3) for a symmetric A (3, 3) and a rotation E (3, 3): the six unique
     entries only."""
@@ -227,6 +233,29 @@ def articulated_update(I_A: Any, U: Any, D_inv_U: Any, zero: tuple[int, ...] = (
         return I_A[i, j] - _dot(U[i, :].T, D_inv_U[:, j])
 
     return symmetric(entry, 6)
+
+
+def rigid_bias_force(mass: float, com: Any, com_inertia: Any, V: Any) -> Any:
+    """V x* I V (6) for a rigid body's spatial inertia I = :func:`spatial_inertia` of
+    ``mass`` m, centre of mass c (3) and inertia tensor I_c (3, 3) about it (numbers), and
+    a motion V = [w; v] (6), through the centre of mass: with the momentum
+    h = m (v + w x c) (m times the centre of mass's velocity), f = w x h and
+    V x* I V = [w x I_c w + c x f; f] (the moment of the dense form
+    w x (I_o w + m c x v) + v x h reduced by Jacobi's identity, since v_c x h = 0).
+    36 products and 24 sums for a general body, against 42 and 30 through I V."""
+    w, v = V[:3], V[3:]
+    first_moment = _constant(mass * np.asarray(com, dtype=float), V)
+    com, com_inertia = _constant(com, V), _constant(com_inertia, V)
+    momentum = mass * v + _cross(w, first_moment)
+    force = _cross(w, momentum)
+    return _stack(_cross(w, _mtimes(com_inertia, w)) + _cross(com, force), force)
+
+
+def _constant(value: Any, like: Any) -> Any:
+    """Numbers as a constant of ``like``'s kind (SX: structural zeros folded)."""
+    if isinstance(like, ca.SX):
+        return ca.SX(ca.DM(np.asarray(value, dtype=float)))
+    return value if _is_casadi(like) else np.asarray(value, dtype=float)
 
 
 def spatial_inertia(mass: Any, com: Any, inertia: Any) -> Any:
