@@ -16,7 +16,8 @@ benchmarks/results/suite_costs.csv.
 
 ``--missing`` measures only the runs the suite's table lacks (a suite over ``"all"``
 problems gains runs when the catalog grows; a run's id changes with its options) and adds
-them to the table, keeping the entries of its other runs and its ``overhead_s``: it sweeps the suite restricted to the problems of those runs.
+them to the table, keeping the entries of its other runs and its ``overhead_s``: it sweeps
+the suite restricted to the problems of those runs.
 """
 
 from __future__ import annotations
