@@ -36,7 +36,11 @@ projection (the chord between them short and within the tangent space). Then sam
 projection is the followed point and its distance is its drift. Every other sample (near
 a singular configuration, a sharp bend, a change of branch) is walked by the continuation
 from the point followed before it, as without the shortcut, and the shortcut resumes once
-the walk is back on the sample's projection.
+the walk is back on the sample's projection. When the constraints do not depend on t
+(found from the Function's sparsity) and every projection already passes the projection's
+own first test, the walk's starts are those projections as they are: projecting them at
+the next sample's time would evaluate g at the same points to the same bits and take no
+step (one evaluation of all samples saved a run).
 """
 
 from __future__ import annotations
