@@ -20,13 +20,15 @@ from __future__ import annotations
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
-from workbench.execution.branch import _departure, _Shortcut, constraints_of
+from workbench.execution.branch import _departure, _mapped_along, _Shortcut, constraints_of
 from workbench.execution.metrics import trajectory_metrics
 from workbench.execution.references import ReferencePoses
+from workbench.numerics.linalg import independent_rows
 from workbench.plugin.registry import get_formalism, get_integrator, get_problem
 
 LEFT, STAYED = 1e-2, 1e-4  # branch defect (|sin| of half an angle) off / on the branch
@@ -153,3 +155,62 @@ def test_a_smooth_run_is_taken_by_the_shortcut_with_the_same_distance() -> None:
 def _stacked(constraints, times, x):
     pairs = [constraints(t, x_k) for t, x_k in zip(times, x, strict=True)]
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+
+
+class _Counted:
+    """``along`` of some constraints, counting its calls; ``time_invariant`` as given
+    (False: the shortcut projects every y_{k-1} again, as before it knew)."""
+
+    def __init__(self, along, time_invariant: bool) -> None:
+        self.along, self.time_invariant, self.calls = along, time_invariant, 0
+
+    def __call__(self, times, x):
+        self.calls += 1
+        return self.along(times, x)
+
+
+@pytest.mark.parametrize(
+    ("problem", "options", "formalism", "formalism_options"),
+    [
+        ("four-bar", {}, "recursive", {"index": 1}),
+        ("slider-crank", {}, "absolute-dae", {"index": 1}),
+        ("iftomm-a02", {"n": 2}, "nonholonomic-projection", {}),  # residuals, SVD solves
+        ("iftomm-a02", {"n": 2}, "minimal-ode", {"index": 1}),
+    ],
+)
+def test_time_invariant_constraints_skip_a_projection_with_equal_results(
+    problem, options, formalism, formalism_options
+) -> None:
+    """Scleronomic constraints: the walk's starts y_{k-1} are taken as projected (no
+    evaluation of all samples) and every array of the shortcut, and the departure, is
+    what projecting them again gives, to the last bit (rows of a sweep must not move)."""
+    made = get_problem(problem)(options)
+    equations = get_formalism(formalism)().build(made.model(), formalism_options)
+    start = consistent_initial_state(equations, made)
+    integrator = get_integrator("scipy-dop853")()
+    times = np.linspace(0.0, 2.0, 201)
+    trajectory = integrator.solve(equations, start.y0(equations, "ode"),
+                                  start.yp0(equations, "ode"), times, 1e-6, 1e-9,
+                                  integrator.parse_options({}), "ode")  # fmt: skip
+    q = np.atleast_2d(trajectory.y)[:, : equations.nq]
+    times = np.asarray(trajectory.times)
+    constraints = constraints_of(equations)
+    assert constraints.along.time_invariant
+    rank = len(independent_rows(constraints(times[0], q[0])[1]))
+    rows = np.size(constraints(times[0], q[0])[0])
+    shared, again = (_Counted(constraints.along, known) for known in (True, False))
+    fast, slow = (_Shortcut(along, times, q, rank, rows) for along in (shared, again))
+    assert shared.calls < again.calls
+    for name in ("y", "projected", "drift", "certified"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
+    assert fast.certified.sum() > len(times) // 2  # the case the shortcut is for
+
+
+def test_constraints_that_move_with_time_are_not_time_invariant() -> None:
+    """g = q_0 - t (a driven coordinate): its projections are made at every sample."""
+    t, x = ca.MX.sym("t"), ca.MX.sym("q", 2)
+    g = x[0] - t
+    moving = ca.Function("g", [t, x], [g, ca.jacobian(g, x)])
+    still = ca.Function("g", [t, x], [x[0] - 1, ca.jacobian(x[0] - 1, x)])
+    assert not _mapped_along(moving, {}, 0).time_invariant
+    assert _mapped_along(still, {}, 0).time_invariant

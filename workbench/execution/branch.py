@@ -36,7 +36,11 @@ projection (the chord between them short and within the tangent space). Then sam
 projection is the followed point and its distance is its drift. Every other sample (near
 a singular configuration, a sharp bend, a change of branch) is walked by the continuation
 from the point followed before it, as without the shortcut, and the shortcut resumes once
-the walk is back on the sample's projection.
+the walk is back on the sample's projection. When the constraints do not depend on t
+(found from the Function's sparsity) and every projection already passes the projection's
+own first test, the walk's starts are those projections as they are: projecting them at
+the next sample's time would evaluate g at the same points to the same bits and take no
+step (one evaluation of all samples saved a run).
 """
 
 from __future__ import annotations
@@ -147,23 +151,30 @@ class _Shortcut:
         finite = np.all(np.isfinite(q), axis=1)  # (a failed run's last samples: not projected)
         q = np.where(finite[:, None], q, 0.0)
         scale = 1.0 + np.max(np.abs(q), axis=1)
-        self.y, self.projected, y_jacobian = self._project(times, q)
+        self.y, self.projected, y_jacobian, y_g = self._project(times, q)
         self.projected &= finite
         values_y = _singular_values(y_jacobian)
         redo = ~self.projected | (_ratio(values_y, rank) < GRAM_RATIO)
         if self.gram and redo.any():  # near rank loss: by SVD, as the walk projects
             self.gram, gram = False, self.gram
-            again, converged, jacobian = self._project(times[redo], q[redo])
+            again, converged, jacobian, g = self._project(times[redo], q[redo])
             self.gram = gram
             self.y[redo], self.projected[redo] = again, converged & finite[redo]
             values_y[redo] = _singular_values(jacobian)
+            y_jacobian[redo], y_g[redo] = jacobian, g
         self.drift = np.where(self.projected, np.linalg.norm(q - self.y, axis=1), 0.0)
         self.certified = np.zeros(n, dtype=bool)
         if n < 2:
             return
         # the walk's start at sample k: y_{k-1} moved onto g(t_k, .) = 0
         before = np.vstack([self.y[:1], self.y[:-1]])
-        start, started, start_jacobian = self._project(times, before)
+        if getattr(along, "time_invariant", False) and _converged(before, y_g):
+            # what _project(times, before) returns without a step: g(t, .) is g(t', .),
+            # and every y_{k-1} already passes its test (one evaluation of n samples less)
+            start, started = before.copy(), np.ones(n, dtype=bool)
+            start_jacobian = np.concatenate([y_jacobian[:1], y_jacobian[:-1]])
+        else:
+            start, started, start_jacobian, _ = self._project(times, before)
         started &= np.concatenate([[False], self.projected[:-1]]) & self.projected
         values_a = np.vstack([values_y[:1], values_y[:-1]])
         moved_on = np.any(start != before, axis=1)  # rheonomic constraints
@@ -181,7 +192,8 @@ class _Shortcut:
         started &= (values_a[:, rank - 1] >= least) & (values_y[:, rank - 1] >= least)
         way = q - start
         with np.errstate(all="ignore"):
-            direction = way - self._normal_part(start_jacobian, way)
+            (normal,) = self._normal_part(start_jacobian, way)
+            direction = way - normal
         length = np.linalg.norm(direction, axis=1)
         scale_a = 1.0 + np.max(np.abs(start), axis=1)
         still = length <= 1e-10 * scale_a  # the walk would stay at its start
@@ -198,8 +210,9 @@ class _Shortcut:
         chord_length = np.linalg.norm(chord, axis=1)
         with np.errstate(all="ignore"):
             cosine = np.einsum("ki,ki->k", travelled, unit) / norm
-            kept = np.linalg.norm(unit - self._normal_part(moved_jacobian, unit), axis=1)
-            chord_normal = np.linalg.norm(self._normal_part(moved_jacobian, chord), axis=1)
+            unit_normal, chord_normal = self._normal_part(moved_jacobian, unit, chord)
+            kept = np.linalg.norm(unit - unit_normal, axis=1)
+            chord_normal = np.linalg.norm(chord_normal, axis=1)
         turn = np.arccos(np.clip(np.where(norm > 0, cosine, 1.0), -1.0, 1.0))
         step_ok = still | ((turn <= FAST_TURN) & (norm <= 2 * length)
                            & (kept >= math.cos(FAST_TURN)))  # fmt: skip
@@ -227,19 +240,22 @@ class _Shortcut:
                     pass
         return _truncated_solves(matrices, rhs, rank)
 
-    def _normal_part(self, jacobians: np.ndarray, w: np.ndarray) -> np.ndarray:
+    def _normal_part(self, jacobians: np.ndarray, *ws: np.ndarray) -> list[np.ndarray]:
         """Each w's part in the row space of the rank-``rank`` part of its dg/dq (w less
-        its projection on the tangent space, as :meth:`_Follower._tangent_direction`)."""
+        its projection on the tangent space, as :meth:`_Follower._tangent_direction`),
+        for each of ``ws`` (one SVD of the Jacobians for all of them)."""
         if self.gram:
-            return self._solve(jacobians, np.einsum("kmi,ki->km", jacobians, w), self.rank)
+            return [self._solve(jacobians, np.einsum("kmi,ki->km", jacobians, w), self.rank)
+                    for w in ws]  # fmt: skip
         _, _, vt = np.linalg.svd(_finite(jacobians), full_matrices=True)
         normal = vt[:, : self.rank]
-        return np.einsum("kri,kr->ki", normal, np.einsum("kri,ki->kr", normal, w))
+        return [np.einsum("kri,kr->ki", normal, np.einsum("kri,ki->kr", normal, w)) for w in ws]
 
-    def _project(self, times: np.ndarray,
-                 x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    def _project(
+        self, times: np.ndarray, x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`_Follower.project` of every row of x at its time: (points, converged,
-        dg/dq at the points)."""
+        dg/dq at the points, g there)."""
         x = np.array(x, dtype=float)
         scale = 1.0 + np.max(np.abs(x), axis=1)
         active = np.ones(len(x), dtype=bool)
@@ -249,7 +265,7 @@ class _Shortcut:
             failed |= active & ~np.all(np.isfinite(g), axis=1)
             active &= ~failed & (np.max(np.abs(g), axis=1, initial=0.0) > 1e-13 * scale)
             if not active.any():
-                return x, ~failed, jacobian
+                return x, ~failed, jacobian, g
             step = self._solve(jacobian, g, self.rank, active)
             step[~active] = 0.0
             x -= step
@@ -257,7 +273,7 @@ class _Shortcut:
         g, jacobian = self.along(times, x)
         with np.errstate(invalid="ignore"):
             close = np.max(np.abs(g), axis=1, initial=0.0) <= 1e-9 * scale
-        return x, ~failed & (close | ~active), jacobian
+        return x, ~failed & (close | ~active), jacobian, g
 
     def _corrected(self, times: np.ndarray, predicted: np.ndarray, unit: np.ndarray,
                    wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
@@ -317,6 +333,16 @@ def _one_at_a_time(constraints: Constraints) -> Along:
         return g, jacobian
 
     return along
+
+
+def _converged(x: np.ndarray, g_before: np.ndarray) -> bool:
+    """Would :meth:`_Shortcut._project` leave every row of x as it is, given g at each
+    row's predecessor (row 0: at itself), which is g at the row when g does not depend on
+    t? (Its first test: g finite and max |g| <= 1e-13 (1 + max |x|).)"""
+    g = np.concatenate([g_before[:1], g_before[:-1]])
+    with np.errstate(invalid="ignore"):
+        small = np.max(np.abs(g), axis=1, initial=0.0) <= 1e-13 * (1.0 + np.max(np.abs(x), axis=1))
+    return bool(np.all(np.isfinite(g)) and np.all(small))
 
 
 def _finite(matrices: np.ndarray) -> np.ndarray:
@@ -495,7 +521,9 @@ def constraints_of(equations: Any) -> Constraints | None:
 
 
 def _mapped_along(function: ca.Function, cache: dict, nv: int) -> Along:
-    """``along`` of a Function (t, q[, v]) -> (g, dg/dq): one mapped call (v = 0)."""
+    """``along`` of a Function (t, q[, v]) -> (g, dg/dq): one mapped call (v = 0). Its
+    ``time_invariant``: no output depends on t (found once per Function, from its
+    sparsity), so g(t, q) is g(t', q) to the last bit."""
 
     def along(times: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = len(times)
@@ -505,4 +533,9 @@ def _mapped_along(function: ca.Function, cache: dict, nv: int) -> Along:
         g, jacobian = evaluate_along(function, n, args, cache)
         return g.reshape(n, -1), jacobian
 
+    key = ("time_invariant", id(function))
+    if key not in cache or cache[key][0] is not function:  # (an unpickled cache's ids)
+        depends = function.which_depends(function.name_in(0), function.name_out(), 1, False)
+        cache[key] = (function, not any(depends))
+    along.time_invariant = cache[key][1]  # type: ignore[attr-defined]
     return along
