@@ -167,3 +167,17 @@ def test_a_batch_holding_many_values_is_written_before_the_next_run(tmp_path, mo
     assert sink.fits(second[0])
     monkeypatch.setattr(recording, "FILE_VALUES_LIMIT", 50 * 6)  # the first run's series
     assert not sink.fits(second[0])
+
+
+def test_a_journal_larger_than_a_batch_could_write_is_not_read(tmp_path) -> None:
+    """A results folder from elsewhere may hold any file: a huge "journal" lists nothing
+    (it is not read into memory), a real one its runs."""
+    from workbench.runs.recording_batches import JOURNAL_MAX_BYTES, listed_runs
+
+    (tmp_path / RECORDINGS_DIR).mkdir()
+    real = journal_path(tmp_path, "a")
+    real.write_text("0123456789abcdef\nfedcba9876543210\n")
+    huge = journal_path(tmp_path, "b")
+    huge.write_bytes(b"0123456789abcdef\n" * (JOURNAL_MAX_BYTES // 17 + 2))
+    assert listed_runs([real]) == {"0123456789abcdef", "fedcba9876543210"}
+    assert listed_runs([huge]) == set()

@@ -141,12 +141,20 @@ def journals(out: Path, token: str = "") -> list[Path]:
     return sorted(directory.glob(f"{token}*.{JOURNAL_SUFFIX}"))
 
 
+JOURNAL_MAX_BYTES = 1 << 20
+"""A journal lists at most a batch's run ids (about 17 bytes each): a larger file in a
+results folder is no journal of ours and is not read."""
+
+
 def listed_runs(paths: Iterable[Path]) -> set[str]:
-    """The run ids the journals ``paths`` list (an unreadable one lists none)."""
+    """The run ids the journals ``paths`` list (an unreadable or oversized one lists none)."""
     runs: set[str] = set()
     for path in paths:
         with contextlib.suppress(OSError, UnicodeDecodeError):
-            runs.update(line for line in path.read_text().split() if line)
+            with path.open("rb") as file:
+                data = file.read(JOURNAL_MAX_BYTES + 1)
+            if len(data) <= JOURNAL_MAX_BYTES:
+                runs.update(data.decode().split())
     return runs
 
 
