@@ -51,12 +51,13 @@ class RecordingBatch:
     """The recording of a worker's runs, a file a batch (see the module docstring).
 
     ``recorder``: a class as :func:`workbench.runs.sweep.run_sweep` takes it (made once,
-    at the first run); ``out``: the sweep's folder; ``token``: the worker's journal name.
+    at the first run); ``out``: the sweep's folder; ``token``: the worker's journal name;
+    ``most``: runs a file at most (a Dask worker's child: 1, its file goes with the row).
     A recording is a view of the results, never a failure: a recorder that raises leaves
     the runs unrecorded, as before batches."""
 
-    def __init__(self, recorder: Any, out: Path, token: str) -> None:
-        self.recorder, self.out, self.token = recorder, out, token
+    def __init__(self, recorder: Any, out: Path, token: str, most: int = BATCH_RUNS) -> None:
+        self.recorder, self.out, self.token, self.most = recorder, out, token, most
         self.sink: Any = None
         self.runs = 0  # runs logged to the file begun (0: none begun)
         self.started = 0.0  # when it began (time.monotonic)
@@ -96,7 +97,7 @@ class RecordingBatch:
 
     def end_run(self) -> None:
         """After a run's row: write the batch if it is full or old enough."""
-        if self.runs >= BATCH_RUNS or time.monotonic() - self.started >= BATCH_SECONDS:
+        if self.runs >= self.most or time.monotonic() - self.started >= BATCH_SECONDS:
             self.write()
 
     def write(self) -> None:
