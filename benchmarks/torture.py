@@ -300,6 +300,8 @@ def dask_kill(base: Path, kind: str, k: int, clean, expected) -> dict:
     figures["resumes"] = tries
     figures.update(integrity(out, expected))
     figures["differ"] = differing_rows(out, clean)
+    # a Dask sweep records its runs too (each run's file comes back with its row)
+    figures["recordings_lost"] = len(recorded_runs(base / "clean" / "out") - recorded_runs(out))
     return figures
 
 

@@ -157,7 +157,7 @@ def test_a_small_sweep_gives_the_local_pools_rows(
 PARENT = """
 import json, sys, time
 from workbench.runs.dask_pool import _Child
-child = _Child((("tests.fake_plugins",), tuple(sys.path), None, ()))
+child = _Child((("tests.fake_plugins",), tuple(sys.path), None, (), None))
 if sys.argv[1:]:
     child.conn.send(json.loads(sys.argv[1]))  # a run: the child is busy when we die
 print(child.process.pid, child.out, flush=True)

@@ -1,8 +1,9 @@
 """A Dask cluster without a shared file system (issue 35.5): the local plugin module and the
 computed references travel with the work. The workers start in an empty folder, the
 specification's folder is renamed away once the client has read the module, and the
-module records every import: the workers import their own copy, the rows equal the local
-pool's, and a reference the client already holds is read, not computed, by the workers."""
+module records every import: the workers import their own copy, the rows and the recording
+equal the local pool's, and a reference the client already holds is read, not computed, by
+the workers."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import pytest
 from tests.test_local_plugins import HELPER, spec_text
 from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
 from workbench.execution.timing import TIMING_COLUMNS
+from workbench.outputs.recording import RECORDING_FILE, SweepRecorder
 from workbench.plugin import local_modules
 from workbench.plugin.registry import REGISTRY
 from workbench.runs import shipping, store
@@ -54,7 +56,13 @@ def sweep(folder: Path, out: Path, scheduler: str | None = None) -> None:
     spec = folder / f"{out.name}.toml"
     text = spec_text(out, tolerances="[1e-4, 1e-6]", integrators='["rk4", "scipy-rk45"]')
     spec.write_text(text)
-    run_sweep(load_spec(spec), scheduler=scheduler, show_progress=False)
+    run_sweep(load_spec(spec), scheduler=scheduler, show_progress=False, recorder=SweepRecorder)
+
+
+def recorded_runs(out: Path) -> list[str]:
+    """The runs ``out``'s merged recording holds; no run's own file may be left beside it."""
+    assert not list((out / "recordings").glob("*.rrd"))
+    return sorted(SweepRecorder().add_recording(out / RECORDING_FILE))
 
 
 def comparable(out: Path):
@@ -105,6 +113,9 @@ def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeyp
         sweep(folder, tmp_path / "known", cluster.scheduler_address)
     local = comparable(tmp_path / "local")
     assert len(local) == 4 and set(local["status"]) == {"ok"}
+    # each run's recording came back with its row (the workers wrote theirs elsewhere)
+    assert len(recorded_runs(tmp_path / "local")) == 4
+    assert recorded_runs(tmp_path / "dask") == recorded_runs(tmp_path / "local")
     assert set(local["reference"].str.split(":").str[0]) == {"computed"}
     for name in ("dask", "known"):
         other = comparable(tmp_path / name)

@@ -70,6 +70,21 @@ def record(directory: Path, runs: list, equations, batched: bool) -> list[Path]:
     return sorted((directory / RECORDINGS_DIR).glob("*.rrd"))
 
 
+def test_a_run_filling_its_batch_is_on_disk_before_its_row(tmp_path) -> None:
+    """A run that fills its batch (a Dask worker's child: a run a file) has its file
+    written when it is logged, before its row: a child killed between the two leaves no
+    row without a recording (the run is redone), and needs no journal."""
+    batch = RecordingBatch(SweepRecorder, tmp_path, "test", most=1)
+    files = []
+    for spec, trajectory, series in [fake_run(1e-3), fake_run(1e-4)]:
+        batch.begin_run(spec).log_run(spec, fake_equations(), None, trajectory, series)
+        batch.logged(spec.run_id)
+        files = sorted((tmp_path / RECORDINGS_DIR).glob("*.rrd"))
+        assert len(SweepRecorder().add_recording(files[-1])) == 1
+        assert not journal_path(tmp_path, "test").exists()
+    assert len(files) == 2
+
+
 def test_a_batch_file_merges_to_the_recording_per_run_files_make(tmp_path) -> None:
     runs = [fake_run(10.0**-k) for k in range(3, 7)]
     per_run = record(tmp_path / "per-run", runs, fake_equations(), batched=False)

@@ -6,8 +6,8 @@ run. A task hands its run to a long-lived child process of its Dask worker
 started at the worker's first task and kept between tasks), so imports and the
 equations' build are paid once per worker, not once per run. The task enforces the time
 limit by killing the child (row ``timeout``; the next task starts a fresh one) and
-returns the row and series to the client, which writes them, so the cluster needs no
-shared file system. A child killed from outside, or a lost Dask worker, is no result
+returns the row, series and recording to the client, which writes them, so the cluster
+needs no shared file system. A child killed from outside, or a lost Dask worker, is no result
 (:class:`~workbench.runs.unfinished.InfrastructureError`): the client retries the run
 once. Runs are handed out as the local pool hands them (a worker's own equations first,
 two in flight a worker thread, each pinned loosely to its worker: a lost worker's go to
@@ -29,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from dataclasses import replace
@@ -49,10 +50,11 @@ from workbench.execution.run_log import (
 from workbench.execution.run_progress import progress_columns, progress_path, read_progress
 from workbench.execution.timing import Timing
 from workbench.execution.worker_env import pin_threads, thread_environment
-from workbench.files import make_dirs, open_no_follow
+from workbench.files import atomic_write, make_dirs, open_no_follow
 from workbench.plugin.local_modules import import_plugin_modules
 from workbench.runs import store
 from workbench.runs.local_pool import Keyed, _take_next
+from workbench.runs.recording_batches import RECORDINGS_DIR
 from workbench.runs.shipping import (
     REFERENCE_FILES,
     keep_references,
@@ -163,11 +165,13 @@ START_LIMIT = 600.0  # s for a child to import and discover its plugins (not a r
 class _Child:
     """A child process of this Dask worker running the local pool's worker loop on a socket
     pair, with its own scratch directory where it writes each run's files (read back and
-    removed by :meth:`run`). ``setting``: (plugins, sys_path, reference_dir, timing items)
-    it was made for; a task of another sweep starts its own."""
+    removed by :meth:`run`). ``setting``: (plugins, sys_path, reference_dir, timing items,
+    recorder) it was made for; a task of another sweep starts its own. With a recorder
+    (:func:`workbench.runs.sweep.run_sweep`'s) it records each run into a file of its own,
+    returned with the row."""
 
     def __init__(self, setting: tuple) -> None:
-        plugins, sys_path, reference_dir, timing = setting
+        plugins, sys_path, reference_dir, timing, recorder = setting
         self.setting = setting
         self.out = Path(tempfile.mkdtemp(prefix="workbench-dask-"))
         ours, theirs = socket.socketpair()
@@ -194,6 +198,7 @@ class _Child:
                 "parent": os.getpid(),
                 "reference_dir": reference_dir,
                 "timing": dict(timing),
+                "recorder": recorder,  # a class, pickled by name: importable in the child
             }
         )
         message = self._receive(START_LIMIT)
@@ -233,7 +238,8 @@ class _Child:
     def run(self, spec: RunSpec, limit: float) -> tuple[dict[str, Any], Any]:
         """(row, series or None) of one run within ``limit`` seconds; on a timeout or a
         crash the child is gone (:attr:`alive` False) and the row says so;
-        InfrastructureError if it was killed from outside."""
+        InfrastructureError if it was killed from outside. The run's recording file, if
+        the child wrote one, goes in the row under :data:`RECORDING_FILES`."""
         import pandas as pd
 
         self.conn.send(spec.to_dict())
@@ -259,6 +265,9 @@ class _Child:
                 row[LOG_TEXT] = (self.out / row["log"]).read_text("utf-8", "replace")
             series_file = store.series_path(self.out, spec.run_id)
             series = pd.read_parquet(series_file) if series_file.exists() else None
+            recordings = self._take_recordings()
+            if recordings:
+                row[RECORDING_FILES] = recordings
             return row, series
         finally:
             for path in (
@@ -270,6 +279,19 @@ class _Child:
                 path.unlink(missing_ok=True)
             if not self.alive:
                 self.close()
+
+    def _take_recordings(self) -> dict[str, bytes]:
+        """The recording files the child has written (name -> bytes), removed here."""
+        recorder = self.setting[4]
+        directory = self.out / RECORDINGS_DIR
+        if recorder is None or not directory.is_dir():
+            return {}
+        taken = {}
+        for path in sorted(directory.glob(f"*.{recorder.suffix}")):
+            with contextlib.suppress(OSError):  # a view of the results: never a failed run
+                taken[path.name] = path.read_bytes()
+                path.unlink()
+        return taken
 
     @property
     def alive(self) -> bool:
@@ -324,6 +346,7 @@ def run_on_worker_child(
     timing: dict[str, Any] | None = None,
     modules: dict[str, Any] | None = None,
     references: dict[str, bytes] | None = None,
+    recorder: Any = None,
 ) -> tuple[dict[str, Any], Any]:
     """A Dask task: run one spec in a long-lived child of this worker: (row, series or None).
 
@@ -333,7 +356,8 @@ def run_on_worker_child(
     (given by :func:`run_dask`; :mod:`workbench.runs.shipping`): the local plugin modules'
     files and the problem's computed references, shipped from the client, so this worker
     reads none of the client's folders; the references computed here go back in the row
-    (:data:`~workbench.runs.shipping.REFERENCE_FILES`)."""
+    (:data:`~workbench.runs.shipping.REFERENCE_FILES`), as does the run's recording
+    (``recorder``: :func:`workbench.runs.sweep.run_sweep`'s; :data:`RECORDING_FILES`)."""
     shipped = modules is not None or references is not None
     if shipped:
         plugins = unpack_modules(list(plugins), modules or {})
@@ -342,7 +366,8 @@ def run_on_worker_child(
         here: str | None = str(folder)
     else:
         here = reference_dir if os.path.isdir(reference_dir) else None
-    setting = (tuple(plugins), tuple(sys_path), here, tuple(sorted((timing or {}).items())))
+    timed = tuple(sorted((timing or {}).items()))
+    setting = (tuple(plugins), tuple(sys_path), here, timed, recorder)
     _import_plugins(setting[0], setting[1])
     with _IDLE_LOCK:
         child = next((c for c in _IDLE if c.setting == setting and c.alive), None)
@@ -378,11 +403,12 @@ def _serve_main(fd: int) -> None:
             setting["plugins"],
             setting["out"],
             setting["sys_path"],
-            None,
+            setting.get("recorder"),
             setting["parent"],
             setting["reference_dir"],
             setting["timing"],
             scratch=True,  # its directory goes with it if the Dask worker dies mid-run
+            batch_runs=1,  # a run's recording goes back with its row (RECORDING_FILES)
         )
     finally:  # the socket closed (the Dask worker is gone) or it said stop
         shutil.rmtree(setting["out"], ignore_errors=True)
@@ -397,17 +423,20 @@ def run_dask(
     record: Callable[[str], None],
     timing: Timing | None = None,
     states: bool = True,
+    recorder: Any = None,
 ) -> dict[str, str]:
     """Run ``todo`` on the cluster (timed as ``timing`` says; its ``workers`` become the
     cluster's worker threads, over all its machines; ``states``: store the trajectories,
-    :func:`~workbench.runs.store.write_run`); return the runs left without a row
-    (run id -> why): those whose task was lost twice (:mod:`workbench.runs.unfinished`)."""
+    :func:`~workbench.runs.store.write_run`; ``recorder``: record each run as the local
+    pool does, a file a run written into ``OUT/recordings`` by the client); return the
+    runs left without a row (run id -> why): those whose task was lost twice
+    (:mod:`workbench.runs.unfinished`)."""
     try:
         import distributed  # noqa: F401 - its loggers exist once it is imported
     except ImportError as error:
         raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
     with dask_log_in(out):
-        return _run_dask(todo, out, limit, plugins, scheduler, record, timing, states)
+        return _run_dask(todo, out, limit, plugins, scheduler, record, timing, states, recorder)
 
 
 CLIENT_LOG = "dask-client.log"  # under OUT/logs: what distributed says in the client
@@ -451,6 +480,7 @@ def _run_dask(
     record: Callable[[str], None],
     timing: Timing | None,
     states: bool,
+    recorder: Any = None,
 ) -> dict[str, str]:
     import concurrent.futures
 
@@ -484,7 +514,7 @@ def _run_dask(
             executors[worker] = client.get_executor(pure=False, **where)
         future = executors[worker].submit(
             run_on_worker_child, spec.to_dict(), limit, plugins, reference_dir, paths, timed,
-            ship(None), ship(spec.problem),
+            ship(None), ship(spec.problem), recorder,
         )  # fmt: skip
         futures[future] = (spec, worker)
 
@@ -573,6 +603,8 @@ def _run_dask(
                 returned = row.pop(REFERENCE_FILES, None)
                 if returned:  # computed by a worker: kept, and shipped with the later runs
                     keep_references(Path(reference_dir), returned)
+                # before the row: a client killed between the two leaves the run to redo
+                write_recordings(out, row.pop(RECORDING_FILES, None) or {})
                 store_log(out, row)
                 store.write_run(out, row, series, states)
                 record(row.get("status", "failed"))
@@ -581,6 +613,23 @@ def _run_dask(
         with contextlib.suppress(Exception):  # (a lost scheduler: nothing to say goodbye to)
             client.close(timeout=CLOSE_S)
     return unfinished
+
+
+RECORDING_FILES = "recording_files"
+"""A row's key (never stored) for the run's recording files a Dask task returns."""
+
+
+def write_recordings(out: Path, files: dict[str, bytes]) -> None:
+    """Write a run's recording files, returned by its task, into ``OUT/recordings`` for the
+    sweep's merge (:func:`workbench.runs.local_pool.merge_run_recordings`); a file that
+    cannot be written is left out (a recording is a view of the results)."""
+    for name, data in files.items():
+        if Path(name).name != name or name.startswith("."):
+            continue  # a plain file name, as the child makes them: nothing else is written
+        target = out / RECORDINGS_DIR / f"{time.time_ns()}-{name}"
+        write = lambda temporary, data=data: Path(temporary).write_bytes(data)  # noqa: E731
+        with contextlib.suppress(OSError):
+            atomic_write(target, write, durable=False, root=out)
 
 
 WATCH_S = 1.0  # s between looks at the client while no run finishes
@@ -599,8 +648,6 @@ class _ClientWatch:
 
     def lost(self) -> str | None:
         """Why the runs not done will never finish (one line), or None while they may."""
-        import time
-
         status = str(getattr(self.client, "status", "unknown"))
         if status == "running":
             self.since = None

@@ -47,6 +47,7 @@ from workbench.plugin.local_modules import import_plugin_modules, imported_from_
 from workbench.runs import store
 from workbench.runs.parent_watch import exit_with_parent
 from workbench.runs.recording_batches import (
+    BATCH_RUNS,
     RECORDINGS_DIR,
     RecordingBatch,
     forget_journals,
@@ -77,6 +78,7 @@ def _worker_main(
     scratch: bool = False,
     states: bool = True,
     token: str = "",
+    batch_runs: int = BATCH_RUNS,
 ) -> None:
     """A pool worker: ready, then run specs received on ``conn`` until None; a message
     ``("record", spec)`` records a done run again, its row and series left as they are.
@@ -86,8 +88,9 @@ def _worker_main(
     ``reference_dir``: where references are cached (default ``<out>/references``);
     ``timing``: how each integration is timed (:meth:`Timing.to_dict`); ``states``: store
     the trajectory in the series (:func:`~workbench.runs.store.write_run`); ``token``: the
-    name of its recordings' journal (:mod:`workbench.runs.recording_batches`). Also the
-    worker loop of a Dask worker's child (:mod:`workbench.runs.dask_pool`)."""
+    name of its recordings' journal (:mod:`workbench.runs.recording_batches`),
+    ``batch_runs`` the runs of a recording file at most. Also the worker loop of a Dask
+    worker's child (:mod:`workbench.runs.dask_pool`: a file a run)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
@@ -105,7 +108,9 @@ def _worker_main(
     conn.send(("ready", os.getpid()))
     references = Path(reference_dir) if reference_dir else Path(out) / "references"
     # one recording sink for all of this worker's runs, a file a batch of runs
-    batch = RecordingBatch(recorder, Path(out), token or new_token()) if recorder else None
+    batch = (
+        RecordingBatch(recorder, Path(out), token or new_token(), batch_runs) if recorder else None
+    )
     while True:
         message = conn.recv()
         if message is None:

@@ -9,8 +9,9 @@ run cannot join it (``recorder.fits(spec)``), and when it stops. A file is writt
 temporary name and renamed, so the merge never reads half a batch.
 
 Nothing lost: before a run's row is written, its id is appended to the worker's journal
-(``recordings/<token>.pending``), which is emptied once the batch holding the run is on
-disk and deleted when the worker stops. So a run with a row whose recording was never
+(``recordings/<token>.pending``; a run that fills its batch has the batch's file written
+instead), which is emptied once the batch holding the run is on disk and deleted when
+the worker stops. So a run with a row whose recording was never
 written (its worker killed: a time limit, a crash, from outside) is listed in a journal
 left behind. The pool records such runs again (the run alone, its row kept:
 :func:`workbench.runs.local_pool.run_local`'s ``rebuild``), and a resumed sweep does so
@@ -51,12 +52,13 @@ class RecordingBatch:
     """The recording of a worker's runs, a file a batch (see the module docstring).
 
     ``recorder``: a class as :func:`workbench.runs.sweep.run_sweep` takes it (made once,
-    at the first run); ``out``: the sweep's folder; ``token``: the worker's journal name.
+    at the first run); ``out``: the sweep's folder; ``token``: the worker's journal name;
+    ``most``: runs a file at most (a Dask worker's child: 1, its file goes with the row).
     A recording is a view of the results, never a failure: a recorder that raises leaves
     the runs unrecorded, as before batches."""
 
-    def __init__(self, recorder: Any, out: Path, token: str) -> None:
-        self.recorder, self.out, self.token = recorder, out, token
+    def __init__(self, recorder: Any, out: Path, token: str, most: int = BATCH_RUNS) -> None:
+        self.recorder, self.out, self.token, self.most = recorder, out, token, most
         self.sink: Any = None
         self.runs = 0  # runs logged to the file begun (0: none begun)
         self.started = 0.0  # when it began (time.monotonic)
@@ -81,10 +83,15 @@ class RecordingBatch:
             return None
 
     def logged(self, run_id: str) -> None:
-        """Note the run as recorded but not yet on disk: called before its row is written."""
+        """Note the run as recorded: called before its row is written. Its id goes to the
+        journal, or, the run filling the batch, the batch's file is written now (a Dask
+        worker's child, a run a file, then never returns a row without its recording)."""
         if self.sink is None:
             return
         self.runs += 1
+        if self.runs >= self.most:  # full: its file on disk before the row, no journal
+            self.write()
+            return
         try:
             if self._journal is None:
                 path = journal_path(self.out, self.token)
@@ -95,8 +102,8 @@ class RecordingBatch:
             self.write()
 
     def end_run(self) -> None:
-        """After a run's row: write the batch if it is full or old enough."""
-        if self.runs >= BATCH_RUNS or time.monotonic() - self.started >= BATCH_SECONDS:
+        """After a run's row: write the batch if it is old enough (or full)."""
+        if self.runs >= self.most or time.monotonic() - self.started >= BATCH_SECONDS:
             self.write()
 
     def write(self) -> None:

@@ -86,13 +86,14 @@ def run_sweep(
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
-    ``recorder``: what records each run of the local pool (a class, made once a worker:
+    ``recorder``: what records each run (a class, made once a worker; with ``scheduler``
+    importable by the Dask workers, a file a run sent back with its row:
     ``recorder()`` with ``begin_file(path)``, ``log_run(...)``, ``fits(spec)`` (whether
     a run may join the file begun: :mod:`workbench.runs.recording_batches`) and
     ``end_file()``; class attributes ``suffix`` and ``merge(files, out) -> Path``, and optionally
     ``prepare()`` and ``merged_file``, the name of merge's file in ``out``: it is then
     merged again only when the runs' files changed), e.g.
-    :class:`workbench.outputs.recording.RerunSink`; None records nothing. Passed in, so
+    :class:`workbench.outputs.recording.SweepRecorder`; None records nothing. Passed in, so
     the runs layer knows no recording format.
 
     ``rerun`` (kinds of :data:`workbench.runs.resume.RERUN_KINDS`) and ``fresh`` redo done
@@ -154,8 +155,9 @@ def run_sweep(
 
             if scheduler:
                 unfinished = run_dask(
-                    todo, out_dir, limit, sweep.plugins, scheduler, record, timing, states
-                )
+                    todo, out_dir, limit, sweep.plugins, scheduler, record, timing, states,
+                    recorder,
+                )  # fmt: skip
             else:
                 tick = lambda: advance(None)  # noqa: E731
                 unfinished = run_local(
