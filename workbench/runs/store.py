@@ -95,7 +95,7 @@ def write_run(
         if not states:
             series = series[[c for c in series.columns if not c.startswith(STATE_PREFIX)]]
         write_parquet_atomic(series, series_path(out, run_id), root=Path(out), durable=False)
-    write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out))
+    write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out), indent=None)
 
 
 def read_row(path: Path) -> dict[str, Any] | None:
