@@ -332,9 +332,10 @@ _NUMPY_KINDS = frozenset("fiub")  # columns pyarrow takes from NumPy as they are
 
 def _arrow_table(frame: pd.DataFrame) -> Any:
     """``pa.Table.from_pandas(frame, preserve_index=False)``, the same table: its schema
-    (with pandas' metadata) made once per column layout (of numbers and strings: other
-    columns' types are inferred from their values), and NumPy columns handed over directly (pandas' conversion of a
-    whole frame was a third of a tiny run's series write: docs/performance.md)."""
+    (with pandas' metadata) made once per column layout of numbers and strings (other
+    columns' types are inferred from their values), NumPy columns handed over directly:
+    pandas' conversion of a whole frame was a third of a tiny run's series write
+    (docs/performance.md)."""
     import pandas as pd
     import pyarrow as pa
 
