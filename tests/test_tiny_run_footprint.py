@@ -196,6 +196,34 @@ def test_a_series_file_has_the_bytes_pandas_writes(tmp_path):
     assert pd.read_parquet(tmp_path / "ours3.parquet").attrs == {"source": "test"}
 
 
+def test_a_lean_series_file_reads_back_the_same_without_statistics_or_float_dictionaries(
+    tmp_path,
+):
+    """A run's series file (``lean``) reads back as the series, attrs included, and holds
+    no column statistics and no dictionary for a float column (only for text)."""
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    from workbench.files import write_parquet_atomic
+    from workbench.runs import store
+
+    result = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
+    store.write_run(tmp_path, result.row, result.series)
+    path = store.series_path(tmp_path, result.row["run_id"])
+    pd.testing.assert_frame_equal(pd.read_parquet(path), result.series)
+    metadata = pq.read_metadata(path)
+    columns = [metadata.row_group(0).column(k) for k in range(metadata.num_columns)]
+    assert not any(column.is_stats_set for column in columns)
+    dictionaries = {c.path_in_schema for c in columns if c.dictionary_page_offset is not None}
+    assert dictionaries == {"run_id"}
+    frame = pd.DataFrame({"x": [1.0, math.nan], "name": ["a", None]})
+    frame.attrs = {"source": "test"}
+    write_parquet_atomic(frame, tmp_path / "lean.parquet", lean=True)
+    again = pd.read_parquet(tmp_path / "lean.parquet")
+    pd.testing.assert_frame_equal(again, frame)
+    assert again.attrs == {"source": "test"}
+
+
 def test_a_row_file_is_one_line_that_reads_back_as_the_row(tmp_path):
     """A run's row file is written by Python's C JSON encoder (one line, no indent): the
     row read back is the row, inf and NaN included."""

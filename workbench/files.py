@@ -302,12 +302,21 @@ def write_json_atomic(
 
 
 def write_parquet_atomic(
-    frame: pd.DataFrame, path: Path, root: Path | None = None, durable: bool = True
+    frame: pd.DataFrame,
+    path: Path,
+    root: Path | None = None,
+    durable: bool = True,
+    lean: bool = False,
 ) -> None:
     """``frame`` (a pandas DataFrame, index dropped) as one whole Parquet file: the bytes
     of ``frame.to_parquet(index=False)``, made by pyarrow in memory and written by Python
     (pandas' call opened the file through pyarrow's file system layer: 0.2-0.4 ms more,
-    a third of a tiny run's series write; docs/performance.md)."""
+    a third of a tiny run's series write; docs/performance.md).
+
+    ``lean``: no column statistics (min/max a column, for readers that filter: a run's
+    series is read whole) and a dictionary for the columns of text only (one of a float
+    column's distinct values is all of them): a tiny run's series file 14.0 -> 12.1 KB,
+    its encoding 0.15 -> 0.11 ms; read back the same."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -315,8 +324,16 @@ def write_parquet_atomic(
     if frame.attrs:  # as pandas keeps them
         metadata = {**table.schema.metadata, b"PANDAS_ATTRS": json.dumps(frame.attrs)}
         table = table.replace_schema_metadata(metadata)
+    options: dict[str, Any] = {}
+    if lean:
+        text = [
+            f.name
+            for f in table.schema
+            if pa.types.is_string(f.type) or pa.types.is_large_string(f.type)
+        ]
+        options = {"write_statistics": False, "use_dictionary": text}
     encoded = pa.BufferOutputStream()
-    pq.write_table(table, encoded, compression="snappy")
+    pq.write_table(table, encoded, compression="snappy", **options)
     data = encoded.getvalue()
 
     def write(name: str) -> None:

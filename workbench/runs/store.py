@@ -94,7 +94,8 @@ def write_run(
     if series is not None:
         if not states:
             series = series[[c for c in series.columns if not c.startswith(STATE_PREFIX)]]
-        write_parquet_atomic(series, series_path(out, run_id), root=Path(out), durable=False)
+        path = series_path(out, run_id)
+        write_parquet_atomic(series, path, root=Path(out), durable=False, lean=True)
     write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out), indent=None)
 
 
