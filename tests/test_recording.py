@@ -17,6 +17,7 @@ from workbench.cli import app
 from workbench.model import Frame, Model, Shape
 from workbench.outputs.recording import (
     SERIES_QUANTITIES,
+    SHAPE_COLORS,
     RerunSink,
     entity_path,
     merge_recordings,
@@ -470,3 +471,19 @@ def test_a_run_holds_one_component_column_a_thing_it_draws(tmp_path: Path) -> No
         ("bodies/tip", "Ellipsoids3D:half_sizes"), ("bodies/tip", "TransformAxes3D:axis_length"),
         ("series", "Scalars:scalars"), ("series", "SeriesLines:names"),
     }  # fmt: skip
+
+
+def test_a_file_of_runs_holds_every_sample_and_its_problems_view_once(tmp_path: Path) -> None:
+    """Runs of at most max_frames samples keep every sample's pose, at its own time; a
+    file of several runs of a problem holds the problem's view (its up axis and shape
+    colours) once, made once (not a run)."""
+    sink = RerunSink(max_frames=50)
+    sink.begin_file(tmp_path / "batch.rrd")
+    runs = [sink.log_run(*_args(fake_run(rtol, n=n))) for rtol, n in ((1e-3, 50), (1e-6, 7))]
+    chunks = read_chunks(sink.end_file())
+    for run, n in zip(runs, (50, 7), strict=True):
+        arm = column(chunks[f"/{run}/bodies/arm"], "Transform3D:quaternion")
+        assert np.allclose(seconds(arm["sim_time"]), np.linspace(0.0, 2.0, n))
+    problem = chunks["/runs/fake-problem"]
+    assert len(problem) == 1 and "ViewCoordinates:xyz" in problem[0].columns
+    assert SHAPE_COLORS in problem[0].columns  # the tip's one sphere colour

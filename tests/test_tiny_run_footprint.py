@@ -163,22 +163,132 @@ def test_a_workers_raw_output_file_is_renamed_from_run_to_run_not_made_again(tmp
 
 
 def test_a_series_file_has_the_bytes_pandas_writes(tmp_path):
-    """write_parquet_atomic (pyarrow in memory) writes what ``DataFrame.to_parquet``
-    writes, attrs included: the series and results files read back as before."""
+    """write_parquet_atomic (pyarrow in memory, its Arrow schema made once per column
+    layout) writes what ``DataFrame.to_parquet`` writes, attrs included, for a second
+    frame of a layout as for the first: the series and results files read back as before."""
     import pandas as pd
 
     from workbench.files import write_parquet_atomic
 
-    result = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
+    runs = [
+        execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", rtol, 1e-6)).series
+        for rtol in (1e-4, 1e-3)
+    ]  # the same layout twice, other values; then a slice of it
     other = pd.DataFrame({"a": [1, 2], "b": ["x", None], "c": [1.5, math.nan]}, index=[4, 5])
     other.attrs = {"source": "test"}
-    for k, frame in enumerate([result.series, other]):
+    kinds = pd.DataFrame(
+        {
+            "i": np.array([1, 2, 3], dtype=np.int32),
+            "f": [math.inf, -0.0, math.nan],
+            "flag": [True, False, True],
+            "s": pd.array(["x", pd.NA, "z"], dtype="string"),
+        }
+    )
+    objects = pd.DataFrame(  # types inferred from the values (not from no rows)
+        {"o": pd.array(["a", None, "c"], dtype=object), "lists": [[1], [2, 3], []]}
+    )
+    frames = [*runs, runs[1].iloc[1:], other, kinds, kinds.iloc[::-1], objects]
+    for k, frame in enumerate(frames):
         frame.to_parquet(tmp_path / f"pandas{k}.parquet", index=False)
         write_parquet_atomic(frame, tmp_path / f"ours{k}.parquet")
-        assert (tmp_path / f"ours{k}.parquet").read_bytes() == (
-            tmp_path / f"pandas{k}.parquet"
-        ).read_bytes()
-    assert pd.read_parquet(tmp_path / "ours1.parquet").attrs == {"source": "test"}
+        ours = (tmp_path / f"ours{k}.parquet").read_bytes()
+        assert ours == (tmp_path / f"pandas{k}.parquet").read_bytes(), k
+    assert pd.read_parquet(tmp_path / "ours3.parquet").attrs == {"source": "test"}
+
+
+def test_a_lean_series_file_reads_back_the_same_without_statistics_or_float_dictionaries(
+    tmp_path,
+):
+    """A run's series file (``lean``) reads back as the series, attrs included, and holds
+    no column statistics and no dictionary for a float column (only for text)."""
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    from workbench.files import write_parquet_atomic
+    from workbench.runs import store
+
+    result = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
+    store.write_run(tmp_path, result.row, result.series)
+    path = store.series_path(tmp_path, result.row["run_id"])
+    pd.testing.assert_frame_equal(pd.read_parquet(path), result.series)
+    metadata = pq.read_metadata(path)
+    columns = [metadata.row_group(0).column(k) for k in range(metadata.num_columns)]
+    assert not any(column.is_stats_set for column in columns)
+    dictionaries = {c.path_in_schema for c in columns if c.dictionary_page_offset is not None}
+    assert dictionaries == {"run_id"}
+    frame = pd.DataFrame({"x": [1.0, math.nan], "name": ["a", None]})
+    frame.attrs = {"source": "test"}
+    write_parquet_atomic(frame, tmp_path / "lean.parquet", lean=True)
+    again = pd.read_parquet(tmp_path / "lean.parquet")
+    pd.testing.assert_frame_equal(again, frame)
+    assert again.attrs == {"source": "test"}
+
+
+def test_a_row_file_is_one_line_that_reads_back_as_the_row(tmp_path):
+    """A run's row file is written by Python's C JSON encoder (one line, no indent): the
+    row read back is the row, inf and NaN included."""
+    from workbench.runs import store
+
+    result = execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6))
+    row = dict(result.row, extra_inf=math.inf, extra_nan=math.nan, extra_int=np.int64(3))
+    store.write_run(tmp_path, row, result.series)
+    text = store.row_path(tmp_path, row["run_id"]).read_text(encoding="utf-8")
+    assert "\n" not in text
+    again = store.read_row(store.row_path(tmp_path, row["run_id"]))
+    assert again is not None and again.keys() == row.keys()
+    assert all(_same(again[key], value) for key, value in row.items() if key != "extra_int")
+    assert again["extra_int"] == 3
+
+
+class _FrozenProbe:
+    """A recorder whose start-up makes an object (``prepare``, as Rerun's import does in a
+    worker) and whose first sink writes whether the collector still tracks it."""
+
+    suffix = "rrd"
+    made: object = None
+    report = ""  # the file it writes to (set before the worker is forked)
+
+    @classmethod
+    def prepare(cls) -> None:
+        cls.made = [object()]  # a container: tracked by the collector
+
+    def __init__(self) -> None:
+        import gc
+
+        tracked = any(o is type(self).made for o in gc.get_objects())  # (frozen: not listed)
+        with open(type(self).report, "w") as file:
+            file.write(f"tracked={tracked}")
+        raise RuntimeError("no recording wanted")  # the run goes on unrecorded
+
+
+def test_a_workers_start_up_objects_are_frozen_out_of_the_collectors_passes(tmp_path, monkeypatch):
+    """A pool worker freezes (gc.freeze) what its start-up made before its first run, so
+    the collector's full passes do not walk it every few hundred runs."""
+    import multiprocessing
+
+    from workbench.execution.timing import Timing
+    from workbench.runs import local_pool
+
+    monkeypatch.setattr(_FrozenProbe, "report", str(tmp_path / "probe.txt"))
+    context = multiprocessing.get_context("fork")
+    parent_end, child_end = context.Pipe()
+    process = context.Process(
+        target=local_pool._worker_main,
+        args=(child_end, [], str(tmp_path), []),
+        kwargs={"recorder": _FrozenProbe, "timing": Timing(repeats=1, workers=1).to_dict()},
+    )
+    process.start()
+    try:
+        assert parent_end.recv()[0] == "ready"
+        spec = RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-3, 1e-6)
+        parent_end.send(spec.to_dict())
+        assert parent_end.recv()[:2] == ("done", spec.run_id)
+        parent_end.send(None)
+        process.join(timeout=60)
+    finally:
+        if process.is_alive():
+            process.kill()
+    assert (tmp_path / "probe.txt").read_text() == "tracked=False"
 
 
 @pytest.mark.parametrize(

@@ -105,6 +105,9 @@ def _worker_main(
     if recorder is not None and hasattr(recorder, "prepare"):
         with contextlib.suppress(Exception):  # loaded here, not within a run's time limit
             recorder.prepare()
+    # what start-up made (modules, plugins, Rerun) lives as long as the worker: kept out of
+    # the collector's full passes, which walked it every few hundred runs (docs/performance.md)
+    gc.freeze()
     conn.send(("ready", os.getpid()))
     references = Path(reference_dir) if reference_dir else Path(out) / "references"
     # one recording sink for all of this worker's runs, a file a batch of runs

@@ -94,8 +94,9 @@ def write_run(
     if series is not None:
         if not states:
             series = series[[c for c in series.columns if not c.startswith(STATE_PREFIX)]]
-        write_parquet_atomic(series, series_path(out, run_id), root=Path(out), durable=False)
-    write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out))
+        path = series_path(out, run_id)
+        write_parquet_atomic(series, path, root=Path(out), durable=False, lean=True)
+    write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out), indent=None)
 
 
 def read_row(path: Path) -> dict[str, Any] | None:
