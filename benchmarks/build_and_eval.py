@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.equations.initial import consistent_initial_state
 from workbench.plugin.registry import list_plugins
 
@@ -67,4 +68,5 @@ def main(argv: list[str]) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main(sys.argv[1:])

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.runs.store import load_results
@@ -154,6 +155,7 @@ def main(argv: list[str]) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     if sys.argv[1:2] == ["--one"]:
         sweep_once(int(sys.argv[2]), sys.argv[3], sys.argv[4])
     else:

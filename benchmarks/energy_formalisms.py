@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.equations.initial import consistent_initial_state
 from workbench.plugin.registry import get_formalism, list_plugins
 
@@ -66,4 +67,5 @@ def main(argv: list[str]) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main(sys.argv[1:])

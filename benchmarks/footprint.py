@@ -71,6 +71,8 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
+
 RESULTS = Path(__file__).parent / "results"
 FRAMES = 200  # poses a run, as SweepRecorder
 
@@ -743,4 +745,5 @@ def main(argv: list[str]) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main(sys.argv[1:])

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.equations.initial import consistent_initial_state
 from workbench.plugin import registry
 from workbench.problems.ch5_contacts import (
@@ -374,4 +375,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main()

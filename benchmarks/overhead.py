@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
 from benchmarks.peers import best_us
 from workbench.equations.evaluate import FastFunction
 
@@ -52,4 +53,5 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main(sys.argv[1:])

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.equations.initial import consistent_initial_state
 from workbench.execution import references
 from workbench.plugin import registry
@@ -81,4 +82,5 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main(sys.argv[1:])

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.outputs.recording import SweepRecorder
 from workbench.runs.store import load_results
 from workbench.runs.sweep import parse_spec, run_sweep
@@ -85,4 +86,5 @@ def main(argv: list[str]) -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main(sys.argv[1:])

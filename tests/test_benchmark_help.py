@@ -1,0 +1,33 @@
+"""Every benchmark answers ``--help`` with how to run it, and runs nothing: a benchmark
+that reads its arguments by hand once failed on ``--help`` with a traceback
+(``benchmarks.footprint``) or took it for a problem's name (``benchmarks.nonsmooth_peers``)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = sorted(
+    path.stem
+    for path in (Path(__file__).parents[1] / "benchmarks").glob("*.py")
+    if 'if __name__ == "__main__":' in path.read_text()
+)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("name", BENCHMARKS)
+def test_a_benchmark_answers_help(name: str, tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", f"benchmarks.{name}", "--help"],
+        cwd=Path(__file__).parents[1],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "Traceback" not in done.stderr
+    assert done.stdout.strip(), "nothing printed"
