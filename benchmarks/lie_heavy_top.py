@@ -31,6 +31,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from benchmarks import help_if_asked
 from workbench.execution.execute import RunSpec, execute_run  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
@@ -97,4 +98,5 @@ def main() -> pd.DataFrame:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     main()

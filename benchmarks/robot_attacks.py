@@ -15,11 +15,13 @@ exit status 1 when a hole, a traceback or a leaked byte is counted.
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from pathlib import Path
 
 import pandas as pd
 
+from benchmarks import help_if_asked
 from workbench.errors import WorkbenchError
 from workbench.model.importers import load_robot
 
@@ -244,4 +246,5 @@ def main() -> int:
 
 
 if __name__ == "__main__":
+    help_if_asked(__doc__, sys.argv[1:])
     raise SystemExit(main())
