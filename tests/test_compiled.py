@@ -202,6 +202,30 @@ def test_long_bodies_are_split_and_give_the_same_numbers(cache):
     assert "for (" in looped and compiled.split_long_bodies(looped, 1) == looped
 
 
+def test_default_flags_small_graphs_at_o2_with_the_cpus_avx_and_the_same_numbers(cache):
+    """The default ``compile_flags`` let the workbench choose: a graph with local variables
+    (Talos's ABA, here a 12-link chain) at -O2, a larger or MX graph at -O1, and on an
+    x86-64 CPU with AVX its three-operand instructions without fused multiply-adds; flags
+    of one's own are kept as given. The library's numbers equal the VM's bit for bit."""
+    import platform
+
+    from workbench.plugins.formalisms.recursive import ode_function
+
+    function = ode_function(get_problem("spatial-chain")({"n_links": 12}).model())
+    generated = compiled.generate(function)
+    flags = generated.flags.split()
+    assert flags[0] == "-O2" and compiled.uses_locals(function)
+    avx = platform.machine().lower() in ("x86_64", "amd64") and "avx" in compiled.cpu_flags()
+    assert ("-mavx" in flags and "-ffp-contract=off" in flags) == avx
+    assert ("-mavx" in flags) == avx  # never on a CPU without AVX
+    x = ca.MX.sym("x", 3)
+    assert compiled.default_flags(ca.Function("mx", [x], [x * x])).split()[0] == "-O1"
+    assert compiled.generate(function, "-O0").flags == "-O0"
+    loaded = compiled.load_generated(generated)
+    for y in np.random.default_rng(6).uniform(-2, 2, (5, 24)):
+        assert np.array_equal(np.asarray(loaded(0.4, y)), np.asarray(function(0.4, y)))
+
+
 def catalog_pairs():
     """(problem, formalism) for every catalog problem (default options) and every formalism
     that takes its model; robots whose files are not installed are left out."""
