@@ -1,7 +1,7 @@
 """CasADi Functions compiled to C and loaded back (formalism option ``compile = "jit"``).
 
 The CasADi virtual machine interprets a graph instruction by instruction; the same graph
-as C, compiled with the machine's C compiler (``$CC``, else ``cc``) at ``-O1``, runs
+as C, compiled with the machine's C compiler (``$CC``, else ``cc``; flags below), runs
 several times faster (benchmarks/peers.py). Compiling a large graph takes seconds, so
 the shared library is kept in an on-disk cache (``$WORKBENCH_CACHE``, else
 ``~/.cache/mbs-workbench``) under a hash of the generated C code, the flags, the
