@@ -226,6 +226,26 @@ def test_default_flags_small_graphs_at_o2_with_the_cpus_avx_and_the_same_numbers
         assert np.array_equal(np.asarray(loaded(0.4, y)), np.asarray(function(0.4, y)))
 
 
+def test_no_avx_flags_on_a_cpu_without_avx_or_off_x86(monkeypatch):
+    """-mavx only where this CPU reports AVX and is x86-64: elsewhere the default flags
+    are the optimization level alone (a library is never built for instructions the
+    CPU lacks)."""
+    import platform
+
+    x = ca.SX.sym("x")
+    small = ca.Function("small", [x], [x * x])
+    for machine, flags, expected in (
+        ("x86_64", frozenset({"sse2", "fma"}), "-O2"),
+        ("aarch64", frozenset({"avx"}), "-O2"),
+        ("x86_64", frozenset({"sse2", "avx"}), "-O2 -mavx -ffp-contract=off"),
+    ):
+        monkeypatch.setattr(platform, "machine", lambda machine=machine: machine)
+        monkeypatch.setattr(compiled, "cpu_flags", lambda flags=flags: flags)
+        compiled.host_flags.cache_clear()
+        assert compiled.default_flags(small) == expected
+    compiled.host_flags.cache_clear()
+
+
 def catalog_pairs():
     """(problem, formalism) for every catalog problem (default options) and every formalism
     that takes its model; robots whose files are not installed are left out."""
