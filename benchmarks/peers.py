@@ -374,7 +374,7 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
     )
     parser.add_argument("--robots", nargs="+", choices=list(ROBOTS), default=list(ROBOTS))
     parser.add_argument("--repeats", type=int, default=15, help="interleaved repeats")
-    parser.add_argument("--flags", default="-O1", help="C compiler flags (default -O1)")
+    parser.add_argument("--flags", default="-O1", help="C compiler flags (-O1: the default's)")
     args = parser.parse_args(argv)
     warnings.filterwarnings("ignore")
     missing = [name for name in ("pinocchio", "mujoco") if not have(name)]

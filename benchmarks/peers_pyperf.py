@@ -8,7 +8,8 @@ prismatic and spherical joints, rotated frames, full inertias; robots of
 example-robot-data, Talos being the humanoid, imported by our URDF importer). This
 process builds each model's ode right-hand side (the ``recursive`` formalism's articulated
 bodies, the graph a compiled build compiles: unrolled, or joint-type kernels above their
-size threshold, column ``graph``), compiles it (``-O1``, through the compile cache) and
+size threshold, column ``graph``), compiles it (the default flags,
+``compiled.default_flags``, through the compile cache) and
 checks its accelerations against ``pin.aba`` (to 1e-9); then pyperf times ours
 (``FastFunction.into`` on the compiled library) and ``pin.aba`` (same state) each in
 ``--processes`` fresh worker processes, calibrating the loops of a value to 0.1 s, one

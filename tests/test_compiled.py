@@ -202,6 +202,50 @@ def test_long_bodies_are_split_and_give_the_same_numbers(cache):
     assert "for (" in looped and compiled.split_long_bodies(looped, 1) == looped
 
 
+def test_default_flags_small_graphs_at_o2_with_the_cpus_avx_and_the_same_numbers(cache):
+    """The default ``compile_flags`` let the workbench choose: a graph with local variables
+    (Talos's ABA, here a 12-link chain) at -O2, a larger or MX graph at -O1, and on an
+    x86-64 CPU with AVX its three-operand instructions without fused multiply-adds; flags
+    of one's own are kept as given. The library's numbers equal the VM's bit for bit."""
+    import platform
+
+    from workbench.plugins.formalisms.recursive import ode_function
+
+    function = ode_function(get_problem("spatial-chain")({"n_links": 12}).model())
+    generated = compiled.generate(function)
+    flags = generated.flags.split()
+    assert flags[0] == "-O2" and compiled.uses_locals(function)
+    avx = platform.machine().lower() in ("x86_64", "amd64") and "avx" in compiled.cpu_flags()
+    assert ("-mavx" in flags and "-ffp-contract=off" in flags) == avx
+    assert ("-mavx" in flags) == avx  # never on a CPU without AVX
+    x = ca.MX.sym("x", 3)
+    assert compiled.default_flags(ca.Function("mx", [x], [x * x])).split()[0] == "-O1"
+    assert compiled.generate(function, "-O0").flags == "-O0"
+    loaded = compiled.load_generated(generated)
+    for y in np.random.default_rng(6).uniform(-2, 2, (5, 24)):
+        assert np.array_equal(np.asarray(loaded(0.4, y)), np.asarray(function(0.4, y)))
+
+
+def test_no_avx_flags_on_a_cpu_without_avx_or_off_x86(monkeypatch):
+    """-mavx only where this CPU reports AVX and is x86-64: elsewhere the default flags
+    are the optimization level alone (a library is never built for instructions the
+    CPU lacks)."""
+    import platform
+
+    x = ca.SX.sym("x")
+    small = ca.Function("small", [x], [x * x])
+    for machine, flags, expected in (
+        ("x86_64", frozenset({"sse2", "fma"}), "-O2"),
+        ("aarch64", frozenset({"avx"}), "-O2"),
+        ("x86_64", frozenset({"sse2", "avx"}), "-O2 -mavx -ffp-contract=off"),
+    ):
+        monkeypatch.setattr(platform, "machine", lambda machine=machine: machine)
+        monkeypatch.setattr(compiled, "cpu_flags", lambda flags=flags: flags)
+        compiled.host_flags.cache_clear()
+        assert compiled.default_flags(small) == expected
+    compiled.host_flags.cache_clear()
+
+
 def catalog_pairs():
     """(problem, formalism) for every catalog problem (default options) and every formalism
     that takes its model; robots whose files are not installed are left out."""

@@ -1,7 +1,7 @@
 """CasADi Functions compiled to C and loaded back (formalism option ``compile = "jit"``).
 
 The CasADi virtual machine interprets a graph instruction by instruction; the same graph
-as C, compiled with the machine's C compiler (``$CC``, else ``cc``) at ``-O1``, runs
+as C, compiled with the machine's C compiler (``$CC``, else ``cc``; flags below), runs
 several times faster (benchmarks/peers.py). Compiling a large graph takes seconds, so
 the shared library is kept in an on-disk cache (``$WORKBENCH_CACHE``, else
 ``~/.cache/mbs-workbench``) under a hash of the generated C code, the flags, the
@@ -15,7 +15,9 @@ partial file; the least recently used libraries are removed when the cache outgr
 (:data:`SYMBOL_PREFIX`), so a graph named ``gamma`` does not clash with libm. Long
 straight-line bodies are cut into parts before compiling (:func:`split_long_bodies`), which
 keeps the compile time about linear in the size of the graph; small graphs keep their values
-in local variables instead (:func:`generate_c`).
+in local variables instead (:func:`generate_c`). The default flags (:func:`default_flags`)
+are ``-O2`` for those small graphs, ``-O1`` for the rest, and on an x86-64 CPU with AVX its
+three-operand instructions (``-mavx``, no fused multiply-adds: every result the same).
 
 Without a C compiler, or when CasADi cannot generate C for a graph (the formalisms' linear
 solves use CasADi's own LDL^T and QR, which it can), evaluation stays in the virtual
@@ -50,7 +52,7 @@ import casadi as ca
 from workbench.files import atomic_write, file_lock, user_cache_dir
 
 MODES = ("none", "jit", "auto")
-DEFAULT_FLAGS = "-O1"
+DEFAULT_FLAGS = "-O1"  # compile_flags' default: the workbench chooses (:func:`default_flags`)
 SYMBOL_PREFIX = "wb_"  # generated C symbols never clash with libc/libm (gamma, j0, y1, ...)
 
 
@@ -125,12 +127,59 @@ def generate_c(
     4-22 % faster (Solo12 1.17 -> 0.92 µs, Talos 2.67 -> 2.51, random tree N = 20 2.22 ->
     2.14, N = 50 5.61 -> 5.38; N = 7 the same) but compile 30-60 % longer above about
     10,000 instructions (N = 50: 3.7 against 2.3 s CPU; docs/performance-targets.md)."""
-    small = function.is_a("SXFunction") and function.n_instructions() <= locals_max_instructions
+    small = uses_locals(function, locals_max_instructions)
     generator = ca.CodeGenerator(
         function.name(), {"with_header": False, "avoid_stack": not small, "verbose": False}
     )
     generator.add(function)
     return generator.dump() if small else split_long_bodies(generator.dump(), statements_per_part)
+
+
+def uses_locals(
+    function: ca.Function, locals_max_instructions: int = LOCALS_MAX_INSTRUCTIONS
+) -> bool:
+    """Whether :func:`generate_c` keeps ``function``'s values in local variables (an SX
+    graph of at most ``locals_max_instructions``), not in the work array."""
+    return function.is_a("SXFunction") and function.n_instructions() <= locals_max_instructions
+
+
+def default_flags(function: ca.Function) -> str:
+    """The flags ``function`` is compiled with unless the formalism's ``compile_flags`` say
+    otherwise: ``-O2`` for a graph with local variables (:func:`uses_locals`: Talos's ABA
+    2.49 -> 2.39 µs a call, -O2 alone), ``-O1`` for larger ones (whose large straight-line
+    body ran no faster at ``-O2`` and compiled 1.5x longer; their kernels get ``-O2`` by
+    :func:`optimize_callees`), and this CPU's :func:`host_flags` (Talos 1.87 µs with both;
+    docs/performance-targets.md)."""
+    level = "-O2" if uses_locals(function) else "-O1"
+    return f"{level} {host_flags()}".strip()
+
+
+@functools.cache
+def host_flags() -> str:
+    """``-mavx -ffp-contract=off`` on an x86-64 CPU whose kernel reports AVX, else "".
+
+    Why: compiled for baseline x86-64, every copy of a value the next operation overwrites
+    is an instruction of its own (SSE2's two-operand ``mulsd``: 4,292 register copies
+    beside 9,800 operations in Talos's ABA); AVX's three-operand forms of the same scalar
+    IEEE operations need none (Talos 2.49 -> 2.18 µs at -O1, Panda 0.43 -> 0.32, random
+    tree N = 50 5.80 -> 5.08, all models faster). ``-ffp-contract=off``: no fused
+    multiply-add, so each product and sum is rounded as written and the results equal the
+    virtual machine's bit for bit. The cache key holds the flags and the CPU, so such a
+    library is never loaded on a CPU without AVX."""
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        return ""
+    return "-mavx -ffp-contract=off" if "avx" in cpu_flags() else ""
+
+
+@functools.cache
+def cpu_flags() -> frozenset[str]:
+    """The instruction-set flags the kernel reports for this CPU (/proc/cpuinfo; empty
+    where there is none)."""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                return frozenset(line.split(":", 1)[1].split())
+    return frozenset()
 
 
 def compiler_error(stderr: str) -> str:
@@ -295,6 +344,8 @@ def counted() -> Any:
 
 def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
     """The C of ``function`` and where its library is cached (call inside :func:`counted`).
+    ``flags``: the compiler's; :data:`DEFAULT_FLAGS` (the formalisms' default) stands for
+    :func:`default_flags` and kernels marked for ``-O2`` (:func:`optimize_callees`).
 
     Raises RuntimeError if there is no C compiler or CasADi cannot generate C for the graph.
     """
@@ -304,7 +355,7 @@ def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
     function = exported(function)
     code = generate_c(function)
     if flags == DEFAULT_FLAGS:  # flags of one's own apply to every function
-        code = optimize_callees(code)
+        code, flags = optimize_callees(code), default_flags(function)
     if "#error" in code:  # e.g. LAPACK's LU: CasADi writes an #error, not C for it
         cause = next(line for line in code.splitlines() if "#error" in line).strip()
         raise RuntimeError(f"CasADi cannot generate C for it: {cause}")

@@ -86,7 +86,9 @@ def model_features(model: Model) -> set[str]:
 class CompileOptions:
     """Options of every formalism: how its equations are evaluated in hot loops,
     ``compile`` = "none" (CasADi virtual machine), "jit" (C compiled with the machine's
-    compiler and ``compile_flags``, cached on disk; see :mod:`workbench.equations.compiled`)
+    compiler and ``compile_flags``, cached on disk; the default "-O1" lets the workbench
+    choose, :func:`workbench.equations.compiled.default_flags`; see
+    :mod:`workbench.equations.compiled`)
     or "auto" (C where the run's evaluations repay the compile, decided for each run alone;
     the default of ``workbench run`` and of sweeps alike, so that the same pairing has one
     run id; see :mod:`workbench.equations.compile_policy`)."""
