@@ -32,7 +32,12 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.execution.execute import RunSpec, equations_key, execute_run
+from workbench.execution.execute import (
+    RunSpec,
+    equations_key,
+    execute_run,
+    freeze_loaded_objects,
+)
 from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file, write_log
 from workbench.execution.run_progress import (
     ProgressWriter,
@@ -102,6 +107,7 @@ def _worker_main(
     if recorder is not None and hasattr(recorder, "prepare"):
         with contextlib.suppress(Exception):  # loaded here, not within a run's time limit
             recorder.prepare()
+    freeze_loaded_objects()  # a cache eviction's collection then visits a run's objects only
     conn.send(("ready", os.getpid()))
     references = Path(reference_dir) if reference_dir else Path(out) / "references"
     # one recording sink for all of this worker's runs, a file a batch of runs
