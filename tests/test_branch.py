@@ -25,7 +25,13 @@ import numpy as np
 import pytest
 
 from workbench.equations.initial import consistent_initial_state
-from workbench.execution.branch import _departure, _mapped_along, _Shortcut, constraints_of
+from workbench.execution.branch import (
+    _departure,
+    _Follower,
+    _mapped_along,
+    _Shortcut,
+    constraints_of,
+)
 from workbench.execution.metrics import trajectory_metrics
 from workbench.execution.references import ReferencePoses
 from workbench.numerics.linalg import independent_rows
@@ -134,6 +140,34 @@ def test_a_jump_to_the_crossing_branch_is_never_taken_in_one_step() -> None:
     # a failed run's samples after its failure are NaN: the departure before them stands
     failed = np.vstack([left, np.full((3, 2), np.nan)])
     assert _departure(crossing, np.arange(23.0), failed)[0] == 10.0
+
+
+def test_a_target_beyond_the_radius_of_curvature_is_reached_not_circled() -> None:
+    """On the unit circle, towards a point 3 or 10 from its centre: the step the way left
+    along the tangent overshoots the nearest point (the walk used to swing about it for
+    MOST_STEPS steps and give up: not decided); it ends at the nearest point, the
+    target's direction, within the walk's stopping tolerance, in a few hundred steps. A
+    target nearer than the radius of curvature is walked as before."""
+
+    def circle(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([x @ x - 1.0]), 2.0 * x[None, :]
+
+    towards = np.array([math.cos(1.0), math.sin(1.0)])
+    for distance in (3.0, 10.0):
+        follower = _Follower(circle, 1)
+        end = follower.walk(0.0, np.array([1.0, 0.0]), distance * towards)
+        assert end is not None and follower.steps < 1000
+        np.testing.assert_allclose(end, towards, atol=1e-5)
+    near = _Follower(circle, 1)
+    end = near.walk(0.0, np.array([1.0, 0.0]), 1.5 * towards)
+    assert near.steps == 38  # (the walk as it was: no step turned back after SETTLE)
+    np.testing.assert_allclose(end, towards, atol=1e-9)
+    # a run whose last sample is such a target is decided: on its branch, as far from it
+    # as from the circle (its drift, 2), not left undecided
+    times = np.arange(3.0)
+    q = np.array([[1.0, 0.0], [math.cos(0.5), math.sin(0.5)], 3.0 * towards])
+    left_at, far, _ = _departure(circle, times, q)
+    assert math.isnan(left_at) and far == pytest.approx(2.0, rel=1e-6)
 
 
 def test_a_smooth_run_is_taken_by_the_shortcut_with_the_same_distance() -> None:

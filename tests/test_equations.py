@@ -213,6 +213,37 @@ def test_ode_jacobian_through_a_numeric_solve_equals_casadis(problem, options, f
     np.testing.assert_allclose(ours, np.column_stack(columns), atol=1e-5 * np.abs(ours).max())
 
 
+def test_kkt_residual_jacobian_is_made_once_and_only_for_the_ode_jacobian(monkeypatch):
+    """compile=auto builds two graphs of the ode right-hand side (LAPACK's LU for the VM,
+    CasADi's QR for C): the Jacobian of the KKT residuals K s - b that both ode Jacobians
+    use is made when the ode Jacobian is first asked for, once, not at build time twice;
+    the C graph's Jacobian equals the VM's."""
+    from workbench.plugin.registry import get_formalism, get_problem
+
+    problem = get_problem("binary-tree")({"depth": 2})
+    made = []
+    jacobian = ca.jacobian
+
+    def counting(expression, wrt, *args):
+        made.append((expression.numel(), wrt.numel()))
+        return jacobian(expression, wrt, *args)
+
+    monkeypatch.setattr(ca, "jacobian", counting)
+    equations = get_formalism("absolute-dae")().build(
+        problem.model(), {"index": 1, "compile": "auto"}
+    )
+    nq, nv, nc = equations.nq, equations.nv, equations.n_constraints
+    kkt_residual = (nv + nc, nq + nv)
+    assert made.count(kkt_residual) == 0
+    form = equations.forms["ode"]
+    fast = form.jacobian.fast  # (built now: the VM's graph and the C's)
+    assert made.count(kkt_residual) == 1 and fast.for_c is not fast.function
+    state = consistent_initial_state(equations, problem)
+    y = state.y0(equations, "ode") + 0.01 * np.random.default_rng(4).standard_normal(form.n)
+    vm, for_c = np.asarray(fast.function(0.3, y)), np.asarray(fast.for_c(0.3, y))
+    np.testing.assert_allclose(for_c, vm, rtol=1e-9, atol=1e-9 * np.abs(vm).max())
+
+
 def test_evaluate_along_equals_one_point_at_a_time_bit_for_bit():
     """evaluate_along (Function.map(n) through preallocated buffers, or through
     Function.call when an output is sparse) gives exactly what n separate calls give:

@@ -210,6 +210,33 @@ def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch)
     runs.clear_cache()
 
 
+def test_frozen_startup_objects_are_skipped_and_later_garbage_still_collected() -> None:
+    """A worker freezes what it loaded before its first run: a collection then no longer
+    visits those objects, and garbage made afterwards (an evicted entry's reference
+    cycles) is still freed by release_freed_memory."""
+    import gc
+    import weakref
+
+    from workbench.execution import execute as runs
+
+    class Node:
+        pass
+
+    loaded = Node()
+    try:
+        runs.freeze_loaded_objects()
+        tracked = {id(o) for o in gc.get_objects()}
+        assert gc.get_freeze_count() > 0 and id(loaded) not in tracked
+        cycle = Node()
+        cycle.itself = cycle
+        freed = weakref.ref(cycle)
+        del cycle
+        runs.release_freed_memory()
+        assert freed() is None
+    finally:
+        gc.unfreeze()
+
+
 def test_initial_state_is_computed_once_per_cached_equations() -> None:
     """The consistent initial state is kept with the cached equations: the same object
     for every integrator and tolerance, equal to a fresh computation, and consistent

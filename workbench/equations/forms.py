@@ -87,7 +87,7 @@ def _kkt_solve_differs(system: MechanicalSystem) -> bool:
 
 
 def _augmented_acceleration(
-    system: MechanicalSystem, gamma: Any, compiled: bool = False
+    system: MechanicalSystem, gamma: Any, compiled: bool = False, shared: dict | None = None
 ) -> tuple[Any, Any, Any, Callable[[], Any] | None]:
     """(v', lambda, y symbols, Jacobian builder) solving [M W^T; W 0] [v'; lambda] = [Q; gamma].
 
@@ -97,7 +97,12 @@ def _augmented_acceleration(
     ds/dy = -K^-1 d(K s - b)/dy at fixed s, one Jacobian of the nv + nc residuals and a
     second solve with the same K, where CasADi's own derivative of the solve would
     differentiate every entry of K (hundreds of MB for a large absolute-coordinate model;
-    docs/performance.md). None: ``casadi.jacobian`` will do.
+    docs/performance.md). None: ``casadi.jacobian`` will do. The residuals' Jacobian is
+    made when the builder is first called, once for all calls that pass the same
+    ``shared`` dict (the graphs for the VM and for C solve the same K s = b): made at
+    build time for both, it was 1.6 of the 2.2 CPU seconds of building the absolute
+    coordinates' equations of the articulated arm, the binary tree and Solo12, for an ode
+    Jacobian only implicit ode integrators ask for.
     """
     t, q, v = system.t, system.q, system.v
     nv, nc = v.numel(), system.n_constraints
@@ -116,11 +121,19 @@ def _augmented_acceleration(
         # QR loses about half a digit on Andrews' badly scaled system: tests/test_ivp_testset)
         method = "ldl" if nc == 0 else ("qr" if compiled else "lapacklu")
         if isinstance(q, ca.SX):
-            s = ca.SX.sym("s", nv + nc)
-            residual = ca.mtimes(kkt, s) - rhs
-            residual_jacobian = ca.Function(
-                "kkt_residual_jacobian", [t, q, v, s], [ca.jacobian(residual, ca.vertcat(q, v))]
-            )
+            shared = {} if shared is None else shared
+
+            def residual_jacobian(*args: Any) -> Any:
+                if "kkt_residual_jacobian" not in shared:
+                    s = ca.SX.sym("s", nv + nc)
+                    residual = ca.mtimes(kkt_sx, s) - rhs_sx
+                    shared["kkt_residual_jacobian"] = ca.Function(
+                        "kkt_residual_jacobian", [t, q, v, s],
+                        [ca.jacobian(residual, ca.vertcat(q, v))],
+                    )  # fmt: skip
+                return shared["kkt_residual_jacobian"](*args)
+
+            kkt_sx, rhs_sx = kkt, rhs
             symbols = (ca.MX.sym("t"), ca.MX.sym("q", q.numel()), ca.MX.sym("v", nv))
             kkt, rhs = ca.Function("kkt", [t, q, v], [kkt, rhs])(*symbols)
             kkt, scale = _equilibrated(kkt, method)
@@ -229,11 +242,12 @@ def build_equations(
 
     # ode form: [q' ; v'] with v' from the (augmented) system
     if ode or nc == 0:
+        kkt_shared: dict = {}  # the KKT residuals' Jacobian, made once for both graphs
 
         def ode_graphs(for_c: bool) -> tuple[list, list, Callable[[], list]]:
             """(inputs, [f], Jacobian builder) of the ode right-hand side."""
             accel, _, (t_o, q_o, v_o), accel_jacobian = _augmented_acceleration(
-                system, stabilized, for_c
+                system, stabilized, for_c, kkt_shared
             )
             qdot = system.qdot
             if q_o is not q:

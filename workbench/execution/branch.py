@@ -62,6 +62,7 @@ FIRST_STEP = 0.05  # continuation step (in |q|) to start with; adapted to the cu
 SMALLEST_STEP = 1e-9  # relative to 1 + max |q|: below it the continuation gives up
 MOST_STEPS = 200_000  # continuation steps a run at most (then: not decided)
 NEWTON = 8  # corrector iterations a step
+SETTLE = 50  # a sample's walk this many directions long: a step that turns back halves the next
 FAST_TURN = MAX_TURN / 3  # rad: a sample's way taken in one step (:class:`_Shortcut`) turns less
 FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq, and sigma_rank, are at its ends at
 # least this fraction of their largest along the run (far from rank loss)
@@ -415,9 +416,20 @@ class _Follower:
         return way - normal.T @ (normal @ way)
 
     def walk(self, t: float, x: np.ndarray, target: np.ndarray) -> np.ndarray | None:
-        """The point of the branch through x nearest to ``target`` along the branch."""
+        """The point of the branch through x nearest to ``target`` along the branch.
+
+        Each direction's step is the way left along the tangent (capped by the adapted
+        step): where the branch bends more than the target is near (|target - x| beyond
+        its radius of curvature) that step overshoots the nearest point by more than it
+        was away, and the walk swings about it for ever (RSRRR after its integrator
+        failed: 200,000 steps, 20-30 s, then not decided). After :data:`SETTLE`
+        directions at one sample, a direction that turns back from the last one halves
+        the longest step from then on, so the walk closes in on the nearest point; the
+        walks that end sooner (all those of the catalog's runs but these) are as they
+        were, step for step."""
         scale = 1.0 + float(np.max(np.abs(x)))
         last = math.inf
+        directions, reach, previous = 0, math.inf, None
         while True:
             direction = self._tangent_direction(t, x, target - x)
             length = float(np.linalg.norm(direction))
@@ -425,11 +437,14 @@ class _Follower:
                 return x
             last = length
             unit = direction / length
+            directions += 1
+            if directions > SETTLE and previous is not None and unit @ previous[0] < 0:
+                reach = previous[1] / 2  # it went past the nearest point: at most half that
             while True:
                 self.steps += 1
                 if self.steps > MOST_STEPS or self.step < SMALLEST_STEP * scale:
                     return None
-                s = min(self.step, length)
+                s = min(self.step, length, reach)
                 moved = self._corrected(t, x + s * unit, unit)
                 if moved is not None:
                     travelled = moved - x
@@ -441,7 +456,7 @@ class _Follower:
                     )
                     kept = float(np.linalg.norm(self._tangent_direction(t, moved, unit)))
                     if turn <= MAX_TURN and norm <= 2 * s and kept >= math.cos(MAX_TURN):
-                        x = moved
+                        x, previous = moved, (unit, s)
                         if s == self.step:
                             self.step *= 1.5
                         break

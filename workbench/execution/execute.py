@@ -265,6 +265,20 @@ def release_freed_memory() -> None:
         pass
 
 
+def freeze_loaded_objects() -> None:
+    """Exempt what this process holds now (imported modules, discovered plugins, a
+    recorder's library) from every later garbage collection (``gc.freeze``): a worker
+    calls it once it is ready, before its first run. Each eviction from the caches above
+    collects garbage (:func:`release_freed_memory`), and a full collection visits every
+    tracked object: 31,000 in a worker of the full sweep that had loaded Rerun, 18-25 ms
+    a collection; frozen, the few thousand a run's caches hold. Objects made later (the
+    equations, references) are collected as before."""
+    import gc
+
+    gc.collect()
+    gc.freeze()
+
+
 def cached_initial_state(spec: RunSpec, equations: Any, problem: Any) -> Any:
     """The consistent initial state of ``problem`` in ``equations``' coordinates, computed
     once per cache entry (Newton iterations are not the integrator's cost)."""

@@ -32,7 +32,12 @@ from pathlib import Path
 from typing import Any
 
 from workbench.errors import WorkbenchError
-from workbench.execution.execute import RunSpec, equations_key, execute_run
+from workbench.execution.execute import (
+    RunSpec,
+    equations_key,
+    execute_run,
+    freeze_loaded_objects,
+)
 from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file, write_log
 from workbench.execution.run_progress import (
     ProgressWriter,
@@ -106,8 +111,8 @@ def _worker_main(
         with contextlib.suppress(Exception):  # loaded here, not within a run's time limit
             recorder.prepare()
     # what start-up made (modules, plugins, Rerun) lives as long as the worker: kept out of
-    # the collector's full passes, which walked it every few hundred runs (docs/performance.md)
-    gc.freeze()
+    # the collector's full passes (every few hundred runs, and each cache eviction's)
+    freeze_loaded_objects()
     conn.send(("ready", os.getpid()))
     references = Path(reference_dir) if reference_dir else Path(out) / "references"
     # one recording sink for all of this worker's runs, a file a batch of runs
