@@ -395,7 +395,7 @@ def loop_parts(n: int) -> dict[str, float]:
         (metrics_module, "trajectory_metrics", "metrics"),
         (store, "write_parquet_atomic", "series file"),
         (store, "write_json_atomic", "row file"),
-        (execute_module, "state_columns", "series: the states' columns"),
+        (execute_module, "state_arrays", "series: the states' columns"),
     ]
     saved = [(owner, name, getattr(owner, name)) for owner, name, _ in patched]
     for owner, name, label in patched:

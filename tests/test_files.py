@@ -47,3 +47,53 @@ def test_the_writer_creates_the_file_with_the_usual_permissions(tmp_path) -> Non
     assert Path(seen[0]).parent == tmp_path and Path(seen[0]).name.startswith(".atomic.txt.")
     assert seen[0].endswith(".tmp")  # what the results store clears after a crash
     assert (tmp_path / "atomic.txt").stat().st_mode == plain.stat().st_mode
+
+
+def test_a_write_below_a_root_makes_its_missing_folders_and_none_through_a_link(
+    tmp_path,
+) -> None:
+    """With ``root``, the folders are made when the write finds them missing (not checked
+    and made at every write); a folder that is a link is refused before anything is
+    written, however the path is spelt (the plain spelling takes the fast check)."""
+    from workbench.files import LinkRefusedError, check_no_links
+
+    out = tmp_path / "out"
+    atomic_write(out / "runs" / "a.json", lambda name: Path(name).write_text("a"), root=out)
+    atomic_write(out / "runs" / "b.json", lambda name: Path(name).write_text("b"), root=out)
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["a.json", "b.json"]
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (out / "series").symlink_to(elsewhere)
+    spellings = [
+        out / "series" / "x.parquet",  # plain: the fast check
+        f"{out}/./series/x.parquet",  # '.': pathlib's way
+        f"{out}//series//x.parquet",
+    ]
+    for spelt in spellings:
+        with pytest.raises(LinkRefusedError, match="symbolic link"):
+            check_no_links(spelt, out)
+        with pytest.raises(LinkRefusedError, match="symbolic link"):
+            atomic_write(spelt, lambda name: Path(name).write_text("x"), root=out)
+    with pytest.raises(LinkRefusedError, match="'..'"):
+        check_no_links(f"{out}/runs/../series/x.parquet", out)
+    with pytest.raises(LinkRefusedError, match="not inside"):
+        check_no_links(tmp_path / "outside" / "x", out)
+    assert list(elsewhere.iterdir()) == []
+    (out / "runs" / "c.json").symlink_to(elsewhere / "c")
+    with pytest.raises(LinkRefusedError):
+        check_no_links(out / "runs" / "c.json", out)
+    check_no_links(out / "runs" / "new" / "deeper" / "d.json", out)  # not there yet: fine
+
+
+def test_a_writers_own_missing_file_is_not_taken_for_a_missing_folder(tmp_path) -> None:
+    """A FileNotFoundError of the writer itself (its folder exists) is raised as it is,
+    the write not tried again."""
+    calls = []
+
+    def write(name: str) -> None:
+        calls.append(name)
+        Path(name + ".missing").read_text()
+
+    with pytest.raises(FileNotFoundError):
+        atomic_write(tmp_path / "x.txt", write, root=tmp_path)
+    assert len(calls) == 1 and list(tmp_path.iterdir()) == []

@@ -322,3 +322,48 @@ def test_a_recordings_poses_are_the_metrics_poses_of_those_samples(problem, form
         observables.poses_of_rows(t, q + 1e-3, rows),
         observables.poses_along(t[rows], q[rows] + 1e-3),
     )
+
+
+class _Keep:
+    """A sink that keeps what a run logs (its trajectory and series)."""
+
+    def log_run(self, spec, equations, problem, trajectory, series):
+        self.equations, self.trajectory, self.series = equations, trajectory, series
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism", "options", "integrator"),
+    [
+        ("simple-pendulum", "minimal-ode", {}, "scipy-dop853"),  # the tiny run
+        ("four-bar", "absolute-dae", {"index": 1}, "scipy-dop853"),  # drift, multipliers
+        ("bouncing-ball", "minimal-ode", {}, "moreau-jean"),  # a contact model's penetration
+    ],
+)
+def test_a_runs_series_with_its_states_is_the_frame_joined_from_metrics_and_states(
+    problem, formalism, options, integrator
+):
+    """The series made in one frame (the metrics' columns, a contact model's penetration,
+    then the trajectory's ``state:`` columns) equals, column for column, value and dtype,
+    the metrics' series joined to :func:`state_columns` as before (pd.concat)."""
+    import pandas as pd
+
+    from workbench.execution.execute import state_columns
+
+    spec = RunSpec(problem, formalism, integrator, 1e-5, 1e-7, formalism_options=options)
+    sink = _Keep()
+    result = execute_run(spec, sink=sink)
+    assert result.row["status"] == "ok", result.row["message"]
+    times, y = np.asarray(sink.trajectory.times), np.atleast_2d(sink.trajectory.y)
+    reference = problem_reference(get_problem(problem)(), problem, {}, times, None)
+    _, metrics_series = metrics_module.trajectory_metrics(
+        spec.run_id, get_problem(problem)(), sink.equations, times, y, True, reference,
+        spec.rtol, contact=getattr(sink.trajectory, "contact", None),
+    )  # fmt: skip
+    joined = pd.concat(
+        [metrics_series, state_columns(sink.equations, result.row["form"], y[: len(times)])],
+        axis=1,
+    )
+    assert any(c.startswith("state:") for c in result.series.columns)
+    assert ("penetration" in result.series) == (problem == "bouncing-ball")
+    pd.testing.assert_frame_equal(result.series, joined, check_exact=True)
+    assert result.series is sink.series

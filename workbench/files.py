@@ -58,6 +58,17 @@ def _refused(link: Path, root: Path) -> LinkRefusedError:
 def check_no_links(path: str | os.PathLike[str], root: str | os.PathLike[str]) -> None:
     """LinkRefusedError if ``path`` or a folder between ``root`` and it is a symbolic link
     (``root`` itself may be one: the user chose it). ``path`` need not exist yet."""
+    fast = _relative_parts(os.fspath(path), os.fspath(root))
+    if fast is not None:  # a plain path below root (most calls: a run's files)
+        current = os.fspath(root)
+        for part in fast:
+            current = os.path.join(current, part)
+            try:
+                if stat.S_ISLNK(os.lstat(current).st_mode):
+                    raise _refused(Path(current), Path(root))
+            except FileNotFoundError:
+                return
+        return
     root, path = Path(root), Path(path)
     try:
         parts = path.relative_to(root).parts
@@ -73,6 +84,20 @@ def check_no_links(path: str | os.PathLike[str], root: str | os.PathLike[str]) -
                 raise _refused(current, root)
         except FileNotFoundError:
             return  # the rest does not exist yet: nothing there to follow
+
+
+def _relative_parts(path: str, root: str) -> list[str] | None:
+    """The names between ``root`` and ``path`` when ``path`` is ``root/a/b...`` spelt
+    plainly (no empty, ``.`` or ``..`` name, no trailing separator), else None: then
+    :func:`check_no_links` takes pathlib's way (the same answer, 3x the time a run's file)."""
+    if not root or not path.startswith(root) or path[len(root) : len(root) + 1] != os.sep:
+        return None
+    if root.endswith(os.sep) or (os.altsep and os.altsep in path):
+        return None
+    parts = path[len(root) + 1 :].split(os.sep)
+    if any(part in ("", ".", "..") for part in parts):
+        return None
+    return parts
 
 
 def make_dirs(directory: str | os.PathLike[str], root: str | os.PathLike[str]) -> None:
@@ -221,12 +246,18 @@ def atomic_write(
     path = Path(path)
     if root is None:
         path.parent.mkdir(parents=True, exist_ok=True)
-    else:
-        make_dirs(path.parent, root)
+    else:  # its folders are made when the write finds them missing (make_dirs: 0.03 ms)
         check_no_links(path, root)
     temp_name = str(path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp"))
     try:
-        write(temp_name)
+        try:
+            write(temp_name)
+        except FileNotFoundError:
+            if root is None or path.parent.is_dir():
+                raise
+            make_dirs(path.parent, root)
+            check_no_links(path, root)
+            write(temp_name)
         if durable:
             with open(temp_name, "rb+") as written:
                 os.fsync(written.fileno())

@@ -390,7 +390,7 @@ def execute_run(
     row.update(
         {"status": "ok", "message": "", "stage": "", "equations_cached": False, "reference_s": 0.0}
     )
-    series = empty_series(spec.run_id)
+    series = None  # (an empty one made only for a run without metrics)
     state: dict[str, Any] = {}
     try:
         stages.start("pairing")
@@ -462,22 +462,25 @@ def execute_run(
                 reference = _reference(spec, problem, times, reference_dir)
                 PROGRESS.enter("metrics")
                 row["reference_s"] = reference.seconds
+                sample_times = np.asarray(trajectory.times)
+                states = np.atleast_2d(trajectory.y)[: len(sample_times)]
                 metric_row, series = metrics_module.trajectory_metrics(
                     spec.run_id,
                     problem,
                     equations,
-                    np.asarray(trajectory.times),
+                    sample_times,
                     np.atleast_2d(trajectory.y),
                     trajectory.success,
                     reference,
                     spec.rtol,
                     charts=getattr(trajectory, "charts", None),
                     contact=getattr(trajectory, "contact", None),
+                    # the trajectory in the same frame (when it has a state a sample)
+                    states=state_arrays(equations, form, states)
+                    if len(states) == len(sample_times)
+                    else None,
                 )
                 row.update(metric_row)
-                states = np.atleast_2d(trajectory.y)[: len(series)]
-                if len(states) == len(series):
-                    series = pd.concat([series, state_columns(equations, form, states)], axis=1)
                 atlas = getattr(equations, "atlas", None)
                 switched = switch_note(atlas, trajectory) if atlas is not None else ""
                 row["notes"] = "; ".join(
@@ -529,6 +532,8 @@ def execute_run(
     row["cpu_s"] = sum(cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
     row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
+    if series is None:
+        series = empty_series(spec.run_id)
     row["n_samples"] = len(series)
     row["threads"] = threads_in_force()
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
@@ -608,6 +613,13 @@ def state_columns(equations: Any, form: str, y: np.ndarray) -> pd.DataFrame:
     """The trajectory's states ``y`` (n, width) as series columns ``state:<name>``."""
     names = state_names(equations, form, y.shape[1] if y.size else 0)
     return pd.DataFrame(y, columns=[STATE_PREFIX + n for n in names], dtype=float)
+
+
+def state_arrays(equations: Any, form: str, y: np.ndarray) -> dict[str, np.ndarray]:
+    """:func:`state_columns` as arrays (column name -> values), for the series' frame."""
+    y = np.asarray(y, dtype=float)
+    names = state_names(equations, form, y.shape[1] if y.size else 0)
+    return {STATE_PREFIX + name: y[:, k] for k, name in enumerate(names)}
 
 
 def _record_trajectory(row: dict[str, Any], trajectory: Any) -> None:
