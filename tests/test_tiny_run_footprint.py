@@ -367,3 +367,33 @@ def test_a_runs_series_with_its_states_is_the_frame_joined_from_metrics_and_stat
     assert ("penetration" in result.series) == (problem == "bouncing-ball")
     pd.testing.assert_frame_equal(result.series, joined, check_exact=True)
     assert result.series is sink.series
+
+
+def test_a_specs_dict_is_what_asdict_gives_and_shares_nothing_with_the_spec():
+    """RunSpec.to_dict made field by field equals ``dataclasses.asdict`` (tolerances as
+    floats) for specs with empty and nested options, in the same key order, with copies
+    of the options (changing the dict leaves the spec and its run id as they were)."""
+    import dataclasses
+
+    specs = [
+        RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6),
+        RunSpec(
+            "n-pendulum", "recursive-ode", "scipy-radau", np.float64(1e-6), 1e-9,
+            problem_options={"n": 3, "lengths": [1.0, 0.5, 0.25]},
+            formalism_options={"compile": "jit", "flags": {"O": 2, "extra": ("a", "b")}},
+            integrator_options={"max_step": 0.1},
+        ),  # fmt: skip
+    ]
+    for spec in specs:
+        expected = dataclasses.asdict(spec)
+        expected["rtol"], expected["atol"] = float(spec.rtol), float(spec.atol)
+        data = spec.to_dict()
+        assert data == expected and list(data) == list(expected)
+        assert type(data["rtol"]) is float and type(data["atol"]) is float
+        run_id = spec.run_id
+        data["problem_options"]["added"] = 1
+        for value in data["formalism_options"].values():
+            if isinstance(value, dict):
+                value["O"] = 0
+        assert spec.to_dict() == expected and spec.run_id == run_id
+        assert RunSpec.from_dict(spec.to_dict()) == spec
