@@ -378,7 +378,11 @@ def test_a_specs_dict_is_what_asdict_gives_and_shares_nothing_with_the_spec():
     specs = [
         RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-4, 1e-6),
         RunSpec(
-            "n-pendulum", "recursive-ode", "scipy-radau", np.float64(1e-6), 1e-9,
+            "n-pendulum",
+            "recursive-ode",
+            "scipy-radau",
+            np.float64(1e-6),
+            1e-9,
             problem_options={"n": 3, "lengths": [1.0, 0.5, 0.25]},
             formalism_options={"compile": "jit", "flags": {"O": 2, "extra": ("a", "b")}},
             integrator_options={"max_step": 0.1},
@@ -397,3 +401,71 @@ def test_a_specs_dict_is_what_asdict_gives_and_shares_nothing_with_the_spec():
                 value["O"] = 0
         assert spec.to_dict() == expected and spec.run_id == run_id
         assert RunSpec.from_dict(spec.to_dict()) == spec
+
+
+def test_compile_auto_estimates_a_functions_c_once_and_decides_as_before(monkeypatch):
+    """compile=auto sizes each function's C once per build (the graph does not change),
+    and each run's choice of C or VM is what the estimate made afresh gives."""
+    from workbench.equations import compile_policy
+    from workbench.equations.compiled import c_compiler
+
+    if c_compiler() is None:
+        pytest.skip("compile=auto needs a C compiler")
+    estimated = []
+    original = compile_policy.code_bytes_estimate
+
+    def counting(function):
+        estimated.append(function.name())
+        return original(function)
+
+    monkeypatch.setattr(compile_policy, "code_bytes_estimate", counting)
+    problem = get_problem("simple-pendulum")()
+    equations = get_formalism("minimal-ode")().build(problem.model(), {"compile": "auto"})
+    compiler = equations.compiler
+    assert compiler.mode == "auto"
+    state = consistent_initial_state(equations, problem)
+    integrator = get_integrator("scipy-dop853")()
+    times = problem.sample_times()
+    for calls in (10.0, 1e9, 10.0, 1e9):
+        compiler.expect(calls)  # as the runner does before each run
+        integrator.solve(
+            equations, state.y0(equations, "ode"), state.yp0(equations, "ode"), times, 1e-6,
+            1e-8, integrator.parse_options({}), "ode",
+        )  # fmt: skip
+        assert compiler.tracked
+        for fast in compiler.tracked:
+            needed = compile_policy.calls_to_repay(fast.vm_seconds, original(fast.for_c))
+            assert (fast.for_c.name() in compiler.in_c) == (calls >= needed)
+        assert bool(compiler.in_c) == (calls > 10)  # both ways taken
+    assert sorted(estimated) == sorted(set(estimated))  # once a function
+    assert set(compiler.code_bytes) == {fast.for_c.name() for fast in compiler.tracked}
+
+
+def test_a_captured_runs_folder_is_made_when_missing_even_between_reused_runs(tmp_path):
+    """CapturedOutput makes ``<out>/logs`` when it is missing (not checked and made at
+    every run): in a new output folder, and when the folder was removed between two runs
+    of a worker that reuses its raw file."""
+    import os
+    import shutil
+
+    from workbench.execution.run_log import CapturedOutput, raw_path, release_raw_file
+
+    out = tmp_path / "new" / "out"
+    for k in range(2):
+        capture = CapturedOutput(raw_path(out, f"run{k}"), reuse=True)
+        with capture:
+            os.write(1, f"run {k}\n".encode())
+        assert capture.kept() == f"run {k}\n".encode()
+        shutil.rmtree(out / "logs")
+    release_raw_file()
+
+
+def test_a_rows_number_columns_are_checked_as_before_with_a_fast_path_for_json_numbers():
+    """row_check's kind of a number: JSON's float and int at once, NumPy's numbers by the
+    ABC as before, never a bool or text."""
+    from workbench.execution.row_check import _kind_ok
+
+    values = (1.5, 3, math.nan, True, False, "x", None, np.float64(2.0), np.int32(2))
+    assert [_kind_ok(v, "number") for v in values] == [
+        True, True, True, False, False, False, False, True, True,
+    ]  # fmt: skip

@@ -95,15 +95,14 @@ class CapturedOutput:
         self._fd: int | None = None  # the raw file, open for reading and truncating
 
     def __enter__(self) -> CapturedOutput:
-        self.raw_file.parent.mkdir(parents=True, exist_ok=True)
         _flush()
         out = self.raw_file.parent.parent
         flags = os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
-        make_dirs(self.raw_file.parent, out)
-        if self.reuse:  # the process's raw file of its last run, renamed (RenamedFile)
-            target = os.dup(_RAW_FILE.open(self.raw_file, flags, out))
-        else:
-            target = open_no_follow(self.raw_file, flags, out)
+        try:  # (its folder made when missing: not checked and made again every run)
+            target = self._open(flags, out)
+        except FileNotFoundError:
+            make_dirs(self.raw_file.parent, out)
+            target = self._open(flags, out)
         self._fd = os.dup(target)
         try:
             self._saved = [os.dup(1), os.dup(2)]
@@ -113,6 +112,12 @@ class CapturedOutput:
             os.close(target)
         _TRIMMER.follow(self)
         return self
+
+    def _open(self, flags: int, out: Path) -> int:
+        """A descriptor of the raw file, opened without following a link below ``out``."""
+        if self.reuse:  # the process's raw file of its last run, renamed (RenamedFile)
+            return os.dup(_RAW_FILE.open(self.raw_file, flags, out))
+        return open_no_follow(self.raw_file, flags, out)
 
     def __exit__(self, *exc: Any) -> None:
         _flush()
