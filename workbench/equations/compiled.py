@@ -442,6 +442,10 @@ class Compiler:
     # auto: the estimated size of each function's C, from its graph (the same every run:
     # an MX graph's count walks its instructions in Python, 0.04 ms a tiny run)
     code_bytes: dict[str, float] = field(default_factory=dict)
+    # auto: each tracked function's calls when this run's integration began (id ->
+    # n_calls): a run's notes name the functions it called, not those a worker's earlier
+    # runs did
+    calls_at_start: dict[int, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -456,7 +460,8 @@ class Compiler:
     def __getstate__(self) -> dict:
         return {"mode": self.mode, "flags": self.flags, "warnings": list(self.warnings),
                 "expected_calls": self.expected_calls, "in_c": {}, "tracked": [],
-                "loaded": {}, "loaded_bytes": {}, "code_bytes": {}}  # fmt: skip
+                "loaded": {}, "loaded_bytes": {}, "code_bytes": {},
+                "calls_at_start": {}}  # fmt: skip
 
     @classmethod
     def from_options(cls, options: Any) -> Compiler:
@@ -505,8 +510,19 @@ class Compiler:
         runs chose; functions first called during the run decide at their first call."""
         self.expected_calls = calls
         self.in_c.clear()
+        self.count_calls_from_now()
         for fast in self.tracked:
             fast.reconsider(calls)
+
+    def count_calls_from_now(self) -> None:
+        """compile=auto: the notes (:meth:`summary`) name the functions called from now on:
+        the runner calls it when the integration starts, after the initial state (which a
+        worker computes at the first run of cached equations only)."""
+        self.calls_at_start = {id(fast): fast.n_calls for fast in self.tracked}
+
+    def called_this_run(self, fast: Any) -> bool:
+        """compile=auto: ``fast`` was called since :meth:`count_calls_from_now`."""
+        return fast.n_calls > self.calls_at_start.get(id(fast), 0)
 
     def decide(self, function: ca.Function, vm_seconds: float, calls: float) -> ca.Function | None:
         """compile=auto: the compiled ``function`` if ``calls`` calls that each take
@@ -561,8 +577,13 @@ class Compiler:
         """compile=auto: which functions run in C and which in the VM (for a row's notes)."""
         if self.mode != "auto":
             return ""
-        in_c = ", ".join(sorted(self.in_c))
-        vm = sum(fast.name not in self.in_c for fast in self.waiting)
+        # the functions this run called (a worker's earlier runs, e.g. an implicit
+        # integrator's Jacobian, are not this run's: a row's notes depended on them)
+        tracked = {fast.name: fast for fast in self.tracked}
+        in_c = ", ".join(
+            sorted(n for n in self.in_c if n not in tracked or self.called_this_run(tracked[n]))
+        )
+        vm = sum(fast.name not in self.in_c and self.called_this_run(fast) for fast in self.waiting)
         parts = [f"in C {in_c}" if in_c else "",
                  f"{vm} function{'s' * (vm != 1)} in the VM (too few calls to repay a compile)"
                  if vm else ""]  # fmt: skip

@@ -449,6 +449,9 @@ def execute_run(
                 initial = cached_initial_state(spec, equations, problem)
                 y0, yp0 = initial.y0(equations, form), initial.yp0(equations, form)
                 stages.stop()
+                compiler = getattr(equations, "compiler", None)
+                if hasattr(compiler, "count_calls_from_now"):  # notes: this run's calls
+                    compiler.count_calls_from_now()
                 solve_note = getattr(initial, "acceleration_solve", "")
                 if solve_note.startswith("least squares"):  # a rank-deficient system
                     state["notes"] = f"initial accelerations by {solve_note}"
