@@ -446,6 +446,7 @@ class Compiler:
     # n_calls): a run's notes name the functions it called, not those a worker's earlier
     # runs did
     calls_at_start: dict[int, int] = field(default_factory=dict)
+    ran_directly: set[str] = field(default_factory=set)  # this run's ran_in_c names
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -461,7 +462,7 @@ class Compiler:
         return {"mode": self.mode, "flags": self.flags, "warnings": list(self.warnings),
                 "expected_calls": self.expected_calls, "in_c": {}, "tracked": [],
                 "loaded": {}, "loaded_bytes": {}, "code_bytes": {},
-                "calls_at_start": {}}  # fmt: skip
+                "calls_at_start": {}, "ran_directly": set()}  # fmt: skip
 
     @classmethod
     def from_options(cls, options: Any) -> Compiler:
@@ -479,6 +480,7 @@ class Compiler:
         """compile=auto: ``name`` ran in C this run by another route than its FastFunction
         (an integrator that calls the compiled library itself), for the row's notes."""
         self.in_c[name] = "C"
+        self.ran_directly.add(name)  # (its FastFunction does not count those calls)
 
     @property
     def waiting(self) -> list[Any]:
@@ -510,6 +512,7 @@ class Compiler:
         runs chose; functions first called during the run decide at their first call."""
         self.expected_calls = calls
         self.in_c.clear()
+        self.ran_directly.clear()
         self.count_calls_from_now()
         for fast in self.tracked:
             fast.reconsider(calls)
@@ -581,7 +584,13 @@ class Compiler:
         # integrator's Jacobian, are not this run's: a row's notes depended on them)
         tracked = {fast.name: fast for fast in self.tracked}
         in_c = ", ".join(
-            sorted(n for n in self.in_c if n not in tracked or self.called_this_run(tracked[n]))
+            sorted(
+                name
+                for name in self.in_c
+                if name not in tracked
+                or name in self.ran_directly
+                or self.called_this_run(tracked[name])
+            )
         )
         vm = sum(fast.name not in self.in_c and self.called_this_run(fast) for fast in self.waiting)
         parts = [f"in C {in_c}" if in_c else "",
