@@ -67,6 +67,7 @@ which the sweep removes them) and :func:`extract_run` copies one run back out of
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
@@ -137,10 +138,23 @@ class Placed:
 class RunLayout:
     """A model's entities: ``placed`` below each run (name -> :class:`Placed`) and
     ``shared`` (relative path, component batches) once per model below
-    ``runs/<problem>/model``."""
+    ``runs/<problem>/model``; ``bodies``, ``positions`` and ``quaternions``: those of
+    every placed instance, entity after entity (their poses are computed at once)."""
 
     shared: list[tuple[str, list[Any]]]
     placed: dict[str, Placed]
+
+    @functools.cached_property
+    def bodies(self) -> tuple[str, ...]:
+        return tuple(body for placed in self.placed.values() for body in placed.bodies)
+
+    @functools.cached_property
+    def positions(self) -> np.ndarray:
+        return np.concatenate([placed.positions for placed in self.placed.values()])
+
+    @functools.cached_property
+    def quaternions(self) -> np.ndarray:
+        return np.concatenate([placed.quaternions for placed in self.placed.values()])
 
 
 def entity_path(*parts: str) -> str:
@@ -397,19 +411,24 @@ class RerunSink:
         body_poses[:, :-1, 3:] = quaternion_xyzw(poses[..., 3:])
         body_poses[:, -1, 6] = 1.0
         layout = self._layouts.get(key)
-        for name, placed in layout.placed.items() if layout else ():
-            at = [bodies.get(body, len(bodies)) for body in placed.bodies]
+        if layout is not None and layout.placed:
+            # every instance of the run's entities at once (a call each: 0.1 ms more)
+            at = [bodies.get(body, len(bodies)) for body in layout.bodies]
             translations, quaternions = _compose(
-                body_poses[:, at], placed.positions, placed.quaternions
+                body_poses[:, at], layout.positions, layout.quaternions
             )
-            self.recording.send_columns(
-                f"{path}/{name}",
-                indexes=[timeline],
-                columns=rr.InstancePoses3D.columns(
-                    translations=translations.reshape(-1, 3),
-                    quaternions=quaternions.reshape(-1, 4),
-                ).partition([len(at)] * len(rows)),
-            )
+            start = 0
+            for name, placed in layout.placed.items():
+                end = start + len(placed.bodies)
+                self.recording.send_columns(
+                    f"{path}/{name}",
+                    indexes=[timeline],
+                    columns=rr.InstancePoses3D.columns(
+                        translations=translations[:, start:end].reshape(-1, 3),
+                        quaternions=quaternions[:, start:end].reshape(-1, 4),
+                    ).partition(np.full(len(rows), end - start)),  # (a list: 0.26 ms more)
+                )
+                start = end
         for relative, (body, position, matrix) in self._mesh_places.get(key, {}).items():
             if body not in bodies:
                 continue
@@ -1014,11 +1033,16 @@ def _compose(
     at ``positions`` (k, 3) / ``quaternions`` (k, 4) in their bodies, whose poses are
     ``body_poses`` (n, k, 7: x, y, z and a quaternion x, y, z, w)."""
     t, q = body_poses[..., :3], body_poses[..., 3:]
-    qv, w = q[..., :3], q[..., 3:]
-    turned = 2.0 * np.cross(qv, positions)  # the body's rotation applied to each position
-    translations = t + positions + w * turned + np.cross(qv, turned)
-    bx, by, bz, bw = np.moveaxis(np.broadcast_to(quaternions, q.shape), -1, 0)
-    ax, ay, az, aw = np.moveaxis(q, -1, 0)
+    ax, ay, az, aw = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    px, py, pz = positions[:, 0], positions[:, 1], positions[:, 2]
+    # the body's rotation applied to each position: p + 2 w (v x p) + 2 v x (v x p)
+    cx, cy, cz = 2 * (ay * pz - az * py), 2 * (az * px - ax * pz), 2 * (ax * py - ay * px)
+    translations = np.stack([
+        t[..., 0] + px + aw * cx + ay * cz - az * cy,
+        t[..., 1] + py + aw * cy + az * cx - ax * cz,
+        t[..., 2] + pz + aw * cz + ax * cy - ay * cx,
+    ], axis=-1)  # fmt: skip
+    bx, by, bz, bw = quaternions[:, 0], quaternions[:, 1], quaternions[:, 2], quaternions[:, 3]
     product = np.stack([
         aw * bx + ax * bw + ay * bz - az * by,
         aw * by - ax * bz + ay * bw + az * bx,
