@@ -101,8 +101,8 @@ SERIES_ENTITY = "series"
 order of :data:`SERIES_QUANTITIES` (NaN where the run has none), sent in one column
 chunk: a chunk a quantity cost the reader about 11 KiB each (its footer's manifest)."""
 FILE_VALUES_LIMIT = 2**22
-"""Values (poses and series, 8 bytes each) a file of several runs takes before it is
-written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
+"""Values (instance poses, 4 bytes each; series, 8) a file of several runs takes before
+it is written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
 SERIES_PRESENT = "quantities"
 """The static component of ``<run>/series`` that named the quantities a run has values of
 in files written before 2026-11-27 (now read from its values: :func:`series_quantities`)."""
@@ -402,7 +402,6 @@ class RerunSink:
         else:
             poses = observables.poses_along(times[rows], y[rows, : equations.nq])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
-        self._file_values += poses.size
         bodies = {name: b for b, name in enumerate(observables.body_names)}
         # each body's pose as (x, y, z, qx, qy, qz, qw); last, the identity (for a shape
         # whose body has none)
@@ -417,6 +416,7 @@ class RerunSink:
             translations, quaternions = _compose(
                 body_poses[:, at], layout.positions, layout.quaternions
             )
+            self._file_values += translations.size + quaternions.size
             start = 0
             for name, placed in layout.placed.items():
                 end = start + len(placed.bodies)
