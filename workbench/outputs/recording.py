@@ -1053,12 +1053,12 @@ def _compose(
 
 
 def _joint_axes(frames: Sequence[Any], length: float) -> list[Any]:
-    """The joint frames on one body (or the ground) as one entity: TransformAxes3D drawn
-    at each pose of an InstancePoses3D (Rerun draws axes instanced since
-    rerun-io/rerun#11970), one batch rather than an entity a frame: each chunk and
+    """The joint frames on the ground as one entity (static: the same in every run): a
+    TransformAxes3D drawn at each pose of an InstancePoses3D (Rerun draws axes instanced
+    since rerun-io/rerun#11970), one batch rather than an entity a frame: each chunk and
     component column costs the reader more than its bytes (docs/performance.md).
     Frames that coincide are drawn once; translations are left out when every frame is
-    at the body's origin, rotations when none is rotated."""
+    at the origin, rotations when none is rotated."""
     import rerun as rr
 
     unique: dict[tuple[float, ...], Any] = {}
