@@ -526,11 +526,12 @@ def read_back(recording: Path, repeats: int = 5) -> dict:
 
 def recording_layout(recording: Path) -> dict:
     """Chunks, component columns and (entity, component) pairs of ``recording``'s runs
-    (``/runs/...``), in all and by kind: a body's joint frames (an entity of their own),
-    its shapes (static; with the axes of joint frames at its origin), its poses, a run's
-    series. What Python's reader costs: about 5 KiB a pair (its manifest's schema holds
-    a field a pair, plus about 10 bytes a character of its entity path), 0.2-0.35 KiB a
-    chunk (docs/performance.md)."""
+    (``/runs/...``), in all and by kind: joint frames (a run's ``joints`` entity; before
+    2026-11-27 a body's ``joints``), shapes (static: sizes, labels), poses (on
+    ``sim_time``: the shapes' instance poses; before, a body's transform), a run's series,
+    what the runs of a model share. What Python's reader costs: about 5 KiB a pair (its
+    manifest's schema holds a field a pair, plus about 10 bytes a character of its entity
+    path), 0.2-0.35 KiB a chunk (docs/performance.md)."""
     import rerun as rr
 
     from workbench.outputs.recording import MODEL_PART, split_entity_path

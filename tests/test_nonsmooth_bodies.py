@@ -185,8 +185,9 @@ def test_colliding_balls_follow_momentum_and_newtons_law(formalism, integrator):
 
 
 def test_recording_draws_both_spheres_and_no_plane(tmp_path):
-    """A sphere pair is drawn on each of its bodies (an ellipsoid at the contact's centre),
-    not as a contact plane; ``describe`` lists it."""
+    """A sphere pair is drawn on each of its bodies (an ellipsoid at the contact's centre,
+    one instance of the run's ``contacts`` entity a sphere), not as a contact plane;
+    ``describe`` lists it."""
     import rerun as rr
 
     from workbench.api.catalog import describe
@@ -196,9 +197,10 @@ def test_recording_draws_both_spheres_and_no_plane(tmp_path):
     sink = RerunSink()
     spec = normalized_spec(RunSpec("colliding-balls", "minimal-ode", "event-driven", 1e-6, 1e-9))
     assert execute_run(spec, sink=sink).row["status"] == "ok"
-    paths = {chunk.entity_path for chunk in rr.chunk.RrdReader(sink.save(tmp_path)).stream()}
-    for body in ("a", "b"):
-        assert any(p.endswith(f"/bodies/{body}/contacts/touch") for p in paths), body
+    chunks = list(rr.chunk.RrdReader(sink.save(tmp_path)).stream())
+    paths = {chunk.entity_path for chunk in chunks}
+    (spheres,) = [c for c in chunks if c.entity_path.endswith("/contacts") and c.is_static]
+    assert len(spheres.to_record_batch().column("Ellipsoids3D:half_sizes")[0]) == 2  # a, b
     assert not any("contact_planes" in p for p in paths)
     assert "touch" in str(describe("colliding-balls"))
 

@@ -116,6 +116,20 @@ def series_of(frames: list[pd.DataFrame], quantity: str) -> tuple[np.ndarray, np
     return seconds(logged["sim_time"])[keep], values[keep]
 
 
+def instance_poses(frames: list[pd.DataFrame]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times s, translations (n, k, 3), quaternions x, y, z, w (n, k, 4)) of an entity's
+    instance poses, a row a sample time."""
+    rows = column(frames, "InstancePoses3D:translations")
+    translations = np.array([np.stack(v) for v in rows["InstancePoses3D:translations"]])
+    quaternions = np.array([np.stack(v) for v in rows["InstancePoses3D:quaternions"]])
+    return seconds(rows["sim_time"]), translations, quaternions
+
+
+def static_columns(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    (static,) = [frame for frame in frames if "sim_time" not in frame]
+    return static
+
+
 def series_present(path: Path, run: str) -> list[str]:
     """The quantities a run's ``series`` entity has values of (read from its values)."""
     return [
@@ -137,17 +151,20 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
     chunks = read_chunks(path)
     base = "/" + run
     expected = {
-        f"{base}/bodies/arm",  # its pose and, static, its shapes
-        f"{base}/bodies/tip",
+        f"{base}/boxes",  # the run's boxes: sizes and labels (static), instance poses
+        f"{base}/capsules",
+        f"{base}/cylinders",
+        f"{base}/ellipsoids",
+        f"{base}/joints",  # each joint's frame on its child body
         "/runs/fake-problem/model/ground/joints",  # the same in every run: once
-        f"{base}/bodies/arm/joints",  # both joint frames on the arm, one batch
+        "/runs/fake-problem",  # its view's up axis and shape colour
         f"{base}/series",
     }
-    assert expected <= set(chunks)
-    assert f"{base}/bodies/tip/joints" not in chunks  # its one frame: at its origin
-    (arm_shapes,) = [frame for frame in chunks[f"{base}/bodies/arm"] if "sim_time" not in frame]
-    # the arm's box, capsule and cylinder in one chunk (each costs the reader per column)
-    assert {"Boxes3D:half_sizes", "Capsules3D:lengths", "Cylinders3D:radii"} <= set(arm_shapes)
+    assert expected == {key for key in chunks if key.startswith("/runs/")}
+    assert list(static_columns(chunks[f"{base}/boxes"])["Boxes3D:labels"].iloc[0]) == ["arm"]
+    assert list(static_columns(chunks[f"{base}/ellipsoids"])["Ellipsoids3D:labels"].iloc[0]) == [
+        "tip"
+    ]
     # drift_nh all NaN (not drawn), penetration not a contact model's (no column)
     assert series_present(path, run) == [
         "drift_pos", "drift_vel", "energy_err", "ref_err"
@@ -162,28 +179,53 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
         np.testing.assert_allclose(t, series["t"], atol=1e-9)
         np.testing.assert_allclose(values, series[quantity].to_numpy(), rtol=1e-15)
 
-    arm = column(chunks[f"{base}/bodies/arm"], "Transform3D:quaternion")
-    t = seconds(arm["sim_time"])
+    # each shape at its body's pose times its place in the body: the arm spins about z
+    # (angle t) at the origin, its box centred at (0.5, 0, 0) on it, its capsule (Rerun's
+    # runs from its origin along +z) from (0, 0, 0); the tip's sphere at (t, 0, 0)
+    t, box, box_turn = instance_poses(chunks[f"{base}/boxes"])
     np.testing.assert_allclose(t, trajectory.times, atol=1e-9)
-    quaternions = np.array([v[0] for v in arm["Transform3D:quaternion"]])
-    expected_xyzw = np.column_stack([0 * t, 0 * t, np.sin(t / 2), np.cos(t / 2)])
-    np.testing.assert_allclose(quaternions, expected_xyzw, atol=1e-6)
-    tip = column(chunks[f"{base}/bodies/tip"], "Transform3D:translation")
-    translations = np.array([v[0] for v in tip["Transform3D:translation"]])
-    np.testing.assert_allclose(translations[:, 0], trajectory.times, rtol=1e-6)
-
-    # the arm's frames: the hinge's child frame at its origin, the slide's parent frame
-    # at (1, 0, 0); one TransformAxes3D drawn at each instance pose
-    joints = column(chunks[f"{base}/bodies/arm/joints"], "InstancePoses3D:translations")
+    arm_turn = np.column_stack([0 * t, 0 * t, np.sin(t / 2), np.cos(t / 2)])
+    np.testing.assert_allclose(box_turn[:, 0], arm_turn, atol=1e-6)
     np.testing.assert_allclose(
-        np.stack(joints["InstancePoses3D:translations"].iloc[0]), [[0, 0, 0], [1, 0, 0]]
+        box[:, 0], np.column_stack([0.5 * np.cos(t), 0.5 * np.sin(t), 0 * t]), atol=1e-6
     )
-    assert "TransformAxes3D:axis_length" in joints
-    # the tip's one frame (the slide's child frame) is at its origin: axes drawn at its
-    # pose, from its own static chunk (beside its sphere), no entity of their own
-    (tip_static,) = [frame for frame in chunks[f"{base}/bodies/tip"] if "sim_time" not in frame]
-    assert {"TransformAxes3D:axis_length", "Ellipsoids3D:half_sizes"} <= set(tip_static)
-    assert not any(name.startswith("InstancePoses3D") for name in tip_static)
+    _t, capsule, capsule_turn = instance_poses(chunks[f"{base}/capsules"])
+    np.testing.assert_allclose(capsule[:, 0], 0.0, atol=1e-6)
+    np.testing.assert_allclose(capsule_turn[:, 0], arm_turn, atol=1e-6)
+    _t, sphere, sphere_turn = instance_poses(chunks[f"{base}/ellipsoids"])
+    np.testing.assert_allclose(sphere[:, 0, 0], trajectory.times, rtol=1e-6)
+    np.testing.assert_allclose(sphere_turn[:, 0], [[0, 0, 0, 1]] * len(t), atol=1e-7)
+    # the joints' frames on their child bodies, one TransformAxes3D drawn at each: the
+    # hinge's on the arm (at its origin, turning with it), the slide's on the tip
+    _t, frames, frame_turns = instance_poses(chunks[f"{base}/joints"])
+    assert frames.shape == (len(t), 2, 3)
+    np.testing.assert_allclose(frames[:, 0], 0.0, atol=1e-6)
+    np.testing.assert_allclose(frame_turns[:, 0], arm_turn, atol=1e-6)
+    np.testing.assert_allclose(frames[:, 1, 0], trajectory.times, rtol=1e-6)
+    assert "TransformAxes3D:axis_length" in static_columns(chunks[f"{base}/joints"])
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1),
+    st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1),
+    st.lists(st.floats(-2, 2), min_size=6, max_size=6),
+)
+def test_instance_poses_compose_as_rotations_do(body_turn, place_turn, offsets) -> None:
+    """A shape's pose is its body's pose times its place in the body (scipy's Rotation
+    as the oracle), whatever the turns."""
+    from scipy.spatial.transform import Rotation
+
+    from workbench.outputs.recording import _compose
+
+    body, place = Rotation.from_quat(body_turn), Rotation.from_quat(place_turn)
+    body_pose = np.concatenate([offsets[:3], body.as_quat()])[None, None]
+    translations, quaternions = _compose(body_pose, np.array([offsets[3:]]), place.as_quat()[None])
+    np.testing.assert_allclose(
+        translations[0, 0], np.add(offsets[:3], body.apply(offsets[3:])), atol=1e-5
+    )
+    turned = Rotation.from_quat(quaternions[0, 0].astype(float))
+    assert (turned.inv() * body * place).magnitude() < 1e-5
 
 
 def blueprint_views(path: Path) -> dict[str, dict[str, list]]:
@@ -217,8 +259,8 @@ def test_runs_with_other_tolerances_and_repeated_keys(tmp_path: Path) -> None:
     repeated = sink.log_run(*_args(fake_run(1e-6)))
     assert len({*paths, repeated}) == 3 and "run-1e-06" in repeated
     chunks = read_chunks(sink.save(tmp_path / "r.rrd"))
-    arm = column(chunks[f"/{paths[0]}/bodies/arm"], "Transform3D:quaternion")
-    assert len(arm) == 10  # poses strided to max_frames; series are whole
+    assert len(instance_poses(chunks[f"/{paths[0]}/boxes"])[0]) == 10  # poses strided
+    # to max_frames; series are whole
     assert len(series_of(chunks[f"/{paths[0]}/series"], "ref_err")[1]) == 50
 
 
@@ -302,7 +344,7 @@ def test_sink_in_the_runner(tmp_path: Path) -> None:
     expected = result.series.dropna(subset=["energy_err"])
     np.testing.assert_allclose(t, expected["t"], atol=1e-9)
     np.testing.assert_allclose(energy_err, expected["energy_err"])
-    assert any(p.startswith(f"{base}/bodies/") for p in chunks)
+    assert f"{base}/ellipsoids" in chunks and f"{base}/joints" in chunks
 
 
 # -- workbench view ---------------------------------------------------------------------
@@ -402,12 +444,14 @@ def test_contact_plane_is_drawn_once_per_model(tmp_path: Path) -> None:
     assert half[0] >= 2.0 > 100 * half[2]
 
 
+PLACING = ("centers", "translations", "quaternions", "rotation_axis_angles", "mat3x3")
+
+
 def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) -> None:
     """Each component column of a run's data costs Python's reader about 4 KiB (the
-    footer's manifest): a shape at its body's origin has no centers, an unrotated one no
-    quaternions, no shape carries a fill mode (solid is the 3D views' default) nor the
-    default colour (a view default too), and joint frames on unrotated frames no
-    rotation."""
+    footer's manifest): a shape's place in its body is in its instance poses (no static
+    centers or rotations), no shape carries a fill mode (solid is the 3D views' default)
+    nor the default colour (a view default too), nor shows its label over the view."""
     sink = RerunSink()
     run = sink.log_run(*_args(fake_run()))
     path = sink.save(tmp_path)
@@ -418,15 +462,14 @@ def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) ->
     }
     base = "/" + run
     assert not any(name.endswith(":fill_mode") for names in columns.values() for name in names)
-    assert "Ellipsoids3D:centers" not in columns[f"{base}/bodies/tip"]
     assert "quantities" not in columns[f"{base}/series"]  # read from the values
-    assert "Cylinders3D:quaternions" not in columns[f"{base}/bodies/arm"]
-    assert "Boxes3D:centers" in columns[f"{base}/bodies/arm"]
-    assert "InstancePoses3D:mat3x3" not in columns[f"{base}/bodies/arm/joints"]
+    # a shape's place in its body is in its instance poses: no static centers, rotations
+    for entity in ("boxes", "capsules", "cylinders", "ellipsoids", "joints"):
+        placing = {n for n in columns[f"{base}/{entity}"] if n.split(":")[-1] in PLACING}
+        assert not placing, (entity, placing)
     # the arm's shapes have the default colour (a view default), the tip's sphere the
     # model's one sphere colour (its problem's view default): no run's shape has colours
-    assert not any(name.endswith(":colors") for name in columns[f"{base}/bodies/arm"])
-    assert not any(name.endswith(":colors") for name in columns[f"{base}/bodies/tip"])
+    assert not any(name.endswith(":colors") for names in columns.values() for name in names)
     views = blueprint_views(path)
     assert views["fake-problem"]["class_identifier"] == ["3D"]
     # which the 3D views hold as defaults: solid, in a shape's default colour
@@ -440,37 +483,88 @@ def test_a_runs_static_data_leaves_out_what_the_views_default(tmp_path: Path) ->
     for archetype in ("Boxes3D", "Cylinders3D", "Capsules3D"):
         assert defaults[f"{archetype}:colors"] == [[default_color]]
         assert f"{archetype}:fill_mode" in defaults
+        assert defaults[f"{archetype}:show_labels"] == [[False]]  # a body's name on hover
     assert defaults["Ellipsoids3D:colors"] == [[int.from_bytes(bytes([200, 50, 50, 255]), "big")]]
 
 
-def test_a_run_holds_one_component_column_a_thing_it_draws(tmp_path: Path) -> None:
-    """Python's reader holds about 5 KiB for each (entity, component) pair of a recording
-    whatever its bytes (docs/performance.md): a run of the 2-body model has 17 of them,
-    each needed to draw it (19 before its series' ``quantities`` were read from their
-    values, the tip's one sphere colour became its view's default and its one joint frame,
-    at its origin, moved to its own entity)."""
-    sink = RerunSink()
-    run = sink.log_run(*_args(fake_run()))
-    pairs = {
+def run_pairs(sink: RerunSink, run: str, path: Path) -> set[tuple[str, str]]:
+    """The (entity below the run, component) pairs of ``run`` in the file ``sink`` saves."""
+    return {
         (chunk.entity_path.removeprefix(f"/{run}/"), name)
-        for chunk in rr.chunk.RrdReader(sink.save(tmp_path)).stream()
+        for chunk in rr.chunk.RrdReader(sink.save(path)).stream()
         if chunk.entity_path.startswith(f"/{run}/")
         for name in chunk.to_record_batch().schema.names
         if name not in ("rerun.controls.RowId", "sim_time")
     }
-    pose = {"Transform3D:translation", "Transform3D:quaternion"}
-    assert pairs == {
-        *(("bodies/arm", name) for name in pose),
-        ("bodies/arm", "Boxes3D:half_sizes"), ("bodies/arm", "Boxes3D:centers"),
-        ("bodies/arm", "Capsules3D:radii"), ("bodies/arm", "Capsules3D:lengths"),
-        ("bodies/arm", "Capsules3D:translations"),
-        ("bodies/arm", "Cylinders3D:radii"), ("bodies/arm", "Cylinders3D:lengths"),
-        ("bodies/arm/joints", "TransformAxes3D:axis_length"),
-        ("bodies/arm/joints", "InstancePoses3D:translations"),
-        *(("bodies/tip", name) for name in pose),
-        ("bodies/tip", "Ellipsoids3D:half_sizes"), ("bodies/tip", "TransformAxes3D:axis_length"),
+
+
+def test_a_run_holds_one_component_column_a_thing_it_draws(tmp_path: Path) -> None:
+    """Python's reader holds about 5 KiB for each (entity, component) pair of a recording
+    whatever its bytes (docs/performance.md): a run holds an entity a shape kind (its
+    sizes, its bodies' names, its instance poses), one for its joint frames and one for
+    its series; here 23 pairs for 2 bodies of 4 shape kinds (17 when each body was an
+    entity, 2,485 -> 1,293 pairs in the default sweep, whose bodies share kinds)."""
+    sink = RerunSink()
+    run = sink.log_run(*_args(fake_run()))
+    pose = ("InstancePoses3D:translations", "InstancePoses3D:quaternions")
+    assert run_pairs(sink, run, tmp_path) == {
+        *(("boxes", name) for name in (*pose, "Boxes3D:half_sizes", "Boxes3D:labels")),
+        *(("capsules", name) for name in (*pose, "Capsules3D:radii", "Capsules3D:lengths",
+                                          "Capsules3D:labels")),
+        *(("cylinders", name) for name in (*pose, "Cylinders3D:radii", "Cylinders3D:lengths",
+                                           "Cylinders3D:labels")),
+        *(("ellipsoids", name) for name in (*pose, "Ellipsoids3D:half_sizes",
+                                            "Ellipsoids3D:labels")),
+        *(("joints", name) for name in (*pose, "TransformAxes3D:axis_length")),
         ("series", "Scalars:scalars"), ("series", "SeriesLines:names"),
     }  # fmt: skip
+
+
+class ChainObservables:
+    """``n`` links, link i at (i, 0, 0) unrotated at every time."""
+
+    def __init__(self, n: int) -> None:
+        self.body_names = [f"link{i}" for i in range(n)]
+
+    def poses_along(self, times: np.ndarray, q: np.ndarray) -> np.ndarray:
+        poses = np.zeros((len(times), len(self.body_names), 7))
+        poses[..., 0] = np.arange(len(self.body_names))
+        poses[..., 3] = 1.0
+        return poses
+
+
+def chain_equations(n: int) -> SimpleNamespace:
+    """A chain of ``n`` capsule links, each hinged at the end of the one before."""
+    model = Model(f"chain{n}", kind="spatial")
+    for i in range(n):
+        capsule = Shape("capsule", (0.05, 1.0), Frame.at(0.5, 0, 0))
+        model.add_body(f"link{i}", 1.0, inertia=(1.0, 1.0, 1.0), shapes=[capsule])
+        parent = f"link{i - 1}" if i else "ground"
+        model.add_joint(f"hinge{i}", "revolute", parent, f"link{i}",
+                        parent_frame=Frame.at(1.0 if i else 0.0, 0, 0))  # fmt: skip
+    return SimpleNamespace(model=model, observables=ChainObservables(n), nq=n)
+
+
+def test_a_runs_pairs_do_not_grow_with_its_bodies(tmp_path: Path) -> None:
+    """A chain of 8 links holds as many (entity, component) pairs as one of 2: its
+    shapes are one entity, its joint frames one more (an entity a body held 2-7 pairs
+    a body, 2,485 pairs for the default sweep's 102 runs); every link is drawn, at its
+    own pose, labelled with its name."""
+    pairs, chunks = [], {}
+    for n in (2, 8):
+        sink = RerunSink()
+        spec, trajectory, series = fake_run()
+        spec.problem = f"chain-{n}"
+        run = sink.log_run(spec, chain_equations(n), None, trajectory, series)
+        pairs.append(run_pairs(sink, run, tmp_path / f"{n}.rrd"))
+        chunks = read_chunks(tmp_path / f"{n}.rrd")
+    assert pairs[0] == pairs[1]
+    capsules = chunks[f"/{run}/capsules"]
+    labels = static_columns(capsules)["Capsules3D:labels"].iloc[0]
+    assert list(labels) == [f"link{i}" for i in range(8)]
+    _t, starts, _turns = instance_poses(capsules)
+    # link i at (i, 0, 0); its capsule, centred at (0.5, 0, 0) along z, starts 0.5 below
+    np.testing.assert_allclose(starts[0], [[i + 0.5, 0, -0.5] for i in range(8)], atol=1e-6)
 
 
 def test_a_file_of_runs_holds_every_sample_and_its_problems_view_once(tmp_path: Path) -> None:
@@ -482,8 +576,8 @@ def test_a_file_of_runs_holds_every_sample_and_its_problems_view_once(tmp_path: 
     runs = [sink.log_run(*_args(fake_run(rtol, n=n))) for rtol, n in ((1e-3, 50), (1e-6, 7))]
     chunks = read_chunks(sink.end_file())
     for run, n in zip(runs, (50, 7), strict=True):
-        arm = column(chunks[f"/{run}/bodies/arm"], "Transform3D:quaternion")
-        assert np.allclose(seconds(arm["sim_time"]), np.linspace(0.0, 2.0, n))
+        times = instance_poses(chunks[f"/{run}/capsules"])[0]
+        assert np.allclose(times, np.linspace(0.0, 2.0, n))
     problem = chunks["/runs/fake-problem"]
     assert len(problem) == 1 and "ViewCoordinates:xyz" in problem[0].columns
     assert SHAPE_COLORS in problem[0].columns  # the tip's one sphere colour

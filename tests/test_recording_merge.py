@@ -116,3 +116,58 @@ def test_the_merge_memory_does_not_grow_with_the_runs(tmp_path) -> None:
     # inputs (a run's series in one chunk: fewer bytes, about the same manifest)
     footer = merge(200, footer_limit=2**40)
     assert footer["growth"] < 3.2 * footer["inputs"], footer
+
+
+def write_old_layout(path: Path, rtol: str) -> str:
+    """A recording as written before 2026-11-27 (an entity a body: its Transform3D on
+    sim_time and its shapes static; its joint frames an entity below it), by Rerun's own
+    calls; returns the run's path."""
+    run = f"runs/fake-problem/minimal-ode/radau/rtol\\={rtol}"
+    stream = rr.RecordingStream("mbs-workbench", recording_id="old")
+    stream.save(path)
+    stream.log("runs/fake-problem", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    stream.log(f"{run}/bodies/arm", rr.Boxes3D(half_sizes=[[0.5, 0.05, 0.05]]), static=True)
+    stream.log(f"{run}/bodies/arm/joints", rr.TransformAxes3D(0.3),
+               rr.InstancePoses3D(translations=[[1.0, 0, 0]]), static=True)  # fmt: skip
+    times = rr.TimeColumn("sim_time", duration=[0.0, 1.0])
+    poses = rr.Transform3D.columns(translation=[[0, 0, 0], [1, 0, 0]])
+    stream.send_columns(f"{run}/bodies/arm", indexes=[times], columns=poses)
+    stream.log(f"{run}/series", rr.SeriesLines(names=["old"] * 6), static=True)
+    stream.send_columns(f"{run}/series", indexes=[times],
+                        columns=rr.Scalars.columns(scalars=[[1e-9] * 6, [2e-9] * 6]))  # fmt: skip
+    stream.flush()
+    stream.disconnect()
+    return run
+
+
+def test_a_recording_written_before_still_merges_and_extracts(tmp_path) -> None:
+    """A sweep's recording.rrd of the old layout (an entity a body) merges with runs of
+    the new one (an entity a shape kind), both runs in the merged file and its plots,
+    and either run extracts as it was written."""
+    from workbench.outputs.recording import extract_run
+
+    old_run = write_old_layout(tmp_path / "recording.rrd", "0.1")
+    sink = RerunSink()
+    sink.begin_file(tmp_path / "new.rrd")
+    new_run = sink.log_run(*_args(fake_run(1e-6)))
+    merged = merge_recordings([sink.end_file()], tmp_path / "recording.rrd", keep_existing=True)
+    paths = {chunk.entity_path for chunk in rr.chunk.RrdReader(merged).stream()}
+    assert {f"/{old_run}/bodies/arm", f"/{old_run}/bodies/arm/joints", f"/{old_run}/series",
+            f"/{new_run}/boxes", f"/{new_run}/joints", f"/{new_run}/series"} <= paths  # fmt: skip
+    reader = rr.chunk.RrdReader(merged)
+    queries = {
+        value
+        for chunk in reader.stream(store=reader.blueprints()[0])
+        for name, values in chunk.to_record_batch().to_pydict().items()
+        if name.endswith(":query")
+        for batch in values
+        if batch
+        for value in batch
+    }
+    assert {f"+ /{old_run}/series", f"+ /{new_run}/series"} <= queries  # both plotted
+    for run, entity in ((old_run, "bodies/arm"), (new_run, "boxes")):
+        extracted = extract_run(merged, run, tmp_path / f"{entity.replace('/', '-')}.rrd")
+        own = {chunk.entity_path for chunk in rr.chunk.RrdReader(extracted).stream()}
+        assert f"/{run}/{entity}" in own and f"/{run}/series" in own
+        assert not any(path.startswith(f"/{other}/") for other in (old_run, new_run)
+                       if other != run for path in own)  # fmt: skip

@@ -101,10 +101,10 @@ def test_a_models_mesh_is_stored_once_however_many_runs_use_it(tmp_path: Path) -
     assert translations.shape == (len(times), 6, 3)
     for k in range(6):
         np.testing.assert_allclose(translations[:, k], expected, atol=1e-6)
-    # and the run's own entities keep its shapes (static, on its body) and poses
+    # and the run's own entities keep its shapes (static) and their poses
     kinds = {(chunk.entity_path, chunk.is_static) for chunk in chunks_of(merged)}
     for k in range(3, 9):
-        assert {(f"/{run_path(10.0**-k)}/bodies/arm", static) for static in (True, False)} <= kinds
+        assert {(f"/{run_path(10.0**-k)}/boxes", static) for static in (True, False)} <= kinds
 
 
 def test_a_sweep_keeps_one_copy_and_redone_runs_replace_theirs(tmp_path: Path) -> None:

@@ -113,7 +113,7 @@ def test_visual_meshes_reach_the_recording(tmp_path):
     rr = pytest.importorskip("rerun")
     trimesh = pytest.importorskip("trimesh")
     from workbench.model.importers import load_robot
-    from workbench.outputs.recording import RerunSink
+    from workbench.outputs.recording import _mesh_archetypes
 
     trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(tmp_path / "link.stl")
     (tmp_path / "robot.urdf").write_text(
@@ -128,15 +128,15 @@ def test_visual_meshes_reach_the_recording(tmp_path):
     assert shape.kind == "mesh" and shape.size == (2.0, 2.0, 2.0)
     np.testing.assert_allclose(shape.frame.position, [0, 0, 0.5])
     np.testing.assert_allclose(shape.frame.rotation @ [1, 0, 0], [0, 1, 0], atol=1e-12)
-    entries = dict(RerunSink()._geometry(model, "meshy"))
-    place, asset = entries["bodies/arm/meshes/0"]
+    (place, asset), warning = _mesh_archetypes(shape)
+    assert not warning
     assert isinstance(asset, rr.Asset3D) and isinstance(place, rr.Transform3D)
     trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(tmp_path / "link.dae")
     (tmp_path / "robot.urdf").write_text(
         (tmp_path / "robot.urdf").read_text().replace(".stl", ".dae")
     )
     model = load_robot(tmp_path / "robot.urdf").model
-    _, mesh = dict(RerunSink()._geometry(model, "meshy-dae"))["bodies/arm/meshes/0"]
+    (_, mesh), _ = _mesh_archetypes(model.bodies["arm"].shapes[0])
     assert isinstance(mesh, rr.Mesh3D)
 
 

@@ -8,14 +8,16 @@ file. Open it with ``workbench view PATH`` (or ``rerun PATH``).
 Entity layout of one run (``<run>`` = ``runs/<problem>/<formalism>/<integrator>/rtol=<r>``,
 each plugin with its options if it has any: ``rk4[step=0.01]``)::
 
-    <run>/bodies/<body>                Transform3D on the ``sim_time`` timeline (the pose);
-                                       static, in one chunk, its shapes (Boxes3D,
-                                       Cylinders3D, Ellipsoids3D, Capsules3D: a batch a kind)
-                                       and, when all its joint frames are at its origin
-                                       unrotated, their TransformAxes3D
-    <run>/bodies/<body>/joints         otherwise the frames of its joints (parent or child
-                                       side): static TransformAxes3D at each InstancePoses3D
-                                       pose
+    <run>/boxes, <run>/ellipsoids,     the run's primitive shapes of one kind, on all its
+    <run>/cylinders, <run>/capsules    bodies (Boxes3D, Ellipsoids3D, Cylinders3D,
+                                       Capsules3D): static, their sizes and labels (each
+                                       shape's body; colours when not the view's default);
+                                       on ``sim_time``, InstancePoses3D: shape i at its
+                                       body's pose times its place in the body
+    <run>/joints                       each joint's frame on its child body: a static
+                                       TransformAxes3D drawn at every frame's instance pose
+    <run>/contacts                     the spheres of sphere-sphere contacts on its bodies
+                                       (Ellipsoids3D, placed as the shapes)
     <run>/series                       Scalars on ``sim_time``, one instance a quantity:
                                        drift_pos, drift_vel, drift_nh, energy_err,
                                        ref_err, penetration (m; a contact model's deepest
@@ -24,7 +26,12 @@ each plugin with its options if it has any: ``rk4[step=0.01]``)::
                                        blueprint's plot of a quantity shows its instance
                                        only (SeriesLines' ``visible_series``, a view default)
 
-and what the runs of a model share, stored once (a robot's meshes are most of its bytes)::
+An entity a kind rather than a body: Python's reader holds about 5 KiB for each (entity,
+component) pair of a file, whatever its bytes (docs/performance.md). Files written before
+2026-11-27 hold ``<run>/bodies/<body>`` (its Transform3D and static shapes) and
+``<run>/bodies/<body>/joints``; the merge and :func:`extract_run` copy them as they are.
+
+What the runs of a model share, stored once (a robot's meshes are most of its bytes)::
 
     runs/<problem>                     static: the view's up axis (ViewCoordinates) and,
                                        when a shape kind has one colour in the whole model
@@ -35,11 +42,10 @@ and what the runs of a model share, stored once (a robot's meshes are most of it
                                        InstancePoses3D on ``sim_time``: that body's pose in
                                        every run (an instance a run), so each run is drawn
     .../meshes/<i>/instance_runs       which run each instance is (static)
-    runs/<problem>/model/ground/joints the joint frames fixed on the ground (static, as above)
+    runs/<problem>/model/ground/joints the joint frames fixed on the ground (static)
     runs/<problem>/model/contact_planes/<contact>  a plane the contacts touch (a thin box,
                                        static; named by its first contact)
-    <run>/bodies/<body>/contacts/<contact>  a sphere of a sphere-sphere contact (static;
-                                       on the ground: .../model/ground/contacts/<contact>)
+    runs/<problem>/model/ground/contacts/<contact>  a contact sphere on the ground (static)
 
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
@@ -61,6 +67,7 @@ which the sweep removes them) and :func:`extract_run` copies one run back out of
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
@@ -68,6 +75,7 @@ import re
 import uuid
 import warnings
 from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -93,8 +101,8 @@ SERIES_ENTITY = "series"
 order of :data:`SERIES_QUANTITIES` (NaN where the run has none), sent in one column
 chunk: a chunk a quantity cost the reader about 11 KiB each (its footer's manifest)."""
 FILE_VALUES_LIMIT = 2**22
-"""Values (poses and series, 8 bytes each) a file of several runs takes before it is
-written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
+"""Values (instance poses, 4 bytes each; series, 8) a file of several runs takes before
+it is written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
 SERIES_PRESENT = "quantities"
 """The static component of ``<run>/series`` that named the quantities a run has values of
 in files written before 2026-11-27 (now read from its values: :func:`series_quantities`)."""
@@ -105,6 +113,48 @@ SHAPE_ARCHETYPES = {
     "box": "Boxes3D", "sphere": "Ellipsoids3D", "cylinder": "Cylinders3D",
     "capsule": "Capsules3D",
 }  # fmt: skip
+SHAPE_ENTITIES = {"box": "boxes", "sphere": "ellipsoids", "cylinder": "cylinders",
+                  "capsule": "capsules"}  # fmt: skip
+"""``<run>/<entity>`` of each primitive shape kind: all the run's shapes of that kind."""
+JOINTS_ENTITY = "joints"
+"""``<run>/joints``: the run's joint frames, each on its joint's child body."""
+CONTACTS_ENTITY = "contacts"
+"""``<run>/contacts``: the spheres of the run's sphere-sphere contacts on its bodies."""
+
+
+@dataclass(frozen=True)
+class Placed:
+    """What one entity of a run draws, each instance fixed in a body: its static component
+    batches, and each instance's body and place in it (drawn at the body's pose times that
+    place, :meth:`RerunSink._log_poses`)."""
+
+    batches: list[Any]
+    bodies: tuple[str, ...]
+    positions: np.ndarray  # (k, 3) in the body
+    quaternions: np.ndarray  # (k, 4) x, y, z, w in the body
+
+
+@dataclass(frozen=True)
+class RunLayout:
+    """A model's entities: ``placed`` below each run (name -> :class:`Placed`) and
+    ``shared`` (relative path, component batches) once per model below
+    ``runs/<problem>/model``; ``bodies``, ``positions`` and ``quaternions``: those of
+    every placed instance, entity after entity (their poses are computed at once)."""
+
+    shared: list[tuple[str, list[Any]]]
+    placed: dict[str, Placed]
+
+    @functools.cached_property
+    def bodies(self) -> tuple[str, ...]:
+        return tuple(body for placed in self.placed.values() for body in placed.bodies)
+
+    @functools.cached_property
+    def positions(self) -> np.ndarray:
+        return np.concatenate([placed.positions for placed in self.placed.values()])
+
+    @functools.cached_property
+    def quaternions(self) -> np.ndarray:
+        return np.concatenate([placed.quaternions for placed in self.placed.values()])
 
 
 def entity_path(*parts: str) -> str:
@@ -197,11 +247,10 @@ class RerunSink:
         self._file = Path()  # the file of begin_file
         self._file_values = 0  # values (poses, series) logged to it: its size in memory
         self._stream: Any = None  # its binary stream, until end_file
-        self._geometry_cache: dict[str, list[tuple[str, list[Any]]]] = {}
+        self._layouts: dict[str, RunLayout] = {}  # per model key
         self._colors_cache: dict[str, dict[str, list[int]]] = {}  # per model key
         self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
         self.run_warnings: list[str] = []  # of the last run logged (for its row)
-        self._batches_cache: dict[str, list[tuple[str, list[Any]]]] = {}
         # per model key: mesh entity below the run -> (body, position, 3x3 incl. scale)
         self._mesh_places: dict[str, dict[str, tuple[str, np.ndarray, np.ndarray]]] = {}
         # shared entities logged to the current file (-> the file copied from, when merging)
@@ -253,37 +302,20 @@ class RerunSink:
         return path
 
     def _log_geometry(self, path: str, shared: str, model: Any, key: str) -> None:
-        """Shapes and joint frames below the run; a mesh once per model and file, static,
-        below ``shared`` (``runs/<problem>/model``), drawn at each run's body poses by
-        instance poses (:meth:`_log_poses`): a robot's meshes are most of its bytes."""
-        # the archetypes' component batches, made once per model: ``log`` of an archetype
-        # makes them again at every call (a third of its cost)
-        if key not in self._batches_cache:
-            entries = self._geometry(model, key)
-            places = self._mesh_places.get(key, {})
-            self._batches_cache[key] = [
-                (
-                    relative,
-                    [  # a shared mesh is placed by its instance poses, not a transform
-                        batch
-                        for each in (archetypes[1:] if relative in places else archetypes)
-                        for batch in each.as_component_batches()
-                    ],
-                )
-                for relative, archetypes in entries
-            ]
-        places = self._mesh_places.get(key, {})
+        """A run's shapes and joint frames (static; placed by :meth:`_log_poses`) below the
+        run; what every run of the model draws alike (a mesh, the ground's joint frames, a
+        contact plane) once per model and file below ``shared`` (``runs/<problem>/model``)."""
+        layout = self._layout(model, key)
         for relative, archetypes in _contact_planes(model):  # fixed: drawn once per model
             if f"{shared}/{relative}" not in self._shared_logged:
                 self._shared_logged[f"{shared}/{relative}"] = ""
                 self.recording.log(f"{shared}/{relative}", *archetypes, static=True)
-        for relative, batches in self._batches_cache[key]:
-            # a joint frame on the ground is the same in every run: once per model too
-            if relative not in places and not relative.startswith("ground/"):
-                self.recording.log(f"{path}/{relative}", batches, static=True)
-            elif f"{shared}/{relative}" not in self._shared_logged:
+        for relative, batches in layout.shared:
+            if f"{shared}/{relative}" not in self._shared_logged:
                 self._shared_logged[f"{shared}/{relative}"] = ""
                 self.recording.log(f"{shared}/{relative}", batches, static=True)
+        for name, placed in layout.placed.items():  # one log call an entity: one chunk
+            self.recording.log(f"{path}/{name}", placed.batches, static=True)
 
     def _model_colors(self, model: Any, key: str) -> dict[str, list[int]]:
         """Archetype -> colour of each primitive shape kind that has one colour in the whole
@@ -303,49 +335,52 @@ class RerunSink:
             }
         return self._colors_cache[key]
 
-    def _geometry(self, model: Any, key: str) -> list[tuple[str, list[Any]]]:
-        """(entity path below the run, archetypes) of the shapes and joint frames; made
-        once per model ``key`` (problem and options): the runs of a sweep share models.
+    def _layout(self, model: Any, key: str) -> RunLayout:
+        """The entities of a run of ``model`` and what the runs share, made once per model
+        ``key`` (problem and options): the runs of a sweep share models.
 
-        A body's primitive shapes (one archetype a kind) are one entry on the body's own
-        entity (one log call, one chunk), and so are its joint frames when all are at its
-        origin unrotated (else an entity of their own, drawn at instance poses): each
-        entity, chunk and component column costs Python's reader far more than its bytes
-        (docs/performance.md)."""
-        if key in self._geometry_cache:
-            return self._geometry_cache[key]
-        entries: list[tuple[str, list[Any]]] = []
+        A run's primitive shapes are an entity a kind (``boxes``, ``capsules``, ...: one
+        instance a shape, labelled with its body's name) and its joint frames one more
+        (``joints``), each drawn at instance poses (a body's pose times the shape's or
+        frame's place in it), not an entity a body: Python's reader holds about 5 KiB a
+        (entity, component) pair of the file's manifest, which a body's own entities
+        multiplied (docs/performance.md). A robot's meshes are shared per model."""
+        if key in self._layouts:
+            return self._layouts[key]
         warnings: list[str] = self._geometry_warnings.setdefault(key, [])
         axis_length = 0.3 * _model_scale(model)
-        frames: dict[str, list[Any]] = {}  # body (or "ground") -> its joints' frames
-        for joint in model.joints.values():
-            frames.setdefault(joint.parent, []).append(joint.parent_frame)
-            frames.setdefault(joint.child, []).append(joint.child_frame)
-        if frames.get("ground"):  # the same in every run: once per model (_log_geometry)
-            entries.append(("ground/joints", _joint_axes(frames["ground"], axis_length)))
-        colors = self._model_colors(model, key)
+        shared: list[tuple[str, list[Any]]] = []
+        ground = [joint.parent_frame for joint in model.joints.values() if joint.parent == "ground"]
+        ground += [joint.child_frame for joint in model.joints.values() if joint.child == "ground"]
+        if ground:  # the same in every run: once per model
+            shared.append(("ground/joints", _batches(_joint_axes(ground, axis_length))))
+        shapes: list[tuple[str, Any]] = []  # (body, shape) of the primitive shapes
         for name, body in model.bodies.items():
-            body_path = entity_path("bodies", name)
-            static = list(_shape_archetypes(body.shapes, colors).values())
-            axes = _joint_axes(frames[name], axis_length) if frames.get(name) else []
-            if len(axes) > 1:  # placed by instance poses, which would move the shapes too
-                entries.append((f"{body_path}/joints", axes))
-            else:  # at the body's origin: axes drawn at the body's own pose
-                static += axes
-            if static:  # all kinds in one log call: one chunk
-                entries.append((body_path, static))
+            shapes += [(name, shape) for shape in body.shapes if shape.kind in SHAPE_ARCHETYPES]
             meshes = [shape for shape in body.shapes if shape.kind == "mesh"]
             for index, shape in enumerate(meshes):  # a robot file's visual meshes
+                relative = f"{entity_path('bodies', name)}/meshes/{index}"
                 archetypes, warning = _mesh_archetypes(shape)
-                entries.append((f"{body_path}/meshes/{index}", archetypes))
-                if warning:
+                if warning:  # a red box where the mesh is, one of the run's boxes
                     warnings.append(f"body {name!r}: {warning}")
-                else:  # drawn once per model at every run's pose (_log_geometry)
-                    place = (name, shape.frame.position, shape.frame.rotation @ np.diag(shape.size))
-                    self._mesh_places.setdefault(key, {})[f"{body_path}/meshes/{index}"] = place
-        entries.extend(_contact_spheres(model))
-        self._geometry_cache[key] = entries
-        return entries
+                    shapes.append((name, _placeholder(shape)))
+                    continue
+                # drawn once per model at every run's pose (_log_poses), placed by its
+                # instance poses rather than its transform (archetypes[0])
+                place = (name, shape.frame.position, shape.frame.rotation @ np.diag(shape.size))
+                self._mesh_places.setdefault(key, {})[relative] = place
+                shared.append((relative, _batches(archetypes[1:])))
+        placed = _placed_shapes(shapes, self._model_colors(model, key))
+        frames = _child_frames(model)
+        if frames:  # one TransformAxes3D drawn at every frame's pose
+            placed[JOINTS_ENTITY] = _placed(frames, [_transform_axes(axis_length)])
+        spheres, on_ground = _contact_spheres(model)
+        shared += on_ground
+        if spheres:
+            places = [(body, centre, np.eye(3)) for body, centre, _radius in spheres]
+            placed[CONTACTS_ENTITY] = _placed(places, [_contact_ellipsoids(spheres)])
+        self._layouts[key] = RunLayout(shared, placed)
+        return self._layouts[key]
 
     def _log_poses(
         self, path: str, equations: Any, trajectory: Any, shared: str = "", key: str = ""
@@ -367,16 +402,33 @@ class RerunSink:
         else:
             poses = observables.poses_along(times[rows], y[rows, : equations.nq])
         timeline = rr.TimeColumn(TIMELINE, duration=times[rows])
-        self._file_values += poses.size
-        for b, name in enumerate(observables.body_names):
-            self.recording.send_columns(
-                f"{path}/{entity_path('bodies', name)}",
-                indexes=[timeline],
-                columns=rr.Transform3D.columns(
-                    translation=poses[:, b, :3], quaternion=quaternion_xyzw(poses[:, b, 3:])
-                ),
+        bodies = {name: b for b, name in enumerate(observables.body_names)}
+        # each body's pose as (x, y, z, qx, qy, qz, qw); last, the identity (for a shape
+        # whose body has none)
+        body_poses = np.zeros((len(rows), len(bodies) + 1, 7))
+        body_poses[:, :-1, :3] = poses[..., :3]
+        body_poses[:, :-1, 3:] = quaternion_xyzw(poses[..., 3:])
+        body_poses[:, -1, 6] = 1.0
+        layout = self._layouts.get(key)
+        if layout is not None and layout.placed:
+            # every instance of the run's entities at once (a call each: 0.1 ms more)
+            at = [bodies.get(body, len(bodies)) for body in layout.bodies]
+            translations, quaternions = _compose(
+                body_poses[:, at], layout.positions, layout.quaternions
             )
-        bodies = {name: b for b, name in enumerate(equations.observables.body_names)}
+            self._file_values += translations.size + quaternions.size
+            start = 0
+            for name, placed in layout.placed.items():
+                end = start + len(placed.bodies)
+                self.recording.send_columns(
+                    f"{path}/{name}",
+                    indexes=[timeline],
+                    columns=rr.InstancePoses3D.columns(
+                        translations=translations[:, start:end].reshape(-1, 3),
+                        quaternions=quaternions[:, start:end].reshape(-1, 4),
+                    ).partition(np.full(len(rows), end - start)),  # (a list: 0.26 ms more)
+                )
+                start = end
         for relative, (body, position, matrix) in self._mesh_places.get(key, {}).items():
             if body not in bodies:
                 continue
@@ -896,32 +948,117 @@ def _contact_planes(model: Any) -> list[tuple[str, list[Any]]]:
     return entries
 
 
-def _contact_spheres(model: Any) -> list[tuple[str, list[Any]]]:
-    """(entity below the run, archetypes) of both spheres of each sphere-sphere contact,
-    on its body (or the ground: then once per model, as its joint frames)."""
-    import rerun as rr
-
-    entries = []
+def _contact_spheres(
+    model: Any,
+) -> tuple[list[tuple[str, np.ndarray, float]], list[tuple[str, list[Any]]]]:
+    """Both spheres of each sphere-sphere contact: (body, centre, radius) of those on a
+    body, and (entity below the model's shared path, component batches) of those on the
+    ground (once per model, as its joint frames)."""
+    on_bodies, on_ground = [], []
     for contact in getattr(model, "contacts", None) or []:
         if hasattr(contact, "body_a"):
             for body, centre, radius in (
                 (contact.body_a, contact.centre_a, contact.radius_a),
                 (contact.body_b, contact.centre_b, contact.radius_b),
             ):
-                owner = "ground" if body == "ground" else entity_path("bodies", body)
-                sphere = rr.Ellipsoids3D(centers=[centre], half_sizes=[[radius] * 3],
-                                         colors=[(230, 120, 40, 90)])  # fmt: skip
-                entries.append((f"{owner}/{entity_path('contacts', contact.name)}", [sphere]))
-    return entries
+                if body != "ground":
+                    on_bodies.append((body, np.asarray(centre, dtype=float), float(radius)))
+                    continue
+                sphere = _contact_ellipsoids([(body, np.asarray(centre, dtype=float), radius)],
+                                             centred=False)  # fmt: skip
+                on_ground.append((f"ground/{entity_path('contacts', contact.name)}",
+                                  _batches([sphere])))  # fmt: skip
+    return on_bodies, on_ground
+
+
+CONTACT_COLOR = (230, 120, 40, 90)
+
+
+def _contact_ellipsoids(
+    spheres: Sequence[tuple[str, np.ndarray, float]], centred: bool = True
+) -> Any:
+    """Contact spheres (body, centre, radius) as one Ellipsoids3D: at their instance
+    poses (``centred``), or at their centres."""
+    import rerun as rr
+
+    placed = {} if centred else {"centers": [centre for _, centre, _ in spheres]}
+    return rr.Ellipsoids3D(half_sizes=[[radius] * 3 for *_, radius in spheres],
+                           colors=[CONTACT_COLOR], **placed)  # fmt: skip
+
+
+def _transform_axes(length: float) -> Any:
+    import rerun as rr
+
+    return rr.TransformAxes3D(length)
+
+
+def _batches(archetypes: Iterable[Any]) -> list[Any]:
+    """The component batches of archetypes (``log`` of an archetype makes them again at
+    every call: a third of its cost), to be logged as one chunk."""
+    return [batch for archetype in archetypes for batch in archetype.as_component_batches()]
+
+
+def _placed(places: Sequence[tuple[str, Any, Any]], archetypes: Sequence[Any]) -> Placed:
+    """A :class:`Placed` of ``places`` (body, position (3,), rotation (3, 3)) drawing
+    ``archetypes``."""
+    from scipy.spatial.transform import Rotation
+
+    rotations = np.array([np.asarray(rotation, dtype=float) for _, _, rotation in places])
+    return Placed(
+        batches=_batches(archetypes),
+        bodies=tuple(body for body, _, _ in places),
+        positions=np.array([np.asarray(position, dtype=float) for _, position, _ in places]),
+        quaternions=Rotation.from_matrix(rotations).as_quat().reshape(-1, 4),
+    )
+
+
+def _child_frames(model: Any) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(body, position, rotation) of each joint's frame on its child body (its frame on
+    the parent coincides with it while the joint holds; on the ground it is drawn once per
+    model), frames that coincide on a body once."""
+    frames: dict[tuple[Any, ...], tuple[str, np.ndarray, np.ndarray]] = {}
+    for joint in model.joints.values():
+        if joint.child == "ground":
+            continue
+        frame = joint.child_frame
+        key = (joint.child, *np.round(np.concatenate([frame.position, frame.rotation.ravel()]), 12))
+        frames.setdefault(key, (joint.child, frame.position, frame.rotation))
+    return list(frames.values())
+
+
+def _compose(
+    body_poses: np.ndarray, positions: np.ndarray, quaternions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(n, k, 3) translations and (n, k, 4) x, y, z, w quaternions (float32) of k things
+    at ``positions`` (k, 3) / ``quaternions`` (k, 4) in their bodies, whose poses are
+    ``body_poses`` (n, k, 7: x, y, z and a quaternion x, y, z, w)."""
+    t, q = body_poses[..., :3], body_poses[..., 3:]
+    ax, ay, az, aw = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    px, py, pz = positions[:, 0], positions[:, 1], positions[:, 2]
+    # the body's rotation applied to each position: p + 2 w (v x p) + 2 v x (v x p)
+    cx, cy, cz = 2 * (ay * pz - az * py), 2 * (az * px - ax * pz), 2 * (ax * py - ay * px)
+    translations = np.stack([
+        t[..., 0] + px + aw * cx + ay * cz - az * cy,
+        t[..., 1] + py + aw * cy + az * cx - ax * cz,
+        t[..., 2] + pz + aw * cz + ax * cy - ay * cx,
+    ], axis=-1)  # fmt: skip
+    bx, by, bz, bw = quaternions[:, 0], quaternions[:, 1], quaternions[:, 2], quaternions[:, 3]
+    product = np.stack([
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ], axis=-1)  # fmt: skip
+    return translations.astype(np.float32), product.astype(np.float32)
 
 
 def _joint_axes(frames: Sequence[Any], length: float) -> list[Any]:
-    """The joint frames on one body (or the ground) as one entity: TransformAxes3D drawn
-    at each pose of an InstancePoses3D (Rerun draws axes instanced since
-    rerun-io/rerun#11970), one batch rather than an entity a frame: each chunk and
+    """The joint frames on the ground as one entity (static: the same in every run): a
+    TransformAxes3D drawn at each pose of an InstancePoses3D (Rerun draws axes instanced
+    since rerun-io/rerun#11970), one batch rather than an entity a frame: each chunk and
     component column costs the reader more than its bytes (docs/performance.md).
     Frames that coincide are drawn once; translations are left out when every frame is
-    at the body's origin, rotations when none is rotated."""
+    at the origin, rotations when none is rotated."""
     import rerun as rr
 
     unique: dict[tuple[float, ...], Any] = {}
@@ -946,9 +1083,9 @@ def _mesh_archetypes(shape: Any) -> tuple[list[Any], str]:
     """(archetypes, warning) of a mesh file at its frame, scaled: Rerun reads glTF, GLB,
     OBJ and STL itself (Asset3D); other formats (COLLADA .dae of many URDFs) go through
     trimesh (Mesh3D). The file is read once, as a regular file (the importer checked where
-    it is), and parsed by trimesh; a file that cannot be read or holds no triangles is a
-    red placeholder box and a one-line warning, never a failed run (the dynamics do not
-    depend on it)."""
+    it is), and parsed by trimesh; a file that cannot be read or holds no triangles gives
+    no archetype and a one-line warning (a red box is drawn there: :func:`_placeholder`),
+    never a failed run (the dynamics do not depend on it)."""
     import rerun as rr
     import trimesh
 
@@ -965,11 +1102,7 @@ def _mesh_archetypes(shape: Any) -> tuple[list[Any], str]:
         if len(getattr(mesh, "faces", ())) == 0:
             raise ValueError("no triangles in it")
     except Exception as error:  # noqa: BLE001 - any reader's failure: a placeholder
-        placeholder = [
-            rr.Transform3D(translation=shape.frame.position, mat3x3=shape.frame.rotation),
-            rr.Boxes3D(half_sizes=[[PLACEHOLDER_HALF_SIZE] * 3], colors=[(220, 60, 60)]),
-        ]
-        return placeholder, f"mesh {shape.path} cannot be read ({one_line(error)}): drawn as a box"
+        return [], f"mesh {shape.path} cannot be read ({one_line(error)}): drawn as a box"
     if suffix in (".glb", ".gltf", ".obj", ".stl"):
         media_type = rr.components.MediaType.guess_from_path(shape.path)
         return [place, rr.Asset3D(contents=data, media_type=media_type)], ""
@@ -984,58 +1117,57 @@ def _mesh_archetypes(shape: Any) -> tuple[list[Any], str]:
     ], ""
 
 
-def _shape_archetypes(
-    shapes: Sequence[Any], model_colors: dict[str, list[int]] | None = None
-) -> dict[str, Any]:
-    """One Rerun archetype per shape kind, each shape placed at its frame in the body;
-    ``model_colors``: archetype -> the colour its 3D view draws by default (the model's
-    own, when all its shapes of that kind have it), which the shapes then leave out."""
+def _placed_shapes(
+    shapes: Sequence[tuple[str, Any]], model_colors: dict[str, list[int]] | None = None
+) -> dict[str, Placed]:
+    """Entity name (:data:`SHAPE_ENTITIES`) -> :class:`Placed` of all the (body, shape)
+    primitive shapes of one kind: one archetype a kind, labelled with each shape's body,
+    its sizes; its place in the body goes into the instance poses. ``model_colors``:
+    archetype -> the colour its 3D view draws by default (the model's own, when all its
+    shapes of that kind have it), which the shapes then leave out, as the views' default
+    one (:func:`shape_defaults`)."""
     import rerun as rr
 
-    by_kind: dict[str, list[Any]] = {}
-    for shape in shapes:
-        by_kind.setdefault(shape.kind, []).append(shape)
-    archetypes: dict[str, Any] = {}
+    by_kind: dict[str, list[tuple[str, Any]]] = {}
+    for body, shape in shapes:
+        by_kind.setdefault(shape.kind, []).append((body, shape))
+    placed: dict[str, Placed] = {}
     for kind, group in by_kind.items():
-        # centers and rotations only when some shape has one (each component of a
-        # run's static data costs the reader's manifest about 5 KiB); the fill mode, and
-        # the colour when every shape has the view's default one, are the 3D views'
-        # defaults (:func:`shape_defaults`)
-        colors = [tuple(s.color) for s in group]
-        view_color = (model_colors or {}).get(SHAPE_ARCHETYPES.get(kind, ""))
+        colors = [tuple(shape.color) for _, shape in group]
+        view_color = (model_colors or {}).get(SHAPE_ARCHETYPES[kind])
         view_color = tuple(view_color) if view_color else tuple(default_shape_color())
-        placed: dict[str, Any] = {}
+        fields: dict[str, Any] = {"labels": [body for body, _ in group]}
         if any(color != view_color for color in colors):
-            placed["colors"] = colors
-        if any(np.any(s.frame.rotation != np.eye(3)) for s in group):
-            rotations = [s.frame.rotation for s in group]
-            placed["quaternions"] = [rr.Quaternion(xyzw=matrix_xyzw(r)) for r in rotations]
-        centers = np.array([s.frame.position for s in group], dtype=float)
-        if kind != "capsule" and np.any(centers):
-            placed["centers"] = centers
+            fields["colors"] = colors
+        sizes = [np.asarray(shape.size, dtype=float) for _, shape in group]
+        places = [(body, shape.frame.position, shape.frame.rotation) for body, shape in group]
         if kind == "box":
-            half_sizes = [np.asarray(s.size, dtype=float) / 2 for s in group]
-            archetypes[kind] = rr.Boxes3D(half_sizes=half_sizes, **placed)
+            archetype = rr.Boxes3D(half_sizes=[size / 2 for size in sizes], **fields)
         elif kind == "sphere":
-            half_sizes = [[s.size[0]] * 3 for s in group]
-            archetypes[kind] = rr.Ellipsoids3D(half_sizes=half_sizes, **placed)
+            archetype = rr.Ellipsoids3D(half_sizes=[[size[0]] * 3 for size in sizes], **fields)
         elif kind == "cylinder":
-            archetypes[kind] = rr.Cylinders3D(
-                radii=[s.size[0] for s in group], lengths=[s.size[1] for s in group], **placed
+            archetype = rr.Cylinders3D(
+                radii=[size[0] for size in sizes], lengths=[size[1] for size in sizes], **fields
             )
-        elif kind == "capsule":
-            # Rerun's capsule runs from its origin along +z; ours is centred on its frame.
-            starts = [
-                s.frame.position - s.frame.rotation @ np.array([0.0, 0.0, s.size[1] / 2])
-                for s in group
+        else:  # Rerun's capsule runs from its origin along +z; ours is centred on its frame
+            archetype = rr.Capsules3D(
+                radii=[size[0] for size in sizes], lengths=[size[1] for size in sizes], **fields
+            )
+            places = [
+                (body, position - rotation @ np.array([0.0, 0.0, size[1] / 2]), rotation)
+                for (body, position, rotation), size in zip(places, sizes, strict=True)
             ]
-            archetypes[kind] = rr.Capsules3D(
-                radii=[s.size[0] for s in group],
-                lengths=[s.size[1] for s in group],
-                translations=starts,
-                **placed,
-            )
-    return archetypes
+        placed[SHAPE_ENTITIES[kind]] = _placed(places, [archetype])
+    return placed
+
+
+def _placeholder(shape: Any) -> Any:
+    """A red box of :data:`PLACEHOLDER_HALF_SIZE` at the frame of a mesh that cannot be
+    read, as a primitive shape of its body."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(kind="box", size=(2 * PLACEHOLDER_HALF_SIZE,) * 3,
+                           frame=shape.frame, color=(220, 60, 60))  # fmt: skip
 
 
 def default_shape_color() -> tuple[int, int, int]:
@@ -1050,8 +1182,10 @@ def default_shape_color() -> tuple[int, int, int]:
 def shape_defaults(colors: dict[str, list[int]] | None = None) -> list[Any]:
     """The 3D views' defaults of the primitive shapes: solid (Rerun draws them as
     wireframes otherwise) and a colour, ``colors`` (archetype -> the model's colour of
-    that kind, :data:`SHAPE_COLORS`) or a shape's default colour. View defaults rather
-    than components of every run's shapes (each costs the reader about 5 KiB a run)."""
+    that kind, :data:`SHAPE_COLORS`) or a shape's default colour; their labels (each
+    shape's body) hidden, shown when a shape is hovered or selected, not over every run's
+    bodies. View defaults rather than components of every run's shapes (each costs the
+    reader about 5 KiB a run)."""
     import rerun as rr
 
     solid, colors = rr.components.FillMode.Solid, colors or {}
@@ -1059,6 +1193,7 @@ def shape_defaults(colors: dict[str, list[int]] | None = None) -> list[Any]:
         archetype.from_fields(
             fill_mode=solid,
             colors=[tuple(colors.get(archetype.__name__, default_shape_color()))],
+            show_labels=False,
         )
         for archetype in (rr.Boxes3D, rr.Ellipsoids3D, rr.Cylinders3D, rr.Capsules3D)
     ]
