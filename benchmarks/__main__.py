@@ -155,15 +155,11 @@ def _cache_fit_note() -> str:
     table = pd.read_csv(path)
     theirs = table.query("side == 'pinocchio::aba'").set_index("model").l2_misses_512K
     missing = table.query("side == 'ours' and l2_misses_512K >= 1")
-    fits = (
-        "every model"
-        if missing.empty
-        else "all but "
-        + ", ".join(
-            f"{m.model} ({m.l2_misses_512K:.0f} a call, pinocchio::aba {theirs.get(m.model, NAN):.0f})"
-            for m in missing.itertuples()
-        )
-    )
+    described = [
+        f"{m.model} ({m.l2_misses_512K:.0f} a call, pinocchio::aba {theirs.get(m.model, NAN):.0f})"
+        for m in missing.itertuples()
+    ]
+    fits = "all but " + ", ".join(described) if described else "every model"
     return (
         f"; simulated (cachegrind, cache_fit.csv): with a 512 KiB L2 {fits} "
         "called without L2 misses in steady state"
