@@ -62,6 +62,26 @@ def test_rows_filter_sort_and_option_columns(results: Path) -> None:
         results_table(frame, where=["scd>=many"])
 
 
+def test_an_option_the_same_in_every_row_shown_is_said_once(results: Path) -> None:
+    """A column of one value told nothing and pushed the table past a page: it goes into
+    the caption; an option that differs between the rows shown stays a column."""
+    frame = pd.read_parquet(results)
+    frame["formalism_options"] = json.dumps({"compile": "auto", "index": 3})
+    shown = results_table(frame, by="run", where=["integrator=generalized-alpha"])
+    assert "formalism.compile" not in shown.columns and "integrator.rho_inf" not in shown
+    assert shown.attrs["same"] == (
+        "formalism.compile=auto, formalism.index=3, integrator.rho_inf=0.9, integrator.step=null"
+    )
+    every = results_table(frame, by="run")  # rho_inf: 0.9 for one integrator, "" for others
+    assert "integrator.rho_inf" in every.columns and "formalism.index" not in every.columns
+    named = results_table(frame, by="run", columns=["problem", "formalism.index"])
+    assert list(named.columns) == ["problem", "formalism.index"] and "same" not in named.attrs
+    frame.to_parquet(results)
+    outcome = runner.invoke(app, ["results", str(results), "--by", "run"])
+    assert outcome.exit_code == 0, outcome.output
+    assert "in each of them formalism.compile=auto, formalism.index=3" in outcome.output
+
+
 def test_formats_from_the_command_line(results: Path) -> None:
     outcome = runner.invoke(app, ["results", str(results), "--format", "csv", "--by", "pair"])
     assert outcome.exit_code == 0, outcome.output

@@ -163,7 +163,8 @@ def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) 
     they are; the cost measure of a summary."""
     if by == "run":
         shown = f"{len(table)} of the {runs} runs" if len(table) != runs else f"The {runs} runs"
-        return f"{shown} in {path}"
+        same = table.attrs.get("same")
+        return f"{shown} in {path}" + (f"; in each of them {same}" if same else "")
     lines = {"problem": "a line a problem", "pair": "a line a problem and pair"}[by]
     return (
         f"The {runs} runs in {path}, {lines}: the best scd reached without warnings and the "
@@ -189,9 +190,14 @@ def results_table(
     runs = filter_rows(runs, where)
     if by == "run":
         options = [c for c in runs.columns if c.startswith(("formalism.", "integrator."))]
-        chosen = list(columns) or [*ROW_COLUMNS, *options]
+        # an option with one value in every row shown is said once, in the caption: a
+        # column of it widened the table past a page and told nothing
+        same = {c: runs[c].iloc[0] for c in options if len(runs) and runs[c].nunique() == 1}
+        chosen = list(columns) or [*ROW_COLUMNS, *(c for c in options if c not in same)]
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen]
+        if not columns:
+            table.attrs["same"] = ", ".join(f"{c}={v}" for c, v in same.items() if v != "")
     else:
         table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"], cost.column)
         if columns:
