@@ -1,7 +1,7 @@
 """General trees and robots against ``pin.aba``, timed the way pyperf does: by pyperf.
 
 Run: ``python -m benchmarks.peers_pyperf [--sizes 7 20 50 200] [--robots ur5 panda solo12
-talos] [--processes 8]`` (any pyperf option after them, e.g. ``--values 3``).
+talos] [--processes 10]`` (any pyperf option after them, e.g. ``--values 3``).
 
 The models are those of :mod:`benchmarks.peers` (``random``: a free base, then revolute,
 prismatic and spherical joints, rotated frames, full inertias; robots of
@@ -12,7 +12,8 @@ size threshold, column ``graph``), compiles it (the default flags,
 ``compiled.default_flags``, through the compile cache) and
 checks its accelerations against ``pin.aba`` (to 1e-9); then pyperf times ours
 (``FastFunction.into`` on the compiled library) and ``pin.aba`` (same state) each in
-``--processes`` fresh worker processes, calibrating the loops of a value to 0.1 s, one
+``--processes`` fresh worker processes (10 by default: all 8 models in 11-13 minutes on
+2 cores), calibrating the loops of a value to 0.1 s, one
 warm-up and 3 values a process, in CPU time (``time.process_time``: this machine is
 shared). A process's figure is the mean of its values. Like with like: both are called
 from Python as an integrator calls them, ours through ``FastFunction.into(t, y)`` (what
@@ -329,7 +330,7 @@ def main() -> None:
         cmd.extend(["--copies", args.copies])
 
     runner = pyperf.Runner(
-        processes=8, program_args=("-m", "benchmarks.peers_pyperf"), add_cmdline_args=worker_args
+        processes=10, program_args=("-m", "benchmarks.peers_pyperf"), add_cmdline_args=worker_args
     )
     runner.argparser.add_argument("--sizes", nargs="*", default=[str(n) for n in SIZES])
     runner.argparser.add_argument("--robots", nargs="*", default=list(ROBOTS))
