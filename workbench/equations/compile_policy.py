@@ -1,8 +1,8 @@
 """When ``compile = "auto"`` compiles a function to C: when its evaluations repay the compile.
 
-Compiling costs CPU once (the C compiler: about 0.08 s plus 3 s a megabyte of generated C
-at ``-O1``) and saves a part of each call (compiled C ran 1.1-12.7x faster than the
-CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP`, a
+Compiling costs CPU once (the C compiler: about 0.04 s plus 3.2 s a megabyte of generated
+C at the default flags) and saves a part of each call (compiled C ran 1.1-12.7x faster
+than the CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP`, a
 low end, so that a compile is not bought on hope). Measured figures: docs/performance.md.
 
 The decision is a function of the run alone, so that a row does not depend on which runs
@@ -24,10 +24,20 @@ from __future__ import annotations
 import math
 from typing import Any
 
-COMPILE_CPU_FIXED_S = 0.08
-"""CPU of compiling the smallest generated function (gcc -O1, measured 0.086-0.11 s)."""
-COMPILE_CPU_S_PER_BYTE = 3.0e-6
-"""CPU a byte of generated C (measured 2.7-3.1 s a megabyte between 0.16 and 0.5 MB)."""
+COMPILE_CPU_FIXED_S = 0.04
+"""CPU of compiling the smallest generated function (0.054-0.077 s below 10 kB of C)."""
+COMPILE_CPU_S_PER_BYTE = 3.2e-6
+"""CPU a byte of generated C at the default flags (``compiled.default_flags``). Both
+constants: the line of least relative error over 42 functions of 6-830 kB of C (the quick
+suite's right-hand sides and residuals, random trees N = 7-200, UR5, Panda, Solo12,
+Talos), estimates 0.56-1.37x the measure, median 0.98 (``benchmarks.compile_cost``,
+2026-11-27, gcc 12, AMD EPYC, load 1.6-1.9; the plain least-squares line: 0.077 s + 3.23
+s a MB). Graphs with locals at ``-O2`` cost 4.9 s a MB of their C (1.19-1.49x the same C
+at ``-O1``), those at ``-O1`` 3.2, but the former's C is smaller (24 bytes an instruction
+against 29), so through :func:`code_bytes_estimate` (30) the estimate is 0.40-1.48x the
+measure, median 1.15 (but 4x for the N = 200 tree's joint-type kernels: an MX graph's
+instructions count a kernel at each call, its C holds it once). Before (gcc -O1 only,
+2026-11-26): 0.08 s + 3.0 s a MB."""
 COMPILED_SPEEDUP = 2.0
 """VM time / compiled time a call assumed before compiling (measured 1.1-12.7)."""
 GENERATE_VM_CALLS = 500.0
