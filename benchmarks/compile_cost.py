@@ -8,7 +8,8 @@ index 1, as a sweep builds them) and of the per-call benchmark's articulated bod
 Talos), then compiles each (never from the cache) at its default flags
 (``compiled.default_flags``: ``-O2`` up to 15,000 instructions, ``-O1`` beyond, with the
 host's ``-mavx -ffp-contract=off``) and at ``-O1`` with the host's flags, twice each,
-keeping the lesser CPU of the compiler's processes. Writes
+keeping the lesser CPU of the compiler's processes, beside ``compile = "auto"``'s estimates
+(:func:`~workbench.equations.compile_policy.code_bytes_estimate`). Writes
 ``benchmarks/results/compile_cost.csv`` and prints the least-squares line CPU = fixed +
 per byte x bytes of the default flags against the constants in use.
 """
@@ -84,7 +85,9 @@ def main() -> None:
         o1 = f"-O1 {compiled.host_flags()}".strip()
         row = {
             "function": label, "instructions": compile_policy.instruction_count(function),
-            "code_bytes": len(generated.code), "flags": generated.flags,
+            "code_bytes": len(generated.code),
+            "estimated_bytes": compile_policy.code_bytes_estimate(function),
+            "flags": generated.flags,
             "cpu_s": compile_cpu(generated.code, generated.flags, generated.compiler),
             "cpu_o1_s": compile_cpu(generated.code, o1, generated.compiler),
         }  # fmt: skip
@@ -103,6 +106,11 @@ def main() -> None:
         f"bytes an instruction: median {np.median(table.code_bytes / table.instructions):.1f}"
     )
     print(f"default / -O1 CPU: median {np.median(table.cpu_s / table.cpu_o1_s):.2f}")
+    estimated = table.estimated_bytes.map(compile_policy.compile_cpu_estimate) / table.cpu_s
+    print(
+        f"compile_cpu_estimate(code_bytes_estimate) / CPU: {estimated.min():.2f}-"
+        f"{estimated.max():.2f}, median {estimated.median():.2f}"
+    )
 
 
 if __name__ == "__main__":
