@@ -243,7 +243,8 @@ def issue36_targets() -> list[Row]:
                     f"forward dynamics, {what}, {line} (pyperf, CPU)",
                     row[f"{prefix}ratio_median"], bound, low=row[f"{prefix}ratio_min"],
                     high=row[f"{prefix}ratio_max"],
-                    interval=f"all pairs of {row['processes']} processes",
+                    interval=f"all pairs of {row['processes']} processes"
+                    + (", each its own copy of the libraries" if "copies" in row else ""),
                     note=f"held to the upper end; {row[f'{prefix}ours_us']:.2f} / "
                     f"{row[f'{prefix}pin_aba_us']:.2f} us; load {row['load1_before']:.1f}-"
                     f"{row['load1_after']:.1f}" + _code_note(row)

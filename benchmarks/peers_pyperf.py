@@ -1,7 +1,7 @@
 """General trees and robots against ``pin.aba``, timed the way pyperf does: by pyperf.
 
 Run: ``python -m benchmarks.peers_pyperf [--sizes 7 20 50 200] [--robots ur5 panda solo12
-talos] [--processes 8]`` (any pyperf option after them, e.g. ``--values 3``).
+talos] [--processes 10]`` (any pyperf option after them, e.g. ``--values 3``).
 
 The models are those of :mod:`benchmarks.peers` (``random``: a free base, then revolute,
 prismatic and spherical joints, rotated frames, full inertias; robots of
@@ -12,7 +12,8 @@ size threshold, column ``graph``), compiles it (the default flags,
 ``compiled.default_flags``, through the compile cache) and
 checks its accelerations against ``pin.aba`` (to 1e-9); then pyperf times ours
 (``FastFunction.into`` on the compiled library) and ``pin.aba`` (same state) each in
-``--processes`` fresh worker processes, calibrating the loops of a value to 0.1 s, one
+``--processes`` fresh worker processes (10 by default: all 8 models in 11-13 minutes on
+2 cores), calibrating the loops of a value to 0.1 s, one
 warm-up and 3 values a process, in CPU time (``time.process_time``: this machine is
 shared). A process's figure is the mean of its values. Like with like: both are called
 from Python as an integrator calls them, ours through ``FastFunction.into(t, y)`` (what
@@ -31,6 +32,21 @@ no Python conversion on either side, so the ratio is that of the two C codes plu
 same call overhead (columns ``buffer_*``). Both lines are checked against ours to 1e-9
 before any timing.
 
+Each worker process loads its own copy of the libraries it times, written into a folder
+of its own (under ``/dev/shm`` where there is one) and kept until that benchmark's last
+process is done: a compiled library runs 1.1-1.6x slower on some physical pages than on
+others, and every process shares a cached file's page-cache pages, so processes loading
+the same file are one draw of page placement, not several (docs/performance.md,
+2026-11-27). A copy deleted when its process ends does not help: the next process's copy
+lands on the pages just freed (7 of the N = 7 library's 8 code pages the same in 4
+processes in a row). Copied: ours, the compiled library and the ``fastcall`` extension
+that calls it; ``pin.aba``, every compiled file on its call path that is Pinocchio's
+(the boost-python module ``pinocchio_pywrap_default``, ``libpinocchio_default`` with
+``aba``, ``libeigenpy``, ``libboost_python``, about 80 MB: the module imported from a
+mirror of the cmeel prefix, links to the other files); the C line, ours and
+``aba_call``'s library. Not copied, on both sides alike: the interpreter, NumPy, CasADi,
+libc and libstdc++ (column ``copies``).
+
 Ratios ours / pin over every pair of processes (ours' i, pin's j): the median and the
 upper end (max, the slowest process of ours against the fastest of pin's), the figure the
 targets are held to (issue 36: a single process's median hides the spread between
@@ -41,8 +57,10 @@ pyperf stats`` reads it) and ``benchmarks/results/peers_pyperf.csv``.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -65,6 +83,9 @@ ABA_CALL = Path(__file__).with_name("aba_call.cpp")
 ABA_CALL_FLAGS = [flag.replace("-O2", "-O3") for flag in anchor.FLAGS]
 PYTHON = ("ours", "pin.aba")  # each called from Python as an integrator calls it
 BUFFER = ("ours buffer", "pinocchio::aba buffer")  # each through CasADi's buffer call
+COPIES = Path("/dev/shm") if Path("/dev/shm").is_dir() else Path(tempfile.gettempdir())
+COPIED = ("a copy a process: ours' library and fastcall; pin.aba's pinocchio_pywrap, "
+          "libpinocchio_default, libeigenpy, libboost_python; aba_call")  # fmt: skip
 
 
 def model_of(kind: str, name: str):
@@ -140,11 +161,15 @@ def python_call(loaded) -> str:
 _TIMED: dict[str, object] = {}
 
 
-def timed_call(prepared: dict, who: str):
+def timed_call(prepared: dict, who: str, copies: Path):
     """The call to time in a worker: ours (the compiled library through FastFunction) or
-    pin.aba, at one random state (made once a process, outside the timing)."""
+    pin.aba, at one random state (made once a process, outside the timing), from copies
+    of their libraries in a new folder under ``copies``."""
     key = f"{prepared['kind']} {prepared['name']} {who}"
     if key not in _TIMED:
+        folder = Path(tempfile.mkdtemp(dir=copies))
+        if who == PYTHON[1]:
+            private_pinocchio(folder)  # before anything imports pinocchio
         import casadi as ca
         import pinocchio as pin
 
@@ -155,8 +180,10 @@ def timed_call(prepared: dict, who: str):
         _, pin_model, state = model_of(prepared["kind"], prepared["name"])
         ((q, v),) = random_states(state.kinematics, 1, seed=3)
         q_pin, v_pin = state.state(q, v)
-        if who == "ours":
-            fast = FastFunction(compiled.load_library(prepared["library"], prepared["symbol"]))
+        if who == PYTHON[0]:
+            private_fastcall(folder)
+            library = copy_into(folder, prepared["library"])
+            fast = FastFunction(compiled.load_library(library, prepared["symbol"]))
             y = np.concatenate([q, v])
             _TIMED[key] = lambda: fast.into(0.0, y)
         elif who == "pin.aba":
@@ -164,23 +191,82 @@ def timed_call(prepared: dict, who: str):
             _TIMED[key] = lambda: pin.aba(pin_model, data, q_pin, v_pin, zero)
         else:  # the buffer-call line: the arguments in place, CasADi's call into C
             if who == BUFFER[0]:
-                function, y = ca.external(prepared["symbol"], prepared["library"]), [q, v]
+                library = copy_into(folder, prepared["library"])
+                function, y = ca.external(prepared["symbol"], str(library)), [q, v]
             else:
-                function, y = pinocchio_call(Path(prepared["model_text"])), [q_pin, v_pin]
+                aba_call = copy_into(folder, anchor.build(ABA_CALL, ABA_CALL_FLAGS))
+                function = pinocchio_call(Path(prepared["model_text"]), aba_call)
+                y = [q_pin, v_pin]
             _TIMED[key], arrays = buffered(function)
             arrays[1][:] = np.concatenate(y)
             _TIMED[key + " arrays"] = arrays  # kept alive: evaluate points to them
     return _TIMED[key]
 
 
-def pinocchio_call(model_text: Path):
+def copy_into(folder: Path, path: Path | str) -> Path:
+    """A copy of the file ``path`` in ``folder``: new page-cache pages."""
+    target = folder / Path(path).name
+    shutil.copyfile(path, target)
+    return target
+
+
+def private_fastcall(folder: Path) -> None:
+    """Make ``FastFunction`` call through a copy of the ``fastcall`` extension."""
+    import importlib.util
+
+    from workbench.equations import fastcall
+
+    module = fastcall.extension()
+    if module is not None:
+        path = copy_into(folder, module.__file__)
+        spec = importlib.util.spec_from_file_location(fastcall.MODULE, path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        fastcall.extension = lambda: module
+
+
+def private_pinocchio(folder: Path) -> None:
+    """Make ``import pinocchio`` load copies of Pinocchio's compiled files on ``pin.aba``'s
+    call path: its boost-python module (in a copy of the ``pinocchio`` and ``eigenpy``
+    packages) and ``libpinocchio_default``, ``libeigenpy``, ``libboost_python`` (copies in a
+    mirror of the cmeel prefix's ``lib``, where the module's RUNPATH finds them, the other
+    libraries linked). Checked in ``/proc/self/maps``."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("pinocchio")
+    assert spec is not None and spec.origin is not None and "pinocchio" not in sys.modules
+    site = Path(spec.origin).parent.parent  # <prefix>/lib/python3.X/site-packages
+    lib = site.parents[1]
+    mirror = folder / "lib"
+    (mirror / site.relative_to(lib)).mkdir(parents=True)
+    copied = []
+    for entry in lib.iterdir():
+        if entry.name.startswith(("libpinocchio_default.", "libeigenpy.", "libboost_python")):
+            copied.append(copy_into(mirror, entry))
+        elif not entry.is_dir():
+            (mirror / entry.name).symlink_to(entry)
+    for package in ("pinocchio", "eigenpy"):
+        shutil.copytree(site / package, mirror / site.relative_to(lib) / package)
+    sys.path.insert(0, str(mirror / site.relative_to(lib)))
+    import pinocchio
+
+    mapped = {line.split(maxsplit=5)[-1].strip() for line in open("/proc/self/maps")}
+    module = Path(pinocchio.pinocchio_pywrap_default.__file__)
+    originals = [site / "pinocchio" / module.name, *(lib / path.name for path in copied)]
+    if str(module) not in mapped or any(os.path.realpath(p) in mapped for p in originals):
+        raise RuntimeError(f"pin.aba does not run from the copies in {mirror}")
+
+
+def pinocchio_call(model_text: Path, library: Path | None = None):
     """``pinocchio::aba`` of the model saved in ``model_text`` as a CasADi external
-    function (benchmarks/aba_call.cpp: (t, [q; v]) -> [v; a], Pinocchio's coordinates)."""
+    function (benchmarks/aba_call.cpp: (t, [q; v]) -> [v; a], Pinocchio's coordinates),
+    from ``library`` (a copy of the built one) or the built one."""
     import ctypes
 
     import casadi as ca
 
-    library = anchor.build(ABA_CALL, ABA_CALL_FLAGS)
+    library = library or anchor.build(ABA_CALL, ABA_CALL_FLAGS)
     loader = ctypes.CDLL(str(library))  # the handle casadi.external opens too
     loader.aba_call_load.argtypes = [ctypes.c_char_p]
     if loader.aba_call_load(str(model_text).encode()) < 0:
@@ -201,9 +287,9 @@ def buffered(function):
     return evaluate, [*arrays, buffer]
 
 
-def time_loops(loops: int, prepared: dict, who: str) -> float:
+def time_loops(loops: int, prepared: dict, who: str, copies: str) -> float:
     """CPU seconds of ``loops`` calls (pyperf's time function; the set-up is not timed)."""
-    call = timed_call(prepared, who)
+    call = timed_call(prepared, who, Path(copies))
     start = time.process_time()
     for _ in range(loops):
         call()
@@ -233,7 +319,7 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
                 f"{prefix}ratio_max": float(ratios.max()),
             })  # fmt: skip
         row.update({"processes": f"{len(ours)}+{len(pin)}", "load1_before": load[0],
-                    "load1_after": load[1]})  # fmt: skip
+                    "load1_after": load[1], "copies": COPIED})  # fmt: skip
         rows.append(row)
     return rows
 
@@ -241,12 +327,14 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
 def main() -> None:
     def worker_args(cmd: list[str], args) -> None:
         cmd.extend(["--sizes", *map(str, args.sizes), "--robots", *args.robots])
+        cmd.extend(["--copies", args.copies])
 
     runner = pyperf.Runner(
-        processes=8, program_args=("-m", "benchmarks.peers_pyperf"), add_cmdline_args=worker_args
+        processes=10, program_args=("-m", "benchmarks.peers_pyperf"), add_cmdline_args=worker_args
     )
     runner.argparser.add_argument("--sizes", nargs="*", default=[str(n) for n in SIZES])
     runner.argparser.add_argument("--robots", nargs="*", default=list(ROBOTS))
+    runner.argparser.add_argument("--copies", default="", help=argparse.SUPPRESS)
     args = runner.parse_args()
     models = [("random", n) for n in args.sizes] + [("robots", r) for r in args.robots]
     if not args.worker:
@@ -260,11 +348,21 @@ def main() -> None:
             print(f"prepared {kind} {name}", file=sys.stderr, flush=True)
         PREPARED.write_text(json.dumps(prepared))
     prepared = json.loads(PREPARED.read_text())
+    if not args.worker:  # the workers' copies, a benchmark's kept until its last process ends
+        args.copies = tempfile.mkdtemp(prefix=PREPARED.stem + "-", dir=COPIES)
     suite = []
-    for item in prepared:
-        label = f"{item['kind']} {item['name']}"
-        for who in (*PYTHON, *BUFFER):
-            suite.append(runner.bench_time_func(f"{label} {who}", time_loops, item, who))
+    try:
+        for item in prepared:
+            label = f"{item['kind']} {item['name']}"
+            for who in (*PYTHON, *BUFFER):
+                name = f"{label} {who}"
+                suite.append(runner.bench_time_func(name, time_loops, item, who, args.copies))
+                if not args.worker:
+                    for folder in Path(args.copies).iterdir():
+                        shutil.rmtree(folder)
+    finally:
+        if not args.worker:
+            shutil.rmtree(args.copies, ignore_errors=True)
     if args.worker:
         return
     RESULTS.mkdir(exist_ok=True)

@@ -91,3 +91,49 @@ def test_pinocchio_aba_call_agrees_with_pin_aba_on_a_general_tree(tmp_path) -> N
             1.0, np.abs(expected).max()
         )
         assert np.array_equal(out[: pin_model.nv], v)
+
+
+CHILD = """
+import sys
+from pathlib import Path
+from benchmarks import peers_pyperf
+prepared, copies = {"kind": "random", "name": "3", "library": sys.argv[1],
+                    "symbol": sys.argv[2]}, Path(sys.argv[3])
+for who in reversed(peers_pyperf.PYTHON):  # pin.aba first: before anything imports pinocchio
+    peers_pyperf.timed_call(prepared, who, copies)()
+print("\\n".join(line.split(maxsplit=5)[-1].strip() for line in open("/proc/self/maps")))
+"""
+
+
+def test_each_timing_process_runs_its_own_copies_of_the_libraries(tmp_path) -> None:
+    """A library runs slower on some physical pages, and processes that load the same
+    file share its pages: one draw for all of pyperf's processes. Each worker loads copies
+    of ours (the library, the fastcall extension) and of pin.aba's compiled files."""
+    pytest.importorskip("pinocchio", reason="Pinocchio (pin) is in the test extra")
+    pytest.importorskip("pyperf", reason="pyperf times the benchmark; not in the test extra")
+    import subprocess
+    import sys
+
+    from benchmarks.peer_models import random_tree
+    from workbench.equations import compiled, fastcall
+    from workbench.plugins.formalisms.recursive import ode_function
+
+    try:
+        with compiled.counted():
+            generated = compiled.generate(ode_function(random_tree(3, seed=3), kernels=None))
+            compiled.load_generated(generated)
+    except RuntimeError as error:  # no C compiler
+        pytest.skip(str(error))
+    copies = tmp_path / "copies"
+    copies.mkdir()
+    arguments = [str(generated.path), generated.function.name(), str(copies)]
+    done = subprocess.run([sys.executable, "-c", CHILD, *arguments],
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    mapped = set(done.stdout.splitlines())
+    assert str(generated.path) not in mapped
+    for name in (generated.path.name, "libpinocchio_default.so", "libeigenpy.so"):
+        assert any(p.startswith(str(copies)) and p.endswith(name) for p in mapped), name
+    assert any(p.startswith(str(copies)) and "pinocchio_pywrap" in p for p in mapped)
+    if fastcall.enabled() and fastcall.extension() is not None:
+        assert any(p.startswith(str(copies)) and fastcall.MODULE in p for p in mapped)

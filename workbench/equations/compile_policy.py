@@ -1,8 +1,8 @@
 """When ``compile = "auto"`` compiles a function to C: when its evaluations repay the compile.
 
-Compiling costs CPU once (the C compiler: about 0.08 s plus 3 s a megabyte of generated C
-at ``-O1``) and saves a part of each call (compiled C ran 1.1-12.7x faster than the
-CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP`, a
+Compiling costs CPU once (the C compiler: about 0.04 s plus 3.2 s a megabyte of generated
+C at the default flags) and saves a part of each call (compiled C ran 1.1-12.7x faster
+than the CasADi VM on the quick suite's right-hand sides: assumed :data:`COMPILED_SPEEDUP`, a
 low end, so that a compile is not bought on hope). Measured figures: docs/performance.md.
 
 The decision is a function of the run alone, so that a row does not depend on which runs
@@ -24,10 +24,18 @@ from __future__ import annotations
 import math
 from typing import Any
 
-COMPILE_CPU_FIXED_S = 0.08
-"""CPU of compiling the smallest generated function (gcc -O1, measured 0.086-0.11 s)."""
-COMPILE_CPU_S_PER_BYTE = 3.0e-6
-"""CPU a byte of generated C (measured 2.7-3.1 s a megabyte between 0.16 and 0.5 MB)."""
+COMPILE_CPU_FIXED_S = 0.04
+"""CPU of compiling the smallest generated function (0.054-0.077 s below 10 kB of C)."""
+COMPILE_CPU_S_PER_BYTE = 3.2e-6
+"""CPU a byte of generated C at the default flags (``compiled.default_flags``). Both
+constants: the line of least relative error over 42 functions of 6-830 kB of C (the quick
+suite's right-hand sides and residuals, random trees N = 7-200, UR5, Panda, Solo12,
+Talos): 0.038 s + 3.20 s a MB and 0.036 + 3.42 in two runs (``benchmarks.compile_cost``,
+2026-11-27, gcc 12, AMD EPYC, load 1.6-1.9 and 1.0-1.1), 0.53-1.37x the measure, median
+0.98. Graphs with locals at ``-O2`` cost 4.9 s a MB of their C (1.19-1.49x the same C at
+``-O1``), those at ``-O1`` 3.2. From the graph alone (:func:`code_bytes_estimate`) the
+estimate is 0.46-1.44x the measure, median 1.06. Before (gcc -O1 only, 2026-11-26):
+0.08 s + 3.0 s a MB."""
 COMPILED_SPEEDUP = 2.0
 """VM time / compiled time a call assumed before compiling (measured 1.1-12.7)."""
 GENERATE_VM_CALLS = 500.0
@@ -69,12 +77,34 @@ def vm_seconds_estimate(function: Any) -> float:
 CODE_BYTES_PER_INSTRUCTION = 30.0
 """Bytes of generated C an SX instruction (28 at 3,872 instructions, 30 at 121,617;
 2026-11-26, docs/performance.md)."""
+CODE_BYTES_PER_MX_NODE = 200.0
+"""Bytes of generated C an MX node or call beside the SX Functions' instructions (random
+trees with joint-type kernels, N = 7-200: 118-219; 2026-11-27, docs/performance.md)."""
 
 
 def code_bytes_estimate(function: Any) -> float:
     """Estimated bytes of ``function``'s generated C, from its size: the decision to
-    compile needs no code generated (generating costs about 500 VM calls)."""
-    return CODE_BYTES_PER_INSTRUCTION * instruction_count(function)
+    compile needs no code generated (generating costs about 500 VM calls). Each Function
+    it calls counts once, as its C is written once (the recursive formalism's joint-type
+    kernels, called at every link: random tree N = 200, 752 kB of C, estimated 707 kB,
+    and 5.5 MB when a kernel counted at each call)."""
+    seen: set[str] = set()
+
+    def size(function: Any) -> float:
+        if function.is_a("SXFunction"):
+            return CODE_BYTES_PER_INSTRUCTION * function.n_instructions()
+        if not function.is_a("MXFunction"):
+            return CODE_BYTES_PER_MX_NODE
+        total = 0.0
+        for k in range(function.n_instructions()):
+            total += CODE_BYTES_PER_MX_NODE
+            node = function.instruction_MX(k)
+            if node.is_call() and node.which_function().name() not in seen:
+                seen.add(node.which_function().name())
+                total += size(node.which_function())
+        return total
+
+    return size(function)
 
 
 def compile_cpu_estimate(code_bytes: float) -> float:
