@@ -236,7 +236,10 @@ KERNELS_ABOVE_INSTRUCTIONS = 80_000
 unrolled ode right-hand side: per call in C, unrolled / kernels 1.20 / 1.85 us at 3,872
 instructions (random tree N = 7), 5.9 / 10.8 at 29,829 (N = 50), 14.0 / 20.9 at 62,384
 (N = 100), 33.2 / 33.9 at 91,475 (N = 150), 50.2 / 42.4 at 121,617 (N = 200), where
-the unrolled library (1.2-1.6 MB) no longer stays in cache (docs/performance.md)."""
+the unrolled library (1.2-1.6 MB) no longer stays in cache (docs/performance.md). With
+the kernels' values in local variables (``compiled.uses_locals``) they cost the unrolled
+code's time from N = 50 on (5.74 / 5.81 us, N = 100 11.9 / 12.0, N = 200 24.0) and 1.5x
+below (N = 7, 20): the threshold was left where it was."""
 
 
 def use_kernels(model: Model, instructions: int) -> bool:

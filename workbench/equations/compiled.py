@@ -121,9 +121,11 @@ def generate_c(
     through :func:`exported` first: the exported symbol is the function's own name.
 
     An SX graph of at most ``locals_max_instructions`` keeps its intermediate values in
-    local variables, which the compiler can hold in registers; a larger one, or an MX
-    graph, in the work array (CasADi's ``avoid_stack``), its long straight-line bodies cut
-    into parts (:func:`split_long_bodies`), which bounds the compile time. Locals ran
+    local variables, which the compiler can hold in registers, and so do the SX functions
+    an MX graph calls (the joint-type kernels) when each is that small (:func:`uses_locals`;
+    the MX graph's own values are in the work array either way); otherwise the work array
+    (CasADi's ``avoid_stack``), its long straight-line bodies cut into parts
+    (:func:`split_long_bodies`), which bounds the compile time. Locals ran
     4-22 % faster (Solo12 1.17 -> 0.92 µs, Talos 2.67 -> 2.51, random tree N = 20 2.22 ->
     2.14, N = 50 5.61 -> 5.38; N = 7 the same) but compile 30-60 % longer above about
     10,000 instructions (N = 50: 3.7 against 2.3 s CPU; docs/performance-targets.md)."""
@@ -138,9 +140,15 @@ def generate_c(
 def uses_locals(
     function: ca.Function, locals_max_instructions: int = LOCALS_MAX_INSTRUCTIONS
 ) -> bool:
-    """Whether :func:`generate_c` keeps ``function``'s values in local variables (an SX
-    graph of at most ``locals_max_instructions``), not in the work array."""
-    return function.is_a("SXFunction") and function.n_instructions() <= locals_max_instructions
+    """Whether :func:`generate_c` keeps the values of ``function``'s SX code in local
+    variables, not in the work array: an SX graph of at most ``locals_max_instructions``,
+    or a graph whose SX functions (an MX graph's joint-type kernels) are each that small.
+    Kernels with locals: random tree N = 200 36.0 -> 24.0 µs a call, the same numbers
+    (one process, interleaved, load 1.5; docs/performance-targets.md)."""
+    if function.is_a("SXFunction"):
+        return function.n_instructions() <= locals_max_instructions
+    called = [f for f in function.find_functions() if f.is_a("SXFunction")]
+    return all(f.n_instructions() <= locals_max_instructions for f in called)
 
 
 def default_flags(function: ca.Function) -> str:
@@ -150,7 +158,7 @@ def default_flags(function: ca.Function) -> str:
     body ran no faster at ``-O2`` and compiled 1.5x longer; their kernels get ``-O2`` by
     :func:`optimize_callees`), and this CPU's :func:`host_flags` (Talos 1.87 µs with both;
     docs/performance-targets.md)."""
-    level = "-O2" if uses_locals(function) else "-O1"
+    level = "-O2" if function.is_a("SXFunction") and uses_locals(function) else "-O1"
     return f"{level} {host_flags()}".strip()
 
 
