@@ -10,7 +10,7 @@ of 100 and 1000 recordings, a resume of a 100-run sweep; about 4 minutes at load
 ``python -m benchmarks.footprint --dask N [N ...]`` for 4's Dask rows alone (10,000
 runs: about 7 min at load 4), or ``python -m benchmarks.footprint --loop [N]`` for 7.
 (``CHECKOUT``: a worktree of older code, e.g. ``git worktree add --detach /tmp/old REV``;
-the sweeps' OUT folders are made in Python's temporary folder: ``TMPDIR=/work/...`` puts
+the sweeps' OUT folders are made in Python's temporary folder: ``TMPDIR=/some/folder`` puts
 them elsewhere. On this ext4 a file made in a new folder under /tmp cost 0.79 ms against
 0.02 elsewhere, and every file deleted in a block group slows the files made there for
 minutes after: say where OUT was, and compare runs made in the same place.)
