@@ -20,6 +20,7 @@ from workbench.outputs.recording import (
     SERIES_QUANTITIES,
     SHAPE_COLORS,
     RerunSink,
+    _column,
     entity_path,
     merge_recordings,
     quaternion_xyzw,
@@ -206,6 +207,36 @@ def test_log_run_is_read_back(tmp_path: Path) -> None:
     np.testing.assert_allclose(frame_turns[:, 0], arm_turn, atol=1e-6)
     np.testing.assert_allclose(frames[:, 1, 0], trajectory.times, rtol=1e-6)
     assert "TransformAxes3D:axis_length" in static_columns(chunks[f"{base}/joints"])
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 5), st.integers(1, 4), st.integers(0, 2**32 - 1))
+def test_a_column_built_in_arrow_is_the_one_rerun_builds(n: int, k: int, seed: int) -> None:
+    """A run's pose and series columns are built in Arrow directly (cheaper): the same
+    descriptor and array as Rerun's own ``columns().partition()``, a row a sample time."""
+    rng = np.random.default_rng(seed)
+    translations = rng.normal(size=(n, k, 3)).astype(np.float32)
+    quaternions = rng.normal(size=(n, k, 4)).astype(np.float32)
+    scalars = rng.normal(size=(n, k))
+    scalars[0, 0] = np.nan  # a quantity a run has not
+    rerun_columns = [
+        *rr.InstancePoses3D.columns(
+            translations=translations.reshape(-1, 3), quaternions=quaternions.reshape(-1, 4)
+        ).partition(np.full(n, k)),
+        *rr.Scalars.columns(scalars=scalars),
+    ]
+    ours = [
+        _column("translations", translations),
+        _column("quaternions", quaternions),
+        _column("scalars", scalars),
+    ]
+    for mine, theirs in zip(ours, rerun_columns, strict=True):
+        assert mine.component_descriptor() == theirs.component_descriptor()
+        a, b = mine.as_arrow_array(), theirs.as_arrow_array()
+        assert a.type == b.type and a.offsets.equals(b.offsets) and a.null_count == 0
+        np.testing.assert_array_equal(  # NaN equal to NaN, unlike Arrow's equals
+            np.array(a.to_pylist(), dtype=float), np.array(b.to_pylist(), dtype=float)
+        )
 
 
 @settings(max_examples=50, deadline=None)
