@@ -344,10 +344,11 @@ def test_a_runs_series_with_its_states_is_the_frame_joined_from_metrics_and_stat
 ):
     """The series made in one frame (the metrics' columns, a contact model's penetration,
     then the trajectory's ``state:`` columns) equals, column for column, value and dtype,
-    the metrics' series joined to :func:`state_columns` as before (pd.concat)."""
+    the metrics' series joined to a frame of the states as before (pd.concat)."""
     import pandas as pd
 
-    from workbench.execution.execute import state_columns
+    from workbench.execution.execute import state_names
+    from workbench.execution.row_schema import STATE_PREFIX
 
     spec = RunSpec(problem, formalism, integrator, 1e-5, 1e-7, formalism_options=options)
     sink = _Keep()
@@ -359,10 +360,9 @@ def test_a_runs_series_with_its_states_is_the_frame_joined_from_metrics_and_stat
         spec.run_id, get_problem(problem)(), sink.equations, times, y, True, reference,
         spec.rtol, contact=getattr(sink.trajectory, "contact", None),
     )  # fmt: skip
-    joined = pd.concat(
-        [metrics_series, state_columns(sink.equations, result.row["form"], y[: len(times)])],
-        axis=1,
-    )
+    names = state_names(sink.equations, result.row["form"], y.shape[1])
+    states = pd.DataFrame(y[: len(times)], columns=[STATE_PREFIX + n for n in names], dtype=float)
+    joined = pd.concat([metrics_series, states], axis=1)
     assert any(c.startswith("state:") for c in result.series.columns)
     assert ("penetration" in result.series) == (problem == "bouncing-ball")
     pd.testing.assert_frame_equal(result.series, joined, check_exact=True)

@@ -29,7 +29,7 @@ a column (MuJoCo-style pipeline stages):
 4. **metrics** — :mod:`workbench.execution.metrics` (``metrics_s``; obtaining the reference is
    timed apart as ``reference_s``);
    The series also carries the trajectory: the states at the same samples, one column
-   ``state:<name>`` each (:func:`state_columns`; the store can leave them out);
+   ``state:<name>`` each (:func:`state_arrays`; the store can leave them out);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
    series)`` (e.g. a Rerun recording). Logging is passed in, never written into
    formalisms or integrators.
@@ -628,14 +628,9 @@ def state_names(equations: Any, form: str, width: int) -> list[str]:
     return names
 
 
-def state_columns(equations: Any, form: str, y: np.ndarray) -> pd.DataFrame:
-    """The trajectory's states ``y`` (n, width) as series columns ``state:<name>``."""
-    names = state_names(equations, form, y.shape[1] if y.size else 0)
-    return pd.DataFrame(y, columns=[STATE_PREFIX + n for n in names], dtype=float)
-
-
 def state_arrays(equations: Any, form: str, y: np.ndarray) -> dict[str, np.ndarray]:
-    """:func:`state_columns` as arrays (column name -> values), for the series' frame."""
+    """The trajectory's states ``y`` (n, width) as series columns ``state:<name>``
+    (column name -> values), for the series' one frame."""
     y = np.asarray(y, dtype=float)
     names = state_names(equations, form, y.shape[1] if y.size else 0)
     return {STATE_PREFIX + name: y[:, k] for k, name in enumerate(names)}
