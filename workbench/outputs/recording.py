@@ -1235,9 +1235,9 @@ def shape_defaults(colors: dict[str, list[int]] | None = None) -> list[Any]:
     """The 3D views' defaults of the primitive shapes: solid (Rerun draws them as
     wireframes otherwise) and a colour, ``colors`` (archetype -> the model's colour of
     that kind, :data:`SHAPE_COLORS`) or a shape's default colour; their labels (each
-    shape's body) hidden, shown when a shape is hovered or selected, not over every run's
-    bodies. View defaults rather than components of every run's shapes (each costs the
-    reader about 5 KiB a run)."""
+    shape's body) asked hidden, for hover and selection (Rerun 0.41's web viewer showed
+    them over a two-body run's bodies all the same, 2026-11-27). View defaults rather
+    than components of every run's shapes (each costs the reader about 5 KiB a run)."""
     import rerun as rr
 
     solid, colors = rr.components.FillMode.Solid, colors or {}
