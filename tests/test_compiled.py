@@ -246,6 +246,30 @@ def test_no_avx_flags_on_a_cpu_without_avx_or_off_x86(monkeypatch):
     compiled.host_flags.cache_clear()
 
 
+def test_the_cache_key_tells_cpu_generations_with_one_name_apart(tmp_path, monkeypatch):
+    """A virtual machine names Zen 3 and Zen 5 both "AMD EPYC": a cache in a home folder
+    shared by a cluster's nodes must not hand a ``-march=native`` library built on one to
+    the other, so the key holds the family, model and instruction-set flags."""
+    block = (
+        "processor\t: 0\ncpu family\t: {}\nmodel\t\t: {}\nmodel name\t: AMD EPYC\nflags\t\t: {}\n"
+    )
+    machines = {
+        "zen3": block.format(25, 1, "fpu sse2 avx avx2 fma"),
+        "zen5": block.format(26, 2, "fpu sse2 avx avx2 fma avx512f"),
+        "zen5 without avx-512": block.format(26, 2, "fpu sse2 avx avx2 fma"),
+        "zen5 again": block.format(26, 2, "avx512f fma avx2 avx sse2 fpu")
+        + "\n"
+        + block.format(0, 0, ""),
+    }
+    paths, read_cpu = {}, compiled.cpu
+    for name, text in machines.items():
+        (tmp_path / name).write_text(text)
+        monkeypatch.setattr(compiled, "cpu", lambda f=str(tmp_path / name): read_cpu(f))
+        paths[name] = compiled.library_path("int f(void);", "-O2 -march=native", "cc", "f")
+    assert len({paths["zen3"], paths["zen5"], paths["zen5 without avx-512"]}) == 3
+    assert paths["zen5"] == paths["zen5 again"]  # flags in any order, the first CPU's block
+
+
 def catalog_pairs():
     """(problem, formalism) for every catalog problem (default options) and every formalism
     that takes its model; robots whose files are not installed are left out."""

@@ -41,6 +41,12 @@ def test_cpu_model_from_cpuinfo_else_the_platform(tmp_path) -> None:
     cpuinfo = tmp_path / "cpuinfo"
     cpuinfo.write_text("processor\t: 0\nvendor_id\t: X\nmodel name\t: Example CPU @ 3 GHz\n")
     assert env.cpu_model(str(cpuinfo)) == "Example CPU @ 3 GHz"
+    # a virtual machine's name covers several generations: family and model tell them apart
+    epyc = "processor\t: 0\ncpu family\t: {}\nmodel\t\t: {}\nmodel name\t: AMD EPYC\n\n"
+    cpuinfo.write_text(epyc.format(25, 1) + epyc.format(99, 9))
+    assert env.cpu_model(str(cpuinfo)) == "AMD EPYC (family 25, model 1)"
+    cpuinfo.write_text(epyc.format(26, 2))
+    assert env.cpu_model(str(cpuinfo)) == "AMD EPYC (family 26, model 2)"
     cpuinfo.write_text("processor\t: 0\nCPU part\t: 0xd0c\n")  # ARM: no model name
     expected = platform.processor() or platform.machine()
     assert env.cpu_model(str(cpuinfo)) == expected

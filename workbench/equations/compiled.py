@@ -276,16 +276,26 @@ def optimize_callees(code: str, level: str = CALLEE_FLAG,
 
 
 @functools.cache
-def cpu() -> str:
-    """The machine's architecture and CPU model (flags such as ``-march=native`` make a
-    library valid on this CPU only)."""
-    model = ""
+def cpu(cpuinfo: str = "/proc/cpuinfo") -> str:
+    """The machine's architecture and CPU: model name, family, model and stepping, and a
+    digest of the instruction-set flags the kernel reports. A virtual machine's name alone
+    ("AMD EPYC") is the same on CPUs of several generations, and a cache shared between
+    them (a home folder on a cluster) must not hand a library built with ``-march=native``
+    on one to the other."""
+    fields: dict[str, str] = {}
     with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    return f"{platform.machine()} {model or platform.processor()}"
+        for line in Path(cpuinfo).read_text().splitlines():
+            key, _, value = line.partition(":")
+            if not key.strip() and fields:
+                break  # the first processor's block is enough
+            fields.setdefault(key.strip(), value.strip())
+    model = fields.get("model name") or platform.processor()
+    ids = " ".join(f"{k} {fields[k]}" for k in ("cpu family", "model", "stepping") if k in fields)
+    isa = " ".join(sorted(fields.get("flags", "").split()))
+    digest = hashlib.sha256(isa.encode()).hexdigest()[:12] if isa else ""
+    return " ".join(
+        part for part in (platform.machine(), model, ids, digest and f"isa {digest}") if part
+    )
 
 
 def library_path(code: str, flags: str, compiler: str, name: str) -> Path:

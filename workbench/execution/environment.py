@@ -119,16 +119,24 @@ def installed_distributions() -> dict[str, str]:
 
 def cpu_model(cpuinfo: str = "/proc/cpuinfo") -> str:
     """The CPU's model name: ``model name`` of ``/proc/cpuinfo`` where the file has one
-    (Linux on x86), else :func:`platform.processor` (else the machine type)."""
+    (Linux on x86), with its family and model numbers where given (a virtual machine's
+    "AMD EPYC" names several generations with different caches), else
+    :func:`platform.processor` (else the machine type)."""
+    fields: dict[str, str] = {}
     try:
         with open(cpuinfo, encoding="utf-8", errors="replace") as lines:
             for line in lines:
                 key, _, value = line.partition(":")
-                if key.strip() == "model name" and value.strip():
-                    return value.strip()
+                if not key.strip() and fields:
+                    break  # the first processor's block
+                fields.setdefault(key.strip(), value.strip())
     except OSError:
         pass
-    return platform.processor() or platform.machine()
+    if not fields.get("model name"):
+        return platform.processor() or platform.machine()
+    if "cpu family" in fields and "model" in fields:
+        return f"{fields['model name']} (family {fields['cpu family']}, model {fields['model']})"
+    return fields["model name"]
 
 
 def thread_settings() -> dict[str, Any]:
