@@ -230,32 +230,47 @@ def readback_rows() -> list[Row]:
 def issue36_targets() -> list[Row]:
     """The targets of issue 36, each measured or "not measured" (the reason in its note)."""
     rows: list[Row] = []
-    timed = RESULTS / "peers_pyperf.csv"  # python -m benchmarks.peers_pyperf
-    if timed.exists():
+    # python -m benchmarks.peers_pyperf: one file a machine, the largest L2 (the first
+    # machine measured) first
+    machines = sorted(RESULTS.glob("peers_pyperf*.csv"),
+                      key=lambda path: -pd.read_csv(path)["l2_kib"].iloc[0])  # fmt: skip
+    missed_elsewhere, worst = [], 0.0
+    for index, timed in enumerate(machines):
         for row in pd.read_csv(timed).to_dict("records"):
             what = f"random tree N = {row['name']}" if row["kind"] == "random" else row["name"]
             bound = 0.3 if row["kind"] == "robots" else 0.8 if int(row["name"]) >= 200 else 0.5
+            machine = f"{row['cpu']}, L2 {row['l2_kib']} KiB a core"
             lines = [("", "jit / pin.aba, both called from Python")]
             if "buffer_ratio_max" in row:  # the like-for-like line in C (benchmarks/aba_call.cpp)
                 lines.append(("buffer_", "jit / pinocchio::aba, both through CasADi's buffer call"))
             for prefix, line in lines:
                 rows.append(Row(
-                    f"forward dynamics, {what}, {line} (pyperf, CPU)",
+                    f"forward dynamics, {what}, {line} (pyperf, CPU; L2 {row['l2_kib']} KiB)",
                     row[f"{prefix}ratio_median"], bound, low=row[f"{prefix}ratio_min"],
                     high=row[f"{prefix}ratio_max"],
                     interval=f"all pairs of {row['processes']} processes"
                     + (", each its own copy of the libraries" if "copies" in row else ""),
-                    note=f"held to the upper end; {row[f'{prefix}ours_us']:.2f} / "
+                    note=f"{machine}; held to the upper end; {row[f'{prefix}ours_us']:.2f} / "
                     f"{row[f'{prefix}pin_aba_us']:.2f} us; load {row['load1_before']:.1f}-"
                     f"{row['load1_after']:.1f}" + _code_note(row)
                     + (f"; ours by the {row['python_call']} call"
                        if not prefix and "python_call" in row else ""),
                 ))  # fmt: skip
-    else:
+                if index:  # a second machine's: its worst upper end over its target
+                    worst = max(worst, row[f"{prefix}ratio_max"] / bound)
+                    if not row[f"{prefix}ratio_max"] <= bound:
+                        missed_elsewhere.append(f"{what} {'in C' if prefix else 'from Python'}")
+    if not machines:
         rows.append(Row("forward dynamics vs pin.aba over processes (pyperf)", NAN, 0.5,
                         note="run python -m benchmarks.peers_pyperf"))  # fmt: skip
-    rows.append(Row("the same on a second machine with another cache", NAN, 0.5,
-                    note="one machine only" + _cache_fit_note()))  # fmt: skip
+    if len(machines) > 1:
+        missed = ", ".join(missed_elsewhere) or "none"
+        rows.append(Row("the same on a second machine with another cache: the worst upper "
+                        "end over its target", worst, 1.0,
+                        note=f"missed: {missed}" + _cache_fit_note()))  # fmt: skip
+    else:
+        rows.append(Row("the same on a second machine with another cache", NAN, 0.5,
+                        note="one machine only" + _cache_fit_note()))  # fmt: skip
     auto = RESULTS / "compile_auto.csv"  # python -m benchmarks.compile_auto
     if auto.exists():
         table = pd.read_csv(auto).set_index("variant")

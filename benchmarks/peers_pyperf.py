@@ -51,8 +51,10 @@ Ratios ours / pin over every pair of processes (ours' i, pin's j): the median an
 upper end (max, the slowest process of ours against the fastest of pin's), the figure the
 targets are held to (issue 36: a single process's median hides the spread between
 processes), on each line (``python -m benchmarks --summary`` names the line of each
-verdict). Writes ``benchmarks/results/peers_pyperf.json`` (pyperf's own file: ``python -m
-pyperf stats`` reads it) and ``benchmarks/results/peers_pyperf.csv``.
+verdict). Writes ``benchmarks/results/peers_pyperf-l2-<size>.json`` (pyperf's own file:
+``python -m pyperf stats`` reads it) and ``.csv``, one pair of files a machine, named by
+its L2 cache a core (the issue's second machine differs from the first by its cache: 512
+KiB against 1 MiB), with the CPU (model name, family, model) in column ``cpu``.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ import numpy as np
 import pyperf
 
 from benchmarks import anchor
+from workbench.execution.environment import cpu_model
 
 RESULTS = Path(__file__).parent / "results"
 SIZES = (7, 20, 50, 200)
@@ -86,6 +89,24 @@ BUFFER = ("ours buffer", "pinocchio::aba buffer")  # each through CasADi's buffe
 COPIES = Path("/dev/shm") if Path("/dev/shm").is_dir() else Path(tempfile.gettempdir())
 COPIED = ("a copy a process: ours' library and fastcall; pin.aba's pinocchio_pywrap, "
           "libpinocchio_default, libeigenpy, libboost_python; aba_call")  # fmt: skip
+
+
+def l2_kib(cache: str = "/sys/devices/system/cpu/cpu0/cache") -> int | None:
+    """KiB of level-2 cache a core (Linux's sysfs), None where not given."""
+    for index in sorted(Path(cache).glob("index*")):
+        try:
+            if (index / "level").read_text().strip() == "2":
+                size = (index / "size").read_text().strip().upper()
+                return int(size[:-1]) * 1024 if size.endswith("M") else int(size.rstrip("K"))
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def results_stem() -> str:
+    """``peers_pyperf-l2-<KiB>k`` on a machine whose L2 is known, else ``peers_pyperf``."""
+    size = l2_kib()
+    return f"peers_pyperf-l2-{size}k" if size else "peers_pyperf"
 
 
 def model_of(kind: str, name: str):
@@ -319,7 +340,8 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
                 f"{prefix}ratio_max": float(ratios.max()),
             })  # fmt: skip
         row.update({"processes": f"{len(ours)}+{len(pin)}", "load1_before": load[0],
-                    "load1_after": load[1], "copies": COPIED})  # fmt: skip
+                    "load1_after": load[1], "copies": COPIED, "cpu": cpu_model(),
+                    "l2_kib": l2_kib()})  # fmt: skip
         rows.append(row)
     return rows
 
@@ -367,12 +389,12 @@ def main() -> None:
         return
     RESULTS.mkdir(exist_ok=True)
     result = pyperf.BenchmarkSuite([b for b in suite if b is not None])
-    result.dump(str(RESULTS / "peers_pyperf.json"), replace=True)
+    result.dump(str(RESULTS / f"{results_stem()}.json"), replace=True)
     import pandas as pd
 
     rows = summarize(result, prepared, [load_before, os.getloadavg()[0]])
     table = pd.DataFrame(rows)
-    table.to_csv(RESULTS / "peers_pyperf.csv", index=False)
+    table.to_csv(RESULTS / f"{results_stem()}.csv", index=False)
     with pd.option_context("display.width", 200):
         print(table.drop(columns=["types"]).to_string(index=False, float_format="{:.3g}".format))
 
