@@ -654,3 +654,28 @@ def test_a_sink_asks_run_parts_once_a_run(monkeypatch):
     assert calls == [first]
     assert sink._run_parts(second) == original(second)
     assert calls == [first, second]
+
+
+def test_a_rows_json_text_by_the_c_encoder_is_what_the_python_pass_gave():
+    """A flat row of text keys is encoded without the pass that made its values plain
+    (``_jsonable``), to the same text: real rows (ok, skipped) and NumPy scalars of every
+    kind, inf and NaN; nested or indented data take the pass as before."""
+    import json
+
+    from workbench.files import _json_text, _jsonable
+
+    rows = [
+        execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-7)).row,
+        execute_run(RunSpec("four-bar", "minimal-ode", "no-such-integrator", 1e-5, 1e-7)).row,
+        {"f64": np.float64(0.1), "f32": np.float32(0.1), "i64": np.int64(-3), "u8": np.uint8(7),
+         "b": np.bool_(True), "s": np.str_("text"), "inf": math.inf, "ninf": np.float64(-np.inf),
+         "nan": math.nan, "none": None, "t": True, "zero_d": np.array(2.5)},
+    ]  # fmt: skip
+    for row in rows:
+        assert _json_text(row, None) == json.dumps(_jsonable(row), allow_nan=True)
+    nested = {"a": {1: np.int64(2)}, "b": [np.float64(1.5)]}
+    for indent in (None, 1):
+        assert _json_text(nested, indent) == json.dumps(_jsonable(nested), indent=indent)
+    assert _json_text(rows[0], 1) == json.dumps(_jsonable(rows[0]), indent=1, allow_nan=True)
+    with pytest.raises(TypeError):
+        _json_text({"x": object()}, None)

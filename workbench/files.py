@@ -327,7 +327,7 @@ def write_json_atomic(
     ``root``: the output folder ``path`` is in (no link followed below it); ``indent``:
     None writes one line, by Python's C encoder (an indented file takes its pure-Python
     one: a run's row 0.09 ms against 0.02)."""
-    text = json.dumps(_jsonable(data), indent=indent, allow_nan=True)
+    text = _json_text(data, indent)
     write = lambda name: Path(name).write_text(text, encoding="utf-8")  # noqa: E731
     atomic_write(path, write, durable, root=root)
 
@@ -443,6 +443,27 @@ def _columns_table(columns: dict[str, Any]) -> Any:
         for value, field in zip(columns.values(), schema, strict=True)
     ]
     return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _json_text(data: dict[str, Any], indent: int | None) -> str:
+    """``json.dumps(_jsonable(data), indent=indent, allow_nan=True)``, the same text; a flat
+    object of text keys (a run's row) is encoded by the C encoder directly, NumPy scalars
+    by their ``item()`` as :func:`_jsonable` takes them (its pass over a row in Python was
+    a third of a tiny run's row file: docs/performance.md)."""
+    if (
+        indent is None
+        and all(type(key) is str for key in data)
+        and not any(isinstance(value, dict | list | tuple) for value in data.values())
+    ):
+        return json.dumps(data, allow_nan=True, default=_json_item)
+    return json.dumps(_jsonable(data), indent=indent, allow_nan=True)
+
+
+def _json_item(value: Any) -> Any:
+    """A value the JSON encoder does not know: a NumPy scalar's Python value."""
+    if hasattr(value, "item") and callable(value.item):
+        return value.item()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 
 def _jsonable(value: Any) -> Any:
