@@ -558,9 +558,7 @@ def test_a_runs_series_columns_make_its_frame_and_the_same_series_file(tmp_path)
     assert result.stored_series is result.columns
     assert result.series is result.series  # made once
     assert list(result.series.columns) == list(result.columns)
-    pd.testing.assert_frame_equal(
-        result.series, pd.DataFrame(result.columns), check_exact=True
-    )
+    pd.testing.assert_frame_equal(result.series, pd.DataFrame(result.columns), check_exact=True)
     assert str(result.series["run_id"].dtype) == "str" or result.series["run_id"].dtype == object
     for states in (True, False):
         store.write_run(tmp_path / "columns", result.row, result.columns, states)

@@ -31,7 +31,8 @@ a column (MuJoCo-style pipeline stages):
    The series also carries the trajectory: the states at the same samples, one column
    ``state:<name>`` each (:func:`state_arrays`; the store can leave them out);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
-   series)`` (e.g. a Rerun recording). Logging is passed in, never written into
+   series)`` (e.g. a Rerun recording): ``series`` the run's DataFrame, or its columns for a
+   sink whose ``takes_series_columns`` is true. Logging is passed in, never written into
    formalisms or integrators.
 
 An exception at any stage makes the row ``failed`` with a one-line ``message`` naming the

@@ -464,9 +464,12 @@ class RerunSink:
         else:  # its columns: a run's own (run_id one text), unless they name another run
             columns = series
             ids = columns.get("run_id")
-            if run_id is not None and ids is not None and not (
-                isinstance(ids, str) and ids == str(run_id)
-            ) and np.any(np.asarray(ids) != str(run_id)):
+            if (
+                run_id is not None
+                and ids is not None
+                and not (isinstance(ids, str) and ids == str(run_id))
+                and np.any(np.asarray(ids) != str(run_id))
+            ):
                 keep = np.broadcast_to(np.asarray(ids) == str(run_id), len(columns["t"]))
                 columns = {k: v[keep] if isinstance(v, np.ndarray) else v
                            for k, v in columns.items()}  # fmt: skip
