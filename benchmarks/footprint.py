@@ -396,7 +396,7 @@ def loop_parts(n: int) -> dict[str, float]:
         (RerunSink, "end_file", "recording: the runs' file"),
         (RerunSink, "begin_file", "recording: starting it"),
         (RecordingBatch, "logged", "recording: journal"),
-        (metrics_module, "trajectory_metrics", "metrics"),
+        (metrics_module, "metric_columns", "metrics"),
         (store, "write_parquet_atomic", "series file"),
         (store, "write_json_atomic", "row file"),
         (execute_module, "state_arrays", "series: the states' columns"),
@@ -433,7 +433,7 @@ def loop_parts(n: int) -> dict[str, float]:
                     )  # fmt: skip
                 batch.logged(spec.run_id)
                 result.row["log"] = local_pool.write_log(out, spec.run_id, capture.kept())
-                store.write_run(out, result.row, result.series, True)
+                store.write_run(out, result.row, result.stored_series, True)
                 batch.end_run()
                 total += time.process_time() - started
                 integration += result.row["integrate_cpu_s"]

@@ -469,3 +469,211 @@ def test_a_rows_number_columns_are_checked_as_before_with_a_fast_path_for_json_n
     assert [_kind_ok(v, "number") for v in values] == [
         True, True, True, False, False, False, False, True, True,
     ]  # fmt: skip
+
+
+def test_nearest_quaternions_are_scipys_bits():
+    """The poses' quaternions (``nearest_quaternions``: SciPy's checks written out, then its
+    conversion) are ``Rotation.from_matrix(m).as_quat()`` bit for bit: rotations, matrices
+    off the rotations by round-off (kept) and by more (made rotations by SVD), a mixture;
+    a left-handed frame raises as SciPy does."""
+    from scipy.spatial.transform import Rotation
+
+    nearest = observables_module.nearest_quaternions
+    rng = np.random.default_rng(0)
+    rotations = Rotation.random(2000, random_state=1).as_matrix()
+    noisy = rotations + 1e-6 * rng.standard_normal(rotations.shape)
+    cases = [
+        rotations,
+        rotations + 1e-13 * rng.standard_normal(rotations.shape),  # within atol 1e-12
+        rotations + 1e-11 * rng.standard_normal(rotations.shape),  # beyond: orthogonalized
+        rotations + 1e-3 * rng.standard_normal(rotations.shape),
+        np.where(rng.random(2000)[:, None, None] < 0.5, rotations, noisy),
+        np.tile(np.eye(3), (201, 1, 1)),
+        Rotation.from_euler("z", rng.uniform(-4, 4, (201, 1))).as_matrix(),  # planar
+        1.001 * rotations[:10],  # M M^T = 1.002 I: beyond rtol 1e-5 on the diagonal
+    ]
+    for matrices in cases:
+        expected = Rotation.from_matrix(matrices).as_quat()
+        np.testing.assert_array_equal(nearest(matrices), expected)
+    left = rotations[:3].copy()
+    left[1, :, 0] *= -1
+    with pytest.raises(ValueError, match="determinant"):
+        Rotation.from_matrix(left)
+    with pytest.raises(ValueError, match="determinant"):
+        nearest(left)
+
+
+@pytest.mark.parametrize(
+    ("problem", "formalism", "options"),
+    [
+        ("simple-pendulum", "minimal-ode", {}),  # the tiny run
+        ("four-bar", "absolute-dae", {"index": 1}),  # constrained, closed loop
+        ("rotating-ring", "minimal-ode", {}),  # rheonomic (a driven joint)
+        ("heavy-top", "absolute-dae", {"index": 1}),  # spatial, Euler parameters
+    ],
+)
+def test_metrics_with_the_written_out_quaternion_checks_equal_scipys(
+    problem, formalism, options, monkeypatch
+):
+    """Every metric column and series value of a real run is the same, bit for bit, with
+    the poses' quaternions by SciPy's ``from_matrix`` (the code before) and by
+    ``nearest_quaternions``."""
+    from scipy.spatial.transform import Rotation
+
+    spec = RunSpec(problem, formalism, "scipy-dop853", 1e-5, 1e-7, formalism_options=options)
+    result = execute_run(spec)
+    assert result.row["status"] == "ok", result.row["message"]
+    monkeypatch.setattr(
+        observables_module, "nearest_quaternions", lambda m: Rotation.from_matrix(m).as_quat()
+    )
+    before = execute_run(spec)
+    skip = {"integrate_s", "integrate_s_min", "integrate_s_max", "integrate_cpu_s",
+            "integrate_cpu_s_min", "integrate_cpu_s_max", "wall_s", "cpu_s", "metrics_s",
+            "build_s", "init_s", "log_s", "reference_s", "compile_s", "load_avg",
+            "equations_cached"}  # fmt: skip
+    columns = sorted((set(result.row) | set(before.row)) - skip)
+    assert [result.row.get(c) for c in columns if not _same(result.row.get(c), before.row.get(c))
+            ] == []  # fmt: skip
+    import pandas as pd
+
+    pd.testing.assert_frame_equal(result.series, before.series, check_exact=True)
+
+
+def test_a_runs_series_columns_make_its_frame_and_the_same_series_file(tmp_path):
+    """A run without a sink keeps its series as columns (no frame made): ``series`` made
+    from them is the metrics' frame, and ``write_run`` of the columns writes the bytes of
+    ``write_run`` of the frame, with and without the states; an empty run has its empty
+    frame as before."""
+    import pandas as pd
+
+    from workbench.runs import store
+
+    spec = RunSpec("four-bar", "absolute-dae", "scipy-dop853", 1e-5, 1e-7,
+                   formalism_options={"index": 1})  # fmt: skip
+    result = execute_run(spec)
+    assert result.row["status"] == "ok", result.row["message"]
+    assert result._series is None and result.columns is not None  # no frame made yet
+    assert result.columns["run_id"] == spec.run_id
+    assert result.row["n_samples"] == len(result.columns["t"]) == len(result.series)
+    assert result.stored_series is result.columns
+    assert result.series is result.series  # made once
+    assert list(result.series.columns) == list(result.columns)
+    pd.testing.assert_frame_equal(result.series, pd.DataFrame(result.columns), check_exact=True)
+    assert str(result.series["run_id"].dtype) == "str" or result.series["run_id"].dtype == object
+    for states in (True, False):
+        store.write_run(tmp_path / "columns", result.row, result.columns, states)
+        store.write_run(tmp_path / "frame", result.row, result.series, states)
+        written = [store.series_path(tmp_path / k, spec.run_id).read_bytes()
+                   for k in ("columns", "frame")]  # fmt: skip
+        assert written[0] == written[1]
+        read = store.load_series(tmp_path / "columns", spec.run_id, states=True)
+        assert any(c.startswith("state:") for c in read.columns) == states
+    skipped = execute_run(RunSpec("four-bar", "minimal-ode", "no-such-integrator", 1e-5, 1e-7))
+    assert skipped.columns is None and len(skipped.series) == 0
+    assert list(skipped.series.columns) == SERIES_COLUMNS
+
+
+def test_the_recording_logs_a_series_given_as_columns_as_it_logs_its_frame(monkeypatch):
+    """``RerunSink`` reads a series' columns (what the runner now hands it) as its frame:
+    the same time column and the same values, also when the columns carry another run's
+    id (filtered out, as the frame's rows); a sink without ``takes_series_columns`` is
+    handed the DataFrame, which the result then keeps."""
+    import pandas as pd
+
+    from workbench.outputs import recording as recording_module
+
+    spec = RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-7)
+    result = execute_run(spec)
+    sent = []
+
+    class Stream:
+        def log(self, path, *archetypes, static=False):
+            sent.append(("log", path, static))
+
+        def send_columns(self, path, indexes, columns):
+            times = [np.asarray(i.as_arrow_array().to_numpy(zero_copy_only=False)) for i in indexes]
+            sent.append(("send", path, times, columns))
+
+    monkeypatch.setattr(recording_module, "_column", lambda field, values: (field, values.copy()))
+    sink = recording_module.RerunSink()
+    sink.recording = Stream()
+
+    def logged(series, run_id):
+        sent.clear()
+        sink._log_series("runs/x", series, "label", run_id)
+        return sent[:]
+
+    for run_id in (spec.run_id, None):
+        by_columns, by_frame = logged(result.columns, run_id), logged(result.series, run_id)
+        assert len(by_columns) == len(by_frame) == 2
+        assert by_columns[0] == by_frame[0]
+        (_, _, t_columns, [(_, v_columns)]), (_, _, t_frame, [(_, v_frame)]) = (
+            by_columns[1], by_frame[1],
+        )  # fmt: skip
+        np.testing.assert_array_equal(t_columns[0], t_frame[0])
+        np.testing.assert_array_equal(v_columns, v_frame)
+    assert logged(result.columns, "another run") == logged(result.series, "another run") == []
+    assert logged(dict(result.columns, t=np.zeros(0)), spec.run_id) == []
+
+    class FrameSink:
+        def log_run(self, spec, equations, problem, trajectory, series):
+            self.series = series
+
+    frame_sink = FrameSink()
+    kept = execute_run(spec, sink=frame_sink)
+    assert isinstance(frame_sink.series, pd.DataFrame) and kept.series is frame_sink.series
+
+
+def test_the_recordings_stride_is_the_sorted_distinct_rows_it_was():
+    """Poses of a run longer than ``max_frames`` are strided without ``np.unique``: the
+    rounded evenly spaced rows are distinct and increasing whenever n > max_frames."""
+    for n in range(3, 400):
+        for most in (2, 3, 7, 50, 200, n - 1):
+            if not 2 <= most < n:
+                continue
+            rows = np.linspace(0, n - 1, most).round().astype(int)
+            np.testing.assert_array_equal(rows, np.unique(rows))
+            assert len(rows) == most
+
+
+def test_a_sink_asks_run_parts_once_a_run(monkeypatch):
+    """A batch's sink asks ``fits`` and then logs the same spec: the run's path parts are
+    computed once for it, again for another spec."""
+    from workbench.outputs import recording as recording_module
+
+    calls = []
+    original = recording_module.run_parts
+    monkeypatch.setattr(recording_module, "run_parts", lambda s: calls.append(s) or original(s))
+    sink = recording_module.RerunSink()
+    first = RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-7)
+    second = RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-6, 1e-8)
+    assert sink.fits(first)
+    assert sink._run_parts(first) == original(first)
+    assert calls == [first]
+    assert sink._run_parts(second) == original(second)
+    assert calls == [first, second]
+
+
+def test_a_rows_json_text_by_the_c_encoder_is_what_the_python_pass_gave():
+    """A flat row of text keys is encoded without the pass that made its values plain
+    (``_jsonable``), to the same text: real rows (ok, skipped) and NumPy scalars of every
+    kind, inf and NaN; nested or indented data take the pass as before."""
+    import json
+
+    from workbench.files import _json_text, _jsonable
+
+    rows = [
+        execute_run(RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-7)).row,
+        execute_run(RunSpec("four-bar", "minimal-ode", "no-such-integrator", 1e-5, 1e-7)).row,
+        {"f64": np.float64(0.1), "f32": np.float32(0.1), "i64": np.int64(-3), "u8": np.uint8(7),
+         "b": np.bool_(True), "s": np.str_("text"), "inf": math.inf, "ninf": np.float64(-np.inf),
+         "nan": math.nan, "none": None, "t": True, "zero_d": np.array(2.5)},
+    ]  # fmt: skip
+    for row in rows:
+        assert _json_text(row, None) == json.dumps(_jsonable(row), allow_nan=True)
+    nested = {"a": {1: np.int64(2)}, "b": [np.float64(1.5)]}
+    for indent in (None, 1):
+        assert _json_text(nested, indent) == json.dumps(_jsonable(nested), indent=indent)
+    assert _json_text(rows[0], 1) == json.dumps(_jsonable(rows[0]), indent=1, allow_nan=True)
+    with pytest.raises(TypeError):
+        _json_text({"x": object()}, None)

@@ -327,13 +327,13 @@ def write_json_atomic(
     ``root``: the output folder ``path`` is in (no link followed below it); ``indent``:
     None writes one line, by Python's C encoder (an indented file takes its pure-Python
     one: a run's row 0.09 ms against 0.02)."""
-    text = json.dumps(_jsonable(data), indent=indent, allow_nan=True)
+    text = _json_text(data, indent)
     write = lambda name: Path(name).write_text(text, encoding="utf-8")  # noqa: E731
     atomic_write(path, write, durable, root=root)
 
 
 def write_parquet_atomic(
-    frame: pd.DataFrame,
+    frame: pd.DataFrame | dict[str, Any],
     path: Path,
     root: Path | None = None,
     durable: bool = True,
@@ -342,7 +342,9 @@ def write_parquet_atomic(
     """``frame`` (a pandas DataFrame, index dropped) as one whole Parquet file: the bytes
     of ``frame.to_parquet(index=False)``, made by pyarrow in memory and written by Python
     (pandas' call opened the file through pyarrow's file system layer: 0.2-0.4 ms more,
-    a third of a tiny run's series write; docs/performance.md).
+    a third of a tiny run's series write; docs/performance.md). ``frame`` may also be the
+    columns of one (name -> NumPy values, or a text for every row): the file of
+    ``pd.DataFrame(frame)`` without making it (:func:`_columns_table`).
 
     ``lean``: no column statistics (min/max a column, for readers that filter: a run's
     series is read whole) and a dictionary for the columns of text only (one of a float
@@ -351,8 +353,11 @@ def write_parquet_atomic(
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = _arrow_table(frame)
-    if frame.attrs:  # as pandas keeps them
+    if isinstance(frame, dict):
+        table = _columns_table(frame)
+    else:
+        table = _arrow_table(frame)
+    if getattr(frame, "attrs", None):  # as pandas keeps them
         metadata = {**table.schema.metadata, b"PANDAS_ATTRS": json.dumps(frame.attrs)}
         table = table.replace_schema_metadata(metadata)
     options: dict[str, Any] = {}
@@ -403,6 +408,62 @@ def _arrow_table(frame: pd.DataFrame) -> Any:
         values = column.to_numpy() if column.dtype.kind in _NUMPY_KINDS else column
         arrays.append(pa.array(values, type=field.type, from_pandas=True))  # NaN -> null
     return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _columns_table(columns: dict[str, Any]) -> Any:
+    """``_arrow_table(pd.DataFrame(columns))``, the same table, without the frame: each
+    NumPy column handed to pyarrow as it is, a text (a run's id) repeated by pyarrow, the
+    schema the frame's (made once per layout from a frame of no rows). Columns of any other
+    kind take the frame. A tiny run's frame made and taken apart again cost more than its
+    Parquet encoding (docs/performance.md)."""
+    import numpy as np
+    import pandas as pd
+    import pyarrow as pa
+
+    n = next((len(v) for v in columns.values() if isinstance(v, np.ndarray)), None)
+    kinds = tuple(
+        (name, value.dtype.str if isinstance(value, np.ndarray) else "text")
+        for name, value in columns.items()
+    )
+    if n is None or not all(
+        (isinstance(v, np.ndarray) and v.ndim == 1 and len(v) == n and v.dtype.kind in _NUMPY_KINDS)
+        or isinstance(v, str)
+        for v in columns.values()
+    ):
+        return _arrow_table(pd.DataFrame(columns))
+    schema = _ARROW_SCHEMAS.get(kinds)
+    if schema is None:
+        schema = _arrow_table(pd.DataFrame(columns).iloc[:0]).schema
+        if len(_ARROW_SCHEMAS) < 256:
+            _ARROW_SCHEMAS[kinds] = schema
+    arrays = [
+        pa.array(value, type=field.type, from_pandas=True)  # NaN -> null, as from a frame
+        if isinstance(value, np.ndarray)
+        else pa.repeat(pa.scalar(value, type=field.type), n)
+        for value, field in zip(columns.values(), schema, strict=True)
+    ]
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _json_text(data: dict[str, Any], indent: int | None) -> str:
+    """``json.dumps(_jsonable(data), indent=indent, allow_nan=True)``, the same text; a flat
+    object of text keys (a run's row) is encoded by the C encoder directly, NumPy scalars
+    by their ``item()`` as :func:`_jsonable` takes them (its pass over a row in Python was
+    a third of a tiny run's row file: docs/performance.md)."""
+    if (
+        indent is None
+        and all(type(key) is str for key in data)
+        and not any(isinstance(value, dict | list | tuple) for value in data.values())
+    ):
+        return json.dumps(data, allow_nan=True, default=_json_item)
+    return json.dumps(_jsonable(data), indent=indent, allow_nan=True)
+
+
+def _json_item(value: Any) -> Any:
+    """A value the JSON encoder does not know: a NumPy scalar's Python value."""
+    if hasattr(value, "item") and callable(value.item):
+        return value.item()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 
 def _jsonable(value: Any) -> Any:

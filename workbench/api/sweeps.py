@@ -146,7 +146,7 @@ def run_here(sweep: SweepSpec, progress: Callable[[int, int], Any] | None, fresh
     for done, spec in enumerate(todo, 1):
         result = execute_run(spec, reference_dir=out / "references", timing=timing)
         result.row["log"] = ""
-        store.write_run(out, result.row, result.series, sweep.store_trajectories)
+        store.write_run(out, result.row, result.stored_series, sweep.store_trajectories)
         if progress is not None:
             progress(done, len(todo))
     sync_file_system(out)  # the rows and series, written without a sync each

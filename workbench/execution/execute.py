@@ -31,7 +31,8 @@ a column (MuJoCo-style pipeline stages):
    The series also carries the trajectory: the states at the same samples, one column
    ``state:<name>`` each (:func:`state_arrays`; the store can leave them out);
 5. **log** — if a ``sink`` is given, ``sink.log_run(spec, equations, problem, trajectory,
-   series)`` (e.g. a Rerun recording). Logging is passed in, never written into
+   series)`` (e.g. a Rerun recording): ``series`` the run's DataFrame, or its columns for a
+   sink whose ``takes_series_columns`` is true. Logging is passed in, never written into
    formalisms or integrators.
 
 An exception at any stage makes the row ``failed`` with a one-line ``message`` naming the
@@ -133,13 +134,36 @@ def _copied(options: dict[str, Any]) -> dict[str, Any]:
     return copy.deepcopy(options) if options else {}
 
 
-@dataclass
 class RunResult:
     """A result row (see :data:`workbench.execution.row_schema.SCHEMA`) and the run's time
-    series."""
+    series: ``series`` a DataFrame; for a run with metrics made from ``columns`` (name -> n
+    values, ``run_id`` one text: :func:`~workbench.execution.metrics.metric_columns`) when
+    first asked for. A sweep's worker writes the columns (:func:`workbench.runs.store.write_run`
+    takes either) and never makes the frame: pandas' frame, made and taken apart again for
+    the series file and the recording, was a fifth of a tiny run's time outside its
+    integration (docs/performance.md)."""
 
-    row: dict[str, Any]
-    series: pd.DataFrame
+    def __init__(
+        self,
+        row: dict[str, Any],
+        series: pd.DataFrame | None = None,
+        columns: dict[str, Any] | None = None,
+    ) -> None:
+        self.row = row
+        self.columns = columns
+        self._series = series
+
+    @property
+    def series(self) -> pd.DataFrame:
+        if self._series is None:
+            self._series = metrics_module.series_frame(self.columns or {})
+        return self._series
+
+    @property
+    def stored_series(self) -> pd.DataFrame | dict[str, Any]:
+        """What :func:`workbench.runs.store.write_run` writes: the columns when the series
+        was made as columns, else the frame."""
+        return self.columns if self.columns is not None else self.series
 
 
 def normalized_spec(spec: RunSpec) -> RunSpec:
@@ -406,7 +430,7 @@ def execute_run(
     row.update(
         {"status": "ok", "message": "", "stage": "", "equations_cached": False, "reference_s": 0.0}
     )
-    series = None  # (an empty one made only for a run without metrics)
+    series = columns = None  # (an empty frame made only for a run without metrics)
     state: dict[str, Any] = {}
     try:
         stages.start("pairing")
@@ -483,7 +507,7 @@ def execute_run(
                 row["reference_s"] = reference.seconds
                 sample_times = np.asarray(trajectory.times)
                 states = np.atleast_2d(trajectory.y)[: len(sample_times)]
-                metric_row, series = metrics_module.trajectory_metrics(
+                metric_row, columns = metrics_module.metric_columns(
                     spec.run_id,
                     problem,
                     equations,
@@ -517,7 +541,13 @@ def execute_run(
 
                 if sink is not None:
                     stages.start("log")
-                    sink.log_run(spec, equations, problem, trajectory, series)
+                    # a sink that reads the series' columns (takes_series_columns) is given
+                    # them; any other the DataFrame, as the sink's contract says
+                    if getattr(sink, "takes_series_columns", False):
+                        logged_series = columns
+                    else:
+                        logged_series = series = metrics_module.series_frame(columns)
+                    sink.log_run(spec, equations, problem, trajectory, logged_series)
                     logged = getattr(sink, "run_warnings", [])  # e.g. a mesh it could not draw
                     if logged:
                         found = "; ".join(filter(None, [row.get("warnings", ""), *logged]))
@@ -551,13 +581,13 @@ def execute_run(
     row["cpu_s"] = sum(cpu.get(s, 0.0) for s in main_stages)
     row.update(environment())
     row.update(producer_columns(spec.problem, spec.formalism, spec.integrator))
-    if series is None:
+    if series is None and columns is None:
         series = empty_series(spec.run_id)
-    row["n_samples"] = len(series)
+    row["n_samples"] = len(series) if series is not None else len(columns["t"])
     row["threads"] = threads_in_force()
     # skip reasons, integrator and plugin messages, compile warnings: the row's is one line
     row["message"] = one_line_text(row["message"])
-    return RunResult(row, series)
+    return RunResult(row, series, columns)
 
 
 def _reference(spec: RunSpec, problem: Any, times: Any, reference_dir: Any) -> Any:

@@ -110,7 +110,28 @@ def trajectory_metrics(
     contact: dict[str, Any] | None = None,
     states: dict[str, np.ndarray] | None = None,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
-    """The metric columns of a row and the time series, from states ``y`` at ``times``.
+    """The metric columns of a row and the time series as a DataFrame: :func:`metric_columns`
+    (same arguments), its series' columns made one frame (:func:`series_frame`)."""
+    row, columns = metric_columns(
+        run_id, problem, equations, times, y, complete, reference, rtol, charts, contact, states
+    )
+    return row, series_frame(columns)
+
+
+def metric_columns(
+    run_id: str,
+    problem: Any,
+    equations: Equations,
+    times: np.ndarray,
+    y: np.ndarray,
+    complete: bool,
+    reference: ReferencePoses,
+    rtol: float = math.nan,
+    charts: list[Any] | None = None,
+    contact: dict[str, Any] | None = None,
+    states: dict[str, np.ndarray] | None = None,
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The metric columns of a row and the time series' columns, from states ``y`` at ``times``.
 
     ``y`` (n, >= nq + nv) in the layout [q, v, ...]; ``complete``: the run reached the end
     time (else the end error and scd are NaN). ``reference.poses`` covers all the problem's
@@ -120,8 +141,12 @@ def trajectory_metrics(
     (:mod:`workbench.execution.charts`); each sample is measured with its chart's equations.
     ``contact``: what a contact integrator measured (``Trajectory.contact``), for the
     contact columns (:mod:`workbench.execution.contact_metrics`). ``states``: more series
-    columns (name -> n values: the trajectory's states, ``state:<name>``), put last in the
-    one frame made here (a second frame joined to this one cost a tiny run 0.1-0.3 ms).
+    columns (name -> n values: the trajectory's states, ``state:<name>``), put last.
+
+    The series is returned as its columns in the series file's order (:data:`SERIES_COLUMNS`,
+    a contact model's ``penetration``, then ``states``): name -> n float64 values, and
+    ``run_id`` one text for every row; :func:`series_frame` makes them the DataFrame. A
+    sweep's worker writes and records them without a frame (docs/performance.md).
     """
     nq, nv = equations.nq, equations.nv
     n = len(times)
@@ -221,11 +246,17 @@ def trajectory_metrics(
         "ref_err": ref_err,
     }
     # in SERIES_COLUMNS' order already: DataFrame(columns=...) reindexed them (0.3 ms a run)
-    frame = {name: columns[name] for name in SERIES_COLUMNS}
+    series = {name: columns[name] for name in SERIES_COLUMNS}
     if getattr(equations, "contacts", None) is not None:  # a contact model's own series
-        frame["penetration"] = penetration_series(equations, times, y[:n])
-    frame.update(states or {})
-    return row, pd.DataFrame(frame)
+        series["penetration"] = penetration_series(equations, times, y[:n])
+    series.update(states or {})
+    return row, series
+
+
+def series_frame(columns: dict[str, Any]) -> pd.DataFrame:
+    """A run's time series as a DataFrame from its columns (:func:`metric_columns`: name ->
+    n values, a text such as ``run_id`` repeated on every row), in their order."""
+    return pd.DataFrame(columns)
 
 
 def _sampled(equations: Equations, times: np.ndarray, q: np.ndarray, v: np.ndarray,

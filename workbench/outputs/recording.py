@@ -234,6 +234,11 @@ class RerunSink:
     max_frames: at most this many poses per run (evenly strided); series are logged whole.
     """
 
+    # log_run reads a series given as its columns (name -> values, ``run_id`` one text:
+    # workbench.execution.metrics.metric_columns) as well as a DataFrame: the runner then
+    # hands it the columns and makes no frame
+    takes_series_columns = True
+
     def __init__(
         self,
         application_id: str = APPLICATION_ID,
@@ -255,6 +260,7 @@ class RerunSink:
         self._colors_cache: dict[str, dict[str, list[int]]] = {}  # per model key
         self._geometry_warnings: dict[str, list[str]] = {}  # per model key: unreadable meshes
         self.run_warnings: list[str] = []  # of the last run logged (for its row)
+        self._last_parts: tuple[Any, tuple[str, ...]] = (None, ())  # (spec, its run_parts)
         # per model key: mesh entity below the run -> (body, position, 3x3 incl. scale)
         self._mesh_places: dict[str, dict[str, tuple[str, np.ndarray, np.ndarray]]] = {}
         # shared entities logged to the current file (-> the file copied from, when merging)
@@ -271,12 +277,13 @@ class RerunSink:
         spec: .problem, .formalism, .integrator, .rtol (and .run_id);
         equations: a :class:`workbench.equations.Equations` (``observables.poses``,
             ``model``, ``nq``); trajectory: ``times`` (n,) and ``y`` (n, >= nq) rows [q, v, ...];
-        series: columns t and :data:`SERIES_QUANTITIES` (a ``run_id`` column is filtered on).
+        series: columns t and :data:`SERIES_QUANTITIES` (a ``run_id`` column is filtered on),
+            a DataFrame or its columns (name -> values; a text, ``run_id``, for every row).
         Returns the run's entity path.
         """
         import rerun as rr
 
-        parts = run_parts(spec)
+        parts = self._run_parts(spec)
         path = entity_path(*parts)
         run_id = getattr(spec, "run_id", None)  # a hash: computed once
         if path in self.runs:
@@ -396,10 +403,10 @@ class RerunSink:
         n = min(len(times), len(y))
         if n == 0:
             return
-        if n <= self.max_frames:  # every sample (np.unique below sorts: 0.03 ms a run)
+        if n <= self.max_frames:  # every sample
             rows = np.arange(n)
-        else:
-            rows = np.unique(np.linspace(0, n - 1, self.max_frames).round().astype(int))
+        else:  # steps of (n - 1) / (max_frames - 1) > 1: rounded, distinct and increasing
+            rows = np.linspace(0, n - 1, self.max_frames).round().astype(int)
         observables = equations.observables
         if hasattr(observables, "poses_of_rows"):  # the metrics' poses of these states
             poses = observables.poses_of_rows(times[:n], y[:n, : equations.nq], rows)
@@ -441,22 +448,40 @@ class RerunSink:
             )
 
     def _log_series(
-        self, path: str, series: pd.DataFrame | None, label: str, run_id: str | None
-    ) -> None:
+        self, path: str, series: pd.DataFrame | dict[str, Any] | None, label: str,
+        run_id: str | None,
+    ) -> None:  # fmt: skip
         import rerun as rr
 
-        if series is None or len(series) == 0 or "t" not in series:
+        if series is None or "t" not in series:
             return
-        if run_id is not None and "run_id" in series:
-            ids = series["run_id"].to_numpy()
-            if not (ids == str(run_id)).all():  # a run's own series is kept whole, unfiltered
-                series = series[series["run_id"].astype(str) == str(run_id)]
-        t = series["t"].to_numpy(dtype=float)
+        if isinstance(series, pd.DataFrame):
+            if run_id is not None and "run_id" in series:
+                ids = series["run_id"].to_numpy()
+                if not (ids == str(run_id)).all():  # a run's own series is kept whole
+                    series = series[series["run_id"].astype(str) == str(run_id)]
+            columns = {n: series[n].to_numpy() for n in ("t", *SERIES_QUANTITIES) if n in series}
+        else:  # its columns: a run's own (run_id one text), unless they name another run
+            columns = series
+            ids = columns.get("run_id")
+            if (
+                run_id is not None
+                and ids is not None
+                and not (isinstance(ids, str) and ids == str(run_id))
+                and np.any(np.asarray(ids) != str(run_id))
+            ):
+                keep = np.broadcast_to(np.asarray(ids) == str(run_id), len(columns["t"]))
+                columns = {k: v[keep] if isinstance(v, np.ndarray) else v
+                           for k, v in columns.items()}  # fmt: skip
+        t = np.asarray(columns["t"], dtype=float)
+        if not len(t):
+            return
         # one copy of all quantities (an absent one is NaN, an infinite value a gap too)
         nan = np.full(len(t), np.nan)  # (a pandas reindex cost 0.2 ms a run)
         table = np.column_stack(
-            [series[q].to_numpy(dtype=float) if q in series else nan for q in SERIES_QUANTITIES]
-        )
+            [np.asarray(columns[q], dtype=float) if q in columns else nan
+             for q in SERIES_QUANTITIES]
+        )  # fmt: skip
         finite = np.isfinite(table)
         present = [q for q, has in zip(SERIES_QUANTITIES, finite.any(axis=0), strict=True) if has]
         keep = np.isfinite(t)
@@ -571,8 +596,16 @@ class RerunSink:
         return (
             not self.instances
             and self._file_values < FILE_VALUES_LIMIT
-            and entity_path(*run_parts(spec)) not in self.runs
+            and entity_path(*self._run_parts(spec)) not in self.runs
         )
+
+    def _run_parts(self, spec: Any) -> tuple[str, ...]:
+        """:func:`run_parts` of ``spec``, kept for the next call with the same spec (a
+        batch's worker asks :meth:`fits` and then logs the run: each a registry lookup and
+        the options' defaults compared three times)."""
+        if self._last_parts[0] is not spec:
+            self._last_parts = (spec, run_parts(spec))
+        return self._last_parts[1]
 
     def end_file(self) -> Path | None:
         """Write what was logged since :meth:`begin_file` to its file (atomically: a

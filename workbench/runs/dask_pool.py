@@ -153,7 +153,7 @@ def _run_one_main() -> None:
         timing = Timing.from_dict(request.get("timing"))
         result = execute_run(spec, reference_dir=request.get("reference_dir"), timing=timing)
     result.row["log"] = write_log(out, spec.run_id, capture.kept())
-    store.write_run(out, result.row, result.series)
+    store.write_run(out, result.row, result.stored_series)
 
 
 # ---- a long-lived child per Dask worker -----------------------------------------------

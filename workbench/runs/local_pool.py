@@ -141,7 +141,7 @@ def _worker_main(
                 batch.logged(spec.run_id)  # in its journal before its row is written
             if not record_only:
                 result.row["log"] = write_log(Path(out), spec.run_id, capture.kept())
-                store.write_run(Path(out), result.row, result.series, states)
+                store.write_run(Path(out), result.row, result.stored_series, states)
             if batch is not None:
                 batch.end_run()
             conn.send(("done", spec.run_id, result.row["status"]))

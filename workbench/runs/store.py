@@ -76,10 +76,15 @@ def series_path(out: Path, run_id: str) -> Path:
 
 
 def write_run(
-    out: Path, row: dict[str, Any], series: pd.DataFrame | None, states: bool = True
+    out: Path,
+    row: dict[str, Any],
+    series: pd.DataFrame | dict[str, Any] | None,
+    states: bool = True,
 ) -> None:
     """Persist one run: the series first, then the row (so a row implies its series).
 
+    ``series``: a DataFrame, or its columns (name -> values, a text repeated on every row:
+    :func:`workbench.execution.metrics.metric_columns`; the same file as their frame's).
     ``states``: keep the trajectory's state columns in the series (False: drift, energy
     and error only, as before trajectories were stored).
 
@@ -92,8 +97,10 @@ def write_run(
     """
     run_id = row["run_id"]
     if series is not None:
-        if not states:
+        if not states and isinstance(series, pd.DataFrame):
             series = series[[c for c in series.columns if not c.startswith(STATE_PREFIX)]]
+        elif not states:
+            series = {k: v for k, v in series.items() if not k.startswith(STATE_PREFIX)}
         path = series_path(out, run_id)
         write_parquet_atomic(series, path, root=Path(out), durable=False, lean=True)
     write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out), indent=None)
