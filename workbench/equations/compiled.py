@@ -49,6 +49,7 @@ from typing import Any
 
 import casadi as ca
 
+from workbench.equations import lanes
 from workbench.files import atomic_write, file_lock, user_cache_dir
 
 MODES = ("none", "jit", "auto")
@@ -134,7 +135,9 @@ def generate_c(
         function.name(), {"with_header": False, "avoid_stack": not small, "verbose": False}
     )
     generator.add(function)
-    return generator.dump() if small else split_long_bodies(generator.dump(), statements_per_part)
+    if small:  # mirrored limbs' operations two at a time, the same numbers
+        return lanes.pair_lanes(generator.dump())
+    return split_long_bodies(generator.dump(), statements_per_part)
 
 
 def uses_locals(
