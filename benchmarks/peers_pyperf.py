@@ -52,7 +52,9 @@ upper end (max, the slowest process of ours against the fastest of pin's), the f
 targets are held to (issue 36: a single process's median hides the spread between
 processes), on each line (``python -m benchmarks --summary`` names the line of each
 verdict). Writes ``benchmarks/results/peers_pyperf.json`` (pyperf's own file: ``python -m
-pyperf stats`` reads it) and ``benchmarks/results/peers_pyperf.csv``.
+pyperf stats`` reads it) and ``benchmarks/results/peers_pyperf.csv``; with ``-o FILE``
+pyperf's file is FILE and the table FILE with the suffix ``.csv`` (a run of some models
+keeps the committed results of all eight).
 """
 
 from __future__ import annotations
@@ -365,14 +367,18 @@ def main() -> None:
             shutil.rmtree(args.copies, ignore_errors=True)
     if args.worker:
         return
-    RESULTS.mkdir(exist_ok=True)
     result = pyperf.BenchmarkSuite([b for b in suite if b is not None])
-    result.dump(str(RESULTS / "peers_pyperf.json"), replace=True)
+    if args.output:  # pyperf wrote its file there; the table goes beside it
+        table_path = Path(args.output).with_suffix(".csv")
+    else:
+        RESULTS.mkdir(exist_ok=True)
+        result.dump(str(RESULTS / "peers_pyperf.json"), replace=True)
+        table_path = RESULTS / "peers_pyperf.csv"
     import pandas as pd
 
     rows = summarize(result, prepared, [load_before, os.getloadavg()[0]])
     table = pd.DataFrame(rows)
-    table.to_csv(RESULTS / "peers_pyperf.csv", index=False)
+    table.to_csv(table_path, index=False)
     with pd.option_context("display.width", 200):
         print(table.drop(columns=["types"]).to_string(index=False, float_format="{:.3g}".format))
 

@@ -57,6 +57,7 @@ def test_a_body_without_mirrored_outputs_is_left_as_casadi_wrote_it() -> None:
     generator = ca.CodeGenerator(function.name(), {"with_header": False, "verbose": False})
     generator.add(function)
     assert compiled.generate_c(function) == generator.dump()
+    assert lanes.REGISTER_ALLOCATION not in compiled.generate(function).flags
     assert lanes.pair_lanes("int main() { return 0; }") == "int main() { return 0; }"
 
 
@@ -95,7 +96,7 @@ def test_mirrored_legs_articulated_body_accelerations_in_lanes_equal_the_vm(cach
     paired = code.count(f"  {lanes.VECTOR_TYPE} w")
     assert paired > 0.2 * function.n_instructions()
     generated = compiled.generate(function)
-    assert generated.code == code
+    assert generated.code == code and lanes.REGISTER_ALLOCATION in generated.flags
     loaded = compiled.load_generated(generated)
     rng = np.random.default_rng(3)
     for _ in range(10):

@@ -37,6 +37,10 @@ import re
 
 SEED_DEPTH = 6  # how deep outputs must have the same shape to be paired
 MIN_PAIRED_SHARE = 0.1  # of the body's operations, or the body is left as it was
+# GCC's register allocation took 1.6x as long on Talos's body with lanes (7.3-7.6 against
+# 4.5-4.9 s CPU, load 4), about 1.15x with the priority algorithm (5.4-5.6 s), which ran it
+# as fast (1.90-2.0 against 1.97-2.17 us a call, one process interleaved)
+REGISTER_ALLOCATION = "-fira-algorithm=priority"
 VECTOR_TYPE = "wb_v2d"
 _TYPEDEF = f"typedef double {VECTOR_TYPE} __attribute__((vector_size(16)));"
 _ASSIGN = re.compile(r"^  (a\d+)=(.*);$")
@@ -277,6 +281,11 @@ def _write(lines_before: list[str], signature: str, body: _Body, pairs: dict) ->
             out.append(f"  {VECTOR_TYPE} {vector[item]}=" + template.format(*operands) + ";")
     out += [f"  if (res[{r}]!=0) res[{r}][{k}]={name(n)};" for r, k, n in body.outputs]
     return [*lines_before, *out, "  return 0;"]
+
+
+def compiler_flags(code: str) -> str:
+    """Flags to add for ``code`` (" " and :data:`REGISTER_ALLOCATION` if it has lanes)."""
+    return f" {REGISTER_ALLOCATION}" if _TYPEDEF in code else ""
 
 
 def pair_lanes(code: str) -> str:
