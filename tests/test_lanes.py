@@ -59,6 +59,8 @@ def test_a_body_without_mirrored_outputs_is_left_as_casadi_wrote_it() -> None:
     assert compiled.generate_c(function) == generator.dump()
     assert lanes.REGISTER_ALLOCATION not in compiled.generate(function).flags
     assert lanes.pair_lanes("int main() { return 0; }") == "int main() { return 0; }"
+    zero = compiled.exported(ca.Function("zero", [x], [ca.SX.zeros(2)]))  # no operation
+    assert lanes.VECTOR_TYPE not in compiled.generate_c(zero)
 
 
 def mirrored_legs() -> Model:

@@ -304,7 +304,7 @@ def pair_lanes(code: str) -> str:
     pairs = _pairs(body, _seeds(body))
     operations = sum(1 for n in range(len(body.values)) if body.values[n][1])
     paired = sum(1 for entry in pairs.values() if entry[0] == "lane")
-    if paired < MIN_PAIRED_SHARE * operations:
+    if not paired or paired < MIN_PAIRED_SHARE * operations:
         return code
     try:
         new_body = _write([], lines[start], body, pairs)
