@@ -24,8 +24,8 @@ negations, doublings and squares go into lanes; a body that is not plain assignm
 where fewer than :data:`MIN_PAIRED_SHARE` of the operations pair, is returned unchanged
 (the random trees of the benchmarks: the same C, the same cache key).
 
-Talos (2026-11-27): 3,400 of its 10,000 operations become pair operations, 16,400 -> 11,600
-machine instructions (2,070 -> 720 stores to the stack), about 0.7x the time a call
+Talos (2026-11-27): 3,428 of its 9,985 operations become pair operations, 16,427 -> 11,600
+machine instructions (2,070 -> 839 stores to the stack), about 0.72x the time a call
 (docs/performance.md).
 """
 
