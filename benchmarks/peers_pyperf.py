@@ -54,7 +54,9 @@ processes), on each line (``python -m benchmarks --summary`` names the line of e
 verdict). Writes ``benchmarks/results/peers_pyperf-l2-<size>.json`` (pyperf's own file:
 ``python -m pyperf stats`` reads it) and ``.csv``, one pair of files a machine, named by
 its L2 cache a core (the issue's second machine differs from the first by its cache: 512
-KiB against 1 MiB), with the CPU (model name, family, model) in column ``cpu``.
+KiB against 1 MiB), with the CPU (model name, family, model) in column ``cpu``; with ``-o
+FILE`` pyperf's file is FILE and the table FILE with the suffix ``.csv`` (a run of some
+models keeps the committed results of all eight).
 """
 
 from __future__ import annotations
@@ -387,14 +389,18 @@ def main() -> None:
             shutil.rmtree(args.copies, ignore_errors=True)
     if args.worker:
         return
-    RESULTS.mkdir(exist_ok=True)
     result = pyperf.BenchmarkSuite([b for b in suite if b is not None])
-    result.dump(str(RESULTS / f"{results_stem()}.json"), replace=True)
+    if args.output:  # pyperf wrote its file there; the table goes beside it
+        table_path = Path(args.output).with_suffix(".csv")
+    else:
+        RESULTS.mkdir(exist_ok=True)
+        result.dump(str(RESULTS / f"{results_stem()}.json"), replace=True)
+        table_path = RESULTS / f"{results_stem()}.csv"
     import pandas as pd
 
     rows = summarize(result, prepared, [load_before, os.getloadavg()[0]])
     table = pd.DataFrame(rows)
-    table.to_csv(RESULTS / f"{results_stem()}.csv", index=False)
+    table.to_csv(table_path, index=False)
     with pd.option_context("display.width", 200):
         print(table.drop(columns=["types"]).to_string(index=False, float_format="{:.3g}".format))
 

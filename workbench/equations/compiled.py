@@ -18,6 +18,8 @@ keeps the compile time about linear in the size of the graph; small graphs keep 
 in local variables instead (:func:`generate_c`). The default flags (:func:`default_flags`)
 are ``-O2`` for those small graphs, ``-O1`` for the rest, and on an x86-64 CPU with AVX its
 three-operand instructions (``-mavx``, no fused multiply-adds: every result the same).
+Outputs of the same shape (mirrored limbs) run two at a time in vector lanes, the same
+operations lane by lane (:mod:`workbench.equations.lanes`).
 
 Without a C compiler, or when CasADi cannot generate C for a graph (the formalisms' linear
 solves use CasADi's own LDL^T and QR, which it can), evaluation stays in the virtual
@@ -49,6 +51,7 @@ from typing import Any
 
 import casadi as ca
 
+from workbench.equations import lanes
 from workbench.files import atomic_write, file_lock, user_cache_dir
 
 MODES = ("none", "jit", "auto")
@@ -134,7 +137,9 @@ def generate_c(
         function.name(), {"with_header": False, "avoid_stack": not small, "verbose": False}
     )
     generator.add(function)
-    return generator.dump() if small else split_long_bodies(generator.dump(), statements_per_part)
+    if small:  # mirrored limbs' operations two at a time, the same numbers
+        return lanes.pair_lanes(generator.dump())
+    return split_long_bodies(generator.dump(), statements_per_part)
 
 
 def uses_locals(
@@ -363,7 +368,8 @@ def counted() -> Any:
 def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
     """The C of ``function`` and where its library is cached (call inside :func:`counted`).
     ``flags``: the compiler's; :data:`DEFAULT_FLAGS` (the formalisms' default) stands for
-    :func:`default_flags` and kernels marked for ``-O2`` (:func:`optimize_callees`).
+    :func:`default_flags` and kernels marked for ``-O2`` (:func:`optimize_callees`), and
+    for code with vector lanes :func:`~workbench.equations.lanes.compiler_flags`.
 
     Raises RuntimeError if there is no C compiler or CasADi cannot generate C for the graph.
     """
@@ -373,7 +379,7 @@ def generate(function: ca.Function, flags: str = DEFAULT_FLAGS) -> Generated:
     function = exported(function)
     code = generate_c(function)
     if flags == DEFAULT_FLAGS:  # flags of one's own apply to every function
-        code, flags = optimize_callees(code), default_flags(function)
+        code, flags = optimize_callees(code), default_flags(function) + lanes.compiler_flags(code)
     if "#error" in code:  # e.g. LAPACK's LU: CasADi writes an #error, not C for it
         cause = next(line for line in code.splitlines() if "#error" in line).strip()
         raise RuntimeError(f"CasADi cannot generate C for it: {cause}")
