@@ -187,9 +187,11 @@ def issue35_targets() -> list[Row]:
         last = pd.read_csv(tiny).dropna(subset=["marginal_outside_cpu_ms"])
         if len(last):
             row = last.iloc[-1]
+            cpu = f"{row.cpu}; " if isinstance(row.get("cpu"), str) else ""
             newer["time outside integration, marginal at 10,000 runs"] = (
                 row.marginal_outside_cpu_ms,
-                f"load {row.load_1min:.1f}; footprint-tiny.csv",
+                f"{cpu}load {row.load_1min:.1f}; integration {row.integration_cpu_ms:.1f} ms a "
+                "run; footprint-tiny.csv",
             )
     read = readback_rows()  # the reader on the default sweep's recording, measured alone
     rows = []

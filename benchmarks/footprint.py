@@ -76,6 +76,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks import help_if_asked
+from workbench.execution.environment import cpu_model
 
 RESULTS = Path(__file__).parent / "results"
 FRAMES = 200  # poses a run, as SweepRecorder
@@ -338,6 +339,7 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
                 "size_mib": size / 2**20,
                 "rrd_on_disk_mib": on_disk / 2**20,
                 "load_1min": os.getloadavg()[0],
+                "cpu": cpu_model(),  # the 5 ms target was set on a Zen 5 EPYC
                 "_cpu_outside_s": measured["cpu_s"] - integration,
             }  # fmt: skip
             rows.append(row)
