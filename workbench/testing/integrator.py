@@ -49,7 +49,10 @@ ANALYTIC_PROBLEMS = ("torque-free-symmetric-gyro", "knife-edge-cart")
 TOLERANCES = {"accuracy": 1e-4, "convergence": 1.5}  # relative error; growth factor allowed
 RTOLS = (1e-4, 1e-8)
 HORIZON = 1.0  # s
-FAILURE_TIME_LIMIT = 30.0  # s for the blow-up
+# s for the blow-up: a sweep's default time limit (runs/sweep_spec.py), reached by a hung
+# run only: newmark's steps shrinking towards t = 1 took 43.5 s of CPU on a quiet Zen 3
+# EPYC (2026-11-27), under 30 on the Zen 5 the kit was first run on
+FAILURE_TIME_LIMIT = 120.0
 FAILURE_EARLIEST = 0.5  # s; y' = 1/(1 - t) is harmless up to here
 DRIVEN_HORIZON = 2.0  # s
 TIME_DEPENDENCE_ERROR = 1e-6  # |x - sin t| + |x' - cos t| at the end, at rtol 1e-8
