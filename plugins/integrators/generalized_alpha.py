@@ -230,13 +230,15 @@ class GeneralizedAlpha(Integrator):
                                 )
                 else:
                     # Newton fails when a step is too long for the motion (Andrews'
-                    # squeezer at 1 ms near t = 0.025 s): the interval is redone with
-                    # half the step, kept for the rest of the run and said in the row
-                    t_start, start = t, state
+                    # squeezer at 1 ms near t = 0.025 s): the rest of the interval, from the
+                    # last step that converged, is taken with half the step, kept for the
+                    # rest of the run and said in the row. (Redoing the whole interval made a
+                    # blow-up's ten halvings cost 2 x the interval / the last step: 205,569
+                    # steps and 48 s of CPU for y'' = y'^2.)
                     while True:
+                        t_start = t
                         n_steps = max(1, math.ceil((t_out - t_start) / h - 1e-9))
                         h_interval = (t_out - t_start) / n_steps
-                        t, state = t_start, start
                         try:
                             for k in range(n_steps):
                                 state = self._step(state, t, h_interval, stats)
