@@ -5,8 +5,8 @@ Item 8: hht-alpha and lie-generalized-alpha failed Newton near t = 0.025 s at th
 Arnold-Bruls scaling of the constraint rows was in place). The rest of the output
 interval, from the last step that converged, is now taken with half the step, and the row
 says so. Item 7: at rtol 1e-4 the step rtol asks (10 ms) is longer than the output interval
-(1 ms), so rtol 1e-4 and 1e-6 ran the same step; the row warns that the accuracy asked was not attempted; a tighter rtol below the interval (1e-8:
-0.1 ms) gives a smaller error.
+(1 ms), so rtol 1e-4 and 1e-6 ran the same step; the row warns that the accuracy asked
+was not attempted; a tighter rtol below the interval (1e-8: 0.1 ms) gives a smaller error.
 """
 
 from __future__ import annotations
