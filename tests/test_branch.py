@@ -93,19 +93,24 @@ def check(found) -> tuple[int, int]:
 
 
 @pytest.mark.parametrize(
-    ("formalism", "options", "runs"),
+    ("formalism", "options", "runs", "perturbations"),
     [
-        ("recursive", {"index": 1}, [(1e-4, 20.0), (1e-12, 1.0)]),
-        # minimal velocities through a singular partition: slow at tight rtol, so loose only
-        ("nonholonomic-projection", {}, [(1e-4, 20.0), (1e-6, 20.0)]),
+        ("recursive", {"index": 1}, [(1e-4, 20.0), (1e-12, 1.0)], (0.0, 1e-12, -1e-12)),
+        # minimal velocities through a singular partition: slow at tight rtol, so loose only,
+        # and the start as given (its 18 runs took 25 s of a CI run on a Zen 3)
+        ("nonholonomic-projection", {}, [(1e-4, 20.0), (1e-6, 20.0)], (0.0,)),
     ],
 )
-def test_two_windows_warned_exactly_when_they_leave_the_branch(formalism, options, runs) -> None:
+def test_two_windows_warned_exactly_when_they_leave_the_branch(
+    formalism, options, runs, perturbations
+) -> None:
     """N = 2 over the problem's 20 s at rtol 1e-4 (leaves the branch here, not on every
     machine at the same passage) and over its first singular passage (1 s) at rtol 1e-12
     (stays here); 50, 200, 1000 samples; starts perturbed by +-1e-12."""
-    counted = [check(rows(2, formalism, options, rtol, span)) for rtol, span in runs]
-    assert sum(a + b for a, b in counted) >= 9  # most of the 18 rows are one or the other
+    counted = [check(rows(2, formalism, options, rtol, span, perturbations=perturbations))
+               for rtol, span in runs]  # fmt: skip
+    total = 2 * 3 * len(perturbations)
+    assert sum(a + b for a, b in counted) >= total // 2  # most rows are one or the other
 
 
 @pytest.mark.slow  # 2 DOP853 runs of 81 joint coordinates in the VM: 52 s on a Zen 3
