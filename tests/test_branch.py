@@ -113,16 +113,16 @@ def test_two_windows_warned_exactly_when_they_leave_the_branch(
     assert sum(a + b for a, b in counted) >= total // 2  # most rows are one or the other
 
 
-@pytest.mark.slow  # 2 DOP853 runs of 81 joint coordinates in the VM: 52 s on a Zen 3
+@pytest.mark.slow  # a DOP853 run of 81 joint coordinates in the VM: 15 s on a Zen 3
 def test_forty_windows_warned_exactly_when_they_leave_the_branch() -> None:
-    """N = 40 (the benchmark's case): over 3 s (several singular passages) at rtol 1e-6, over
-    the first passage (1 s) at rtol 1e-11; 50 samples, the start as given. (The N = 2 tests
-    take 50, 200 and 1,000 samples and perturbed starts: at N = 40, 1,000 samples over 3 s
-    took 98 s of CPU on a Zen 3, the run's integration 11 of them, most of the rest this
-    test's own walk along every sample without the audit's shortcut.)"""
-    left, stayed = check(rows(40, "recursive", {"index": 1}, 1e-6, 3.0, (50,), (0.0,)))
-    a, b = check(rows(40, "recursive", {"index": 1}, 1e-11, 1.0, (50,), (0.0,)))
-    assert left + a + stayed + b >= 1  # one of the 2 rows is one or the other
+    """N = 40 (the benchmark's case) over 3 s (several singular passages) at rtol 1e-6, 50
+    samples, the start as given. (The N = 2 tests take 50, 200 and 1,000 samples, perturbed
+    starts and a tight window; at N = 40 the first passage at rtol 1e-11 took 40 s of CPU
+    on a Zen 3, and 1,000 samples over 3 s took 98 s, the run's integration 11 of them, most
+    of the rest this test's own walk along every sample without the audit's shortcut.)"""
+    check(rows(40, "recursive", {"index": 1}, 1e-6, 3.0, (50,), (0.0,)))  # its asserts: a row
+    # off the branch at a sample is warned, one on it at every sample is not (a row between
+    # the two defects, 1e-4 to 1e-2, is neither: on this machine the row stays, 0 warnings)
 
 
 def crossing(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -107,8 +107,9 @@ def test_cli_sweep_reports_deep_nesting_in_one_line(tmp_path) -> None:
 
 @pytest.mark.slow
 def test_fuzzed_sweep_specs_give_one_line_or_a_sweep(monkeypatch, tmp_path) -> None:
-    """600 seeded specifications through parse_spec and `workbench sweep` (1,100 took
-    162 s of CI on a Zen 3, most of it the big grids' plans; every kind still comes up)."""
+    """300 seeded specifications through parse_spec and `workbench sweep` (1,100 took
+    162 s of CI on a Zen 3, 600 took 70-93 s, most of it the big grids' plans; each of the
+    10 kinds still comes up 26-35 times)."""
     import workbench.runs.sweep as sweep_module
 
     def not_run(*args, **kwargs):
@@ -118,7 +119,7 @@ def test_fuzzed_sweep_specs_give_one_line_or_a_sweep(monkeypatch, tmp_path) -> N
     monkeypatch.chdir(tmp_path)  # a fuzzed ``out = "x"`` is relative: made here, not in the repo
     started = time.perf_counter()
     slowest, kinds, valid = 0.0, {}, 0
-    for seed in range(600):
+    for seed in range(300):
         text, kind = fuzz_inputs.sweep_spec(seed)
         kinds[kind] = kinds.get(kind, 0) + 1
         begin = time.perf_counter()
@@ -138,8 +139,8 @@ def test_fuzzed_sweep_specs_give_one_line_or_a_sweep(monkeypatch, tmp_path) -> N
         assert result.exit_code == 2, (seed, kind, result.output, result.exception)
         one_line_error(result.output)
     assert time.perf_counter() - started < 1800  # only a hang gets near this
-    assert valid > 25 and len(kinds) == 10, (valid, kinds)
-    print(f"\n600 specs: {valid} valid, slowest validation {slowest:.2f} s, {kinds}")
+    assert valid > 12 and len(kinds) == 10, (valid, kinds)
+    print(f"\n300 specs: {valid} valid, slowest validation {slowest:.2f} s, {kinds}")
 
 
 # ---- item 5: non-finite and wrong-typed models ----------------------------------------
