@@ -158,7 +158,7 @@ def test_cli_reproduces_a_stored_reference(tmp_path: Path) -> None:
 @pytest.mark.parametrize("name", [p.stem for p in STORED if p.stem not in CHEAP])
 def test_every_other_stored_reference_reproduced_by_its_stored_pipeline(name: str) -> None:
     """The references beyond the cheap ones, by their stored pipeline. (Both pipelines, as
-    `workbench reference` runs them, took 465 s of a CI run on a Zen 3: the second one is
+    `workbench reference` runs them, took 1,035 s of a CI run at load 4-6 on a Zen 3: the second is
     checked against the first whenever a reference is made, and
     test_cli_reproduces_a_stored_reference runs the whole command.)"""
     check_reproduced_by_the_stored_pipeline(name)
