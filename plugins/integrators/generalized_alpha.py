@@ -51,9 +51,10 @@ an O(h^3) (conservative) measure of the local error; weighted by atol + rtol |q|
 a step is accepted when it is <= 1 and the next step is h * clip(0.9 err^(-1/3), 0.2, 4).
 A Newton failure shrinks the step by 4 (adaptive); with a fixed step it takes the rest of
 the output interval, from the last step that converged, with half the step (at most
-HALVINGS times), keeps the shorter step and warns in the row: on Andrews' squeezer the step rtol 1e-6 asks (1 ms) turns the fastest body by
-too much for Newton near t = 0.025 s (issue 32: hht-alpha and lie-generalized-alpha failed
-there with every formalism; the Arnold-Bruls scaling of the constraint rows is in place).
+HALVINGS times), keeps the shorter step and warns in the row: on Andrews' squeezer the
+step rtol 1e-6 asks (1 ms) turns the fastest body by too much for Newton near t = 0.025 s
+(issue 32: hht-alpha and lie-generalized-alpha failed there with every formalism; the
+Arnold-Bruls scaling of the constraint rows is in place).
 When rtol asks a step longer than the output interval, the interval is taken and the row
 warns that the accuracy asked was not attempted (:func:`step_warning`).
 
