@@ -387,3 +387,20 @@ def test_a_run_with_warnings_is_marked_and_never_recommended() -> None:
     _cells, footnotes = status_matrix(prepare_results(results))
     below = [note for note in footnotes if "below the reference" in note]
     assert len(below) == 1 and "(2 run(s)" in below[0]
+
+
+def test_a_report_of_skipped_runs_only_raises_no_pandas_warning(tmp_path: Path) -> None:
+    """A store read back from Parquet gives all-empty text columns (warnings, form,
+    message, options) the float dtype; filling them with "" is deprecated in pandas and
+    printed a warning line per use in every `workbench report` of such a store."""
+    results = synthetic_results(problems=("p",))
+    results["status"] = "skipped"
+    for column in ("warnings", "form", "message", "formalism_options", "integrator_options"):
+        results[column] = np.nan
+    results[["scd", "wall_s"]] = np.nan
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        index = write_report(results, lambda run_id: None, tmp_path, "cmd")
+    assert "No successful run" in index.read_text(encoding="utf-8")

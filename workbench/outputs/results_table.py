@@ -47,7 +47,7 @@ def with_option_columns(frame: pd.DataFrame) -> pd.DataFrame:
         column = f"{kind}_options"
         if column not in out:
             continue
-        parsed = [_options(text) for text in out[column].fillna("").astype(str)]
+        parsed = [_options(text) for text in out[column].astype(object).fillna("").astype(str)]
         keys = sorted({key for options in parsed for key in options})
         for key in keys:
             out[f"{kind}.{key}"] = [options.get(key, "") for options in parsed]

@@ -124,7 +124,7 @@ def mark_stale(frame: pd.DataFrame, stale: Mapping[str, str]) -> pd.DataFrame:
         "stale: made by other code than this sweep's (" + reasons[marked] + "); "
         "redo with `workbench sweep --rerun stale`"
     )
-    old = frame.loc[marked, "warnings"].fillna("").astype(str)
+    old = frame.loc[marked, "warnings"].astype(object).fillna("").astype(str)
     frame.loc[marked, "warnings"] = [
         f"{o}; {n}" if o else n for o, n in zip(old, notes, strict=True)
     ]

@@ -83,7 +83,7 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
     for column in ("run_id", "message", "formalism_options", "integrator_options"):
         if column not in runs:
             runs[column] = ""
-        runs[column] = runs[column].fillna("").astype(str)
+        runs[column] = runs[column].astype(object).fillna("").astype(str)
     if not runs["run_id"].str.len().any():
         runs["run_id"] = [f"run-{index}" for index in range(len(runs))]
     for column in ("problem", "formalism", "integrator", "status"):

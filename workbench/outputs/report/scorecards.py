@@ -91,7 +91,12 @@ def iftomm_scorecard(runs: pd.DataFrame, benchmarks: dict[str, dict[str, Any]]) 
             else:
                 text = row.verdict
             cells.setdefault(row.pair, {})[problem] = text
-    table = pd.DataFrame.from_dict(cells, orient="index").reindex(columns=problems).fillna("")
+    table = (
+        pd.DataFrame.from_dict(cells, orient="index")
+        .reindex(columns=problems)
+        .astype(object)
+        .fillna("")
+    )
     table.index.name = "formalism / integrator"
     return table.sort_index()
 

@@ -150,7 +150,9 @@ def pair_family(runs: pd.DataFrame) -> pd.Series:
     """Per run: 'explicit' or 'implicit' integrator with the form the formalism gave it
     (ode, dae, mechanical), e.g. 'explicit ode'."""
     form = (
-        runs["form"].fillna("").astype(str) if "form" in runs else pd.Series("", index=runs.index)
+        runs["form"].astype(object).fillna("").astype(str)
+        if "form" in runs
+        else pd.Series("", index=runs.index)
     )
     kind = implicit(runs).map({True: "implicit", False: "explicit"})
     return (kind + " " + form).str.strip()

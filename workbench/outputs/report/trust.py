@@ -15,4 +15,4 @@ def warned(runs: pd.DataFrame) -> pd.Series:
     """True for the rows whose health audit found something (column ``warnings``)."""
     if "warnings" not in runs:
         return pd.Series(False, index=runs.index)
-    return runs["warnings"].fillna("").astype(str).str.len() > 0
+    return runs["warnings"].astype(object).fillna("").astype(str).str.len() > 0
