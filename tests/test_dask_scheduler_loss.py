@@ -120,7 +120,7 @@ def local_rows(tmp_path_factory):
     spec = base / "spec.toml"
     spec.write_text(spec_text(base / "out", INTEGRATORS, PROBLEMS))
     done = subprocess.run(
-        [sys.executable, "-m", "workbench", "sweep", str(spec)],
+        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec)],
         cwd=REPO, capture_output=True, text=True, timeout=HANG,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -137,7 +137,8 @@ def test_a_killed_scheduler_ends_the_sweep_with_exit_1_and_a_resume_completes(
     spec = tmp_path / "spec.toml"
     spec.write_text(spec_text(out, INTEGRATORS, PROBLEMS))
     sweep = subprocess.Popen(
-        [sys.executable, "-m", "workbench", "sweep", str(spec), "--scheduler", address],
+        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec),
+         "--scheduler", address],  # fmt: skip
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -170,7 +171,7 @@ def test_a_killed_scheduler_ends_the_sweep_with_exit_1_and_a_resume_completes(
         client_log = out / "logs" / "dask-client.log"  # distributed's words, kept off stderr
         assert str(client_log) in last and "distributed" in client_log.read_text(), last
     resumed = subprocess.run(
-        [sys.executable, "-m", "workbench", "sweep", str(spec)],
+        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec)],
         cwd=REPO, capture_output=True, text=True, timeout=HANG,
     )  # fmt: skip
     assert resumed.returncode == 0, resumed.stderr

@@ -144,7 +144,7 @@ def test_a_full_disk_ends_the_sweep_with_one_line_and_resume_finishes(small_disk
     spec = small_disk.parent / "sweep.toml"
     spec.write_text(SPEC)
     out = small_disk / "out"
-    done = workbench("sweep", str(spec), "--out", str(out))
+    done = workbench("sweep", str(spec), "--out", str(out), "--no-report")
     assert done.returncode == 0, done.stderr
     merged = (out / RECORDING_FILE).read_bytes()
     # room for the redone runs' rows and recordings, not for a merge (check_free_space)
@@ -160,7 +160,7 @@ def test_a_full_disk_ends_the_sweep_with_one_line_and_resume_finishes(small_disk
     filler.unlink()
     stale = out / f".{RECORDING_FILE}.12345-deadbeef.tmp"  # a writer killed mid-write
     stale.write_bytes(b"half a recording")
-    resumed = workbench("sweep", str(spec), "--out", str(out))
+    resumed = workbench("sweep", str(spec), "--out", str(out), "--no-report")
     assert resumed.returncode == 0, resumed.stderr
     assert "2 already done" in resumed.stdout
     assert len(SweepRecorder().add_recording(out / RECORDING_FILE)) == 2

@@ -224,7 +224,7 @@ def test_a_sweep_of_two_robots_gives_two_problems(tmp_path):
     names = ["arm/robot.xml[t_end=0.05]", "floating/robot.xml"]
     assert [run.problem for run in parsed.runs] == names
     assert get_problem("floating/robot.xml") is RobotProblem
-    result = workbench("sweep", "spec.toml", "--out", "out", cwd=tmp_path)
+    result = workbench("sweep", "spec.toml", "--out", "out", "--no-report", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     rows = load_results(tmp_path / "out")
     assert sorted(rows["problem"]) == names

@@ -47,7 +47,7 @@ def test_local_pool_keeps_a_bounded_log_per_run(tmp_path) -> None:
         'integrators = ["test-noisy", "casadi-idas"]\ntolerances = [1e-6]\n'
     )
     result = subprocess.run(
-        [sys.executable, "-m", "workbench", "sweep", str(spec)],
+        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec)],
         cwd=ROOT, capture_output=True, timeout=900,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr[-2000:]
@@ -136,7 +136,7 @@ def test_a_run_killed_at_its_time_limit_keeps_what_it_printed(tmp_path) -> None:
         'integrators = ["test-noisy-hang"]\ntolerances = [1e-6]\n'
     )
     result = subprocess.run(
-        [sys.executable, "-m", "workbench", "sweep", str(spec)],
+        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec)],
         cwd=ROOT, capture_output=True, timeout=900,
     )  # fmt: skip
     assert b"about to hang" not in result.stdout + result.stderr

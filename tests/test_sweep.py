@@ -175,8 +175,8 @@ def test_killed_sweep_resumes_to_the_same_rows(tmp_path) -> None:
     partial = store.completed_run_ids(killed_out)
     assert 3 <= len(partial) < 24
     for out in (killed_out, clean_out):
-        done = subprocess.run(
-            command + [str(tmp_path / f"{out.name}.toml")],
+        done = subprocess.run(  # the rows are the subject: no report (2 x 8 s of CPU)
+            command + ["--no-report", str(tmp_path / f"{out.name}.toml")],
             cwd=tmp_path,
             env=env,
             capture_output=True,
@@ -193,6 +193,30 @@ def test_killed_sweep_resumes_to_the_same_rows(tmp_path) -> None:
 # ---- the CLI ------------------------------------------------------------------------
 
 runner = CliRunner()
+
+
+def test_no_report_writes_the_rows_and_says_how_to_write_the_report(fake_plugins, tmp_path) -> None:
+    """--no-report: rows, series and recording, no report, and a line naming the command
+    that writes it; once written, a sweep with nothing new calls it unchanged, and a sweep
+    that adds rows says the one there is of older rows."""
+    out = tmp_path / "out"
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text(out, '["test-rk45"]'))
+    result = runner.invoke(app, ["sweep", str(spec), "--no-report"])
+    assert result.exit_code == 0, result.output
+    assert f"report: not written (--no-report); `workbench report {out}` writes it" in (
+        result.output
+    )
+    assert len(store.load_results(out)) == 2 and not (out / "report").exists()
+    assert (out / "recording.rrd").is_file()
+    assert runner.invoke(app, ["report", str(out)]).exit_code == 0
+    result = runner.invoke(app, ["sweep", str(spec), "--no-report"])
+    assert f"report: {out / 'report' / 'index.html'} (unchanged" in result.output
+    spec.write_text(spec_text(out, '["test-rk45", "test-rk4"]'))
+    result = runner.invoke(app, ["sweep", str(spec), "--no-report"])
+    assert result.exit_code == 0, result.output
+    assert f"{out / 'report' / 'index.html'} is of older rows" in result.output
+    assert len(store.load_results(out)) == 4
 
 
 @pytest.mark.parametrize(

@@ -62,7 +62,7 @@ def test_local_pool_and_child_process_rows_agree_bit_for_bit(
         f'integrators = ["{integrator}"]\ntolerances = [1e-6]\n'
     )
     swept = subprocess.run(
-        [sys.executable, "-m", "workbench", "sweep", str(spec)], cwd=ROOT,
+        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec)], cwd=ROOT,
         env=environment(sweep_threads), capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     assert swept.returncode == 0, swept.stderr

@@ -255,6 +255,14 @@ def sweep(
         bool,
         typer.Option("--wait", help="If the output directory is in use, wait for it to be free."),
     ] = False,
+    no_report: Annotated[
+        bool,
+        typer.Option(
+            "--no-report",
+            help="Write the rows, series and recording but no report (a campaign run in "
+            "parts, a batch job): `workbench report OUT` writes it later.",
+        ),
+    ] = False,
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
@@ -321,6 +329,13 @@ def sweep(
         typer.echo("report: none (no run has a row yet)")
     elif index := current_report(summary.out, stale=summary.stale):
         typer.echo(f"report: {index}{kept}")
+    elif no_report:
+        older = summary.out / "report" / "index.html"
+        typer.echo(
+            "report: not written (--no-report"
+            + (f"; {older} is of older rows" if older.is_file() else "")
+            + f"); `workbench report {summary.out}` writes it"
+        )
     else:
         index = _sweep_report(summary, report_directory)
         typer.echo(f"report: {index}")
