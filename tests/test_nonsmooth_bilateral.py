@@ -56,9 +56,7 @@ def impact_times(t_end: float) -> np.ndarray:
         k += 1
 
 
-def _run(
-    formalism: str, integrator: str, options: dict | None = None, tolerances=(1e-9, 1e-12)
-):
+def _run(formalism: str, integrator: str, options: dict | None = None, tolerances=(1e-9, 1e-12)):
     problem = PendulumWall()
     equations = registry.get_formalism(formalism)().build(problem.model())
     state = consistent_initial_state(equations, problem)
