@@ -136,9 +136,9 @@ def test_a_killed_scheduler_ends_the_sweep_with_exit_1_and_a_resume_completes(
     out = tmp_path / "out"
     spec = tmp_path / "spec.toml"
     spec.write_text(spec_text(out, INTEGRATORS, PROBLEMS))
+    command = [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec)]
     sweep = subprocess.Popen(
-        [sys.executable, "-m", "workbench", "sweep", "--no-report", str(spec),
-         "--scheduler", address],  # fmt: skip
+        [*command, "--scheduler", address],
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -162,6 +162,12 @@ def test_a_killed_scheduler_ends_the_sweep_with_exit_1_and_a_resume_completes(
     left = N_RUNS - rows(out)
     if sweep.returncode == 0:  # it finished before the loss reached it (near the end)
         assert left == 0, stderr
+    elif sweep.returncode == 2 and moment == "before the first run":
+        # the scheduler logs the connection before the client's handshake ends; killed in
+        # between, the client never connected (seen once in CI): one line, nothing run
+        (line,) = [x for x in stderr.strip().splitlines() if not x.startswith("plugins: ")]
+        assert line.startswith(f"error: cannot connect to the Dask scheduler '{address}'"), line
+        assert left == N_RUNS, stderr
     else:
         assert sweep.returncode == 1, stdout + stderr
         last = stderr.strip().splitlines()[-1]
