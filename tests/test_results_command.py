@@ -51,7 +51,9 @@ def test_rows_filter_sort_and_option_columns(results: Path) -> None:
     table = results_table(frame, by="run", where=["problem=heavy-top", "scd>=6"], sort=["-scd"])
     assert (table["problem"] == "heavy-top").all() and (table["scd"] >= 6).all()
     assert list(table["scd"]) == sorted(table["scd"], reverse=True)
-    assert "integrator.rho_inf" in table.columns and "integrator_options" not in table.columns
+    assert "options" in table.columns and "integrator_options" not in table.columns
+    named = results_table(frame, by="run", columns=["integrator", "integrator.rho_inf"])
+    assert set(named["integrator.rho_inf"].astype(str)) == {"0.9", ""}
     spread = with_option_columns(frame)
     assert set(spread["integrator.order"].astype(str)) == {"5", ""}  # radau's only
     with pytest.raises(ConfigError, match="no column 'nonsense'.*the columns are"):
@@ -73,7 +75,8 @@ def test_an_option_the_same_in_every_row_shown_is_said_once(results: Path) -> No
         "formalism.compile=auto, formalism.index=3, integrator.rho_inf=0.9, integrator.step=null"
     )
     every = results_table(frame, by="run")  # rho_inf: 0.9 for one integrator, "" for others
-    assert "integrator.rho_inf" in every.columns and "formalism.index" not in every.columns
+    assert "integrator.rho_inf" not in every.columns and "formalism.index" not in every.columns
+    assert "options" in every.columns  # radau: not registered, its options all shown
     named = results_table(frame, by="run", columns=["problem", "formalism.index"])
     assert list(named.columns) == ["problem", "formalism.index"] and "same" not in named.attrs
     frame.to_parquet(results)
@@ -82,6 +85,28 @@ def test_an_option_the_same_in_every_row_shown_is_said_once(results: Path) -> No
     # the caption wraps where the folder's path ends (under pytest-xdist: a longer path)
     caption = " ".join(outcome.output.split())
     assert "in each of them formalism.compile=auto, formalism.index=3" in caption
+
+
+def test_a_runs_options_are_one_column_of_those_not_its_plugins_defaults(
+    results: Path,
+) -> None:
+    """A column an option made `--by run` a page wide (160 characters for the quick
+    suite, most of them plugins' defaults): one column says what each run changed."""
+    frame = pd.read_parquet(results)
+    alpha = frame.index[frame["integrator"] == "generalized-alpha"]
+    frame.loc[alpha[0], "integrator_options"] = json.dumps({"rho_inf": 0.5, "step": 0.001})
+    frame.loc[alpha[1], "formalism_options"] = json.dumps({"index": 1})
+    table = results_table(frame, by="run").set_index(frame.index)
+    assert table.loc[alpha[0], "options"] == "rho_inf=0.5, step=0.001"
+    assert table.loc[alpha[2], "options"] == ""  # rho_inf=0.9, step=None: the defaults
+    assert table.loc[alpha[1], "options"] == "index=1"  # the formalisms' default is 3
+    # radau is no registered integrator here: all its options are shown
+    radau = frame.index[frame["integrator"] == "radau"][0]
+    assert table.loc[radau, "options"] == "order=5"
+    frame.to_parquet(results)
+    outcome = runner.invoke(app, ["results", str(results), "--by", "run"])
+    assert outcome.exit_code == 0 and "rho_inf=0.5," in outcome.output
+    assert "index=1" in outcome.output and "rho_inf=0.9" not in outcome.output
 
 
 def test_formats_from_the_command_line(results: Path) -> None:

@@ -194,24 +194,13 @@ def with_options(kind: str, name: str, options: dict[str, Any] | None) -> str:
     """``name[key=value,...]`` with the options that differ from the plugin's defaults
     (keys sorted, values as JSON; all of them if the plugin is not registered here), or
     ``name`` when there are none."""
-    options = _non_default(kind, name, dict(options or {}))
+    from workbench.plugin.options import non_default_options
+
+    options = non_default_options(kind, name, dict(options or {}))
     if not options:
         return str(name)
     text = ",".join(f"{key}={json.dumps(options[key], default=str)}" for key in sorted(options))
     return f"{name}[{text.replace(chr(34), '')}]"
-
-
-def _non_default(kind: str, name: str, options: dict[str, Any]) -> dict[str, Any]:
-    from workbench.errors import WorkbenchError
-    from workbench.plugin import registry
-    from workbench.plugin.options import option_fields
-
-    try:
-        plugin = getattr(registry, f"get_{kind}")(name)
-        defaults = {field: default for field, _type, default in option_fields(plugin.Options)}
-    except (WorkbenchError, AttributeError, TypeError):
-        return options
-    return {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
 
 
 def quaternion_xyzw(scalar_first: np.ndarray) -> np.ndarray:

@@ -4,7 +4,9 @@ The default is one line a problem (runs by status, the best scd reached without 
 the pair that reached it at least cost, in the report's cost measure and with the
 report's ranking, ties included), not every row of a sweep; ``by="pair"``
 gives one line a problem x pair, ``by="run"`` every run. Options are readable columns
-(``formalism.index``, ``integrator.step``), not JSON strings. Rows are filtered by
+(``formalism.index``, ``integrator.step``), not JSON strings; a table of runs says those
+the same in all its rows once, in its caption, and a run's others that are not its
+plugins' defaults in one column, ``options`` (``index=3, rho_inf=0.9``). Rows are filtered by
 conditions such as ``problem=my-problem``, ``scd>=6`` or ``status!=skipped``; sorted by
 columns (``-scd``: descending); printed as a terminal table, CSV, Markdown or LaTeX (the
 report's writers: readable headers with units, one number format a column).
@@ -34,7 +36,8 @@ FORMATS: tuple[str, ...] = ("table", "csv", "markdown", "latex")
 ROW_COLUMNS: tuple[str, ...] = (
     "problem", "formalism", "integrator", "rtol", "status", "scd", "err_l2", "wall_s", "n_rhs",
 )  # fmt: skip
-"""The columns of ``by="run"`` when none are named (option columns follow them)."""
+"""The columns of ``by="run"`` when none are named (then ``options``: a run's options that
+are not its plugins' defaults, where some are)."""
 GROUPINGS: tuple[str, ...] = ("problem", "pair", "run")
 CONDITION = re.compile(r"^\s*([A-Za-z0-9_.\- ]+?)\s*(<=|>=|!=|=|<|>)\s*(.*?)\s*$")
 
@@ -53,6 +56,44 @@ def with_option_columns(frame: pd.DataFrame) -> pd.DataFrame:
             out[f"{kind}.{key}"] = [options.get(key, "") for options in parsed]
         out = out.drop(columns=[column])
     return out
+
+
+def changed_options(runs: pd.DataFrame) -> list[dict[str, str]]:
+    """Each row's options that differ from its plugins' defaults, as ``{"formalism.index":
+    "3"}`` (values as JSON; every option of a plugin not registered here)."""
+    from workbench.plugin.options import non_default_options
+
+    seen: dict[tuple[str, str, str], dict[str, str]] = {}
+    out: list[dict[str, str]] = [{} for _ in range(len(runs))]
+    for kind in ("formalism", "integrator"):
+        if f"{kind}_options" not in runs or kind not in runs:
+            continue
+        texts = runs[f"{kind}_options"].astype(object).fillna("").astype(str)
+        for changed, name, text in zip(out, runs[kind].astype(str), texts, strict=True):
+            if (kind, name, text) not in seen:
+                try:
+                    options = json.loads(text) if text.strip() else {}
+                except ValueError:
+                    options = {"options": text}
+                if not isinstance(options, dict):
+                    options = {"options": options}
+                seen[kind, name, text] = {
+                    f"{kind}.{key}": json.dumps(value, default=str).replace('"', "")
+                    for key, value in non_default_options(kind, name, options).items()
+                }
+            changed.update(seen[kind, name, text])
+    return out
+
+
+def options_text(changed: Sequence[dict[str, str]], leave_out: Sequence[str]) -> list[str]:
+    """``changed`` (:func:`changed_options`) as ``index=3, rho_inf=0.9`` a row, but for the
+    options in ``leave_out`` (said in the caption); an option is named without its kind
+    unless the other kind has one of that name."""
+    names = {c for row in changed for c in row if c not in leave_out}
+    keys = [c.split(".", 1)[1] for c in names]
+    short = {c: k if keys.count(k) == 1 else c for c, k in zip(names, keys, strict=True)}
+    order = sorted(names, key=lambda c: (not c.startswith("formalism."), c))
+    return [", ".join(f"{short[c]}={row[c]}" for c in order if c in row) for row in changed]
 
 
 def _options(text: str) -> dict[str, str]:
@@ -186,14 +227,19 @@ def results_table(
         raise ConfigError(f"--by {by!r}: choose one of {', '.join(GROUPINGS)}")
     runs = prepare_results(frame)
     cost = resolve_cost(runs)
+    if by == "run":
+        runs = runs.assign(options=changed_options(runs))
     runs = with_option_columns(runs)
     runs = filter_rows(runs, where)
     if by == "run":
         options = [c for c in runs.columns if c.startswith(("formalism.", "integrator."))]
         # an option with one value in every row shown is said once, in the caption: a
-        # column of it widened the table past a page and told nothing
+        # column of it widened the table past a page and told nothing; the others, where
+        # not a plugin's default, are one column (a column an option was a page wide)
         same = {c: runs[c].iloc[0] for c in options if len(runs) and runs[c].nunique() == 1}
-        chosen = list(columns) or [*ROW_COLUMNS, *(c for c in options if c not in same)]
+        runs["options"] = options_text(list(runs["options"]), list(same))
+        shown = [*ROW_COLUMNS, *(["options"] if runs["options"].ne("").any() else [])]
+        chosen = list(columns) or shown
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen]
         if not columns:
