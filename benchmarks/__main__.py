@@ -16,7 +16,9 @@ Then the targets of issue 36, each with its figure or "not measured": forward dy
 over processes from ``python -m benchmarks.peers_pyperf`` (the range over pairs of
 processes; the verdict holds its upper end to the target) on two lines, each named: both
 sides called from Python (``FastFunction.into`` against ``pin.aba``'s binding) and both
-through the same CasADi buffer call into C (against ``pinocchio::aba``), the quick suite in the VM
+through the same CasADi buffer call into C (against ``pinocchio::aba``); beside them the same
+timed in turn within each process (``python -m benchmarks.peers_paired``: the range of
+the processes' ratios), the quick suite in the VM
 against ``compile = "auto"`` from ``python -m benchmarks.compile_auto``, whole
 simulations against the best Python-driven peer and the all-compiled anchor
 (``benchmarks.anchor``: Pinocchio's C++ ABA under CasADi's CVODES; "not measured" with
@@ -262,6 +264,7 @@ def issue36_targets() -> list[Row]:
                     worst = max(worst, row[f"{prefix}ratio_max"] / bound)
                     if not row[f"{prefix}ratio_max"] <= bound:
                         missed_elsewhere.append(f"{what} {'in C' if prefix else 'from Python'}")
+    rows += paired_rows()
     if not machines:
         rows.append(Row("forward dynamics vs pin.aba over processes (pyperf)", NAN, 0.5,
                         note="run python -m benchmarks.peers_pyperf"))  # fmt: skip
@@ -327,6 +330,32 @@ def issue36_targets() -> list[Row]:
         else:
             rows.append(Row(f"whole simulation, {case}, ours / all-compiled anchor", NAN, 1.5,
                             note="run python -m benchmarks.simulation"))  # fmt: skip
+    return rows
+
+
+def paired_rows() -> list[Row]:
+    """Issue 36's per-call targets as ``python -m benchmarks.peers_paired`` measures them:
+    both sides timed in turn within each process, the ratio's range over processes (its
+    upper end the worst process), with pyperf's statistic from the same timings in the
+    note. Beside the pyperf lines, not instead of them."""
+    rows = []
+    for timed in sorted(RESULTS.glob("peers_paired*.csv")):
+        for row in pd.read_csv(timed).to_dict("records"):
+            what = f"random tree N = {row['name']}" if row["kind"] == "random" else row["name"]
+            bound = 0.3 if row["kind"] == "robots" else 0.8 if int(row["name"]) >= 200 else 0.5
+            for prefix, line in (("", "from Python"), ("buffer_", "in C")):
+                rows.append(Row(
+                    f"forward dynamics, {what}, {line}, both timed in turn in each process "
+                    f"(peers_paired; L2 {row['l2_kib']} KiB)",
+                    row[f"{prefix}paired_median"], bound, low=row[f"{prefix}paired_min"],
+                    high=row[f"{prefix}paired_max"],
+                    interval=f"{row['processes']} processes' ratios",
+                    note=f"{row['cpu']}; held to the worst process; "
+                    f"{row[f'{prefix}ours_us']:.2f} / {row[f'{prefix}pin_aba_us']:.2f} us; the "
+                    f"slowest process of ours / the fastest of Pinocchio's "
+                    f"{row[f'{prefix}crossed_max']:.2f}; load {row['load1_before']:.1f}-"
+                    f"{row['load1_after']:.1f}",
+                ))  # fmt: skip
     return rows
 
 

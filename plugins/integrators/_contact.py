@@ -181,7 +181,7 @@ def disc_problem(delassus, b, n, nt, friction_bounds, joint_bounds) -> np.ndarra
     settings.verbose = False
     settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = CONIC_ACCURACY
     solver = clarabel.DefaultSolver(
-        sparse.triu(sparse.csc_matrix(delassus / d_scale)).tocsc(), np.asarray(b) / b_scale,
+        sparse.csc_matrix(np.triu(delassus / d_scale)), np.asarray(b) / b_scale,
         sparse.csc_matrix(np.vstack(rows)), np.concatenate(offsets).astype(float), cones,
         settings,
     )  # fmt: skip
