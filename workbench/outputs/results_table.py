@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -71,15 +72,9 @@ def changed_options(runs: pd.DataFrame) -> list[dict[str, str]]:
         texts = runs[f"{kind}_options"].astype(object).fillna("").astype(str)
         for changed, name, text in zip(out, runs[kind].astype(str), texts, strict=True):
             if (kind, name, text) not in seen:
-                try:
-                    options = json.loads(text) if text.strip() else {}
-                except ValueError:
-                    options = {"options": text}
-                if not isinstance(options, dict):
-                    options = {"options": options}
                 seen[kind, name, text] = {
                     f"{kind}.{key}": json.dumps(value, default=str).replace('"', "")
-                    for key, value in non_default_options(kind, name, options).items()
+                    for key, value in non_default_options(kind, name, _parsed(text)).items()
                 }
             changed.update(seen[kind, name, text])
     return out
@@ -97,17 +92,22 @@ def options_text(changed: Sequence[dict[str, str]], leave_out: Sequence[str]) ->
 
 
 def _options(text: str) -> dict[str, str]:
+    return {
+        str(k): v if isinstance(v, int | float | str) else json.dumps(v)
+        for k, v in _parsed(text).items()
+    }
+
+
+def _parsed(text: str) -> dict[str, Any]:
+    """A row's options column (JSON text) as its dict; text that is not a JSON object is
+    one option, ``options``."""
     if not text.strip():
         return {}
     try:
         value = json.loads(text)
     except ValueError:
         return {"options": text}
-    if not isinstance(value, dict):
-        return {"options": str(value)}
-    return {
-        str(k): v if isinstance(v, int | float | str) else json.dumps(v) for k, v in value.items()
-    }
+    return value if isinstance(value, dict) else {"options": str(value)}
 
 
 def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
