@@ -194,7 +194,7 @@ def with_options(kind: str, name: str, options: dict[str, Any] | None) -> str:
     """``name[key=value,...]`` with the options that differ from the plugin's defaults
     (keys sorted, values as JSON; all of them if the plugin is not registered here), or
     ``name`` when there are none."""
-    from workbench.plugin.options import non_default_options
+    from workbench.plugin.registry import non_default_options
 
     options = non_default_options(kind, name, dict(options or {}))
     if not options:

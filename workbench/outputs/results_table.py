@@ -62,7 +62,7 @@ def with_option_columns(frame: pd.DataFrame) -> pd.DataFrame:
 def changed_options(runs: pd.DataFrame) -> list[dict[str, str]]:
     """Each row's options that differ from its plugins' defaults, as ``{"formalism.index":
     "3"}`` (values as JSON; every option of a plugin not registered here)."""
-    from workbench.plugin.options import non_default_options
+    from workbench.plugin.registry import non_default_options
 
     seen: dict[tuple[str, str, str], dict[str, str]] = {}
     out: list[dict[str, str]] = [{} for _ in range(len(runs))]

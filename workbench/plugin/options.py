@@ -24,26 +24,6 @@ class NoOptions:
     """For plugins without options."""
 
 
-def non_default_options(kind: str, name: str, options: dict[str, Any]) -> dict[str, Any]:
-    """The ``options`` of the ``kind`` plugin ``name`` ("formalism", "integrator",
-    "problem") that differ from its defaults; all of them if it is not registered here."""
-    defaults = _defaults(kind, name)
-    if defaults is None:
-        return dict(options)
-    return {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
-
-
-def _defaults(kind: str, name: str) -> dict[str, Any] | None:
-    from workbench.errors import WorkbenchError
-    from workbench.plugin import registry
-
-    try:
-        plugin = getattr(registry, f"get_{kind}")(name)
-        return {field: default for field, _type, default in option_fields(plugin.Options)}
-    except (WorkbenchError, AttributeError, TypeError):
-        return None
-
-
 def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
     """(name, type, default) of every option, in declaration order (default None if required)."""
     if not dataclasses.is_dataclass(options_class):

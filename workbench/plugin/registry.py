@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, Literal
 
-from workbench.errors import PluginError, one_line
+from workbench.errors import PluginError, WorkbenchError, one_line
 from workbench.plugin import discovery
 from workbench.plugin.options import option_fields
 
@@ -292,6 +292,24 @@ def any_plugin(name: str) -> tuple[Kind, type]:
     raise PluginError(f"no problem, formalism or integrator is called {name!r}{hint}")
 
 
+def non_default_options(kind: str, name: str, options: dict[str, Any]) -> dict[str, Any]:
+    """The ``options`` of the ``kind`` plugin ``name`` ("formalism", "integrator",
+    "problem") that differ from its defaults; all of them if it is not registered here."""
+    defaults = _defaults(kind, name)
+    if defaults is None:
+        return dict(options)
+    return {k: v for k, v in options.items() if k not in defaults or defaults[k] != v}
+
+
+def _defaults(kind: str, name: str) -> dict[str, Any] | None:
+    try:
+        plugin = {"formalism": get_formalism, "integrator": get_integrator,
+                  "problem": get_problem}[kind](name)  # fmt: skip
+        return {field: default for field, _type, default in option_fields(plugin.Options)}
+    except (WorkbenchError, KeyError, AttributeError, TypeError):
+        return None
+
+
 __all__: list[Any] = [
     "REGISTRY",
     "PluginInfo",
@@ -306,6 +324,7 @@ __all__: list[Any] = [
     "get_problem",
     "integrator",
     "list_plugins",
+    "non_default_options",
     "plugin_names",
     "problem",
 ]
