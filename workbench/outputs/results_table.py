@@ -225,20 +225,20 @@ def results_table(
     ``by`` "problem" or "pair" (:func:`summary`) or "run" (the rows themselves)."""
     if by not in GROUPINGS:
         raise ConfigError(f"--by {by!r}: choose one of {', '.join(GROUPINGS)}")
-    runs = prepare_results(frame)
-    cost = resolve_cost(runs)
-    if by == "run":
-        runs = runs.assign(options=changed_options(runs))
-    runs = with_option_columns(runs)
-    runs = filter_rows(runs, where)
+    prepared = prepare_results(frame)
+    cost = resolve_cost(prepared)
+    runs = filter_rows(with_option_columns(prepared), where)
     if by == "run":
         options = [c for c in runs.columns if c.startswith(("formalism.", "integrator."))]
         # an option with one value in every row shown is said once, in the caption: a
         # column of it widened the table past a page and told nothing; the others, where
         # not a plugin's default, are one column (a column an option was a page wide)
         same = {c: runs[c].iloc[0] for c in options if len(runs) and runs[c].nunique() == 1}
-        runs["options"] = options_text(list(runs["options"]), list(same))
-        shown = [*ROW_COLUMNS, *(["options"] if runs["options"].ne("").any() else [])]
+        shown = list(ROW_COLUMNS)
+        if not columns or "options" in columns:  # (the plugins' defaults: a registry lookup)
+            changed = changed_options(prepared.loc[runs.index])
+            runs["options"] = options_text(changed, list(same))
+            shown += ["options"] if runs["options"].ne("").any() else []
         chosen = list(columns) or shown
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen]
