@@ -60,6 +60,21 @@ def test_pareto_front_keeps_exactly_the_undominated_runs() -> None:
     assert list(pareto_mask(runs)) == [True, True, False, True, True, False]
 
 
+def test_pareto_front_equals_the_pairwise_definition_on_random_points_with_ties() -> None:
+    rng = np.random.default_rng(7)
+    for size in (1, 2, 5, 40, 300):
+        # few distinct values: many equal costs, equal digits and equal points
+        points = [("p", "a / x", float(rng.integers(0, 6)), float(rng.integers(1, 6)))
+                  for _ in range(size)]  # fmt: skip
+        runs = rows(points)
+        costs, digits = runs["wall_s"].to_numpy(), runs["scd"].to_numpy()
+        expected = [
+            not np.any((costs <= c) & (digits >= d) & ((costs < c) | (digits > d)))
+            for c, d in zip(costs, digits, strict=True)
+        ]
+        assert list(pareto_mask(runs)) == expected, size
+
+
 def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_runs() -> None:
     points = []
     for problem, a_wall, b_wall in (("p1", 1.0, 1.5), ("p2", 1.0, 3.0), ("p3", 4.0, 1.0)):
