@@ -783,8 +783,8 @@ def _rotation_matrices(scalar_first: np.ndarray) -> np.ndarray:
 def _parsed_entity(path: str, heads: dict[str, tuple[list[str], str]]) -> tuple[list[str], str]:
     """(parts, run): ``path``'s parts (:func:`split_entity_path`) and the entity path of its
     first five (a run's, when it has six), the parse of all but its last part kept in
-    ``heads``: a run's entities share it (a merge parsed every chunk's whole path: 0.37 ms
-    a tiny run of 2.2, docs/performance.md)."""
+    ``heads``: a run's six chunks share it (a 2,000-run merge of tiny runs 4.4-5.0 -> 4.1-4.3
+    s of CPU, docs/performance.md)."""
     head, _, last = path.rpartition("/")
     if "\\" in last or head.endswith("\\"):  # an escaped "/" or "\\" near the cut: whole
         parts = split_entity_path(path)
