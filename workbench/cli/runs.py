@@ -380,9 +380,8 @@ def _sweep_report(summary: Any, report_directory: Any) -> Any:
         warnings.simplefilter("always")
         try:
             index = report_directory(
-                summary.out, command=" ".join(["workbench", *sys.argv[1:]]),
-                stale=summary.stale, frame=summary.table,
-            )  # fmt: skip
+                summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
+            )
         except (WorkbenchError, OSError):
             raise
         except Exception as error:  # noqa: BLE001 - the rows stand; the report is a view

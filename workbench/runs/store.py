@@ -197,10 +197,9 @@ def _parquet_safe(frame: pd.DataFrame) -> pd.DataFrame:
     return frame
 
 
-def consolidate(out: Path, frame: pd.DataFrame | None = None) -> Path:
-    """Write ``<out>/results.parquet`` (atomically) from the row files, or from ``frame``,
-    their :func:`load_results` already made; return its path."""
-    frame = load_results(out) if frame is None else frame
+def consolidate(out: Path) -> Path:
+    """Write ``<out>/results.parquet`` (atomically) from the row files; return its path."""
+    frame = load_results(out)
     path = Path(out) / RESULTS_FILE
     write_parquet_atomic(_parquet_safe(frame), path, root=Path(out))
     return path

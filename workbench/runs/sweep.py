@@ -25,7 +25,7 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from workbench import files
 from workbench.errors import ConfigError
@@ -41,9 +41,6 @@ from workbench.runs.progress import progress_bar
 from workbench.runs.recording_batches import unwritten_runs
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
 
@@ -64,9 +61,6 @@ class SweepSummary:
     unfinished: dict[str, str] = field(default_factory=dict)
     # outputs kept as they were, their inputs unchanged (results.parquet, recording.rrd)
     unchanged: list[str] = field(default_factory=list)
-    # the rows as this sweep consolidated them (store.load_results), for its report: None
-    # when results.parquet was kept
-    table: pd.DataFrame | None = None
 
     @property
     def total(self) -> int:
@@ -182,14 +176,11 @@ def run_sweep(
         sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
-        loaded: list[pd.DataFrame] = []  # the rows, read once for the table and the report
-
-        def consolidate() -> Path:
-            loaded.append(store.load_results(out_dir))
-            return store.consolidate(out_dir, loaded[0])
-
         results, remade = output_keys.remake(
-            out_dir / store.RESULTS_FILE, output_keys.rows_key(out_dir), consolidate, root=out_dir
+            out_dir / store.RESULTS_FILE,
+            output_keys.rows_key(out_dir),
+            lambda: store.consolidate(out_dir),
+            root=out_dir,
         )
         unchanged = [] if remade else [store.RESULTS_FILE]
         recording = None
@@ -211,7 +202,6 @@ def run_sweep(
         stale={} if "stale" in plan.rerun or fresh else plan.stale,
         unfinished=unfinished,
         unchanged=unchanged,
-        table=loaded[0] if loaded else None,
     )
 
 
