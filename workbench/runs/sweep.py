@@ -63,7 +63,7 @@ class SweepSummary:
     unchanged: list[str] = field(default_factory=list)
     # the rows as results.parquet was remade from them (store.load_results), when every row
     # file was readable: the sweep's report uses them rather than read the files again
-    rows: Any = None
+    rows: Any = field(default=None, repr=False, compare=False)
 
     @property
     def total(self) -> int:
