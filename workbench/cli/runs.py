@@ -380,7 +380,10 @@ def _sweep_report(summary: Any, report_directory: Any) -> Any:
         warnings.simplefilter("always")
         try:
             index = report_directory(
-                summary.out, command=" ".join(["workbench", *sys.argv[1:]]), stale=summary.stale
+                summary.out,
+                command=" ".join(["workbench", *sys.argv[1:]]),
+                stale=summary.stale,
+                rows=summary.rows,  # read once by the sweep's consolidation
             )
         except (WorkbenchError, OSError):
             raise

@@ -197,11 +197,15 @@ def _parquet_safe(frame: pd.DataFrame) -> pd.DataFrame:
     return frame
 
 
-def consolidate(out: Path) -> Path:
-    """Write ``<out>/results.parquet`` (atomically) from the row files; return its path."""
+def consolidate(out: Path, loaded: list[pd.DataFrame] | None = None) -> Path:
+    """Write ``<out>/results.parquet`` (atomically) from the row files; return its path.
+    ``loaded``: the rows read (:func:`load_results`' frame) are appended to it, so that a
+    caller can use them again (the sweep's report) rather than read every row file twice."""
     frame = load_results(out)
     path = Path(out) / RESULTS_FILE
     write_parquet_atomic(_parquet_safe(frame), path, root=Path(out))
+    if loaded is not None:
+        loaded.append(frame)
     return path
 
 

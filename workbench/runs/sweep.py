@@ -61,6 +61,9 @@ class SweepSummary:
     unfinished: dict[str, str] = field(default_factory=dict)
     # outputs kept as they were, their inputs unchanged (results.parquet, recording.rrd)
     unchanged: list[str] = field(default_factory=list)
+    # the rows as results.parquet was remade from them (store.load_results), when every row
+    # file was readable: the sweep's report uses them rather than read the files again
+    rows: Any = field(default=None, repr=False, compare=False)
 
     @property
     def total(self) -> int:
@@ -176,12 +179,14 @@ def run_sweep(
         sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
+        loaded: list[Any] = []  # the rows read by the consolidation, if it is done
         results, remade = output_keys.remake(
             out_dir / store.RESULTS_FILE,
             output_keys.rows_key(out_dir),
-            lambda: store.consolidate(out_dir),
+            lambda: store.consolidate(out_dir, loaded),
             root=out_dir,
         )
+        rows = loaded[0] if loaded and not loaded[0].attrs.get("unreadable") else None
         unchanged = [] if remade else [store.RESULTS_FILE]
         recording = None
         if recorder is not None:
@@ -202,6 +207,7 @@ def run_sweep(
         stale={} if "stale" in plan.rerun or fresh else plan.stale,
         unfinished=unfinished,
         unchanged=unchanged,
+        rows=rows,
     )
 
 

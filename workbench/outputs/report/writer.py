@@ -216,6 +216,7 @@ def report_directory(
     stale: Mapping[str, str] | None = None,
     cost: str | None = None,
     paper: str | os.PathLike[str] | None = None,
+    rows: pd.DataFrame | None = None,
 ) -> Path:
     """The report of a results directory written by :mod:`workbench.runs.store` (or of a
     results.parquet); return the path of its ``index.html``.
@@ -229,7 +230,9 @@ def report_directory(
     ``series/``; runs without one get no drift curve. Raises ConfigError when there are no
     results. Warnings of :func:`workbench.runs.store.load_results` (unreadable rows) pass through.
     cost: the report's cost measure (:func:`write_report`); paper: also write a paper
-    folder there (:func:`write_report`).
+    folder there (:func:`write_report`). rows: the directory's rows as
+    :func:`~workbench.runs.store.load_results` read them just before (a sweep's consolidation:
+    every row file read once, not twice); default: read here.
     """
     import shlex
 
@@ -238,7 +241,7 @@ def report_directory(
     source = Path(results_path)
     if not source.exists():
         raise ConfigError(f"no results at {source}: give the output directory of `workbench sweep`")
-    frame = load_results(source)
+    frame = load_results(source) if rows is None else rows
     if len(frame) == 0:
         raise ConfigError(f"no result rows in {source}: run `workbench sweep --out {source}` first")
     if stale:
