@@ -73,8 +73,10 @@ def sweep(
     if here:
         run_here(parsed, callback, fresh)
     else:
-        run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
-                  say=lambda line: None)  # fmt: skip
+        summary = run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
+                            say=lambda line: None)  # fmt: skip
+        if summary.rows is not None:  # what the consolidation read: not read again
+            return summary.rows
     return store.load_results(parsed.out)
 
 
