@@ -54,7 +54,8 @@ def _dominated(costs: np.ndarray, digits: np.ndarray) -> np.ndarray:
     """True where another point costs no more and has no fewer digits, and is better in
     one (finite values). Sorted by cost: a point is dominated by a cheaper one with as
     many digits, or by one of its own cost with more; O(n log n), where comparing every
-    pair took 0.4 s of a 3,000-run report (docs/performance.md)."""
+    pair took 0.6 s of a 3,000-run report's CPU, 0.2 s at 1,000 runs (py-spy;
+    docs/performance.md)."""
     order = np.argsort(costs, kind="stable")
     c, d = costs[order], digits[order]
     starts = np.flatnonzero(np.r_[True, c[1:] != c[:-1]])  # groups of equal cost
