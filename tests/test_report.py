@@ -139,9 +139,11 @@ def test_report_files_and_links(tmp_path: Path) -> None:
         assert (index.parent / source).is_file(), source
     links = re.findall(r'href="([^"#]+)"', index.read_text(encoding="utf-8"))
     assert any(link.endswith(".svg") for link in links)
-    assert any(link.endswith(".pdf") for link in links)
     for link in links:
         assert (index.parent / link).is_file(), link
+    # PDFs are a paper's (workbench paper): a report alone neither writes nor links them
+    assert not any(link.endswith(".pdf") for link in links)
+    assert not list((index.parent / "figures").glob("*.pdf"))
     for name in (
         "summary",
         "status",

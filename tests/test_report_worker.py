@@ -23,7 +23,7 @@ PROBLEMS = '["test-pendulum", "test-slider-crank"]'
 REAL_SECTION = writer.problem_section  # (a spawned worker imports this module afresh)
 
 
-def section_killing_its_worker_once(runs, series, out, cost, traits, sketch):
+def section_killing_its_worker_once(runs, series, out, cost, traits, sketch, formats):
     """problem_section, but the first call in a pool worker SIGKILLs that worker, as the
     OOM killer would (a marker file in the report folder makes it once)."""
     if multiprocessing.parent_process() is not None:
@@ -33,7 +33,7 @@ def section_killing_its_worker_once(runs, series, out, cost, traits, sketch):
             pass
         else:
             os.kill(os.getpid(), signal.SIGKILL)
-    return REAL_SECTION(runs, series, out, cost, traits, sketch)
+    return REAL_SECTION(runs, series, out, cost, traits, sketch, formats)
 
 
 @pytest.fixture

@@ -4,7 +4,7 @@
 :mod:`workbench.runs.store`) and the runs' time series into a directory::
 
     index.html              the page: tables shown, figures linked as PNG
-    figures/*.png|svg|pdf   work-precision diagrams and drift / energy over time
+    figures/*.png|svg       work-precision diagrams and drift / energy over time
     tables/*.csv|md|tex     the summary, the status matrix and all result rows
 
 The page opens with the answer per mechanism (:mod:`.decision`): a table, a row a problem
@@ -62,6 +62,7 @@ from workbench.outputs.report.analysis import (
 from workbench.outputs.report.figures import (
     DRIFT_QUANTITIES,
     FIGURE_FORMATS,
+    REPORT_FORMATS,
     FigureFiles,
     PairStyles,
     drift_figure,
@@ -80,6 +81,7 @@ __all__ = [
     "DRIFT_QUANTITIES",
     "DRIFT_TABLE_COLUMNS",
     "FIGURE_FORMATS",
+    "REPORT_FORMATS",
     "LIBRARIES",
     "NUMERIC_COLUMNS",
     "REQUIRED_COLUMNS",

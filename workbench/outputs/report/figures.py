@@ -1,4 +1,5 @@
-"""The report's figures, each written as PNG (shown), SVG and PDF (linked).
+"""The report's figures, each written as PNG (shown) and SVG (linked), and as PDF when the
+report makes a paper (:func:`figure_formats`).
 
 Per problem: a work-precision diagram (scd against the cost measure and against right-hand-side
 evaluations, log x; one curve per formalism x integrator, one point per tolerance) and the
@@ -9,9 +10,11 @@ run in the figure workers (:mod:`workbench.outputs.report.pool`) with the Agg ba
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,6 +33,24 @@ DRIFT_QUANTITIES: tuple[tuple[str, str], ...] = (
 """Series column and axis label (with units: residual components are lengths or angles,
 their rates, or a ratio) of the quantities of the drift figure."""
 FIGURE_FORMATS: tuple[str, ...] = ("png", "svg", "pdf")
+"""Every format a figure can be written in: PNG shown on the page, SVG linked beside it,
+PDF for a paper (:mod:`workbench.outputs.report.paper`)."""
+REPORT_FORMATS: tuple[str, ...] = ("png", "svg")
+"""The formats a report writes unless it makes a paper: the PDFs were 4.5-11 s of the
+quick suite's 37-40 s report on a Zen 3 (25 figures; PNG and SVG 29 s, all three 33-40;
+docs/performance.md)."""
+_FORMATS: ContextVar[tuple[str, ...]] = ContextVar("figure_formats", default=REPORT_FORMATS)
+
+
+@contextlib.contextmanager
+def figure_formats(formats: tuple[str, ...]) -> Iterator[None]:
+    """The figures saved meanwhile (in this thread or task) are written in ``formats``
+    (PNG first: it is the one shown)."""
+    token = _FORMATS.set(tuple(formats))
+    try:
+        yield
+    finally:
+        _FORMATS.reset(token)
 
 
 @dataclass
@@ -43,7 +64,7 @@ class Axis:
 
 @dataclass
 class FigureFiles:
-    """A figure written in every format; ``png`` is shown, the others linked.
+    """A figure written in ``formats``; ``png`` is shown, the others linked.
 
     axes: every axis that shows tick labels (colour bars included), read from the figure
     when it was saved; the page states them, so a reader (and a test) can see that every
@@ -53,6 +74,7 @@ class FigureFiles:
     stem: str
     caption: str
     axes: list[Axis] = field(default_factory=list)
+    formats: tuple[str, ...] = REPORT_FORMATS
 
     def link(self, fmt: str) -> str:
         """The file in format ``fmt``, relative to the page."""
@@ -61,7 +83,7 @@ class FigureFiles:
     @property
     def linked_formats(self) -> list[str]:
         """The formats linked beside the PNG shown."""
-        return [fmt for fmt in FIGURE_FORMATS if fmt != "png"]
+        return [fmt for fmt in self.formats if fmt != "png"]
 
 
 def save_figure(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
@@ -71,13 +93,14 @@ def save_figure(figure: Any, out: Path, stem: str, caption: str) -> FigureFiles:
     # Cropped to what is drawn (the legend's column would leave a blank margin); the box is
     # measured once, since savefig(bbox_inches="tight") would lay out every format again.
     box = figure.get_tightbbox(figure.canvas.get_renderer()).padded(0.1)
-    for fmt in FIGURE_FORMATS:
+    formats = _FORMATS.get()
+    for fmt in formats:
         figure.savefig(
             out / "figures" / f"{stem}.{fmt}", dpi=90 if fmt == "png" else None, bbox_inches=box
         )
     axes = labelled_axes(figure)
     plt.close(figure)
-    return FigureFiles(stem, caption, axes)
+    return FigureFiles(stem, caption, axes, formats)
 
 
 def shown_tick_labels(axis: Any, renderer: Any) -> list[tuple[bool, float, Any]]:
@@ -96,8 +119,10 @@ def thin_tick_labels(figure: Any, gap: float = 2.0) -> None:
     """Blank the tick labels that would overlap another (boxes measured with the
     renderer, ``gap`` pixels apart at least): major labels are kept first, in order of
     value, then the minor ones that still fit; names are never blanked. Done by wrapping
-    each axis's formatter, so every format saved afterwards draws the same labels."""
-    figure.canvas.draw()
+    each axis's formatter, so every format saved afterwards draws the same labels. The
+    layout is made without rasterizing (the same labels blanked in the quick suite's
+    report, 5 % less of its time than a draw)."""
+    figure.draw_without_rendering()
     renderer = figure.canvas.get_renderer()
     for ax in figure.axes:
         for axis in (ax.xaxis, ax.yaxis):

@@ -30,8 +30,11 @@ from workbench.outputs.report.analysis import (
 from workbench.outputs.report.cost import Cost, resolve_cost
 from workbench.outputs.report.decision import decision_frame, decision_rows, decision_targets
 from workbench.outputs.report.figures import (
+    FIGURE_FORMATS,
+    REPORT_FORMATS,
     drift_figure,
     error_figure,
+    figure_formats,
     slug,
     work_precision_figure,
 )
@@ -130,7 +133,10 @@ def write_report(
     cards = scorecards(runs)
     for card in cards:
         write_table(card.table, out / "tables", card.name, card.title)
-    overview = overview_of(runs, out, measure)
+    # a paper takes its figures as PDF; a report alone writes PNG and SVG (figures.py)
+    formats = FIGURE_FORMATS if paper is not None else REPORT_FORMATS
+    with figure_formats(formats):
+        overview = overview_of(runs, out, measure)
 
     jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
     show = len(problems) > 1 if progress is None else progress
@@ -147,7 +153,7 @@ def write_report(
             traits = problem_traits(of_problem)
             sketch = mechanism_sketch(traits.model) if traits.model is not None else None
             traits.model = None
-            arguments = (of_problem, series, out, measure.column, traits, sketch)
+            arguments = (of_problem, series, out, measure.column, traits, sketch, formats)
             future = submit_or_none(executor, problem_section, *arguments)
             tasks.append((problem, future, arguments))
         # a worker killed from outside: its problems are drawn again here (one warning)
@@ -416,13 +422,26 @@ def problem_section(
     cost: str,
     traits: Traits,
     sketch: Sketch | None,
+    formats: tuple[str, ...] = REPORT_FORMATS,
 ) -> ProblemSection:
     """One problem's part of the report (a figure worker's task): draws its figures into
-    ``out``/figures, writes its drift table into ``out``/tables. ``traits`` and ``sketch``
-    (the model's) come from the parent, so a worker needs no plugin."""
+    ``out``/figures in ``formats``, writes its drift table into ``out``/tables. ``traits``
+    and ``sketch`` (the model's) come from the parent, so a worker needs no plugin."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
+    with figure_formats(formats):
+        return _problem_section(runs, series, out, cost, traits, sketch)
+
+
+def _problem_section(
+    runs: pd.DataFrame,
+    series: Mapping[str, pd.DataFrame | None] | None,
+    out: Path,
+    cost: str,
+    traits: Traits,
+    sketch: Sketch | None,
+) -> ProblemSection:
     problem = str(runs["problem"].iloc[0])
     work_precision = work_precision_figure(runs, out, problem, cost)
     picture = mechanism_picture(sketch, out, problem) if sketch is not None else None
