@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import html
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import pandas as pd
 
+from workbench.errors import PluginError
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
 
@@ -18,6 +20,11 @@ def list_plugins(kind: str | None = None) -> pd.DataFrame:
     integrators (default all three). A broken plugin is listed with its error as status.
 
     (Not ``workbench.problems()``: ``workbench.problems`` is the catalog's package.)"""
+    if kind is not None and not isinstance(kind, str):
+        raise PluginError(
+            f"list_plugins: kind is problems, formalisms or integrators (or None: all), "
+            f"not {kind!r}"
+        )
     registry.REGISTRY.discover()
     kinds = [registry.describe_kind(kind)] if kind is not None else list(registry.KINDS)
     rows = [
@@ -85,13 +92,24 @@ def describe(name: str | type, **options: Any) -> Description:
     ``options`` are a problem's (e.g. ``describe(NAME, n=5)``)."""
     from workbench.api.runs import robot_file
 
+    if not isinstance(name, str | os.PathLike | type):
+        raise PluginError(
+            f"describe: expected the name of a problem, formalism or integrator, a plugin "
+            f"class or a robot file, not {type(name).__name__} {name!r}"
+        )
+    if isinstance(name, os.PathLike):
+        name = os.fspath(name)
     registry.REGISTRY.discover()
     if robot_file(name, None)[1] is not None:  # a robot file: the robot problem of it
         name, given = robot_file(name, None)
         options = given | options
     if isinstance(name, type):
         plugin = name
-        kind = next(k for k in registry.KINDS if issubclass_of_kind(plugin, k))
+        kind = next((k for k in registry.KINDS if issubclass_of_kind(plugin, k)), None)
+        if kind is None:
+            raise PluginError(
+                f"describe: {plugin.__name__} is not a Problem, Formalism or Integrator class"
+            )
         name = plugin.name
     else:
         kind, plugin = registry.any_plugin(name)
