@@ -117,3 +117,12 @@ def test_a_skipped_result_says_why_in_its_repr(fake_plugins) -> None:
     assert skipped.row["status"] == "skipped"
     assert f"message={skipped.row['message']}" in repr(skipped)
     assert "=," not in repr(skipped)  # no empty values
+
+
+def test_describe_shows_the_option_values_its_model_was_built_with() -> None:
+    description = workbench.describe("planar-chain", n_links=3)
+    assert description.facts["bodies"].startswith("3:")  # the model has the links given
+    assert description.options.loc["n_links", "value"] == 3
+    assert description.options.loc["n_links", "default"] == 5
+    assert "option n_links (int) = 3 (default 5)" in repr(description)
+    assert "option n_links (int) = 5\n" in repr(workbench.describe("planar-chain")) + "\n"

@@ -45,7 +45,8 @@ def list_plugins(kind: str | None = None) -> pd.DataFrame:
 class Description:
     """What ``workbench describe NAME`` prints, as data: shown as tables in Jupyter.
 
-    ``options``: name, type and default of each option; ``model`` (problems only): the
+    ``options``: name, type and default of each option (a problem's also its ``value``,
+    the one given or the default); ``model`` (problems only): the
     model built with the options given, and ``facts``: its bodies, joints, topology,
     reference and time span."""
 
@@ -63,10 +64,10 @@ class Description:
     def __repr__(self) -> str:
         lines = [f"{self.name} ({self.kind}): {self.summary}"]
         lines += [f"  {key}: {value}" for key, value in self.facts.items()]
-        lines += [
-            f"  option {name} ({row['type']}) = {row['default']!r}"
-            for name, row in self.options.iterrows()
-        ]
+        for name, row in self.options.iterrows():
+            value = row.get("value", row["default"])
+            default = "" if _same(value, row["default"]) else f" (default {row['default']!r})"
+            lines.append(f"  option {name} ({row['type']}) = {value!r}{default}")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -121,6 +122,9 @@ def describe(name: str | type, **options: Any) -> Description:
     description = Description(name, kind, plugin, table)
     if kind == "problem":
         problem = plugin(options)
+        values = getattr(problem, "options", None)  # the values in use: given or default
+        defaults = zip(table.index, table["default"], strict=True)
+        table["value"] = [getattr(values, n, d) for n, d in defaults]
         description.model = problem.model()
         description.facts = model_facts(problem, description.model)
     elif options:
@@ -137,6 +141,14 @@ def issubclass_of_kind(plugin: type, kind: str) -> bool:
 
     base = {"problem": Problem, "formalism": Formalism, "integrator": Integrator}[kind]
     return issubclass(plugin, base)
+
+
+def _same(a: Any, b: Any) -> bool:
+    """a == b, NaN equal to NaN (an option whose default is NaN)."""
+    try:
+        return bool(a == b) or (a != a and b != b)
+    except (TypeError, ValueError):  # arrays and the like: shown as given
+        return False
 
 
 @dataclass(frozen=True)
