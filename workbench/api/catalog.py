@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import html
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import pandas as pd
 
+from workbench.errors import PluginError
 from workbench.plugin import registry
 from workbench.plugin.options import option_fields, type_name
 
@@ -18,6 +20,11 @@ def list_plugins(kind: str | None = None) -> pd.DataFrame:
     integrators (default all three). A broken plugin is listed with its error as status.
 
     (Not ``workbench.problems()``: ``workbench.problems`` is the catalog's package.)"""
+    if kind is not None and not isinstance(kind, str):
+        raise PluginError(
+            f"list_plugins: kind is problems, formalisms or integrators (or None: all), "
+            f"not {kind!r}"
+        )
     registry.REGISTRY.discover()
     kinds = [registry.describe_kind(kind)] if kind is not None else list(registry.KINDS)
     rows = [
@@ -38,7 +45,8 @@ def list_plugins(kind: str | None = None) -> pd.DataFrame:
 class Description:
     """What ``workbench describe NAME`` prints, as data: shown as tables in Jupyter.
 
-    ``options``: name, type and default of each option; ``model`` (problems only): the
+    ``options``: name, type and default of each option (a problem's also its ``value``,
+    the one given or the default); ``model`` (problems only): the
     model built with the options given, and ``facts``: its bodies, joints, topology,
     reference and time span."""
 
@@ -56,10 +64,10 @@ class Description:
     def __repr__(self) -> str:
         lines = [f"{self.name} ({self.kind}): {self.summary}"]
         lines += [f"  {key}: {value}" for key, value in self.facts.items()]
-        lines += [
-            f"  option {name} ({row['type']}) = {row['default']!r}"
-            for name, row in self.options.iterrows()
-        ]
+        for name, row in self.options.iterrows():
+            value = row.get("value", row["default"])
+            default = "" if _same(value, row["default"]) else f" (default {row['default']!r})"
+            lines.append(f"  option {name} ({row['type']}) = {value!r}{default}")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -85,13 +93,24 @@ def describe(name: str | type, **options: Any) -> Description:
     ``options`` are a problem's (e.g. ``describe(NAME, n=5)``)."""
     from workbench.api.runs import robot_file
 
+    if not isinstance(name, str | os.PathLike | type):
+        raise PluginError(
+            f"describe: expected the name of a problem, formalism or integrator, a plugin "
+            f"class or a robot file, not {type(name).__name__} {name!r}"
+        )
+    if isinstance(name, os.PathLike):
+        name = os.fspath(name)
     registry.REGISTRY.discover()
     if robot_file(name, None)[1] is not None:  # a robot file: the robot problem of it
         name, given = robot_file(name, None)
         options = given | options
     if isinstance(name, type):
         plugin = name
-        kind = next(k for k in registry.KINDS if issubclass_of_kind(plugin, k))
+        kind = next((k for k in registry.KINDS if issubclass_of_kind(plugin, k)), None)
+        if kind is None:
+            raise PluginError(
+                f"describe: {plugin.__name__} is not a Problem, Formalism or Integrator class"
+            )
         name = plugin.name
     else:
         kind, plugin = registry.any_plugin(name)
@@ -103,6 +122,9 @@ def describe(name: str | type, **options: Any) -> Description:
     description = Description(name, kind, plugin, table)
     if kind == "problem":
         problem = plugin(options)
+        values = getattr(problem, "options", None)  # the values in use: given or default
+        defaults = zip(table.index, table["default"], strict=True)
+        table["value"] = [getattr(values, n, d) for n, d in defaults]
         description.model = problem.model()
         description.facts = model_facts(problem, description.model)
     elif options:
@@ -119,6 +141,14 @@ def issubclass_of_kind(plugin: type, kind: str) -> bool:
 
     base = {"problem": Problem, "formalism": Formalism, "integrator": Integrator}[kind]
     return issubclass(plugin, base)
+
+
+def _same(a: Any, b: Any) -> bool:
+    """a == b, NaN equal to NaN (an option whose default is NaN)."""
+    try:
+        return bool(a == b) or (a != a and b != b)
+    except (TypeError, ValueError):  # arrays and the like: shown as given
+        return False
 
 
 @dataclass(frozen=True)

@@ -7,24 +7,44 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from workbench.errors import ConfigError
+
 
 def plot_work_precision(
     results: pd.DataFrame,
     problem: str | None = None,
     cost: str = "integrate_cpu_s",
-    by: tuple[str, ...] = ("formalism", "integrator"),
+    by: str | tuple[str, ...] = ("formalism", "integrator"),
     ax: Any = None,
 ) -> Any:
     """scd (correct digits at the end) against ``cost`` (log x), one curve per ``by``
-    group, one point per tolerance, of the ok runs of ``problem`` (default: the only
-    problem in ``results``). ``results`` as ``workbench.load_results`` returns it;
-    ``cost``: any cost column (``integrate_cpu_s``, ``integrate_s``, ``n_rhs``...).
-    Returns the Axes."""
+    group (a column or a tuple of columns), one point per tolerance, of the ok runs of
+    ``problem`` (default: the only problem in ``results``). ``results`` as
+    ``workbench.load_results`` returns it; ``cost``: any cost column (``integrate_cpu_s``,
+    ``integrate_s``, ``n_rhs``...). Returns the Axes; ConfigError for a problem or a
+    column that ``results`` do not have."""
+    if not isinstance(results, pd.DataFrame):
+        raise ConfigError(
+            "results: expected the results frame (workbench.load_results(OUT) or "
+            f"workbench.sweep(...)), not {type(results).__name__}"
+        )
+    by = (by,) if isinstance(by, str) else tuple(by)
+    for column in ("problem", "status", "scd", "rtol", cost, *by):
+        if column not in results.columns:
+            numeric = [c for c in results.columns if c.startswith(("n_", "integrate_", "work_"))]
+            raise ConfigError(
+                f"results have no column {column!r}"
+                + (f"; cost columns: {', '.join(numeric)}" if column == cost else "")
+            )
+    names = sorted(results["problem"].unique())
     if problem is None:
-        names = sorted(results["problem"].unique())
+        if not names:
+            raise ConfigError("results hold no runs: nothing to plot")
         if len(names) != 1:
-            raise ValueError(f"results hold {len(names)} problems; name one: {names}")
+            raise ConfigError(f"results hold {len(names)} problems; name one: {names}")
         problem = names[0]
+    elif problem not in names:
+        raise ConfigError(f"results hold no runs of problem {problem!r}; they hold {names}")
     runs = results[(results["problem"] == problem) & (results["status"] == "ok")]
     runs = runs[np.isfinite(runs["scd"].astype(float)) & (runs[cost].astype(float) > 0)]
     if ax is None:

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench.errors import WorkbenchError
+from workbench.errors import ConfigError, WorkbenchError
 from workbench.execution.row_schema import SERIES_COLUMNS, STATE_PREFIX
 
 # the row's columns a result shows first (its HTML and its repr)
@@ -45,6 +45,7 @@ class Result:
 
     @property
     def run_id(self) -> str:
+        """The run's id: a hash of its problem, formalism, integrator, options and tolerances."""
         return str(self.row["run_id"])
 
     @property
@@ -103,9 +104,17 @@ class Result:
     # ---- plots (matplotlib) ------------------------------------------------------------
 
     def plot(self, columns: list[str] | None = None, ax: Any = None) -> Any:
-        """The trajectory's coordinates (or the named ``columns``) against time; the Axes."""
+        """The trajectory's coordinates (or the named ``columns``: a name or a list of
+        names of ``trajectory``) against time; the Axes."""
         trajectory = self.trajectory
-        names = columns or trajectory.columns[1 : 1 + _nq(self, trajectory)].tolist()
+        names = [columns] if isinstance(columns, str) else columns
+        names = names or trajectory.columns[1 : 1 + _nq(self, trajectory)].tolist()
+        unknown = [name for name in names if name not in trajectory.columns[1:]]
+        if unknown:
+            raise ConfigError(
+                f"run {self.run_id}: no trajectory column {', '.join(map(repr, unknown))}; "
+                f"its columns: {', '.join(trajectory.columns[1:])}"
+            )
         ax = _axes(ax)
         for name in names:
             ax.plot(trajectory["t"], trajectory[name], label=name)
@@ -130,10 +139,13 @@ class Result:
     # ---- display -------------------------------------------------------------------------
 
     def headline(self) -> dict[str, Any]:
+        """The row's main columns by their labels (status, scd, errors, drift, cost)."""
         return {label: self.row.get(column) for column, label in HEADLINE if column in self.row}
 
     def __repr__(self) -> str:
-        shown = ", ".join(f"{k}={_text(v)}" for k, v in self.headline().items())
+        shown = ", ".join(f"{k}={_text(v)}" for k, v in self.headline().items() if _text(v))
+        message = self.row.get("message")  # why a run failed or was skipped
+        shown += f", message={message}" if message else ""
         return f"<Result {self.run_id} {_title(self.row)}: {shown}>"
 
     def _repr_html_(self) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec, execute_run, normalized_spec
 from workbench.execution.timing import DEFAULT_REPEAT_BUDGET, DEFAULT_REPEATS, Timing
 from workbench.plugin import registry
+from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.options import option_fields
 from workbench.runs import store
 
@@ -84,9 +86,22 @@ def run(
 
     The run executes in this process, with no time limit (``workbench run`` kills its
     child at ``--time-limit``). A run that fails or is skipped is returned, not raised:
-    its ``row["status"]`` and ``row["message"]`` say what happened. Bad input (an
-    unknown name, option or tolerance) raises ``ConfigError``.
+    its ``row["status"]`` and ``row["message"]`` say what happened. Bad input raises
+    before anything runs: ``PluginError`` for an unknown name, ``ConfigError`` for a bad
+    option, tolerance or ``out``.
     """
+    why = tolerance_problem("rtol", rtol)  # before atol's default is computed from it
+    if why:
+        raise ConfigError(f"rtol: {why}")
+    given = {"problem": problem_options, "formalism": formalism_options,
+             "integrator": integrator_options}  # fmt: skip
+    for kind, values in given.items():
+        if values is not None and not isinstance(values, Mapping):
+            raise ConfigError(
+                f"{kind}_options: expected a dict of option values by name "
+                f"(e.g. {{'index': 1}}), not {type(values).__name__} {values!r}"
+            )
+    out = results_directory(out)
     problem, problem_options = robot_file(problem, problem_options)
     names = {
         kind: plugin_name(kind, plugin)
@@ -103,8 +118,7 @@ def run(
     }
     classes = {kind: getters[kind](name) for kind, name in names.items()}
     routed = route_options(classes, options)
-    given = {"problem": problem_options, "formalism": formalism_options,
-             "integrator": integrator_options}  # fmt: skip
+    given["problem"] = problem_options  # with a robot file's own options
     for kind, values in given.items():
         routed[kind].update(values or {})
     spec = normalized_spec(
@@ -121,8 +135,8 @@ def run(
     )
     reference_dir = None
     if out is not None:
-        reference_dir = Path(out) / "references"
-        reference_dir.mkdir(parents=True, exist_ok=True)
+        reference_dir = results_directory(out, make=True) / "references"
+        reference_dir.mkdir(exist_ok=True)
     sink = _Keep()
     outcome = execute_run(spec, sink=sink, reference_dir=reference_dir,
                           timing=Timing(repeats, repeat_budget))  # fmt: skip
@@ -135,6 +149,28 @@ def run(
         sink.problem,
         sink.charts,
     )
+
+
+def results_directory(out: Any, make: bool = False) -> Path | None:
+    """``out`` as a Path (None stays None): ConfigError unless it names a folder, existing
+    or to be made (not a file); ``make``: made, with its parents (ConfigError if it cannot
+    be)."""
+    if out is None:
+        return None
+    if not isinstance(out, str | os.PathLike) or not str(out):
+        raise ConfigError(f"out: expected the path of a results directory, not {out!r}")
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"out: {path} is a file, not a directory; name a results directory")
+    if make:
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise ConfigError(
+                f"out: cannot create the results directory {path} ({error.strerror or error}); "
+                "name a folder you may write to"
+            ) from None
+    return path
 
 
 def robot_file(problem: Any, options: dict[str, Any] | None) -> tuple[Any, dict | None]:

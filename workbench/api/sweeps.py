@@ -19,7 +19,7 @@ from typing import Any
 import pandas as pd
 
 from workbench import files
-from workbench.api.runs import REGISTERED_HERE, plugin_name
+from workbench.api.runs import REGISTERED_HERE, plugin_name, results_directory
 from workbench.errors import ConfigError
 from workbench.execution.environment import sweep_environment
 from workbench.execution.execute import execute_run
@@ -55,7 +55,17 @@ def sweep(
     (an object with ``update``: its ``total`` is set and it advances one a run).
     ``in_process``: run here instead of in worker processes (default: only when a
     plugin cannot be imported by a worker, e.g. a class defined in a notebook).
+
+    It writes the results store (rows, series, trajectories), not the HTML report or the
+    Rerun recording that ``workbench sweep`` adds: ``workbench report OUT`` makes the
+    report from it. Bad input (a spec, key, ``out`` or ``progress`` of the wrong kind)
+    raises ``ConfigError`` before any run.
     """
+    if progress is not None and not (callable(progress) or hasattr(progress, "update")):
+        raise ConfigError(
+            f"progress: expected a function progress(done, total) or a tqdm-like bar, "
+            f"not {progress!r}"
+        )
     data = _spec_data(spec)
     for key, value in keys.items():
         data[key] = value
@@ -63,10 +73,11 @@ def sweep(
         if key in data:
             data[key] = _named(kind, data[key])
     if out is not None:
-        data["out"] = str(out)
+        data["out"] = str(results_directory(out))
     is_file = isinstance(spec, str | os.PathLike) and Path(spec).is_file()
     source = str(spec) if is_file else "workbench.sweep"  # robot files are found beside it
     parsed = parse_spec(toml_text(data), source, Path(spec).parent if is_file else None)
+    results_directory(parsed.out, make=True)  # ConfigError for a file or a folder not made
     local = local_plugins(parsed)
     here = bool(local) if in_process is None else in_process
     callback = _progress(progress)
@@ -85,6 +96,12 @@ def _spec_data(spec: Any) -> dict[str, Any]:
         return {}
     if isinstance(spec, dict):
         return dict(spec)
+    if not isinstance(spec, str | os.PathLike):
+        raise ConfigError(
+            f"sweep: expected a suite name, the path of a TOML specification or a dict of its "
+            f"keys, not {type(spec).__name__} {spec!r} (lists of problems, formalisms... go "
+            "in keys: sweep(problems=[...], ...))"
+        )
     if isinstance(spec, str) and SUITE_NAME.fullmatch(spec) and not Path(spec).exists():
         return tomllib.loads(suite_text(spec))
     try:
@@ -176,6 +193,8 @@ def toml_text(data: dict[str, Any]) -> str:
 
 
 def _toml_value(value: Any, key: str) -> str:
+    if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
+        value = value.tolist()  # an array (np.logspace) or a NumPy scalar: Python's own
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int | float):

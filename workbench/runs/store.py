@@ -219,7 +219,7 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     ``frame.attrs["migrated"]``); if any row is of a newer schema than this code knows,
     nothing is loaded: ConfigError naming its file (upgrade the workbench).
     """
-    path = Path(path)
+    path = _results_path(path)
     if path.is_file():
         try:
             frame = pd.read_parquet(path)
@@ -272,9 +272,11 @@ def load_series(
     ``states``: also the trajectory's columns ``state:<name>`` (one run's only; see
     :func:`load_trajectory`); without it the columns are :data:`SERIES_COLUMNS`.
     One run's: ConfigError if it is missing or unreadable. All runs': a file that cannot
-    be read is left out with a warning naming it (a resumed sweep redoes its run)."""
-    directory = Path(path) / SERIES_DIR
+    be read is left out with a warning naming it (a resumed sweep redoes its run); a
+    ``path`` that is no results directory: ConfigError."""
+    directory = _results_path(path) / SERIES_DIR
     if run_id is not None:
+        _check_run_id(run_id)
         file = directory / f"{run_id}.parquet"
         if not file.is_file():
             raise ConfigError(f"no time series for run {run_id!r} in {path}")
@@ -286,6 +288,11 @@ def load_series(
                 "re-run the sweep to redo its run"
             ) from None
         return frame if states else _without_states(frame)
+    if not directory.is_dir() and not (Path(path) / RUNS_DIR).is_dir():
+        raise ConfigError(
+            f"no results in {path}: expected a directory with series/*.parquet "
+            "(the output of `workbench sweep` or `workbench.run(..., out=...)`)"
+        )
     frames, unreadable = [], []
     for file in sorted(directory.glob("*.parquet")):
         try:
@@ -314,6 +321,7 @@ def load_trajectory(path: str | os.PathLike[str], run_id: str) -> pd.DataFrame:
     ``lambda:<constraint>`` where the form integrated has multipliers), one row per output
     sample reached. ConfigError if the run stored none (``store_trajectories = false``,
     a run written before trajectories were stored, or one that never integrated)."""
+    _check_run_id(run_id)  # None would read every run's series
     frame = load_series(path, run_id, states=True)
     names = [c for c in frame.columns if c.startswith(STATE_PREFIX)]
     if (not names and len(frame)) or "t" not in frame.columns:  # (no samples: an empty one)
@@ -324,6 +332,22 @@ def load_trajectory(path: str | os.PathLike[str], run_id: str) -> pd.DataFrame:
         )
     trajectory = frame[["t", *names]].rename(columns=lambda c: c.removeprefix(STATE_PREFIX))
     return trajectory.reset_index(drop=True)
+
+
+def _results_path(path: Any) -> Path:
+    if not isinstance(path, str | os.PathLike) or not str(path):
+        raise ConfigError(
+            f"expected the path of a results directory (or results.parquet), not {path!r}"
+        )
+    return Path(path)
+
+
+def _check_run_id(run_id: Any) -> None:
+    if not isinstance(run_id, str):
+        raise ConfigError(
+            f"run_id: expected a run id (text, e.g. results['run_id'].iloc[0]), "
+            f"not {type(run_id).__name__}"
+        )
 
 
 __all__ = [

@@ -1,0 +1,128 @@
+"""The public Python API given wrong input, as a notebook gives it: each mistake raises the
+workbench's own error naming what is wrong, before anything runs, not a TypeError,
+KeyError or OSError from inside."""
+
+from __future__ import annotations
+
+import matplotlib
+import numpy as np
+import pytest
+
+import workbench
+from workbench.errors import ConfigError, PluginError
+
+matplotlib.use("Agg")
+
+RUN = ("test-pendulum", "minimal-ode", "test-rk45")
+
+
+@pytest.mark.parametrize("rtol", ["1e-6", None, [1e-6]])
+def test_run_refuses_a_tolerance_that_is_not_a_number(fake_plugins, rtol) -> None:
+    with pytest.raises(ConfigError, match="rtol: must be a number"):
+        workbench.run(*RUN, rtol=rtol)
+
+
+@pytest.mark.parametrize("options", ["initial_angle=0.3", [("initial_angle", 0.3)]])
+def test_run_refuses_options_that_are_not_a_dict(fake_plugins, options) -> None:
+    with pytest.raises(ConfigError, match="problem_options: expected a dict"):
+        workbench.run(*RUN, problem_options=options)
+
+
+def test_run_and_sweep_refuse_an_out_that_is_no_folder(fake_plugins, tmp_path) -> None:
+    file = tmp_path / "notes.txt"
+    file.write_text("not a results directory")
+    with pytest.raises(ConfigError, match="is a file, not a directory"):
+        workbench.run(*RUN, index=1, out=file)
+    with pytest.raises(ConfigError, match="expected the path of a results directory"):
+        workbench.run(*RUN, index=1, out=5)
+    keys = {
+        "problems": ["test-pendulum"],
+        "formalisms": [{"name": "minimal-ode", "options": {"index": 1}}],
+        "integrators": ["test-rk45"],
+        "tolerances": [1e-4],
+    }
+    with pytest.raises(ConfigError, match="is a file, not a directory"):
+        workbench.sweep(out=file, in_process=True, **keys)
+    with pytest.raises(ConfigError, match="cannot create the results directory"):
+        workbench.sweep(out=file / "below", in_process=True, **keys)
+    assert file.read_text() == "not a results directory"
+
+
+def test_sweep_refuses_a_spec_or_progress_of_the_wrong_kind(fake_plugins, tmp_path) -> None:
+    with pytest.raises(ConfigError, match="expected a suite name, the path"):
+        workbench.sweep(["test-pendulum"], out=tmp_path)
+    with pytest.raises(ConfigError, match="progress: expected a function"):
+        workbench.sweep(problems=["test-pendulum"], formalisms=["minimal-ode"],
+                        integrators=["test-rk45"], tolerances=[1e-4], out=tmp_path,
+                        in_process=True, progress=5)  # fmt: skip
+    assert not (tmp_path / "runs").exists()  # refused before any run
+
+
+def test_sweep_takes_numpy_tolerances(fake_plugins, tmp_path) -> None:
+    tolerances = np.logspace(-4, -6, 2)  # what a notebook writes
+    frame = workbench.sweep(
+        problems=["test-pendulum"],
+        formalisms=[{"name": "minimal-ode", "options": {"index": np.int64(1)}}],
+        integrators=["test-rk45"],
+        tolerances=tolerances,
+        out=tmp_path,
+        in_process=True,
+        repeats=1,
+    )
+    assert sorted(frame["rtol"]) == sorted(tolerances.tolist())
+    assert set(frame["status"]) == {"ok"}, frame["message"].tolist()
+
+
+def test_the_load_functions_name_a_wrong_folder_or_run_id(fake_plugins, tmp_path) -> None:
+    result = workbench.run(*RUN, index=1, out=tmp_path)
+    row = workbench.load_results(tmp_path).iloc[0]
+    with pytest.raises(ConfigError, match="run_id: expected a run id"):
+        workbench.load_trajectory(tmp_path, row)  # the row, not its run_id
+    with pytest.raises(ConfigError, match="run_id: expected a run id"):
+        workbench.load_trajectory(tmp_path, None)
+    with pytest.raises(ConfigError, match="no results in"):
+        workbench.load_series(tmp_path / "elsewhere")
+    with pytest.raises(ConfigError, match="expected the path of a results directory"):
+        workbench.load_results(None)
+    assert workbench.load_trajectory(tmp_path, row["run_id"]).equals(result.trajectory)
+
+
+def test_plots_name_a_missing_problem_or_column(fake_plugins, tmp_path) -> None:
+    result = workbench.run(*RUN, index=1, out=tmp_path)
+    assert result.plot("pivot").get_lines()[0].get_label() == "pivot"  # one name
+    with pytest.raises(ConfigError, match="no trajectory column 'pivot.x'.*pivot, pivot.v"):
+        result.plot(["pivot.x"])
+    results = workbench.load_results(tmp_path)
+    with pytest.raises(ConfigError, match="no runs of problem 'test-pendulm'"):
+        workbench.plot_work_precision(results, problem="test-pendulm")
+    with pytest.raises(ConfigError, match="no column 'n_rhss'; cost columns: .*n_rhs"):
+        workbench.plot_work_precision(results, cost="n_rhss")
+    axes = workbench.plot_work_precision(results, cost="n_rhs", by="formalism")
+    assert [line.get_label() for line in axes.get_lines()] == ["minimal-ode"]
+    with pytest.raises(ConfigError, match="expected the results frame"):
+        workbench.plot_work_precision(str(tmp_path))
+
+
+def test_list_and_describe_refuse_what_is_no_name(fake_plugins) -> None:
+    with pytest.raises(PluginError, match="kind is problems, formalisms or integrators"):
+        workbench.list_plugins(["problems"])
+    with pytest.raises(PluginError, match="expected the name of a problem"):
+        workbench.describe(["test-pendulum"])
+    with pytest.raises(PluginError, match="int is not a Problem, Formalism or Integrator"):
+        workbench.describe(int)
+
+
+def test_a_skipped_result_says_why_in_its_repr(fake_plugins) -> None:
+    skipped = workbench.run("test-slider-crank", "test-trees-only", "test-rk45", index=1)
+    assert skipped.row["status"] == "skipped"
+    assert f"message={skipped.row['message']}" in repr(skipped)
+    assert "=," not in repr(skipped)  # no empty values
+
+
+def test_describe_shows_the_option_values_its_model_was_built_with() -> None:
+    description = workbench.describe("planar-chain", n_links=3)
+    assert description.facts["bodies"].startswith("3:")  # the model has the links given
+    assert description.options.loc["n_links", "value"] == 3
+    assert description.options.loc["n_links", "default"] == 5
+    assert "option n_links (int) = 3 (default 5)" in repr(description)
+    assert "option n_links (int) = 5\n" in repr(workbench.describe("planar-chain")) + "\n"
