@@ -126,3 +126,41 @@ def test_describe_shows_the_option_values_its_model_was_built_with() -> None:
     assert description.options.loc["n_links", "default"] == 5
     assert "option n_links (int) = 3 (default 5)" in repr(description)
     assert "option n_links (int) = 5\n" in repr(workbench.describe("planar-chain")) + "\n"
+
+
+def test_run_and_sweep_hold_the_output_folders_lock_as_the_commands_do(
+    fake_plugins, tmp_path
+) -> None:
+    """Another process writing into OUT: ``wb.run(out=)`` and ``wb.sweep`` (in this process
+    too) refuse before running, naming it; with ``wait=True`` they run once it has gone."""
+    import subprocess
+    import sys
+    import threading
+
+    from workbench.runs import store
+    from workbench.runs.out_lock import OutputBusyError
+
+    out = tmp_path / "out"
+    holder = subprocess.Popen(
+        [sys.executable, "-c",
+         "import sys; from workbench.runs.out_lock import out_lock\n"
+         f"with out_lock({str(out)!r}, command='the holder'):\n"
+         "    print('held', flush=True); sys.stdin.read()"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(OutputBusyError, match="the holder.*wait=True"):
+            workbench.run(*RUN, out=out)
+        for in_process in (True, False):
+            with pytest.raises(OutputBusyError, match="the holder"):
+                workbench.sweep(out=out, problems=["test-pendulum"], formalisms=["minimal-ode"],
+                                integrators=["test-rk45"], tolerances=[1e-4],
+                                in_process=in_process)  # fmt: skip
+        assert not list((out / store.RUNS_DIR).glob("*.json"))  # nothing ran
+        threading.Timer(1.0, holder.stdin.close).start()  # the holder ends in a second
+        result = workbench.run(*RUN, out=out, wait=True)
+    finally:
+        holder.kill()
+        holder.wait()
+    assert result.ok and (out / store.RUNS_DIR / f"{result.run_id}.json").is_file()

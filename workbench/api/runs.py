@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -17,6 +18,7 @@ from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.options import option_fields
 from workbench.runs import store
+from workbench.runs.out_lock import out_lock
 
 # (kind, name) of the classes registered here, not by importing their module: a worker
 # process that imports the module does not find them (workbench.api.sweeps runs them here)
@@ -70,6 +72,7 @@ def run(
     out: str | os.PathLike[str] | None = None,
     repeats: int = DEFAULT_REPEATS,
     repeat_budget: float = DEFAULT_REPEAT_BUDGET,
+    wait: bool = False,
     **options: Any,
 ) -> Result:
     """Run ``problem`` with ``formalism`` and ``integrator`` at ``rtol`` and return its
@@ -88,7 +91,8 @@ def run(
     child at ``--time-limit``). A run that fails or is skipped is returned, not raised:
     its ``row["status"]`` and ``row["message"]`` say what happened. Bad input raises
     before anything runs: ``PluginError`` for an unknown name, ``ConfigError`` for a bad
-    option, tolerance or ``out``.
+    option, tolerance or ``out``; ``OutputBusyError`` (a ConfigError) when another process
+    writes into ``out``, unless ``wait``: then it waits for it.
     """
     why = tolerance_problem("rtol", rtol)  # before atol's default is computed from it
     if why:
@@ -134,14 +138,19 @@ def run(
         )
     )
     reference_dir = None
+    lock: Any = contextlib.nullcontext()
     if out is not None:
         reference_dir = results_directory(out, make=True) / "references"
-        reference_dir.mkdir(exist_ok=True)
+        # as `workbench run --out`: one writer at a time, no link in it (checked before the run)
+        lock = out_lock(out, wait=wait, command="workbench.run (Python)")
     sink = _Keep()
-    outcome = execute_run(spec, sink=sink, reference_dir=reference_dir,
-                          timing=Timing(repeats, repeat_budget))  # fmt: skip
-    if out is not None:
-        store.write_run(Path(out), outcome.row, outcome.series)
+    with lock:
+        if reference_dir is not None:
+            reference_dir.mkdir(exist_ok=True)
+        outcome = execute_run(spec, sink=sink, reference_dir=reference_dir,
+                              timing=Timing(repeats, repeat_budget))  # fmt: skip
+        if out is not None:
+            store.write_run(Path(out), outcome.row, outcome.series)
     return Result(
         pd.Series(outcome.row),
         outcome.series.reset_index(drop=True),

@@ -27,6 +27,7 @@ from workbench.execution.timing import Timing
 from workbench.files import sync_file_system
 from workbench.plugin import registry
 from workbench.runs import store
+from workbench.runs.out_lock import out_lock
 from workbench.runs.resume import plan_resume
 from workbench.runs.sweep import run_sweep
 from workbench.runs.sweep_spec import SUITE_NAME, SweepSpec, parse_spec, suite_text
@@ -41,6 +42,7 @@ def sweep(
     progress: Callable[[int, int], Any] | Any = None,
     in_process: bool | None = None,
     fresh: bool = False,
+    wait: bool = False,
     **keys: Any,
 ) -> pd.DataFrame:
     """Run a sweep and return its results frame (as ``workbench.load_results``).
@@ -59,7 +61,9 @@ def sweep(
     It writes the results store (rows, series, trajectories), not the HTML report or the
     Rerun recording that ``workbench sweep`` adds: ``workbench report OUT`` makes the
     report from it. Bad input (a spec, key, ``out`` or ``progress`` of the wrong kind)
-    raises ``ConfigError`` before any run.
+    raises ``ConfigError`` before any run. Like ``workbench sweep`` it holds ``out``'s lock
+    (:mod:`workbench.runs.out_lock`): ``OutputBusyError`` if another process writes there,
+    unless ``wait`` (then it waits for it).
     """
     if progress is not None and not (callable(progress) or hasattr(progress, "update")):
         raise ConfigError(
@@ -82,10 +86,11 @@ def sweep(
     here = bool(local) if in_process is None else in_process
     callback = _progress(progress)
     if here:
-        run_here(parsed, callback, fresh)
+        with out_lock(parsed.out, wait=wait, command="workbench.sweep (Python)"):
+            run_here(parsed, callback, fresh)
     else:
         summary = run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
-                            say=lambda line: None)  # fmt: skip
+                            say=lambda line: None, wait=wait)  # fmt: skip
         if summary.rows is not None:  # what the consolidation read: not read again
             return summary.rows
     return store.load_results(parsed.out)

@@ -126,7 +126,7 @@ def _lock(fd: int, out: Path, wait: bool, tell: Callable[[str], None], command: 
         if not wait:
             raise OutputBusyError(
                 f"{out} is in use by {holder}; wait until it ends, or run again with "
-                "--wait to start when it does"
+                "--wait (in Python wait=True) to start when it does"
             ) from None
         tell(f"waiting for {out}: in use by {holder}")
         fcntl.lockf(fd, fcntl.LOCK_EX)
