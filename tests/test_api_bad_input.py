@@ -164,3 +164,11 @@ def test_run_and_sweep_hold_the_output_folders_lock_as_the_commands_do(
         holder.kill()
         holder.wait()
     assert result.ok and (out / store.RUNS_DIR / f"{result.run_id}.json").is_file()
+
+
+def test_a_row_written_by_run_has_the_log_column_the_schema_gives(fake_plugins, tmp_path) -> None:
+    """``log`` is '' when nothing was captured (the CLI's value), not missing (NaN)."""
+    from workbench.runs import store
+
+    result = workbench.run(*RUN, out=tmp_path / "out")
+    assert store.load_results(tmp_path / "out").set_index("run_id").loc[result.run_id, "log"] == ""
