@@ -462,7 +462,14 @@ def results(
     from workbench.outputs.report.analysis import prepare_results
     from workbench.outputs.report.cost import resolve_cost
     from workbench.outputs.report.tables import table_cells
-    from workbench.outputs.results_table import FORMATS, caption, render, results_table
+    from workbench.outputs.results_table import (
+        FORMATS,
+        caption,
+        render,
+        results_table,
+        unmatched,
+        with_option_columns,
+    )
     from workbench.runs.store import load_results
 
     if fmt not in FORMATS:
@@ -477,6 +484,13 @@ def results(
         return [item.strip() for item in (text or "").split(",") if item.strip()]
 
     table = results_table(frame, by=by, columns=split(columns), where=where or [], sort=split(sort))
+    if where and len(table) == 0:  # an empty table says nothing of why: a misspelled value?
+        why = unmatched(with_option_columns(prepare_results(frame)), where)
+        typer.echo(
+            f"note: no run of the {len(frame)} in {path} meets --where "
+            + " --where ".join(where) + ("; " + "; ".join(why) if why else ""),
+            err=True,
+        )  # fmt: skip
     statement = resolve_cost(prepare_results(frame)).statement()
     title = caption(table, len(frame), by, path, statement)
     if fmt != "table":
