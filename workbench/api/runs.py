@@ -6,8 +6,6 @@ import os
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from workbench.api.result import Result
 from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec, execute_run, normalized_spec
@@ -129,7 +127,9 @@ def run(
     if out is not None:
         store.write_run(Path(out), outcome.row, outcome.series)
     return Result(
-        pd.Series(outcome.row),
+        # every SCHEMA column, NaN where not measured: a skipped or failed run's row had
+        # none of the metrics, so row["scd"] raised KeyError where load_results gives NaN
+        store.frame_from_rows([outcome.row]).iloc[0],
         outcome.series.reset_index(drop=True),
         sink.equations,
         sink.problem,
