@@ -29,3 +29,11 @@ def test_an_rtol_below_scipys_floor_is_the_floors_integration_and_is_warned() ->
         assert "the accuracy asked was not attempted: SciPy raises rtol" in row["warnings"]
         assert "to its least, 2.22e-14" in row["warnings"]
     assert "not attempted" not in floor["warnings"]
+
+
+def test_scipy_dae_radau_below_its_floor_is_warned_too() -> None:
+    spec = RunSpec("simple-pendulum", "minimal-ode", "scipy-dae-radau", 1e-16, 1e-18, {},
+                   {"index": 1})  # fmt: skip
+    row = execute_run(spec).row
+    assert row["status"] == "ok", row["message"]
+    assert "not attempted: scipy-dae raises rtol 1e-16 to its least, 2.22e-14" in row["warnings"]
