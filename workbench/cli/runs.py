@@ -40,6 +40,11 @@ def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
             raise ConfigError(
                 f"-o {assignment!r}: the prefix must be problem., formalism. or integrator."
             )
+        if option in parsed[kind]:  # the last one silently won: not a grid (a sweep's is)
+            raise ConfigError(
+                f"-o {name.strip()}: given twice; a run takes one value of each option (a "
+                "sweep specification takes a list: its grid)"
+            )
         parsed[kind][option] = option_value(value.strip())
     return parsed
 
@@ -51,6 +56,11 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
         for kind in ("formalism", "integrator", "problem"):
             names = [n for n, _, _ in option_fields(classes[kind].Options)]
             if option in names:
+                if option in parsed[kind]:  # -o index=1 -o formalism.index=2
+                    raise ConfigError(
+                        f"-o {option}: given twice (also as {kind}.{option}); a run takes "
+                        "one value of each option"
+                    )
                 parsed[kind][option] = value
                 break
         else:
