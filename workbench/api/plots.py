@@ -25,6 +25,9 @@ def plot_work_precision(
         if len(names) != 1:
             raise ValueError(f"results hold {len(names)} problems; name one: {names}")
         problem = names[0]
+    if problem not in set(results["problem"]):  # an empty diagram said nothing of why
+        names = sorted(results["problem"].unique())
+        raise ValueError(f"no run of problem {problem!r} in these results; they hold {names}")
     runs = results[(results["problem"] == problem) & (results["status"] == "ok")]
     runs = runs[np.isfinite(runs["scd"].astype(float)) & (runs[cost].astype(float) > 0)]
     if ax is None:
