@@ -167,6 +167,7 @@ def test_subprocess_list(tmp_path):
     [
         (["list", "formalsms"], "did you mean formalisms?"),
         (["describe", "no-such-plugin-anywhere"], "is called 'no-such-plugin-anywhere'"),
+        (["describe", "rk4", "-o", "step=1"], "-o sets a problem's options; rk4 is an integrator"),
     ],
 )
 def test_subprocess_bad_input(args, fragment):

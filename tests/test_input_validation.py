@@ -327,6 +327,9 @@ def invoke_run(args: list[str]):
         (["-o", "step=1e-300"], "need 1e+301 steps over the problem's"),
         (["-o", "step=-1"], "step must be a positive number"),
         (["--time-limit", "0"], "--time-limit must be a finite number"),
+        # the last value silently won: `-o step=0.1 -o step=0.01` ran one step, not a grid
+        (["-o", "step=0.1", "-o", "step=0.01"], "-o step: given twice"),
+        (["-o", "step=0.1", "-o", "integrator.step=0.01"], "given twice (also as integrator.step)"),
     ],
 )
 def test_run_refuses_what_a_spec_refuses(args, fragment) -> None:

@@ -432,6 +432,9 @@ def test_view_missing_recording_is_one_line_error(tmp_path: Path) -> None:
     outcome = CliRunner().invoke(app, ["view", str(tmp_path / "none.rrd")])
     assert outcome.exit_code == 2
     assert "error: no recording at" in outcome.output
+    # a user's words, not the workbench's internals (it named RerunSink.save)
+    assert "RerunSink" not in outcome.output
+    assert "`workbench run --out` writes none" in outcome.output
 
 
 def test_view_up_is_against_gravity() -> None:

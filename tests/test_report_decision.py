@@ -181,3 +181,25 @@ def test_steps_an_integrator_did_not_report_are_not_counted() -> None:
     said = stiffness(runs)
     assert "-1" not in said and "rejected" not in said
     assert said.startswith("not stiff: explicit integrators took 2.9x")  # 2.5x and 3.3x
+
+
+def test_fixed_step_runs_do_not_make_a_pendulum_stiff() -> None:
+    """The simple pendulum is not stiff: DOP853 takes fewer steps than CVODE BDF at the
+    same rtol. RK4's steps are the step rtol asks (1 ms: 10,000 steps, none rejected), not
+    the problem's doing; counted as an explicit method's, they made the report say
+    "stiff: explicit integrators took 14x the steps of implicit ones, rejected 0%"."""
+    from workbench.execution.execute import RunSpec, execute_run
+
+    rows = []
+    for integrator in ("scipy-dop853", "sundials-cvode-bdf", "rk4"):
+        spec = RunSpec("simple-pendulum", "minimal-ode", integrator, 1e-6, 1e-9, {}, {"index": 1})
+        row = execute_run(spec).row
+        assert row["status"] == "ok", row["message"]
+        rows.append(row)
+    dop853, bdf, rk4 = rows
+    assert dop853["n_steps"] < bdf["n_steps"] < rk4["n_steps"]
+    assert np.isfinite(rk4["fixed_step_s"]) and rk4["n_rejected"] == 0
+    said = stiffness(prepare_results(pd.DataFrame(rows)))
+    ratio = dop853["n_steps"] / bdf["n_steps"]
+    assert said.startswith(f"not stiff: explicit integrators took {ratio:.2g}x"), said
+    assert "rejected" not in said  # DOP853 does not report its rejections; rk4 has none

@@ -100,6 +100,20 @@ def _relative_parts(path: str, root: str) -> list[str] | None:
     return parts
 
 
+def check_folder_target(path: str | os.PathLike[str]) -> None:
+    """ConfigError when ``path``, a folder to write into, or the nearest existing folder
+    above it is a file: said before any work, not as an OS error after it."""
+    target = Path(path)
+    for existing in (target, *target.parents):
+        if existing.is_dir():
+            return
+        if existing.exists() or existing.is_symlink():
+            raise ConfigError(
+                f"cannot write into {target}: {existing} is a file, not a folder; "
+                "name a folder (it is created if missing) or move the file away"
+            )
+
+
 def make_dirs(directory: str | os.PathLike[str], root: str | os.PathLike[str]) -> None:
     """Create ``directory`` and the folders between ``root`` and it, none a link."""
     Path(root).mkdir(parents=True, exist_ok=True)

@@ -30,6 +30,7 @@ from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
 
+LEAST_RTOL = 100 * np.finfo(float).eps  # scipy_dae.integrate._dae.common's floor
 ALGEBRAIC_ATOL = 1e10  # error weight 1 / (rtol |y| + atol) ~ 0: out of the error test
 
 
@@ -69,6 +70,11 @@ class ScipyDae(Integrator):
                 suppressed[nq : nq + task.equations.nv] = True
             atol = np.where(suppressed, ALGEBRAIC_ATOL, task.atol)
         calls = [0]
+        if task.rtol < LEAST_RTOL:  # the package raises it to LEAST_RTOL, said only by a print
+            trajectory.warnings.append(
+                f"the accuracy asked was not attempted: scipy-dae raises rtol {task.rtol:g} to "
+                f"its least, {LEAST_RTOL:.3g} (100 machine epsilons), which was taken instead"
+            )
 
         def count_step(t: float, y: np.ndarray, yp: np.ndarray) -> float:
             calls[0] += 1

@@ -21,6 +21,8 @@ from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
 from workbench.plugin.registry import integrator
 
+LEAST_RTOL = 100 * np.finfo(float).eps  # scipy.integrate._ivp.common.validate_tol's floor
+
 
 @dataclass(frozen=True)
 class ScipyOptions:
@@ -71,6 +73,11 @@ class ScipyIvp(Integrator):
             last[0], last[1] = t, value
             return value
 
+        if task.rtol < LEAST_RTOL:  # SciPy raises it to LEAST_RTOL, said only by a UserWarning
+            trajectory.warnings.append(
+                f"the accuracy asked was not attempted: SciPy raises rtol {task.rtol:g} to its "
+                f"least, {LEAST_RTOL:.3g} (100 machine epsilons), which was taken instead"
+            )
         extra: dict[str, Any] = {"max_step": options.max_step}
         if options.first_step is not None:
             extra["first_step"] = options.first_step

@@ -8,8 +8,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from workbench.api.result import Result
 from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec, execute_run, normalized_spec
@@ -153,7 +151,9 @@ def run(
             outcome.row.setdefault("log", "")  # nothing captured here: '' as the schema says
             store.write_run(Path(out), outcome.row, outcome.series)
     return Result(
-        pd.Series(outcome.row),
+        # every SCHEMA column, NaN where not measured: a skipped or failed run's row had
+        # none of the metrics, so row["scd"] raised KeyError where load_results gives NaN
+        store.frame_from_rows([outcome.row]).iloc[0],
         outcome.series.reset_index(drop=True),
         sink.equations,
         sink.problem,

@@ -167,8 +167,8 @@ def view(
         recording = recording / RECORDING_FILE
     if not recording.is_file():
         raise ConfigError(
-            f"no recording at {recording}: give a .rrd file written by RerunSink.save "
-            "(e.g. the recording.rrd of a sweep's output directory)"
+            f"no recording at {recording}: give the recording.rrd of a sweep's output "
+            "directory (or the directory); `workbench run --out` writes none"
         )
     if run is not None:
         recording = one_run_recording(recording, run)

@@ -119,7 +119,11 @@ def _problem_options(name: str, kind: str, assignments: list[str]) -> dict[str, 
     from workbench.errors import ConfigError
 
     if assignments and kind != "problem":
-        raise ConfigError(f"describe {name}: -o sets a problem's options; {name} is a {kind}")
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ConfigError(
+            f"describe {name}: -o sets a problem's options; {name} is {article} {kind} "
+            f"(its options go to `workbench run PROBLEM ... -o NAME=VALUE`)"
+        )
     options = {}
     for assignment in assignments:
         option, equals, value = assignment.partition("=")

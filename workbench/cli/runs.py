@@ -40,6 +40,11 @@ def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
             raise ConfigError(
                 f"-o {assignment!r}: the prefix must be problem., formalism. or integrator."
             )
+        if option in parsed[kind]:  # the last one silently won: not a grid (a sweep's is)
+            raise ConfigError(
+                f"-o {name.strip()}: given twice; a run takes one value of each option (a "
+                "sweep specification takes a list: its grid)"
+            )
         parsed[kind][option] = option_value(value.strip())
     return parsed
 
@@ -51,6 +56,11 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
         for kind in ("formalism", "integrator", "problem"):
             names = [n for n, _, _ in option_fields(classes[kind].Options)]
             if option in names:
+                if option in parsed[kind]:  # -o index=1 -o formalism.index=2
+                    raise ConfigError(
+                        f"-o {option}: given twice (also as {kind}.{option}); a run takes "
+                        "one value of each option"
+                    )
                 parsed[kind][option] = value
                 break
         else:
@@ -462,7 +472,14 @@ def results(
     from workbench.outputs.report.analysis import prepare_results
     from workbench.outputs.report.cost import resolve_cost
     from workbench.outputs.report.tables import table_cells
-    from workbench.outputs.results_table import FORMATS, caption, render, results_table
+    from workbench.outputs.results_table import (
+        FORMATS,
+        caption,
+        render,
+        results_table,
+        unmatched,
+        with_option_columns,
+    )
     from workbench.runs.store import load_results
 
     if fmt not in FORMATS:
@@ -477,6 +494,13 @@ def results(
         return [item.strip() for item in (text or "").split(",") if item.strip()]
 
     table = results_table(frame, by=by, columns=split(columns), where=where or [], sort=split(sort))
+    if where and len(table) == 0:  # an empty table says nothing of why: a misspelled value?
+        why = unmatched(with_option_columns(prepare_results(frame)), where)
+        typer.echo(
+            f"note: no run of the {len(frame)} in {path} meets --where "
+            + " --where ".join(where) + ("; " + "; ".join(why) if why else ""),
+            err=True,
+        )  # fmt: skip
     statement = resolve_cost(prepare_results(frame)).statement()
     title = caption(table, len(frame), by, path, statement)
     if fmt != "table":

@@ -143,6 +143,23 @@ def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
     return frame[keep]
 
 
+def unmatched(frame: pd.DataFrame, conditions: Sequence[str]) -> list[str]:
+    """For the ``column=value`` conditions of :func:`filter_rows` whose value no row has
+    (a misspelled problem name), one text each naming the values the column has."""
+    said = []
+    for condition in conditions:
+        match = CONDITION.match(condition)
+        if not match or match.group(2) != "=" or match.group(1) not in frame.columns:
+            continue
+        column, _, value = match.groups()
+        values = frame[column].astype(str)
+        if not values.eq(value).any():
+            known = sorted(set(values))
+            listed = ", ".join(known[:20]) + (", ..." if len(known) > 20 else "")
+            said.append(f"no run has {column}={value} (its values: {listed})")
+    return said
+
+
 def sort_rows(frame: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     """``frame`` sorted by ``keys`` (``-name``: descending); missing values last."""
     if not keys:

@@ -28,7 +28,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from workbench.errors import ConfigError
-from workbench.files import open_no_follow, refuse_links
+from workbench.files import check_folder_target, open_no_follow, refuse_links
 
 LOCK_FILE = ".workbench.lock"
 _HELD: dict[str, int] = {}  # OUT (real path) -> depth: this process holds it already
@@ -83,6 +83,7 @@ def out_lock(
     that writes its report holds it once). LinkRefusedError if ``out`` holds a link.
     """
     out = Path(out)
+    check_folder_target(out)  # a file there: one line now, not ENOTDIR / EEXIST later
     out.mkdir(parents=True, exist_ok=True)
     key = os.path.realpath(out)
     if key in _HELD:

@@ -106,9 +106,15 @@ def implicit(runs: pd.DataFrame) -> pd.Series:
 
 
 def stiffness(runs: pd.DataFrame) -> str:
-    """A sentence on the problem's stiffness from its runs' statistics ('' when the runs
-    cannot tell: no explicit or no implicit integrator ran)."""
+    """A sentence on the problem's stiffness from its adaptive runs' statistics ('' when
+    the runs cannot tell: no explicit or no implicit adaptive integrator ran). A fixed-step
+    run (``fixed_step_s`` finite) is left out: its steps are the step asked, never
+    rejected, and say nothing of the problem (rk4's 10,000 steps at 1 ms made a pendulum
+    "stiff")."""
     done = runs[runs["status"].isin(["ok", "failed", "timeout"])].copy()
+    if "fixed_step_s" in done:
+        fixed = np.isfinite(pd.to_numeric(done["fixed_step_s"], errors="coerce"))
+        done = done[~fixed]
     for column in ("n_steps", "n_rejected"):  # -1: not reported by the integrator
         values = pd.to_numeric(done.get(column), errors="coerce")
         done[column] = values.where(values >= 0) if values is not None else np.nan

@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 
 from workbench.errors import ConfigError, WorkbenchError
-from workbench.files import check_no_links, refuse_links
+from workbench.files import check_folder_target, check_no_links, refuse_links
 from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
@@ -256,6 +256,7 @@ def report_directory(
         frame = mark_stale(frame, stale)
     directory = source if source.is_dir() else source.parent
     target = Path(out_dir) if out_dir is not None else directory / "report"
+    check_folder_target(target)  # before the report's seconds of work, not after them
     if out_dir is None:
         check_no_links(target, directory)  # RESULTS/report a link: refused (workbench.files)
 
