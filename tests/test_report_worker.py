@@ -144,3 +144,35 @@ def test_a_few_problems_are_drawn_without_worker_processes() -> None:
 
     assert figure_jobs(6) == figure_jobs(2 * PROBLEMS_PER_WORKER - 1) == 1
     assert figure_jobs(100) == min(os.cpu_count() or 1, 8) or figure_jobs(100) == 1
+
+
+def test_a_report_drawn_here_steps_its_progress_after_each_problem() -> None:
+    """Drawn in this process (a small report), each problem's figures are made when its
+    result is asked for, so the bar steps between problems, not all at the end."""
+    from workbench.outputs.report.pool import InlineExecutor, results_or_redone
+
+    events: list[str] = []
+
+    def draw(name: str) -> str:
+        events.append(f"draw {name}")
+        return name.upper()
+
+    executor = InlineExecutor()
+    tasks = [(name, executor.submit(draw, name), (name,)) for name in ("a", "b", "c")]
+    assert events == []  # nothing drawn at submission
+    done = results_or_redone(tasks, draw, lambda name: events.append(f"done {name}"))
+    assert done == ["A", "B", "C"]
+    assert events == ["draw a", "done a", "draw b", "done b", "draw c", "done c"]
+
+
+def test_an_error_in_a_problem_drawn_here_reaches_the_caller() -> None:
+    from workbench.outputs.report.pool import InlineExecutor
+
+    def fail() -> None:
+        raise RuntimeError("no figure")
+
+    future = InlineExecutor().submit(fail)
+    with pytest.raises(RuntimeError, match="no figure"):
+        future.result()
+    with pytest.raises(RuntimeError, match="no figure"):  # asked again: the same error
+        future.result()

@@ -67,15 +67,30 @@ class FigurePool(ProcessPoolExecutor):
 
 
 class InlineExecutor(Executor):
-    """Runs each task when it is submitted, in the calling process."""
+    """Runs each task in the calling process when its result is first asked for, so a
+    progress bar stepped after each result moves while the tasks run (run at submission,
+    a small report's bar stood still for its 30 s and then jumped to the end)."""
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
-        future: Future = Future()
-        try:
-            future.set_result(fn(*args, **kwargs))
-        except BaseException as error:  # handed to the caller by future.result()
-            future.set_exception(error)
-        return future
+        return _Deferred(fn, args, kwargs)
+
+
+class _Deferred(Future):
+    """A future whose task runs in :meth:`result`, the first time it is called."""
+
+    def __init__(self, fn: Callable[..., Any], args: tuple, kwargs: dict) -> None:
+        super().__init__()
+        self._task: tuple | None = (fn, args, kwargs)
+
+    def result(self, timeout: float | None = None) -> Any:
+        if self._task is not None:
+            fn, args, kwargs = self._task
+            self._task = None
+            try:
+                self.set_result(fn(*args, **kwargs))
+            except BaseException as error:  # handed to the caller by result() below
+                self.set_exception(error)
+        return super().result(timeout)
 
 
 def submit_or_none(executor: Executor, fn: Callable[..., Any], *args: Any) -> Future | None:
