@@ -152,7 +152,7 @@ def test_results_names_the_reports_winner_and_its_tie(results: Path) -> None:
     runs = prepare_results(frame)
     for row in table.itertuples():
         group = runs[runs["problem"] == row.problem]
-        decision = decide(group, row.scd, "wall_s")
+        decision = decide(group, row.target, "wall_s")
         assert row.pair == decision.pair
         expected = decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
         if decision.is_tie:
@@ -172,3 +172,21 @@ def test_the_summary_ranks_by_the_reports_cost_and_names_it() -> None:
     # rows without the CPU time (before schema 7) fall back as the report does, and say so
     old = results_table(disagreeing_runs().drop(columns=["integrate_cpu_s"]))
     assert old.loc[0, "pair"] == "b / y" and "written before schema 7" in old.attrs["cost"]
+
+
+def test_a_problems_line_ranks_the_pairs_reaching_its_highest_target_not_the_last_digit() -> None:
+    """The line names the cheapest pair reaching the highest target of scd 2, 4, 6, 8, 10
+    that a trusted run reached: b / y (scd 6.1, 0.1 s), not a / x, which reached the last
+    digit (6.3) at twice the cost and so was 'only pair' against nobody."""
+    from tests.test_timing import disagreeing_runs
+
+    runs = disagreeing_runs()
+    runs.loc[runs["run_id"] == "a", ["scd", "integrate_cpu_s"]] = [6.3, 0.2]
+    runs.loc[runs["run_id"] == "b", ["scd", "integrate_cpu_s"]] = [6.1, 0.1]
+    runs.loc[runs["run_id"] == "c", ["scd"]] = [3.0]
+    (row,) = results_table(runs).itertuples()
+    assert (row.scd, row.target, row.pair, row.integrate_cpu_s) == (6.3, 6.0, "b / y", 0.1)
+    assert row.verdict.startswith("2x ahead") and row.verdict.endswith("of a / x")
+    runs["scd"] = [1.5, 1.2, 0.5]  # below every target: ranked at the best scd reached
+    (row,) = results_table(runs).itertuples()
+    assert (row.target, row.pair) == (1.5, "a / x")

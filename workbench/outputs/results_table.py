@@ -30,6 +30,7 @@ import pandas as pd
 from workbench.errors import ConfigError
 from workbench.outputs.report.analysis import prepare_results, warned
 from workbench.outputs.report.cost import resolve_cost
+from workbench.outputs.report.decision import FALLBACK_TARGETS
 from workbench.outputs.report.ranking import Decision, decide
 from workbench.outputs.report.tables import latex_table, markdown_table
 
@@ -182,14 +183,19 @@ def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> 
 def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_s") -> pd.DataFrame:
     """One row a group of ``keys``: runs, how many ended in each status (ok, ok with
     warnings, failed, timeout, skipped: they add up to the runs), the best scd of an
-    ok run without warnings, and the pair, rtol, ``cost`` and rhs evaluations of the
-    cheapest such run reaching it, with its margin or tie
-    (:func:`workbench.outputs.report.ranking.decide`, the report's ranking)."""
+    ok run without warnings, the ``target``: the highest of the report's accuracy targets
+    (:data:`~workbench.outputs.report.decision.FALLBACK_TARGETS`, scd 2 to 10) such a run
+    reached (the best scd when none), and the pair, rtol, ``cost`` and rhs evaluations of
+    the cheapest such run reaching the target, with its margin or tie
+    (:func:`workbench.outputs.report.ranking.decide`, the report's ranking). Ranked at
+    the best scd itself, the line named whichever run reached the last digit, almost
+    always alone ("only pair"), not the cheapest of those that reach a target."""
     rows = []
     for key, group in runs.groupby(list(keys), sort=False):
         trusted = group[(group["status"] == "ok") & ~warned(group) & np.isfinite(group["scd"])]
         best = trusted["scd"].max() if not trusted.empty else np.nan
-        decision = decide(group, best, cost) if np.isfinite(best) else None
+        target = max((t for t in FALLBACK_TARGETS if best >= t), default=best)
+        decision = decide(group, target, cost) if np.isfinite(best) else None
         cheapest = decision.run if decision is not None else None
         row = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
         ok = group["status"] == "ok"
@@ -198,6 +204,7 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_
         for status in ("failed", "timeout", "skipped"):
             row[status] = int((group["status"] == status).sum())
         row["scd"] = best
+        row["target"] = target
         if "pair" not in keys:
             row["pair"] = cheapest["pair"] if cheapest is not None else ""
         for column in dict.fromkeys(("rtol", cost, "n_rhs")):
@@ -225,8 +232,9 @@ def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) 
         return f"{shown} in {path}" + (f"; in each of them {same}" if same else "")
     lines = {"problem": "a line a problem", "pair": "a line a problem and pair"}[by]
     return (
-        f"The {runs} runs in {path}, {lines}: the best scd reached without warnings and the "
-        f"cheapest run reaching it ({statement})"
+        f"The {runs} runs in {path}, {lines}: the best scd reached without warnings, the "
+        f"highest target of scd 2, 4, 6, 8, 10 reached and the cheapest run reaching it "
+        f"({statement})"
     )
 
 
