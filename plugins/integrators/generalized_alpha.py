@@ -43,7 +43,8 @@ overriding the position update (:meth:`GeneralizedAlpha._advance`, ``_position_t
 Step size: option ``step`` (s) or, by default, the step the tolerance asks of an order-2
 method (:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-2 s at rtol 1e-4,
 1e-3 s at 1e-6, 1e-4 s at 1e-8); each output interval is divided into equal steps so that
-output times are hit exactly, and the row's ``fixed_step_s`` records the step used.
+output times are hit exactly, and the row's ``fixed_step_s`` records the longest step taken
+(after a halving, the halved step).
 With ``adaptive=True`` the step is controlled by an estimate of the local position error:
 the difference between the generalized-alpha position q_{n+1} and the second-order Taylor
 predictor q_n + h H (v_n + h/2 v'_n), both O(h^3) accurate locally, so the difference is
@@ -196,7 +197,7 @@ class GeneralizedAlpha(Integrator):
             stats.fixed_step = h
             trajectory.warnings.extend(filter(None, [step_warning(times, options.step,
                                                                   task.rtol)]))  # fmt: skip
-        halvings = 0
+        halvings, taken = 0, 0.0
         h_min = 1e-14 * max(1.0, abs(times[-1]))
         try:
             for t_out in times[1:]:
@@ -240,6 +241,9 @@ class GeneralizedAlpha(Integrator):
                         t_start = t
                         n_steps = max(1, math.ceil((t_out - t_start) / h - 1e-9))
                         h_interval = (t_out - t_start) / n_steps
+                        if not halvings:  # the step taken (after one: the halved step)
+                            taken = max(taken, h_interval)
+                            stats.fixed_step = taken
                         try:
                             for k in range(n_steps):
                                 state = self._step(state, t, h_interval, stats)

@@ -31,7 +31,8 @@ not.
 
 Fixed step: option ``step`` (s), by default the step an order-2 method needs at rtol
 (:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-3 s at rtol 1e-6); each
-output interval is divided into equal steps; the row's ``fixed_step_s`` records the step.
+output interval is divided into equal steps; the row's ``fixed_step_s`` records the
+longest step taken (shorter than the one asked where it does not divide an interval).
 Trajectories carry [q, v, lambda] with the multipliers of [M W^T; W 0] at each output state.
 """
 
@@ -130,10 +131,13 @@ class Rattle(Integrator):
         self.stats.fixed_step = step
         self.force = self._forces(t, q)
         self.g_q = self._jacobian(t, q)
+        longest = 0.0
         try:
             for t_out in times[1:]:
                 n_steps = max(1, math.ceil((t_out - t) / step - 1e-9))
                 h = (t_out - t) / n_steps
+                longest = max(longest, h)  # the step taken, not the one asked
+                self.stats.fixed_step = longest
                 t_start = t
                 for k in range(n_steps):
                     q, v, lam = self._step(t_start + k * h, h, q, v, lam)

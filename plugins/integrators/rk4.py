@@ -7,7 +7,8 @@ Each output interval [t_i, t_i+1] is divided into ceil((t_i+1 - t_i) / step) equ
 so steps land on the output times and no step is longer than the step: option ``step``
 if given (then the tolerances are not used), else the step an order-4 method needs at rtol
 (:func:`workbench.plugin.integrator.step_for_tolerance`: 1e-3 s at rtol 1e-6, 3.2e-4 s
-at 1e-8). The global error is O(step^4); the row's ``fixed_step_s`` records the step.
+at 1e-8). The global error is O(step^4); the row's ``fixed_step_s`` records the
+longest step taken (an output interval is cut into equal steps no longer than the one asked).
 """
 
 from __future__ import annotations
@@ -54,9 +55,12 @@ class Rk4(Integrator):
         steps = 0
         step = task.options.step or step_for_tolerance(task.rtol, ORDER)
         trajectory.stats.fixed_step = step
+        longest = 0.0  # the step taken: each output interval in equal steps no longer
         for t_start, t_end in zip(times[:-1], times[1:], strict=True):
             n = max(1, math.ceil((t_end - t_start) / step * (1 - 1e-12)))
             h = (t_end - t_start) / n
+            longest = max(longest, h)
+            trajectory.stats.fixed_step = longest
             for i in range(n):
                 t = t_start + i * h
                 (k1,) = rhs(t, y)

@@ -30,7 +30,7 @@ forces depending on v. It needs q' = v (H = identity, nq = nv, no offset f) and 
 constraints only. Fixed step: option ``step`` (s), by default taken from rtol by the rule
 of :func:`workbench.plugin.integrator.step_for_tolerance` for order 2 (at most the smallest
 output interval), each output interval divided into equal steps; the row's
-``fixed_step_s`` records it. Trajectories carry
+``fixed_step_s`` records the longest step taken. Trajectories carry
 [q, v, lambda] with the multipliers of [M W^T; W 0] at each output state.
 """
 
@@ -190,10 +190,13 @@ class VariationalMidpoint(Integrator):
         trajectory.warnings.extend(filter(None, [step_warning(times, task.options.step,
                                                               task.rtol)]))  # fmt: skip
         lam_position = np.zeros(self.nc)
+        longest = 0.0
         try:
             for t_out in times[1:]:
                 n_steps = max(1, math.ceil((t_out - t) / step - 1e-9))
                 h = (t_out - t) / n_steps
+                longest = max(longest, h)  # the step taken, not the one asked
+                self.stats.fixed_step = longest
                 t_start = t
                 for k in range(n_steps):
                     q, p, v, lam_position = self._step(t_start + k * h, h, q, p, lam_position)

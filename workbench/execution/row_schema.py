@@ -99,7 +99,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("producer_formalism", "the formalism plugin's source hash or distribution version"),
     ("producer_integrator", "the integrator plugin's source hash or distribution version"),
     ("err_l2", "root mean square over output times of the pose error (m): its L2 norm"),
-    ("fixed_step_s", "the step of a fixed-step method (s); NaN for an adaptive one"),
+    ("fixed_step_s", "the longest step a fixed-step method took (s); NaN for an adaptive one"),
     ("integrate_s_min", "least wall time of the integration's timed samples (s)"),
     ("integrate_s_max", "greatest wall time of the integration's timed samples (s)"),
     ("integrate_cpu_s", "CPU time of the integration: the median of its timed samples (s)"),
