@@ -7,6 +7,7 @@ import io
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
@@ -190,3 +191,16 @@ def test_a_problems_line_ranks_the_pairs_reaching_its_highest_target_not_the_las
     runs["scd"] = [1.5, 1.2, 0.5]  # below every target: ranked at the best scd reached
     (row,) = results_table(runs).itertuples()
     assert (row.target, row.pair) == (1.5, "a / x")
+
+
+def test_a_count_the_integrator_does_not_report_is_shown_empty_not_minus_one() -> None:
+    """-1 (not reported, as stored) is no count: the table shows it empty, as anything not
+    measured; a reported count stays as it is."""
+    from tests.test_timing import disagreeing_runs
+
+    runs = disagreeing_runs().assign(n_lu=[-1, 7, 0], n_rejected=[-1, -1, 2])
+    table = results_table(runs, by="run", columns=["run_id", "n_lu", "n_rejected", "n_rhs"])
+    shown = table.set_index("run_id")
+    assert np.isnan(shown.loc["a", "n_lu"]) and shown.loc["b", "n_lu"] == 7
+    assert shown.loc["c", "n_lu"] == 0 and shown.loc["c", "n_rejected"] == 2
+    assert shown["n_rejected"].isna().sum() == 2 and (shown["n_rhs"] > 0).all()

@@ -53,7 +53,7 @@ SCHEMA: list[tuple[str, str]] = [
     ("n_rhs", "right-hand-side / residual evaluations"),
     ("n_jac", "Jacobian evaluations"),
     ("n_steps", "accepted steps"),
-    ("n_rejected", "rejected steps"),
+    ("n_rejected", "rejected steps (-1: not reported)"),
     ("n_lu", "LU factorizations (-1: not reported)"),
     ("n_newton", "Newton iterations (-1: not reported)"),
     ("reference_kind", "analytic | stored | computed | none"),

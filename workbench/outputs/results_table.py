@@ -111,6 +111,11 @@ def _parsed(text: str) -> dict[str, Any]:
     return value if isinstance(value, dict) else {"options": str(value)}
 
 
+UNREPORTED_COUNTS = ("n_jac", "n_steps", "n_rejected", "n_lu", "n_newton")
+"""Counts a row holds as -1 when its integrator does not report them: shown empty (as
+anything not measured), not as a count of -1; ``--where`` sees the stored -1."""
+
+
 def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
     """The rows meeting every condition ``column OP value`` (OP one of = != < <= > >=;
     numbers compare as numbers, the rest as text)."""
@@ -266,7 +271,9 @@ def results_table(
             shown += ["options"] if runs["options"].ne("").any() else []
         chosen = list(columns) or shown
         _check_columns(runs, chosen, "--columns")
-        table = runs[chosen]
+        table = runs[chosen].copy()
+        for column in [c for c in table.columns if c in UNREPORTED_COUNTS]:
+            table[column] = table[column].where(table[column] != -1)  # shown empty
         if not columns:
             table.attrs["same"] = ", ".join(f"{c}={v}" for c, v in same.items() if v != "")
     else:
