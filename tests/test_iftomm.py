@@ -209,3 +209,22 @@ integrators = ["scipy-dop853"]
     (cell,) = card.table["iftomm-a01"]
     seconds = float(cell.split(" s ")[0])
     assert math.isfinite(seconds) and seconds > 0
+
+
+def test_scorecard_scores_the_integration_not_the_build_a_worker_may_have_cached():
+    """The same sweep taken in another order: a run that built its equations (0.38 s of
+    CPU) or found them built (3e-5 s). The scorecard ranks by the integration's CPU time,
+    so the build decides nothing; rows without it (before schema 7) fall back to cpu_s."""
+    rows = [
+        _row("f", "i", 1e-5, 0.40, 8e-4) | {"integrate_cpu_s": 0.02},  # built them
+        _row("f", "i", 1e-7, 0.03, 1e-6) | {"integrate_cpu_s": 0.03},  # found them built
+        _row("g", "i", 1e-5, 0.25, 8e-4) | {"integrate_cpu_s": math.nan},  # an old row
+    ]
+    frame = prepare_results(pd.DataFrame(rows))
+    found = cheapest_meeting(frame, "err_max", 1e-3).set_index("pair")
+    f_pair, g_pair = sorted(found.index)
+    assert found.loc[f_pair, "rtol"] == 1e-5 and found.loc[f_pair, "cpu_s"] == 0.02
+    assert found.loc[g_pair, "cpu_s"] == 0.25
+    (card,) = scorecards(frame)
+    assert card.table.loc[f_pair, "iftomm-a01"] == "0.02 s (rtol 1e-05)"
+    assert "building and compiling the equations not counted" in card.note
