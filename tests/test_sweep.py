@@ -198,7 +198,7 @@ runner = CliRunner()
 def test_no_report_writes_the_rows_and_says_how_to_write_the_report(fake_plugins, tmp_path) -> None:
     """--no-report: rows, series and recording, no report, and a line naming the command
     that writes it; once written, a sweep with nothing new calls it unchanged, and a sweep
-    that adds rows says the one there is of older rows."""
+    that adds rows says the one there is not current."""
     out = tmp_path / "out"
     spec = tmp_path / "spec.toml"
     spec.write_text(spec_text(out, '["test-rk45"]'))
@@ -215,7 +215,8 @@ def test_no_report_writes_the_rows_and_says_how_to_write_the_report(fake_plugins
     spec.write_text(spec_text(out, '["test-rk45", "test-rk4"]'))
     result = runner.invoke(app, ["sweep", str(spec), "--no-report"])
     assert result.exit_code == 0, result.output
-    assert f"{out / 'report' / 'index.html'} is of older rows" in result.output
+    older = out / "report" / "index.html"
+    assert f"{older} is not current: other rows or code made it" in result.output
     assert len(store.load_results(out)) == 4
 
 

@@ -343,7 +343,7 @@ def sweep(
         older = summary.out / "report" / "index.html"
         typer.echo(
             "report: not written (--no-report"
-            + (f"; {older} is of older rows" if older.is_file() else "")
+            + (f"; {older} is not current: other rows or code made it" if older.is_file() else "")
             + f"); `workbench report {summary.out}` writes it"
         )
     else:
