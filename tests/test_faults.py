@@ -350,3 +350,18 @@ def test_atomic_files_respect_the_umask(tmp_path, umask) -> None:
     finally:
         os.umask(old)
     assert (tmp_path / "row.json").stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+@pytest.mark.parametrize("address", ["notaurl", "tcp://host-without-port"])
+def test_a_scheduler_address_dask_cannot_read_is_one_line_before_out_is_made(
+    tmp_path, address
+) -> None:
+    """Not an address (no port): exit 2 naming it, and OUT untouched (it used to get the
+    plan, the logs and the spec before the connection failed)."""
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(SPEC)
+    result = workbench("sweep", str(spec), "--out", str(tmp_path / "out"), "--scheduler", address)
+    assert result.returncode == 2
+    line = one_error_line(result.stderr)
+    assert f"--scheduler {address!r}: missing port number" in line and "tcp://host:port" in line
+    assert not (tmp_path / "out").exists()

@@ -300,6 +300,10 @@ def sweep(
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if time_limit is not None and not time_limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
+    if scheduler:
+        from workbench.runs.dask_pool import check_scheduler_address
+
+        check_scheduler_address(scheduler)  # before OUT is made
     kinds = parse_rerun(rerun)
     # None: unless WORKBENCH_NO_LOCAL_PLUGINS is set
     loaded = load_spec(spec, plugins or [], False if no_local_plugins else None)

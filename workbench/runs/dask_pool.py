@@ -414,6 +414,23 @@ def _serve_main(fd: int) -> None:
         shutil.rmtree(setting["out"], ignore_errors=True)
 
 
+def check_scheduler_address(scheduler: str) -> None:
+    """ConfigError for an address Dask cannot read (a host without its port): said before
+    a sweep writes its plan and logs into OUT, not after (an address that reads well but
+    answers nothing is found when the sweep connects)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(scheduler)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as error:
+        raise ConfigError(
+            f"--scheduler {scheduler!r}: {error}; give the address a `dask scheduler` prints "
+            "(tcp://host:port)"
+        ) from None
+
+
 def run_dask(
     todo: list[RunSpec],
     out: Path,

@@ -33,7 +33,7 @@ from workbench.execution.environment import sweep_environment
 from workbench.execution.timing import Timing, check_budget, check_repeats
 from workbench.files import make_dirs, sync_file_system
 from workbench.runs import output_keys, store
-from workbench.runs.dask_pool import run_dask
+from workbench.runs.dask_pool import check_scheduler_address, run_dask
 from workbench.runs.estimate import estimate_lines, known_costs
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
@@ -116,6 +116,8 @@ def run_sweep(
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if not limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {limit}")
+    if scheduler:
+        check_scheduler_address(scheduler)  # before anything is written into out_dir
     timing = Timing(
         check_repeats(sweep.repeats if repeats is None else repeats, "--repeats"),
         check_budget(
