@@ -188,10 +188,10 @@ def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> 
 def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_s") -> pd.DataFrame:
     """One row a group of ``keys``: runs, how many ended in each status (ok, ok with
     warnings, failed, timeout, skipped: they add up to the runs), the best scd of an
-    ok run without warnings, the ``target``: the highest of the report's accuracy targets
+    ok run without warnings, and the pair, rtol, ``cost`` and rhs evaluations of the
+    cheapest such run reaching the target: the highest of the report's accuracy targets
     (:data:`~workbench.outputs.report.decision.FALLBACK_TARGETS`, scd 2 to 10) such a run
-    reached (the best scd when none), and the pair, rtol, ``cost`` and rhs evaluations of
-    the cheapest such run reaching the target, with its margin or tie
+    reached (the best scd when none; not a column: the table was too wide), with its margin or tie
     (:func:`workbench.outputs.report.ranking.decide`, the report's ranking). Ranked at
     the best scd itself, the line named whichever run reached the last digit, almost
     always alone ("only pair"), not the cheapest of those that reach a target."""
@@ -208,8 +208,7 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_
         row |= {"ok with warnings": int((ok & warned(group)).sum())}
         for status in ("failed", "timeout", "skipped"):
             row[status] = int((group["status"] == status).sum())
-        row["scd"] = best
-        row["target"] = target
+        row["scd"] = best  # (the target, the highest even scd <= it: said in the caption)
         if "pair" not in keys:
             row["pair"] = cheapest["pair"] if cheapest is not None else ""
         for column in dict.fromkeys(("rtol", cost, "n_rhs")):

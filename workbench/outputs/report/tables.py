@@ -57,7 +57,6 @@ HEADERS: dict[str, str] = {
     "runner-up": "runner-up",
     "tied pairs": "tied pairs",
     "verdict": "verdict",
-    "target": "target scd [digits]",
     "length_scale": "length scale L [m]",
     "formalism_options": "formalism options",
     "integrator_options": "integrator options",
