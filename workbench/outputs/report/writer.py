@@ -431,23 +431,12 @@ def problem_section(
     import matplotlib
 
     matplotlib.use("Agg", force=True)
-    with figure_formats(formats):
-        return _problem_section(runs, series, out, cost, traits, sketch)
-
-
-def _problem_section(
-    runs: pd.DataFrame,
-    series: Mapping[str, pd.DataFrame | None] | None,
-    out: Path,
-    cost: str,
-    traits: Traits,
-    sketch: Sketch | None,
-) -> ProblemSection:
     problem = str(runs["problem"].iloc[0])
-    work_precision = work_precision_figure(runs, out, problem, cost)
-    picture = mechanism_picture(sketch, out, problem) if sketch is not None else None
-    drift, rtol = drift_figure(runs, series, out, problem)
-    error = error_figure(runs, series, out, problem, cost)
+    with figure_formats(formats):
+        work_precision = work_precision_figure(runs, out, problem, cost)
+        picture = mechanism_picture(sketch, out, problem) if sketch is not None else None
+        drift, rtol = drift_figure(runs, series, out, problem)
+        error = error_figure(runs, series, out, problem, cost)
     table = None
     if rtol is not None:
         name = f"drift-{slug(problem)}-rtol-{rtol:g}"
