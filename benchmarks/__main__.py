@@ -184,17 +184,26 @@ def issue35_targets() -> list[Row]:
         return [Row("footprint (issue 35)", NAN, NAN,
                     note="run python -m benchmarks.footprint --targets")]  # fmt: skip
     newer = {}  # a later measurement of one target alone (--tiny) replaces the --targets one
+    unrecorded = []  # the same measure under --no-recording: said, not the target's
     tiny = RESULTS / "footprint-tiny.csv"
     if tiny.exists():
-        last = pd.read_csv(tiny).dropna(subset=["marginal_outside_cpu_ms"])
-        if len(last):
+        measured = pd.read_csv(tiny).dropna(subset=["marginal_outside_cpu_ms"])
+        for code in ("after", "after, no recording"):
+            last = measured[measured["code"] == code]
+            if not len(last):
+                continue
             row = last.iloc[-1]
             cpu = f"{row.cpu}; " if isinstance(row.get("cpu"), str) else ""
-            newer["time outside integration, marginal at 10,000 runs"] = (
-                row.marginal_outside_cpu_ms,
+            note = (
                 f"{cpu}load {row.load_1min:.1f}; integration {row.integration_cpu_ms:.1f} ms a "
-                "run; footprint-tiny.csv",
+                "run; footprint-tiny.csv"
             )
+            if code == "after":
+                name = "time outside integration, marginal at 10,000 runs"
+                newer[name] = (row.marginal_outside_cpu_ms, note)
+            else:
+                name = f"  the same with sweep --no-recording, at {int(row.n):,} runs (ms)"
+                unrecorded.append(Row(name, row.marginal_outside_cpu_ms, NAN, note=note))
     read = readback_rows()  # the reader on the default sweep's recording, measured alone
     rows = []
     for row in pd.read_csv(targets).itertuples():
@@ -207,6 +216,8 @@ def issue35_targets() -> list[Row]:
         value, note = newer.get(name, (row.measured, f"load {row.load_1min:.1f}"))
         rows.append(Row(f"{name} ({unit})" if unit else name, value, row.limit,
                         note=note))  # fmt: skip
+        if name in newer:
+            rows += unrecorded
     return rows
 
 

@@ -306,27 +306,28 @@ def resume_rows(n_runs: int) -> list[dict]:
 # ---- many tiny runs ---------------------------------------------------------------------
 
 
-def tiny_rows(counts: list[int], before: str) -> list[dict]:
+def tiny_rows(counts: list[int], before: str, unrecorded: bool = False) -> list[dict]:
     """A sweep of N tiny runs (:func:`resume_spec`: simple pendulum, 10 s, DOP853 / RK45 at
-    loose tolerances) with this code ("after") and, given a checkout, with its code
-    ("before"): runs/s over the command's wall time, and the CPU a run spends outside its
-    integration, (the command's CPU, workers included, minus the rows' integration CPU) / N,
-    which counts the sweep's fixed costs too (start-up, report, recording merge) - the
-    difference between two N removes them ("marginal")."""
+    loose tolerances) with this code ("after"), given a checkout with its code ("before"),
+    and with ``unrecorded`` this code's ``--no-recording`` ("after, no recording"): runs/s
+    over the command's wall time, and the CPU a run spends outside its integration, (the
+    command's CPU, workers included, minus the rows' integration CPU) / N, which counts the
+    sweep's fixed costs too (start-up, report, recording merge) - the difference between
+    two N removes them ("marginal")."""
     rows = []
     # every sweep's folder is removed at the end, not after the sweep: on ext4 without a
     # journal (this machine) a new file skips each inode deleted in the last 60-360 s, so
     # removing one sweep's 50,000 files made the next sweep's file writes slower
     kept = contextlib.ExitStack()
+    variants = [("before", before, [])] * bool(before) + [("after", "", [])]
+    variants += [("after, no recording", "", ["--no-recording"])] * unrecorded
     for n in counts:
-        for code, checkout in (("before", before), ("after", "")):
-            if code == "before" and not before:
-                continue
+        for code, checkout, extra in variants:
             directory = kept.enter_context(tempfile.TemporaryDirectory())
             out = Path(directory) / "out"
             spec = Path(directory) / "spec.toml"
             spec.write_text(resume_spec(out, n))
-            measured = _sweep(spec, checkout)
+            measured = _sweep(spec, checkout, *extra)
             results = pd.read_parquet(out / "results.parquet")
             recording = out / "recording.rrd"
             size = recording.stat().st_size if recording.exists() else 0
@@ -345,7 +346,7 @@ def tiny_rows(counts: list[int], before: str) -> list[dict]:
             rows.append(row)
             print({k: v for k, v in row.items() if not k.startswith("_")}, flush=True)
     kept.close()
-    for code in ("before", "after"):
+    for code, _checkout, _extra in variants:
         mine = sorted((r for r in rows if r["code"] == code), key=lambda r: r["n"])
         for small, large in zip(mine, mine[1:], strict=False):
             large["marginal_outside_cpu_ms"] = (
@@ -690,11 +691,11 @@ def main(argv: list[str]) -> pd.DataFrame:
         at = argv.index("--dask") if "--dask" in argv else len(argv)
         dask = [int(a) for a in argv[at + 1 :]] if at < len(argv) else None
         return targets_table([int(a) for a in argv[1:at]] or [1000, 10000], dask)
-    if "--tiny" in argv:  # --tiny N [N ...] [--before CHECKOUT]: the tiny-runs measure only
+    if "--tiny" in argv:  # --tiny N [N ...] [--before CHECKOUT] [--no-recording]: tiny runs
         before = argv[argv.index("--before") + 1] if "--before" in argv else ""
         counts = [int(a) for a in argv[argv.index("--tiny") + 1 :] if a.isdigit()]
         print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
-        table = pd.DataFrame(tiny_rows(counts, before))
+        table = pd.DataFrame(tiny_rows(counts, before, "--no-recording" in argv))
         RESULTS.mkdir(exist_ok=True)
         table.to_csv(RESULTS / "footprint-tiny.csv", index=False)
         with pd.option_context("display.width", 250, "display.max_columns", 30):

@@ -28,6 +28,7 @@ API = (
     "load_series",
     "load_trajectory",
     "plot_work_precision",
+    "record",
     "run",
     "sweep",
 )

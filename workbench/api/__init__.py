@@ -11,7 +11,7 @@ from workbench.api.catalog import Description, describe, list_plugins
 from workbench.api.plots import plot_work_precision
 from workbench.api.result import Result
 from workbench.api.runs import run
-from workbench.api.sweeps import sweep
+from workbench.api.sweeps import record, sweep
 from workbench.runs.store import load_results, load_series, load_trajectory
 
 __all__ = [
@@ -23,6 +23,7 @@ __all__ = [
     "load_series",
     "load_trajectory",
     "plot_work_precision",
+    "record",
     "run",
     "sweep",
 ]

@@ -60,10 +60,11 @@ def sweep(
 
     It writes the results store (rows, series, trajectories), not the HTML report or the
     Rerun recording that ``workbench sweep`` adds: ``workbench report OUT`` makes the
-    report from it. Bad input (a spec, key, ``out`` or ``progress`` of the wrong kind)
-    raises ``ConfigError`` before any run. Like ``workbench sweep`` it holds ``out``'s lock
-    (:mod:`workbench.runs.out_lock`): ``OutputBusyError`` if another process writes there,
-    unless ``wait`` (then it waits for it).
+    report from it, :func:`record` the recording. Bad input (a spec, key, ``out`` or
+    ``progress`` of the wrong kind) raises ``ConfigError`` before any run. Like
+    ``workbench sweep`` it holds ``out``'s lock (:mod:`workbench.runs.out_lock`):
+    ``OutputBusyError`` if another process writes there, unless ``wait`` (then it waits
+    for it).
     """
     if progress is not None and not (callable(progress) or hasattr(progress, "update")):
         raise ConfigError(
@@ -94,6 +95,55 @@ def sweep(
         if summary.rows is not None:  # what the consolidation read: not read again
             return summary.rows
     return store.load_results(parsed.out)
+
+
+def record(
+    out: str | os.PathLike[str],
+    where: str | list[str] = (),
+    *,
+    jobs: int = 2,
+    wait: bool = False,
+) -> Path:
+    """Record done runs of the sweep in ``out`` into ``out/recording.rrd`` (as
+    ``workbench record``), which :func:`sweep` writes none of: the runs meeting ``where``
+    (conditions ``COLUMN OP VALUE`` as ``workbench results --where`` takes them, e.g.
+    ``"rtol<1e-6"``; all runs without it) whose status is ok and whose row is not
+    stale are run again in ``jobs`` worker processes, their rows kept. Returns the
+    recording's path (open it with ``rerun`` or ``workbench view``). ConfigError when no
+    run could be recorded (naming why) or for bad input.
+    """
+    from workbench.outputs.recording import SweepRecorder
+    from workbench.outputs.results_table import filter_rows
+    from workbench.runs.record import record_runs
+
+    conditions = [where] if isinstance(where, str) else where
+    if not isinstance(conditions, list | tuple) or not all(
+        isinstance(condition, str) for condition in conditions
+    ):
+        raise ConfigError(f"where: expected conditions such as 'scd>=6', not {where!r}")
+    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
+        raise ConfigError(f"jobs: expected a number of worker processes >= 1, not {jobs!r}")
+    directory = results_directory(out)
+    if not directory.is_dir():
+        raise ConfigError(f"out: no output directory {directory}: give a sweep's out")
+
+    def choose(frame: pd.DataFrame) -> pd.DataFrame:
+        kept = filter_rows(frame, conditions)
+        if kept.empty:
+            raise ConfigError(f"no run of the {len(frame)} in {directory} meets {conditions}")
+        return kept
+
+    summary = record_runs(
+        directory, SweepRecorder, choose, jobs, [],
+        show_progress=False, wait=wait, say=lambda line: None,
+    )  # fmt: skip
+    if summary.recording is None or not summary.recorded:
+        why = "; ".join(f"{count} {reason}" for reason, count in summary.left_out.items())
+        failed = f"{len(summary.failed)} failed when run again" if summary.failed else ""
+        raise ConfigError(
+            f"no run of {directory} recorded ({'; '.join(filter(None, [why, failed]))})"
+        )
+    return summary.recording
 
 
 def _spec_data(spec: Any) -> dict[str, Any]:

@@ -273,6 +273,14 @@ def sweep(
             "parts, a batch job): `workbench report OUT` writes it later.",
         ),
     ] = False,
+    no_recording: Annotated[
+        bool,
+        typer.Option(
+            "--no-recording",
+            help="Write no Rerun recording (many small runs: it costs a tiny run about as "
+            "much as its rows and series): `workbench record OUT` records runs later.",
+        ),
+    ] = False,
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
@@ -317,7 +325,7 @@ def sweep(
         out=out,
         time_limit=time_limit,
         scheduler=scheduler,
-        recorder=SweepRecorder,
+        recorder=None if no_recording else SweepRecorder,
         rerun=kinds,
         fresh=fresh,
         say=typer.echo,
@@ -358,6 +366,15 @@ def sweep(
             summary.recording.name in summary.unchanged
         )
         typer.echo(f"recording: {summary.recording} ({same}workbench view {summary.recording})")
+    elif no_recording:
+        from workbench.outputs.recording import RECORDING_FILE
+
+        older = summary.out / RECORDING_FILE
+        typer.echo(
+            "recording: none written (--no-recording"
+            + (f"; {older} holds only runs recorded before" if older.is_file() else "")
+            + f"); `workbench record {summary.out} --where ...` records the runs chosen"
+        )
     if loaded.suite != FULL_SUITE:
         typer.echo(
             f"full comparison: workbench sweep {FULL_SUITE} (every problem, formalism and "
@@ -379,6 +396,79 @@ def sweep(
             ),
             err=True,
         )
+        raise typer.Exit(1)
+
+
+@app.command()
+def record(
+    ctx: typer.Context,
+    out: Annotated[str, typer.Argument(help="A sweep's output directory.")],
+    where: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--where", "-w", help="Record the runs with COLUMN OP VALUE, e.g. status=ok (repeat)."
+        ),
+    ] = None,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", help="Worker processes.")] = 2,
+    time_limit: Annotated[
+        float, typer.Option("--time-limit", help="Seconds per run before it is killed.")
+    ] = 300.0,
+    wait: Annotated[
+        bool,
+        typer.Option("--wait", help="If the output directory is in use, wait for it to be free."),
+    ] = False,
+    plugins: PluginsOption = None,
+    no_local_plugins: NoLocalPluginsOption = False,
+) -> None:
+    """Record done runs of a sweep in OUT/recording.rrd by running them again (rows kept).
+
+    For a sweep run with --no-recording, or by the Python API (which writes none): the
+    runs chosen with --where (all without it) whose status is ok and whose row is not
+    stale are run again in worker processes, and their recordings merged into the
+    sweep's (a run recorded before is replaced). A local plugin module the runs need is
+    named with --plugins, as for `workbench sweep`: a results folder names none itself.
+    """
+    from pathlib import Path
+
+    from workbench.errors import ConfigError
+    from workbench.outputs.recording import SweepRecorder
+    from workbench.outputs.results_table import filter_rows
+    from workbench.runs.record import record_runs
+
+    if not time_limit > 0:
+        raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
+    if not Path(out).is_dir():  # (before its lock would make it)
+        raise ConfigError(f"no output directory {out}: give the OUT of a sweep")
+
+    def choose(frame: Any) -> Any:
+        kept = filter_rows(frame, where or [])
+        if kept.empty:
+            raise ConfigError(
+                f"no run of the {len(frame)} in {out} meets --where "
+                f"{' --where '.join(where or [])}: `workbench results {out} --by run` lists them"
+            )
+        return kept
+
+    plugins_from_flags(plugins, no_local_plugins)  # refused or imported here first
+    hold_out_lock(ctx, out, wait)
+    summary = record_runs(
+        out, SweepRecorder, choose, jobs, plugins or [], time_limit, say=typer.echo
+    )
+    left = "; ".join(f"{count} left out: {why}" for why, count in summary.left_out.items())
+    if summary.failed:
+        typer.echo(
+            f"{len(summary.failed)} run(s) failed when run again (e.g. {summary.failed[0]}): "
+            "not recorded",
+            err=True,
+        )
+    if summary.recording is None:
+        typer.echo("recording: none (no run recorded" + (f"; {left}" if left else "") + ")")
+        raise typer.Exit(1)
+    typer.echo(
+        f"{summary.recorded} run(s) recorded" + (f" ({left})" if left else "")
+        + f"; recording: {summary.recording} (workbench view {summary.recording})"
+    )  # fmt: skip
+    if summary.failed:
         raise typer.Exit(1)
 
 

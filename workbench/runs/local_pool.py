@@ -264,6 +264,7 @@ def run_local(
     timing: Timing | None = None,
     states: bool = True,
     rebuild: list[RunSpec] = (),
+    recorded: Callable[[str], None] = lambda run_id: None,
 ) -> dict[str, str]:
     """Run ``todo`` (timed as ``timing`` says, default :class:`Timing` with ``jobs``
     workers; ``states``: store each trajectory, :func:`~workbench.runs.store.write_run`);
@@ -271,7 +272,8 @@ def run_local(
     worker was killed from outside twice (:mod:`workbench.runs.unfinished`).
 
     ``rebuild``: done runs to record again (their recording was left unwritten by a
-    killed worker; rows kept); so are those of a worker killed here, once each."""
+    killed worker; rows kept); so are those of a worker killed here, once each.
+    ``recorded(run_id)``: called as each of them is recorded again."""
     context = _context()
     timed = (timing or Timing(workers=jobs)).to_dict()
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
@@ -355,6 +357,8 @@ def run_local(
                             elif message[0] == "done" and worker.spec is not None:
                                 if not worker.record_only:  # (recorded again: counted once)
                                     record(message[2])
+                                else:
+                                    recorded(worker.spec.run_id)
                                 worker.recorded.append(worker.spec.run_id)
                                 worker.spec, worker.deadline = None, math.inf
                             elif message[0] == "error" and worker.spec is not None:
