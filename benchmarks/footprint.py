@@ -359,9 +359,10 @@ def tiny_rows(counts: list[int], before: str, unrecorded: bool = False) -> list[
     return rows
 
 
-def loop_parts(n: int) -> dict[str, float]:
+def loop_parts(n: int, recorded: bool = True) -> dict[str, float]:
     """The worker loop of a tiny sweep (:func:`resume_spec`'s runs) in this process, as
-    :func:`workbench.runs.local_pool._worker_main` runs it, ``n`` runs after 20 to warm up:
+    :func:`workbench.runs.local_pool._worker_main` runs it (``recorded``: False as under
+    ``sweep --no-recording``), ``n`` runs after 20 to warm up:
     ms of CPU a run (``time.process_time``, Rerun's threads included wherever they run)
     outside the integration and in each named part. No profiler: cProfile inflated the
     pandas and Rerun calls several times (docs/performance.md)."""
@@ -420,13 +421,13 @@ def loop_parts(n: int) -> dict[str, float]:
     try:
         with tempfile.TemporaryDirectory() as directory:
             out = Path(directory)
-            batch = RecordingBatch(SweepRecorder, out, "loop")
+            batch = RecordingBatch(SweepRecorder, out, "loop") if recorded else None
             for index, spec in enumerate(specs):
                 if index == 20:
                     spent.clear()
                     total = integration = 0.0
                 started = time.process_time()
-                sink = batch.begin_run(spec)
+                sink = batch.begin_run(spec) if batch is not None else None
                 capture = CapturedOutput(raw_path(out, spec.run_id), reuse=True)
                 progress = ProgressWriter(progress_path(out, spec.run_id))
                 with capture, progress:
@@ -434,13 +435,16 @@ def loop_parts(n: int) -> dict[str, float]:
                         spec, sink=sink, reference_dir=out / "references",
                         timing=Timing.from_dict(timing),
                     )  # fmt: skip
-                batch.logged(spec.run_id)
+                if batch is not None:
+                    batch.logged(spec.run_id)
                 result.row["log"] = local_pool.write_log(out, spec.run_id, capture.kept())
                 store.write_run(out, result.row, result.stored_series, True)
-                batch.end_run()
+                if batch is not None:
+                    batch.end_run()
                 total += time.process_time() - started
                 integration += result.row["integrate_cpu_s"]
-            batch.close()
+            if batch is not None:
+                batch.close()
             release_raw_file()
             release_progress_file()
     finally:
@@ -701,9 +705,10 @@ def main(argv: list[str]) -> pd.DataFrame:
         with pd.option_context("display.width", 250, "display.max_columns", 30):
             print(table.round(2).to_string(index=False))
         return table
-    if argv[:1] == ["--loop"]:  # --loop N: the worker loop's parts in this process
+    if argv[:1] == ["--loop"]:  # --loop N [--no-recording]: the worker loop's parts here
         print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
-        parts = loop_parts(int(argv[1]) if len(argv) > 1 else 400)
+        count = int(argv[1]) if len(argv) > 1 and argv[1].isdigit() else 400
+        parts = loop_parts(count, "--no-recording" not in argv)
         for name, ms in parts.items():
             print(f"{name:32s} {ms:7.3f} ms a run")
         print(f"load average at end: {os.getloadavg()[0]:.2f}")
