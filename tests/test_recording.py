@@ -435,6 +435,7 @@ def test_view_missing_recording_is_one_line_error(tmp_path: Path) -> None:
     # a user's words, not the workbench's internals (it named RerunSink.save)
     assert "RerunSink" not in outcome.output
     assert "`workbench run --out` writes none" in outcome.output
+    assert "`workbench record OUT` makes one" in outcome.output
 
 
 def test_view_up_is_against_gravity() -> None:

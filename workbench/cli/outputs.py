@@ -168,7 +168,9 @@ def view(
     if not recording.is_file():
         raise ConfigError(
             f"no recording at {recording}: give the recording.rrd of a sweep's output "
-            "directory (or the directory); `workbench run --out` writes none"
+            "directory (or the directory); `workbench run --out` writes none, "
+            "`workbench record OUT` makes one of a sweep run with --no-recording or from "
+            "Python"
         )
     if run is not None:
         recording = one_run_recording(recording, run)
