@@ -121,6 +121,13 @@ def test_the_commands_say_what_they_did(tmp_path: Path) -> None:
     assert f"2 run(s) recorded; recording: {out / 'recording.rrd'}" in result.output
     assert len(SweepRecorder().add_recording(out / "recording.rrd")) == 2
 
+    for path in (out / store.RUNS_DIR).glob("*.json"):  # every row stale: none recorded
+        path.write_text(json.dumps(json.loads(path.read_text()) | {"producer_formalism": "x:0"}))
+    result = runner.invoke(app, ["record", str(out)])
+    assert result.exit_code == 1, result.output
+    assert "no run recorded (4 left out: stale" in result.output
+    assert f"{out / 'recording.rrd'} as it was" in result.output
+
 
 def test_the_python_api_records_a_sweep_it_ran(tmp_path: Path) -> None:
     """``wb.sweep`` writes no recording; ``wb.record`` makes one of the runs chosen, and

@@ -461,8 +461,9 @@ def record(
             "not recorded",
             err=True,
         )
-    if summary.recording is None:
-        typer.echo("recording: none (no run recorded" + (f"; {left}" if left else "") + ")")
+    if not summary.recorded:  # (a recording made before may be there, as it was)
+        kept = f"; {summary.recording} as it was" if summary.recording is not None else ""
+        typer.echo("no run recorded" + (f" ({left})" if left else "") + kept)
         raise typer.Exit(1)
     typer.echo(
         f"{summary.recorded} run(s) recorded" + (f" ({left})" if left else "")
