@@ -44,5 +44,9 @@ def test_a_later_tiny_run_measurement_replaces_the_targets_one(tmp_path, monkeyp
     tiny = pd.read_csv(tmp_path / "footprint-tiny.csv").dropna(subset=["marginal_outside_cpu_ms"])
     rows = {row.target: row for row in summary.issue35_targets()}
     marginal = rows["time outside integration, marginal at 10,000 runs (ms)"]
-    assert marginal.value == tiny.marginal_outside_cpu_ms.iloc[-1]
+    assert marginal.value == tiny[tiny["code"] == "after"].marginal_outside_cpu_ms.iloc[-1]
     assert "footprint-tiny.csv" in marginal.note
+    # the same sweep under --no-recording is said beside it, not as the target's value
+    (unrecorded,) = [row for target, row in rows.items() if "--no-recording" in target]
+    assert unrecorded.value == tiny[tiny["code"] != "after"].marginal_outside_cpu_ms.iloc[-1]
+    assert unrecorded.value < marginal.value and unrecorded.bound != unrecorded.bound  # none
