@@ -146,6 +146,29 @@ def test_a_worker_killed_with_runs_unwritten_has_them_recorded_again(
     assert not list((tmp_path / RECORDINGS_DIR).iterdir())  # merged; no journal left
 
 
+@pytest.mark.parametrize("recorder", [KillingRecorder, KillingRecorderOfSingleRuns])
+def test_workbench_record_records_again_what_a_killed_worker_left_unwritten(
+    fake_plugins, tmp_path, monkeypatch, recorder
+) -> None:
+    """``workbench record`` (a sweep run without a recording) counts a run recorded only
+    once it is in a file: a worker killed before writing its batch has its runs recorded
+    again, and every run is in the recording once."""
+    from workbench.runs.record import record_runs
+
+    text = spec_text(tmp_path, '["test-rk45"]', problems=FALLING).replace(
+        "tolerances = [1e-4, 1e-6]", "tolerances = [1e-3, 1e-4, 1e-5, 1e-6]"
+    )
+    run_sweep(parse_spec(text), show_progress=False)  # rows, no recording
+    monkeypatch.setenv(KILL_MARKER, str(tmp_path / "killed"))
+    summary = record_runs(
+        tmp_path, recorder, jobs=1, plugins=["tests.fake_plugins"], show_progress=False
+    )
+    assert (tmp_path / "killed").exists()  # a worker was killed with a batch unwritten
+    assert summary.recorded == 4 and not summary.failed
+    assert len(SweepRecorder().add_recording(summary.recording)) == 4
+    assert not journals(tmp_path)
+
+
 def test_a_resume_records_again_the_runs_a_killed_sweep_left_unwritten(
     fake_plugins, tmp_path
 ) -> None:

@@ -378,7 +378,11 @@ def run_local(
                         spec, stamp = worker.spec, worker.stamp
                         written = spec and written_status(out, spec.run_id, stamp)
                         if spec is not None and worker.record_only:
-                            pass  # a done run recorded again: its row stands (record_again)
+                            # a done run being recorded again: its row stands; it is
+                            # recorded once more if its worker died before logging it
+                            if not recorded_again[spec.run_id]:
+                                recorded_again[spec.run_id] += 1
+                                rebuilds.append((equations_key(spec), spec))
                         elif spec is not None and not written and killed_from_outside(code):
                             lost[spec.run_id] += 1
                             if lost[spec.run_id] <= RETRIES:

@@ -29,6 +29,7 @@ from workbench.runs import store
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
+from workbench.runs.recording_batches import unwritten_runs
 from workbench.runs.resume import stale_reason
 
 if TYPE_CHECKING:
@@ -138,6 +139,7 @@ def record_runs(
                     [], out_dir, time_limit, list(plugins), jobs, lambda status: None,
                     bar.tick, recorder, timing, True, specs, recorded,
                 )  # fmt: skip
+            done -= unwritten_runs(out_dir)  # a worker killed before its file: not in it
             summary.recorded = len(done)
             summary.failed = [spec.run_id for spec in specs if spec.run_id not in done]
         summary.recording, _merged = merge_run_recordings(recorder, out_dir)
