@@ -168,3 +168,8 @@ def test_view_opens_one_run_of_a_sweeps_recording(tmp_path: Path, monkeypatch) -
     } == {"/" + run_path(1e-4)}
     unknown = CliRunner().invoke(app, ["view", str(out), "--run", "nope"])
     assert unknown.exit_code == 2 and "error: no run 'nope'" in unknown.output
+    # a run of the sweep that is not in its recording (swept with --no-recording)
+    write_json_atomic(row | {"run_id": "def", "rtol": 1e-5}, store.row_path(out, "def"), root=out)
+    unrecorded = CliRunner().invoke(app, ["view", str(out), "--run", "def"])
+    assert unrecorded.exit_code == 2, unrecorded.output
+    assert f"`workbench record {out} -w run_id=def` records it" in unrecorded.output

@@ -217,7 +217,12 @@ def one_run_recording(recording: Any, run_id: str) -> Any:
         )
     target = user_cache_dir() / "views" / f"{run_id}.rrd"
     target.parent.mkdir(parents=True, exist_ok=True)
-    return extract_run(recording, run_path_of_row(row), target)
+    try:
+        return extract_run(recording, run_path_of_row(row), target)
+    except ConfigError as error:  # a run of the sweep left out of its recording
+        raise ConfigError(
+            f"{error}; `workbench record {recording.parent} -w run_id={run_id}` records it"
+        ) from None
 
 
 def rerun_command(which: Any) -> list[str]:
