@@ -736,11 +736,9 @@ def run_path_of_row(row: dict[str, Any]) -> str:
     """The entity path of a result row's run (its options as dicts or JSON text)."""
     from types import SimpleNamespace
 
-    fields = dict(row)
-    for kind in ("problem", "formalism", "integrator"):
-        options = fields.get(f"{kind}_options") or {}
-        fields[f"{kind}_options"] = json.loads(options) if isinstance(options, str) else options
-    return entity_path(*run_parts(SimpleNamespace(**fields)))
+    from workbench.runs.store import row_options
+
+    return entity_path(*run_parts(SimpleNamespace(**(dict(row) | row_options(row)))))
 
 
 def extract_run(recording: str | Path, run: str, target: str | Path) -> Path:

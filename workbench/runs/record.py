@@ -15,7 +15,6 @@ with the same run id from the row's keys.
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -50,21 +49,10 @@ class RecordSummary:
 def spec_of_row(row: dict[str, Any]) -> RunSpec | None:
     """The run of a result row (its options as dicts or JSON text), or None when the row's
     keys do not make its run id again (a row written by other code)."""
-    fields = {}
-    for kind in ("problem", "formalism", "integrator"):
-        options = row.get(f"{kind}_options") or {}
-        if isinstance(options, str):
-            try:
-                options = json.loads(options)
-            except ValueError:
-                return None
-        if not isinstance(options, dict):
-            return None
-        fields[f"{kind}_options"] = options
     try:
         spec = RunSpec(
             str(row["problem"]), str(row["formalism"]), str(row["integrator"]),
-            float(row["rtol"]), float(row["atol"]), **fields,
+            float(row["rtol"]), float(row["atol"]), **store.row_options(row),
         )  # fmt: skip
     except (KeyError, TypeError, ValueError):
         return None

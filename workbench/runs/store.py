@@ -117,6 +117,20 @@ def read_row(path: Path) -> dict[str, Any] | None:
     return data
 
 
+def row_options(row: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """A row's ``problem_options``, ``formalism_options`` and ``integrator_options`` as
+    dicts (a row file holds them as JSON text, a run's row in memory as dicts); ValueError
+    if one is not a JSON object."""
+    options = {}
+    for kind in ("problem", "formalism", "integrator"):
+        value = row.get(f"{kind}_options") or {}
+        value = json.loads(value) if isinstance(value, str) else value
+        if not isinstance(value, dict):
+            raise ValueError(f"{kind}_options is not an object: {value!r}")
+        options[f"{kind}_options"] = value
+    return options
+
+
 def remove_stale_temporaries(out: Path) -> list[Path]:
     """Delete temporary files left by writers killed mid-write (never read as results):
     only files named as :func:`workbench.files.atomic_write` names them, no link followed."""
@@ -360,6 +374,7 @@ __all__ = [
     "load_series",
     "load_trajectory",
     "read_row",
+    "row_options",
     "row_path",
     "series_path",
     "write_run",
