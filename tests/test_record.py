@@ -97,6 +97,31 @@ def test_only_runs_that_can_be_run_again_as_they_were_are_recorded(tmp_path: Pat
     }
 
 
+def test_a_results_folder_cannot_make_record_read_files_outside_it(tmp_path: Path) -> None:
+    """A results folder is data: a row naming a robot file (or a folder it may read)
+    outside OUT is not run again unless the user names that folder; a link inside OUT
+    leading out counts as outside."""
+    out = tmp_path / "out"
+    run_sweep(parse_spec(spec_text(out)), show_progress=False)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (out / "link").symlink_to(elsewhere)
+    files = sorted((out / store.RUNS_DIR).glob("*.json"))
+    named = [
+        {"file": str(elsewhere / "robot.urdf")},
+        {"file": str(out / "robot.urdf"), "allow_roots": ["/"]},
+        {"file": "link/robot.urdf"},
+    ]
+    for path, options in zip(files, named, strict=False):
+        row = json.loads(path.read_text())
+        path.write_text(json.dumps(row | {"problem_options": json.dumps(options)}))
+    outside = "names files outside OUT and the folders given with --allow-root"
+    assert chosen_runs(out)[1][outside] == 3
+    # named by the user: no longer refused for it (the edited rows then fail their run id)
+    left_out = chosen_runs(out, allow_roots=[elsewhere])[1]
+    assert left_out[outside] == 1 and left_out["not made again from its row's keys"] == 2
+
+
 def test_the_commands_say_what_they_did(tmp_path: Path) -> None:
     runner = CliRunner()
     spec = tmp_path / "spec.toml"

@@ -103,12 +103,15 @@ def record(
     *,
     jobs: int = 2,
     wait: bool = False,
+    allow_roots: list[str | os.PathLike[str]] = (),
 ) -> Path:
     """Record done runs of the sweep in ``out`` into ``out/recording.rrd`` (as
     ``workbench record``), which :func:`sweep` writes none of: the runs meeting ``where``
     (conditions ``COLUMN OP VALUE`` as ``workbench results --where`` takes them, e.g.
     ``"rtol<1e-6"``; all runs without it) whose status is ok and whose row is not
-    stale are run again in ``jobs`` worker processes, their rows kept. Returns the
+    stale are run again in ``jobs`` worker processes, their rows kept; a run whose robot
+    file is outside ``out`` only when its folder is in ``allow_roots`` (a results folder is
+    data: it may not make the workbench read other files). Returns the
     recording's path (open it with ``rerun`` or ``workbench view``). ConfigError when no
     run could be recorded (naming why) or for bad input.
     """
@@ -135,7 +138,7 @@ def record(
 
     summary = record_runs(
         directory, SweepRecorder, choose, jobs, [],
-        show_progress=False, wait=wait, say=lambda line: None,
+        show_progress=False, wait=wait, say=lambda line: None, allow_roots=list(allow_roots),
     )  # fmt: skip
     if summary.recording is None or not summary.recorded:
         why = "; ".join(f"{count} {reason}" for reason, count in summary.left_out.items())

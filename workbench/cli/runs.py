@@ -417,6 +417,14 @@ def record(
         bool,
         typer.Option("--wait", help="If the output directory is in use, wait for it to be free."),
     ] = False,
+    allow_root: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--allow-root",
+            help="A folder outside OUT whose robot files the runs may read (repeatable; "
+            "only for results you trust).",
+        ),
+    ] = None,
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
@@ -425,8 +433,9 @@ def record(
     For a sweep run with --no-recording, or by the Python API (which writes none): the
     runs chosen with --where (all without it) whose status is ok and whose row is not
     stale are run again in worker processes, and their recordings merged into the
-    sweep's (a run recorded before is replaced). A local plugin module the runs need is
-    named with --plugins, as for `workbench sweep`: a results folder names none itself.
+    sweep's (a run recorded before is replaced). A results folder is data: a local plugin
+    module the runs need is named with --plugins, and a robot file outside OUT that they
+    read with --allow-root (its folder).
     """
     from pathlib import Path
 
@@ -452,8 +461,9 @@ def record(
     plugins_from_flags(plugins, no_local_plugins)  # refused or imported here first
     hold_out_lock(ctx, out, wait)
     summary = record_runs(
-        out, SweepRecorder, choose, jobs, plugins or [], time_limit, say=typer.echo
-    )
+        out, SweepRecorder, choose, jobs, plugins or [], time_limit, say=typer.echo,
+        allow_roots=allow_root or [],
+    )  # fmt: skip
     left = "; ".join(f"{count} left out: {why}" for why, count in summary.left_out.items())
     if summary.failed:
         typer.echo(

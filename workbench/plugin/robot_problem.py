@@ -35,6 +35,10 @@ ROBOT_PROBLEM = "robot"
 ENTRY_KEYS = ("urdf", "mjcf")
 
 
+FILE_OPTIONS = ("file", "package_path", "allow_roots")
+"""The options of :class:`RobotOptions` that name files or folders a run reads."""
+
+
 @dataclass(frozen=True)
 class RobotOptions:
     file: str = ""
