@@ -244,11 +244,17 @@ def test_kkt_residual_jacobian_is_made_once_and_only_for_the_ode_jacobian(monkey
     np.testing.assert_allclose(for_c, vm, rtol=1e-9, atol=1e-9 * np.abs(vm).max())
 
 
-def test_evaluate_along_equals_one_point_at_a_time_bit_for_bit():
-    """evaluate_along (Function.map(n) through preallocated buffers, or through
-    Function.call when an output is sparse) gives exactly what n separate calls give:
-    the metrics computed from it are the same numbers, not merely close ones."""
+@pytest.mark.parametrize("expand", [True, False], ids=["expanded", "mapped"])
+def test_evaluate_along_equals_one_point_at_a_time_bit_for_bit(expand, monkeypatch):
+    """evaluate_along (Function.map(n) through preallocated buffers, expanded into one SX
+    graph when small, or through Function.call when an output is sparse) gives exactly
+    what n separate calls give: the metrics computed from it are the same numbers, not
+    merely close ones."""
+    from workbench.equations import evaluate
     from workbench.equations.evaluate import evaluate_along
+
+    if not expand:
+        monkeypatch.setattr(evaluate, "EXPAND_MAP_LIMIT", 0)
 
     problem = get_problem("four-bar")()
     equations = get_formalism("absolute-dae")().build(problem.model(), {"index": 1})
@@ -281,6 +287,9 @@ def test_evaluate_along_equals_one_point_at_a_time_bit_for_bit():
                 for i, value in enumerate(single):
                     np.testing.assert_array_equal(mapped[i][k], np.array(value))
     assert len(cache) == 3
+    # the two dense functions went the way asked: n copies in one SX graph, or a map
+    kinds = {cache[(id(f), n)][1].function.class_name() for f in (residuals, velocity_matrix)}
+    assert kinds == ({"SXFunction"} if expand else {"Map"})
 
 
 def test_poses_along_the_states_just_measured_are_those_of_along_and_no_others():
