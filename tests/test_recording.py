@@ -316,6 +316,62 @@ def test_merge_recordings_of_workers(tmp_path: Path) -> None:
     assert rr.chunk.RrdReader(merged).blueprints()
 
 
+def test_a_merge_takes_the_runs_quantities_from_each_files_index(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file announces its index before its runs and gives it at the end: the merge then
+    takes each run's quantities from it without looking into the run's series; a file
+    without one (written before the index) is read from its values, as before. Either way
+    the merged file's index and plots are the quantities the runs' values have (read back
+    from the merged file: the oracle)."""
+    from workbench.outputs import recording
+
+    def run_without(rtol: float, *quantities: str) -> tuple:
+        spec, trajectory, series = fake_run(rtol)
+        series[list(quantities)] = np.nan
+        return spec, fake_equations(), None, trajectory, series
+
+    sink = RerunSink()
+    sink.begin_file(tmp_path / "a.rrd")  # two runs: one file, one index
+    first = sink.log_run(*run_without(1e-3, "energy_err"))
+    second = sink.log_run(*run_without(1e-4, "drift_pos", "drift_vel"))
+    indexed = [sink.end_file()]
+    sink.begin_file(tmp_path / "b.rrd")
+    third = sink.log_run(*run_without(1e-5))
+    indexed.append(sink.end_file())
+    with monkeypatch.context() as patched:  # a file as written before the index
+        patched.setattr(RerunSink, "begin_index", lambda self: None)
+        patched.setattr(RerunSink, "log_index", lambda self: None)
+        sink.begin_file(tmp_path / "c.rrd")
+        fourth = sink.log_run(*run_without(1e-6, "ref_err", "drift_pos"))
+        old = sink.end_file()
+    looked_into: list[int] = []  # series chunks read for their values
+
+    def counted(batch: Any) -> list[str]:
+        looked_into.append(batch.num_rows)
+        return series_quantities(batch)
+
+    monkeypatch.setattr(recording, "series_quantities", counted)
+    merged = merge_recordings(indexed, tmp_path / "all.rrd")
+    assert not looked_into
+    RerunSink().add_recording(old)
+    in_old = len(looked_into)  # the old file's series chunks
+    assert in_old
+    merged = merge_recordings([old], merged, keep_existing=True)  # a resume's merge
+    assert len(looked_into) == 2 * in_old  # the old file's again, the merged file's none
+    monkeypatch.setattr(recording, "series_quantities", series_quantities)
+    expected = {run: series_present(merged, run) for run in (first, second, third, fourth)}
+    assert expected[first] == ["drift_pos", "drift_vel", "ref_err"]
+    assert expected[fourth] == ["drift_vel", "energy_err"]
+    reader = RerunSink()
+    monkeypatch.setattr(recording, "series_quantities", counted)
+    assert sorted(reader.add_recording(merged)) == sorted(expected)
+    assert len(looked_into) == 2 * in_old  # the merged file has an index: no series read
+    assert reader.run_quantities == expected
+    plots = set(blueprint_views(merged)) - {"fake-problem"}
+    assert plots == {q for quantities in expected.values() for q in quantities}
+
+
 def test_one_sink_writes_a_file_a_run(tmp_path: Path) -> None:
     """A worker's sink: each file holds its own run's values only (read back), a file
     with nothing logged is not left behind, and the files merge as separate ones do."""

@@ -48,6 +48,12 @@ What the runs of a model share, stored once (a robot's meshes are most of its by
                                        static; named by its first contact)
     runs/<problem>/model/ground/contacts/<contact>  a contact sphere on the ground (static)
 
+And once a file, outside the runs::
+
+    series_index                       static JSON: the quantities each run of the file
+                                       has (:data:`SERIES_INDEX`), so that a merge need
+                                       not read every run's series to make the plots
+
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
 x, y, z, w). Runs logged twice under the same path (same keys, other options) get the
@@ -104,6 +110,12 @@ chunk: a chunk a quantity cost the reader about 11 KiB each (its footer's manife
 FILE_VALUES_LIMIT = 2**22
 """Values (instance poses, 4 bytes each; series, 8) a file of several runs takes before
 it is written (:meth:`RerunSink.fits`): its runs are held in memory until then."""
+SERIES_INDEX = "series_index"
+"""A file's static entity (and component, JSON text) saying which quantities each of its
+runs has series values of: ``{"runs": {run path: [quantity, ...]}}``, logged at the end
+of the file. A first copy without ``runs`` is logged before any run, so that a merge
+reading the file knows an index follows and skips looking into every run's series (the
+blueprint's plots: a third of a tiny run's merge; docs/performance.md)."""
 SERIES_PRESENT = "quantities"
 """The static component of ``<run>/series`` that named the quantities a run has values of
 in files written before 2026-11-27 (now read from its values: :func:`series_quantities`)."""
@@ -241,6 +253,7 @@ class RerunSink:
         self.max_frames = max(2, int(max_frames))
         self.runs: dict[str, tuple[str, str]] = {}  # run path -> (problem, label)
         self.quantities: set[str] = set()  # series logged by at least one run
+        self.run_quantities: dict[str, list[str]] = {}  # run path -> its quantities
         self.shape_colors: dict[str, dict[str, list[int]]] = {}  # problem part -> archetype
         self._file = Path()  # the file of begin_file
         self._file_values = 0  # values (poses, series) logged to it: its size in memory
@@ -280,7 +293,10 @@ class RerunSink:
             parts = parts[:-1] + (f"{parts[-1]} {suffix}",)
             path = entity_path(*parts)
         label = f"{parts[2]} / {parts[3]} {parts[4]}"
+        if not self.runs:  # the file's first run: its index will follow (SERIES_INDEX)
+            self.begin_index()
         self.runs[path] = (parts[1], label)
+        self.run_quantities[path] = []
         model = equations.model
         options = json.dumps(getattr(spec, "problem_options", {}), sort_keys=True, default=str)
         key = f"{spec.problem} {options} {model.name}"
@@ -478,6 +494,7 @@ class RerunSink:
             return
         table[~finite] = np.nan
         self.quantities.update(present)
+        self.run_quantities[path] = present
         self._file_values += table.size
         series_path = f"{path}/{SERIES_ENTITY}"
         # the legend's name of each line; which quantities the run has is read from the
@@ -490,6 +507,24 @@ class RerunSink:
             indexes=[rr.TimeColumn(TIMELINE, duration=t[keep])],
             columns=[_column("scalars", table[keep])],
         )
+
+    def begin_index(self) -> None:
+        """Log the first copy of the file's :data:`SERIES_INDEX` (no runs in it), flushed
+        so that it comes before every run's chunks (Rerun's batcher does not keep the
+        order of log calls across entities)."""
+        import rerun as rr
+
+        self.recording.log(SERIES_INDEX, rr.AnyValues(**{SERIES_INDEX: "{}"}), static=True)
+        self.recording.flush(timeout_sec=FLUSH_TIMEOUT)
+
+    def log_index(self) -> None:
+        """Log the file's :data:`SERIES_INDEX`: the quantities of each of its runs."""
+        import rerun as rr
+
+        if self.runs:
+            runs = {run: self.run_quantities.get(run, list(SERIES_QUANTITIES)) for run in self.runs}
+            text = json.dumps({"runs": runs}, separators=(",", ":"))
+            self.recording.log(SERIES_INDEX, rr.AnyValues(**{SERIES_INDEX: text}), static=True)
 
     # -- the file -------------------------------------------------------------------------
     def blueprint(self) -> Any:
@@ -554,6 +589,7 @@ class RerunSink:
             target = target / RECORDING_FILE
         stream = self.recording.binary_stream()
         self.send_instances()
+        self.log_index()
         self.recording.send_blueprint(self.blueprint(), make_active=False, make_default=True)
         data = stream.read() or b""
         self.recording.disconnect()
@@ -571,6 +607,7 @@ class RerunSink:
         self._file_values = 0
         self.runs.clear()
         self.quantities.clear()
+        self.run_quantities.clear()
         self.shape_colors.clear()
         self.instances.clear()
         self._shared_logged.clear()
@@ -605,6 +642,7 @@ class RerunSink:
         if stream is None:
             return None
         self.send_instances()
+        self.log_index()
         data = stream.read()
         if not self.runs:
             return None
@@ -665,8 +703,19 @@ class RerunSink:
             warnings.filterwarnings("ignore", message="RRD file has no footer")
             reader = rr.chunk.RrdReader(path)
         heads: dict[str, tuple[list[str], str]] = {}  # a path's parts but the last, run
+        indexed, index = False, None  # an index announced before the runs; its runs
         for chunk in reader.stream():  # one chunk at a time (to_chunks: a list of all)
             parts, run = _parsed_entity(chunk.entity_path, heads)
+            if parts == [SERIES_INDEX] and chunk.is_static:
+                batch = chunk.to_record_batch()
+                if SERIES_INDEX in batch.schema.names:
+                    text = batch.column(SERIES_INDEX)[0].as_py()
+                    content = json.loads(text[0] if isinstance(text, list) else text)
+                    if "runs" not in content:
+                        indexed = not found  # announced before any run: trusted
+                    elif indexed:
+                        index = content["runs"]
+                continue
             if parts[:1] != ["runs"]:
                 continue  # recording properties and anything not a run or a problem
             if only_run is not None and parts[1:2] != split_entity_path(only_run)[1:2]:
@@ -695,13 +744,22 @@ class RerunSink:
             if run not in self.runs:
                 label = f"{parts[2]} / {parts[3]} {parts[4]}"
                 self.runs[run] = (parts[1], label)
+                self.run_quantities[run] = []
                 found.append(run)
-            if len(parts) == 6 and parts[5] == SERIES_ENTITY:
-                batch = chunk.to_record_batch()
+            if not indexed and len(parts) == 6 and parts[5] == SERIES_ENTITY:
+                batch = chunk.to_record_batch()  # a file without an index: its values
+                quantities = series_quantities(batch)
                 if SERIES_PRESENT in batch.schema.names:  # a file written before 2026-11-27
-                    self.quantities.update(map(str, batch.column(SERIES_PRESENT)[0].as_py()))
-                self.quantities.update(series_quantities(batch))
+                    quantities += map(str, batch.column(SERIES_PRESENT)[0].as_py())
+                had = self.run_quantities[run]
+                had += [quantity for quantity in quantities if quantity not in had]
+                self.quantities.update(quantities)
             self.recording.send_chunks(chunk)
+        if indexed:  # a run the index does not name (not written so): every plot offered
+            for run in found:
+                quantities = (index or {}).get(run, list(SERIES_QUANTITIES))
+                self.run_quantities[run] = [str(q) for q in quantities]
+                self.quantities.update(self.run_quantities[run])
         for shared, pieces in poses.items():
             runs = named.get(shared) or found[:1]  # a run's own file names none: its run
             times = np.concatenate([piece[0] for piece in pieces])
@@ -840,6 +898,7 @@ def merge_recordings(
     def write(temporary: str) -> None:
         with _stderr_silenced():  # rerun's warning that a file without footer exists
             sink.recording.save(temporary, write_footer=input_bytes <= FOOTER_INPUT_LIMIT)
+        sink.begin_index()
         pending = 0  # bytes read since the last flush
         for file in inputs:  # the newest first: a run is taken from the first file with it
             sink.add_recording(file)
@@ -848,6 +907,7 @@ def merge_recordings(
                 _flush(sink.recording, target)
                 pending = 0
         sink.send_instances()
+        sink.log_index()
         sink.recording.send_blueprint(sink.blueprint(), make_active=False, make_default=True)
         _flush(sink.recording, target)
         sink.recording.disconnect()  # the file is whole
