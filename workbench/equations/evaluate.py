@@ -320,8 +320,9 @@ EXPAND_MAP_LIMIT = 20_000
 evaluates ``function.map(n)`` expanded into one SX graph: the VM then runs the n copies
 straight through instead of calling the function once a point, the same operations and
 bits (a simple pendulum's observables at a tiny run's 201 samples: ``Observables.along``
-0.76 -> 0.30 ms). Built once per function and n (4.7 ms -> 24 ms at 29,000
-instructions); beyond about 30,000 the copies ran no faster (docs/performance.md)."""
+0.66 -> 0.48 ms, a run's metrics 1.29 -> 1.06 ms; medians of 8 rounds, interleaved).
+Built once per function and n (4.7 ms -> 24 ms at 29,000 instructions); beyond about
+30,000 the copies ran no faster (docs/performance.md)."""
 
 
 def evaluate_along(function: ca.Function, n: int, args: list[np.ndarray],
