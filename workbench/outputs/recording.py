@@ -509,13 +509,14 @@ class RerunSink:
         )
 
     def begin_index(self) -> None:
-        """Log the first copy of the file's :data:`SERIES_INDEX` (no runs in it), flushed
-        so that it comes before every run's chunks (Rerun's batcher does not keep the
-        order of log calls across entities)."""
+        """Send the first copy of the file's :data:`SERIES_INDEX` (no runs in it) as a
+        static column chunk: it goes to the file at once, before any run's series (sent
+        the same way); a ``log`` call would wait in Rerun's batcher, which does not keep
+        the order of calls across entities."""
         import rerun as rr
 
-        self.recording.log(SERIES_INDEX, rr.AnyValues(**{SERIES_INDEX: "{}"}), static=True)
-        self.recording.flush(timeout_sec=FLUSH_TIMEOUT)
+        columns = rr.AnyValues.columns(**{SERIES_INDEX: ["{}"]})
+        self.recording.send_columns(SERIES_INDEX, indexes=[], columns=columns)
 
     def log_index(self) -> None:
         """Log the file's :data:`SERIES_INDEX`: the quantities of each of its runs."""
