@@ -36,6 +36,27 @@ def test_a_clean_run_has_no_warning():
     assert row["rotation_defect_max"] < 1e-12
 
 
+def test_a_tolerance_below_float64s_is_judged_at_its_least():
+    """rtol 1e-20 asked of an explicit method (SciPy takes 2.2e-14): the rotations and the
+    energy are right to rounding (1e-16 a step, 1e-14 after the run), which 100 and 1000
+    times 1e-20 would call drift; the audit holds the run to 100 machine epsilons instead,
+    and still warns a defect beyond that, saying which rtol it judged."""
+    from workbench.execution.audit import LEAST_RTOL, audit_warnings
+
+    row = run("double-pendulum", "recursive", "scipy-dop853", 1e-20)
+    assert row["status"] == "ok"
+    assert row["energy_err_max"] < 1e-11  # rounding only: an exact invariant
+    assert "rotations off" not in row["warnings"] and "energy" not in row["warnings"]
+    assert "SciPy raises rtol 1e-20" in row["warnings"]  # the integrator's own word
+    metrics = {"energy_err_max": 1e-10}
+    (energy,) = audit_warnings({"rotation_defect_max": 1e-15}, metrics, 1e-20, True)
+    assert energy.startswith("energy not conserved") and f"taken as {LEAST_RTOL:.2g}" in energy
+    assert audit_warnings({"rotation_defect_max": 1e-11}, {}, 1e-20, False)[0].startswith(
+        "rotations off the unit sphere"
+    )
+    assert not audit_warnings({"rotation_defect_max": 1e-13}, {}, 1e-8, False)
+
+
 def test_euler_parameters_off_the_unit_sphere_are_seen():
     """The observables orthonormalize rotations for the poses (and the formalisms build
     rotations of p / |p|), so a run whose Euler parameters drift off the unit sphere shows

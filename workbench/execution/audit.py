@@ -67,6 +67,10 @@ PARTITION_NOTE = "fixed velocity partition"  # how a formalism's notes declare o
 MEASURE = "_measured_on"  # audit key (not a column): "partition" when W_d was measured
 ROTATION_FACTOR = 100.0  # rotation defect beyond this times rtol: a warning
 ENERGY_FACTOR = 1e3  # relative energy error beyond this times rtol: a warning
+LEAST_RTOL = 100 * np.finfo(float).eps
+"""The least tolerance the audit judges against: a run asked for less (rtol 1e-20) is
+held to this, as SciPy and scipy-dae raise it (float64's rounding alone, 1e-16 a
+step, reaches 100 x 1e-20); its row says which rtol was judged."""
 REFINE_EVALUATIONS = 40  # Hermite-interpolated evaluations of W around each sampled minimum
 REFINE_MOST = 5  # sampled local minima refined, the deepest first
 REFINE_BELOW = 0.5  # ... and only those below this fraction of the median ratio
@@ -181,8 +185,11 @@ def health_audit(
 
 def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
                    conservative: bool) -> list[str]:  # fmt: skip
-    """The warnings of a row from its audit columns and metrics (see the module)."""
+    """The warnings of a row from its audit columns and metrics (see the module); rtol
+    below :data:`LEAST_RTOL` is judged as that."""
     found = []
+    floor = f", rtol {rtol:g} taken as {LEAST_RTOL:.2g}" if rtol < LEAST_RTOL else ""
+    rtol = max(rtol, LEAST_RTOL)
     ratio, at = audit.get("jacobian_sv_ratio_min", math.nan), audit.get("jacobian_sv_ratio_at")
     partition = audit.get(MEASURE) == "partition"  # what the ratio was measured on
     if ratio < SINGULAR_RATIO and partition:
@@ -211,7 +218,8 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     if defect > ROTATION_FACTOR * rtol:
         found.append(
             f"rotations off the unit sphere: |R^T R - I| or |p^T p - 1| reached {defect:.2g} "
-            f"(> {ROTATION_FACTOR:g} rtol), Euler parameters drifted from unit norm"
+            f"(> {ROTATION_FACTOR:g} rtol{floor}): the rotation matrices are not orthonormal "
+            f"or the Euler parameters drifted from unit norm"
         )
     for note in audit.get("formalism_notes", "").split("; "):
         if note.lower().startswith("removed"):
@@ -219,7 +227,7 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     energy = metrics.get("energy_err_max", math.nan)
     if conservative and energy > ENERGY_FACTOR * rtol:
         found.append(f"energy not conserved: relative error {energy:.2g} "
-                     f"(> {ENERGY_FACTOR:g} rtol)")  # fmt: skip
+                     f"(> {ENERGY_FACTOR:g} rtol{floor})")  # fmt: skip
     accuracy = audit.get("reference_accuracy", math.nan)
     relative_end = metrics.get("err_end", math.nan) / metrics.get("length_scale", math.nan)
     if relative_end < accuracy and metrics.get("reference_kind") != "analytic":
