@@ -145,6 +145,16 @@ def test_the_commands_say_what_they_did(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert f"2 run(s) recorded; recording: {out / 'recording.rrd'}" in result.output
     assert len(SweepRecorder().add_recording(out / "recording.rrd")) == 2
+    # the columns of `workbench results --where`: the pair's label, an option's column
+    pair = ["--where", "pair=minimal-ode / scipy-rk45", "--where", "formalism.index=3"]
+    result = runner.invoke(app, ["results", str(out), "--by", "run", *pair])
+    assert result.exit_code == 0 and "2 of the 4 runs" in result.output, result.output
+    result = runner.invoke(app, ["record", str(out), *pair, "-j", "1"])
+    assert result.exit_code == 0, result.output
+    assert "2 run(s) recorded" in result.output
+    assert len(SweepRecorder().add_recording(out / "recording.rrd")) == 3  # one new
+    result = runner.invoke(app, ["record", str(out), "--where", "sdc>=3"])
+    assert result.exit_code != 0 and "no column 'sdc' (did you mean scd?)" in result.output
 
     for path in (out / store.RUNS_DIR).glob("*.json"):  # every row stale: none recorded
         path.write_text(json.dumps(json.loads(path.read_text()) | {"producer_formalism": "x:0"}))

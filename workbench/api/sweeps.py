@@ -116,7 +116,7 @@ def record(
     run could be recorded (naming why) or for bad input.
     """
     from workbench.outputs.recording import SweepRecorder
-    from workbench.outputs.results_table import filter_rows
+    from workbench.outputs.results_table import rows_where
     from workbench.runs.record import record_runs
 
     conditions = [where] if isinstance(where, str) else where
@@ -131,7 +131,7 @@ def record(
         raise ConfigError(f"out: no output directory {directory}: give a sweep's out")
 
     def choose(frame: pd.DataFrame) -> pd.DataFrame:
-        kept = filter_rows(frame, conditions)
+        kept = rows_where(frame, conditions)
         if kept.empty:
             raise ConfigError(f"no run of the {len(frame)} in {directory} meets {conditions}")
         return kept

@@ -213,7 +213,7 @@ def one_run_recording(recording: Any, run_id: str) -> Any:
     if row is None:
         raise ConfigError(
             f"no run {run_id!r} in {recording.parent}: give a run id from "
-            f"`workbench results {recording.parent}` (its run_id column)"
+            f"`workbench results {recording.parent} --by run -c run_id,problem,pair,rtol`"
         )
     target = user_cache_dir() / "views" / f"{run_id}.rrd"
     target.parent.mkdir(parents=True, exist_ok=True)

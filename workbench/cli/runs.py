@@ -441,7 +441,7 @@ def record(
 
     from workbench.errors import ConfigError
     from workbench.outputs.recording import SweepRecorder
-    from workbench.outputs.results_table import filter_rows
+    from workbench.outputs.results_table import rows_where
     from workbench.runs.record import record_runs
 
     if not time_limit > 0:
@@ -450,7 +450,7 @@ def record(
         raise ConfigError(f"no output directory {out}: give the OUT of a sweep")
 
     def choose(frame: Any) -> Any:
-        kept = filter_rows(frame, where or [])
+        kept = rows_where(frame, where or [])
         if kept.empty:
             raise ConfigError(
                 f"no run of the {len(frame)} in {out} meets --where "
@@ -621,9 +621,9 @@ def results(
     out.width = max(out.width, 160)  # a wide table: let a narrow terminal wrap it
     out.print(shown)
     if by != "run":
+        others = " or ".join(f"--by {other}" for other in ("pair", "run") if other != by)
         typer.echo(
-            "more: --by pair or --by run; choose with --where, --sort, --columns; "
-            "--format csv|markdown|latex"
+            f"more: {others}; choose with --where, --sort, --columns; --format csv|markdown|latex"
         )
 
 

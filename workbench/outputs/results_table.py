@@ -149,6 +149,16 @@ def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
     return frame[keep]
 
 
+def rows_where(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
+    """The rows of ``frame`` (a store's rows, as they are) that meet ``conditions`` as
+    ``workbench results --where`` reads them: with the report's labels (``pair``) and a
+    column an option (``formalism.index``); what ``workbench record`` runs again."""
+    if not conditions:
+        return frame
+    kept = filter_rows(with_option_columns(prepare_results(frame)), conditions)
+    return frame.iloc[list(kept.index)]  # prepare_results numbers the rows from 0
+
+
 def unmatched(frame: pd.DataFrame, conditions: Sequence[str]) -> list[str]:
     """For the ``column=value`` conditions of :func:`filter_rows` whose value no row has
     (a misspelled problem name), one text each naming the values the column has."""
@@ -177,11 +187,21 @@ def sort_rows(frame: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
 
 
 def _check_columns(frame: pd.DataFrame, columns: Sequence[str], option: str) -> None:
+    """ConfigError naming the columns ``frame`` lacks: the closest it has first (a typo
+    among a hundred columns), then all of them."""
+    import difflib
+
     unknown = [column for column in columns if column not in frame.columns]
     if unknown:
+        close = [
+            match
+            for column in unknown
+            for match in difflib.get_close_matches(column, list(map(str, frame.columns)), n=3)
+        ]
+        hint = f" (did you mean {', '.join(dict.fromkeys(close))}?)" if close else ""
         raise ConfigError(
-            f"{option}: no column {', '.join(map(repr, unknown))}; the columns are "
-            f"{', '.join(frame.columns)}"
+            f"{option}: no column {', '.join(map(repr, unknown))}{hint}; the columns are "
+            f"{', '.join(map(str, frame.columns))}"
         )
 
 
