@@ -338,6 +338,17 @@ def test_run_refuses_what_a_spec_refuses(args, fragment) -> None:
     assert fragment in one_line_error(result.output)
 
 
+def test_run_shows_a_count_its_integrator_does_not_report_as_such() -> None:
+    """A count the integrator does not report is stored as -1 (what `--where` sees);
+    the run's table says so instead of showing a count of -1."""
+    args = ["run", "simple-pendulum", "-f", "minimal-ode", "-i", "scipy-dop853", "--repeats", "1"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if " n_rejected " in line]
+    assert len(lines) == 1 and "not reported by the integrator" in lines[0], result.output
+    assert " -1 " not in result.output
+
+
 def test_a_spec_refuses_a_step_that_needs_too_many_steps() -> None:
     with pytest.raises(ConfigError, match=r"integrators\[0\].options: integrator 'rk4'"):
         parse_spec(spec('[{name = "rk4", options = {step = 1e-300}}]'))

@@ -189,8 +189,11 @@ def run(
     table = Table(title=f"run {spec.run_id}", title_justify="left", show_header=False)
     table.add_column("metric", no_wrap=True)
     table.add_column("value")
+    from workbench.outputs.results_table import UNREPORTED_COUNTS
+
     for name, value in row.items():
-        table.add_row(name, _cell(value))
+        unreported = name in UNREPORTED_COUNTS and value == -1  # not a count of -1
+        table.add_row(name, "not reported by the integrator" if unreported else _cell(value))
     console().print(table)
     if row.get("status") != "ok":  # the table says what was measured; the exit status, that
         typer.echo(f"error: run {row.get('status')}: {row.get('message', '')}", err=True)
