@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -128,6 +129,22 @@ def test_formats_from_the_command_line(results: Path) -> None:
     assert bad.exit_code == 2 and "choose one of table, csv, markdown, latex" in bad.output
     table = runner.invoke(app, ["results", str(results)])
     assert table.exit_code == 0 and "The 24 runs in" in table.output
+
+
+def test_a_latex_table_split_to_fit_the_page_says_which_run_each_line_is(
+    results: Path,
+) -> None:
+    """The run table is wider than a page: each of its parts repeats the problem, the
+    pair and the tolerance (a part with the problem alone listed a problem four times
+    with nothing telling its lines apart)."""
+    latex = runner.invoke(app, ["results", str(results), "-f", "latex", "--by", "run"])
+    assert latex.exit_code == 0, latex.output
+    parts = re.split(r"\\begin\{(?:tabular|longtable)\}\{[a-z0-9.{}]*\}", latex.output)[1:]
+    assert len(parts) >= 2, latex.output
+    for part in parts:
+        header = part.split(r"\midrule")[0]
+        for key in ("problem", "formalism", "integrator", "rtol"):
+            assert key in header, (key, header)
 
 
 def test_caption_reads_well_and_names_the_cost_measure(results: Path) -> None:

@@ -41,6 +41,9 @@ ROW_COLUMNS: tuple[str, ...] = (
 """The columns of ``by="run"`` when none are named (then ``options``: a run's options that
 are not its plugins' defaults, where some are)."""
 GROUPINGS: tuple[str, ...] = ("problem", "pair", "run")
+KEY_COLUMNS = frozenset({"run_id", "problem", "pair", "formalism", "integrator", "rtol"})
+"""Leading columns that say which run or group a line is: repeated in every part of a
+LaTeX table split to fit the page."""
 CONDITION = re.compile(r"^\s*([A-Za-z0-9_.\- ]+?)\s*(<=|>=|!=|=|<|>)\s*(.*?)\s*$")
 
 
@@ -312,6 +315,7 @@ def render(table: pd.DataFrame, fmt: str, caption: str) -> str:
         return table.to_csv(index=False)
     if fmt == "markdown":
         return markdown_table(table)
-    if fmt == "latex":
-        return latex_table(table, caption=caption, label="tab:results")
+    if fmt == "latex":  # a table split to fit the page repeats what a row is about
+        keys = next((k for k, c in enumerate(table.columns) if c not in KEY_COLUMNS), 0)
+        return latex_table(table, caption=caption, label="tab:results", keys=keys or None)
     raise ConfigError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")

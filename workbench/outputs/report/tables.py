@@ -351,20 +351,23 @@ def latex_table(
     caption: str | None = None,
     label: str | None = None,
     notes: Sequence[str] = (),
+    keys: int | None = None,
 ) -> str:
     """Booktabs LaTeX of ``table`` (needs ``\\usepackage{booktabs}``, and
     ``\\usepackage{longtable}`` for tables of more than :data:`LONG_ROWS` rows): readable
     headers with units, numbers right-aligned in one format a column, LaTeX's special
     characters escaped, laid out to fit the text width of a plain ``article``: long text
     wraps, long headers break into lines, a table still too wide is split into parts
-    that repeat its first column. With a ``caption`` (and ``label``) it is a ``table``
+    that repeat its first ``keys`` columns (what a row is about; default its first column
+    when that is text). With a ``caption`` (and ``label``) it is a ``table``
     float in \\footnotesize (a ``longtable`` when long); ``notes`` are printed under it."""
     head, rows = table_cells(table, index)
     kinds = ([False] if index else []) + [
         pd.api.types.is_numeric_dtype(table[c]) and table[c].dtype != bool for c in table.columns
     ]
     columns = _laid_out(head, rows, kinds)
-    keys = 1 if (kinds and not kinds[0]) else 0
+    if keys is None:
+        keys = 1 if (kinds and not kinds[0]) else 0
     parts = _chunks(columns, keys) if columns else [[]]
     # the parts stack in one float: their lines add up
     long = caption is not None and _text_lines(rows, columns) * len(parts) > LONG_ROWS
