@@ -55,6 +55,13 @@ def test_sweep_refuses_a_spec_or_progress_of_the_wrong_kind(fake_plugins, tmp_pa
         workbench.sweep(problems=["test-pendulum"], formalisms=["minimal-ode"],
                         integrators=["test-rk45"], tolerances=[1e-4], out=tmp_path,
                         in_process=True, progress=5)  # fmt: skip
+    # a misspelled keyword: named as given, without the line of a text the user never saw
+    with pytest.raises(ConfigError) as refused:
+        workbench.sweep(problems=["test-pendulum"], formalisms=["minimal-ode"],
+                        integrators=["test-rk45"], tolerance=[1e-4], out=tmp_path)  # fmt: skip
+    assert str(refused.value) == (
+        "workbench.sweep: tolerance: unknown key; did you mean tolerances?"
+    )
     assert not (tmp_path / "runs").exists()  # refused before any run
 
 

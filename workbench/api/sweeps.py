@@ -81,7 +81,10 @@ def sweep(
         data["out"] = str(results_directory(out))
     is_file = isinstance(spec, str | os.PathLike) and Path(spec).is_file()
     source = str(spec) if is_file else "workbench.sweep"  # robot files are found beside it
-    parsed = parse_spec(toml_text(data), source, Path(spec).parent if is_file else None)
+    # (no line numbers: the text parsed is made here from the file and the keywords)
+    parsed = parse_spec(
+        toml_text(data), source, Path(spec).parent if is_file else None, lines=False
+    )
     results_directory(parsed.out, make=True)  # ConfigError for a file or a folder not made
     local = local_plugins(parsed)
     here = bool(local) if in_process is None else in_process

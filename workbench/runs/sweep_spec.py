@@ -223,8 +223,10 @@ def parse_spec(
     directory: str | Path | None = None,
     extra_plugins: Iterable[str] = (),
     allow_local: bool | None = None,
+    lines: bool = True,
 ) -> SweepSpec:
-    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key).
+    """Validate TOML ``text`` and expand it to RunSpecs (ConfigError names the key, and
+    its line unless ``lines`` is False: text the caller made, not the user's file).
 
     ``directory`` (the specification file's) is searched for its plugin modules too;
     ``extra_plugins`` (``--plugins``) are found from the current directory. The plugin
@@ -247,7 +249,7 @@ def parse_spec(
         ) from None
 
     def fail(key: str, message: str) -> ConfigError:
-        line = _key_line(text, key)
+        line = _key_line(text, key) if lines else None
         where = f"line {line}: " if line else ""
         return ConfigError(one_line(ConfigError(f"{source}: {where}{key}: {message}"), False))
 
