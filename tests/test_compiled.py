@@ -419,9 +419,35 @@ def test_the_cache_command_shows_and_clears_the_compiled_libraries(cache):
     assert str(cache) in shown.output.replace("\n", "")
     kept = runner.invoke(app, ["cache", "clear"], input="n\n")
     assert kept.exit_code == 1 and len(list(cache.glob("*.so"))) == 2
+    assert "nothing removed" in kept.output
     cleared = runner.invoke(app, ["cache", "clear", "--yes"])
     assert cleared.exit_code == 0 and "removed 2 compiled libraries" in cleared.output
     assert list(cache.glob("*.so")) == []
+
+
+def test_the_cache_command_says_what_is_wrong_with_its_settings(cache, monkeypatch):
+    """A limit that is no number is said (the default is used), a cache path through a
+    file is refused in one line, a cache not made yet is said as such."""
+    from typer.testing import CliRunner
+
+    from workbench.cli import app
+
+    runner = CliRunner()
+    monkeypatch.setenv("WORKBENCH_CACHE_LIMIT_MB", "abc")
+    assert compiled.cache_limit_bytes() == compiled.DEFAULT_CACHE_LIMIT_MB * 2**20
+    shown = runner.invoke(app, ["cache", "info"])
+    assert shown.exit_code == 0, shown.output
+    assert "WORKBENCH_CACHE_LIMIT_MB='abc' is not a number of megabytes" in shown.output
+    assert "no compiled library yet" in shown.output and not cache.exists()
+    monkeypatch.setenv("WORKBENCH_CACHE_LIMIT_MB", "64")
+    assert compiled.cache_limit() == (64 * 2**20, "")
+    blocker = cache.parent / "a-file"
+    blocker.write_text("")
+    monkeypatch.setenv("WORKBENCH_CACHE", str(blocker / "cache"))
+    for command in (["cache", "info"], ["cache", "clear", "--yes"]):
+        refused = runner.invoke(app, command)
+        assert refused.exit_code == 2 and "Traceback" not in refused.output
+        assert f"{blocker} is not one (set WORKBENCH_CACHE" in refused.output
 
 
 def test_a_compile_block_inside_another_is_counted_once() -> None:

@@ -7,7 +7,7 @@ shared by workers and sweeps, trimmed to ``$WORKBENCH_CACHE_LIMIT_MB``
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -26,12 +26,36 @@ def info() -> None:
     """Where the cache is, how many compiled libraries it holds and their size."""
     from workbench.equations import compiled
 
+    directory = _usable_cache_dir()
+    limit, wrong = compiled.cache_limit()
+    if wrong:
+        typer.echo(f"note: {wrong}", err=True)
+    if not directory.is_dir():
+        typer.echo(f"{directory}: no compiled library yet (made at the first compile)")
+        return
     count, size = compiled.cache_size()
-    limit = compiled.cache_limit_bytes()
     typer.echo(
-        f"{compiled.cache_dir()}: {count} compiled libraries, {_megabytes(size)} "
+        f"{directory}: {count} compiled libraries, {_megabytes(size)} "
         f"(limit {_megabytes(limit)}: WORKBENCH_CACHE_LIMIT_MB)"
     )
+
+
+def _usable_cache_dir() -> Any:
+    """The cache folder; ConfigError when it is not a folder and cannot be made one (a
+    file in its place or above it: WORKBENCH_CACHE names something else)."""
+    from workbench.equations import compiled
+    from workbench.errors import ConfigError
+
+    directory = compiled.cache_dir()
+    blocking = next(
+        (p for p in (directory, *directory.parents) if p.exists() and not p.is_dir()), None
+    )
+    if blocking is not None:
+        raise ConfigError(
+            f"the compile cache {directory} cannot be a folder: {blocking} is not one "
+            "(set WORKBENCH_CACHE to a folder, or unset it for ~/.cache/mbs-workbench)"
+        )
+    return directory
 
 
 @cache_app.command("clear")
@@ -41,14 +65,16 @@ def clear(
     """Remove every compiled library (the next jit run compiles again)."""
     from workbench.equations import compiled
 
-    count, size = compiled.cache_size()
+    directory = _usable_cache_dir()
+    count, size = compiled.cache_size() if directory.is_dir() else (0, 0)
     if (
         count
         and not yes
         and not typer.confirm(
-            f"remove {count} compiled libraries ({_megabytes(size)}) from {compiled.cache_dir()}?"
+            f"remove {count} compiled libraries ({_megabytes(size)}) from {directory}?"
         )
     ):
+        typer.echo("nothing removed")
         raise typer.Exit(1)
     removed = compiled.clear_cache()
     typer.echo(f"removed {removed} compiled libraries from {compiled.cache_dir()}")

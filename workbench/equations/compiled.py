@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import math
 import os
 import platform
 import re
@@ -628,12 +629,25 @@ DEFAULT_CACHE_LIMIT_MB = 2048
 
 def cache_limit_bytes() -> int:
     """The compile cache's size limit: ``$WORKBENCH_CACHE_LIMIT_MB`` (default 2048 MB)."""
+    return cache_limit()[0]
+
+
+def cache_limit() -> tuple[int, str]:
+    """(the compile cache's size limit in bytes, what is wrong with its setting or ""):
+    ``$WORKBENCH_CACHE_LIMIT_MB`` when it is a number of megabytes >= 0, else the default
+    (a compile never fails for it; ``workbench cache info`` says so)."""
     text = os.environ.get("WORKBENCH_CACHE_LIMIT_MB", "")
     try:
         megabytes = float(text) if text else DEFAULT_CACHE_LIMIT_MB
     except ValueError:
-        megabytes = DEFAULT_CACHE_LIMIT_MB
-    return int(max(megabytes, 0.0) * 2**20)
+        megabytes = math.nan
+    if not megabytes >= 0 or math.isinf(megabytes):
+        wrong = (
+            f"WORKBENCH_CACHE_LIMIT_MB={text!r} is not a number of megabytes >= 0: "
+            f"the default, {DEFAULT_CACHE_LIMIT_MB} MB, is used"
+        )
+        return DEFAULT_CACHE_LIMIT_MB * 2**20, wrong
+    return int(megabytes * 2**20), ""
 
 
 def trim_cache(keep: Path | None = None, limit: int | None = None) -> int:
