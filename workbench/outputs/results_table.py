@@ -38,8 +38,9 @@ FORMATS: tuple[str, ...] = ("table", "csv", "markdown", "latex")
 ROW_COLUMNS: tuple[str, ...] = (
     "problem", "formalism", "integrator", "rtol", "status", "scd", "err_l2", "wall_s", "n_rhs",
 )  # fmt: skip
-"""The columns of ``by="run"`` when none are named (then ``options``: a run's options that
-are not its plugins' defaults, where some are)."""
+"""The columns of ``by="run"`` when none are named, ``wall_s`` replaced by the cost measure
+the summary ranks by (then ``options``: a run's options that are not its plugins'
+defaults, where some are)."""
 GROUPINGS: tuple[str, ...] = ("problem", "pair", "run")
 KEY_COLUMNS = frozenset({"run_id", "problem", "pair", "formalism", "integrator", "rtol"})
 """Leading columns that say which run or group a line is: repeated in every part of a
@@ -286,7 +287,9 @@ def results_table(
         # column of it widened the table past a page and told nothing; the others, where
         # not a plugin's default, are one column (a column an option was a page wide)
         same = {c: runs[c].iloc[0] for c in options if len(runs) and runs[c].nunique() == 1}
-        shown = list(ROW_COLUMNS)
+        # the run's cost in the measure the summary and the report rank by (not the whole
+        # run's wall time beside a summary of integration CPU)
+        shown = [cost.column if c == "wall_s" else c for c in ROW_COLUMNS]
         if not columns or "options" in columns:  # (the plugins' defaults: a registry lookup)
             changed = changed_options(prepared.loc[runs.index])
             runs["options"] = options_text(changed, list(same))
