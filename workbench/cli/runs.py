@@ -70,7 +70,13 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
             )
 
 
-@app.command()
+@app.command(
+    # the help, one string a paragraph: Typer's rich help keeps a docstring's line breaks
+    # after its first paragraph (the options' help is written the same way)
+    help="Run one problem with one formalism and integrator and print its metrics.\n\n"
+    "The checks are a sweep specification's (tolerances, typed options, step counts); the "
+    "run executes in a child process that is killed at --time-limit, as a sweep's are."
+)
 def run(
     ctx: typer.Context,
     problem: Annotated[
@@ -94,7 +100,12 @@ def run(
     ] = None,
     option: Annotated[
         list[str] | None,
-        typer.Option("-o", "--option", help="[problem.|formalism.|integrator.]NAME=VALUE"),
+        typer.Option(
+            "-o",
+            "--option",
+            help="An option NAME=VALUE of the formalism, integrator or problem (the first that "
+            "has NAME; or formalism.NAME, integrator.NAME, problem.NAME), e.g. -o index=1.",
+        ),
     ] = None,
     out: Annotated[
         str | None, typer.Option("--out", help="Also store the run in this results directory.")
@@ -122,11 +133,8 @@ def run(
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
-    """Run one problem with one formalism and integrator and print its metrics.
-
-    The checks are a sweep specification's (tolerances, typed options, step counts); the
-    run executes in a child process that is killed at ``--time-limit``, as a sweep's are.
-    """
+    """``workbench run``: run one problem with one formalism and integrator and print its
+    metrics (the help is the decorator's ``help``)."""
     import os
     from pathlib import Path
 
@@ -217,14 +225,28 @@ def _cell(value: Any) -> str:
     return "" if value is None else str(value)
 
 
-@app.command()
+@app.command(
+    # the help, one string a paragraph: Typer's rich help keeps a docstring's line breaks
+    # after its first paragraph (the options' help is written the same way)
+    help="Run a sweep (problems x formalisms x integrators x tolerances); resumes if "
+    "interrupted.\n\n"
+    "Without SPEC: the quick suite, a first look in about a minute; `workbench sweep full` is "
+    "the full comparison. Before the first run it prints the planned runs and an estimate of "
+    "the time from measured costs (docs/suites.md).\n\n"
+    "The specification's `plugins` and --plugins are code: a local module is imported from "
+    "its file once the rest of the specification is valid, said on stderr, and refused under "
+    "--no-local-plugins (or WORKBENCH_NO_LOCAL_PLUGINS=1).\n\n"
+    "Exit status 1 if some runs could not be completed (their worker was killed from outside "
+    "or lost): they have no row, and running the same command again redoes them."
+)
 def sweep(
     ctx: typer.Context,
     spec: Annotated[
         str | None,
         typer.Argument(
-            help="Sweep specification (TOML file) or suite name (quick, full, iftomm, ivp); "
-            "default: quick, a first look in about a minute.",
+            help="Sweep specification (TOML file) or suite name: a file of "
+            "workbench/runs/suites/ (quick, full, iftomm, ivp, nonsmooth; an unknown name "
+            "lists them); default: quick, a first look in about a minute.",
         )
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
@@ -237,7 +259,12 @@ def sweep(
     ] = None,
     old_out: Annotated[str | None, typer.Option("-o", hidden=True)] = None,
     time_limit: Annotated[
-        float | None, typer.Option("--time-limit", help="Seconds per run before it is killed.")
+        float | None,
+        typer.Option(
+            "--time-limit",
+            help="Seconds per run before it is killed (default: the specification's "
+            "time_limit, else 120).",
+        ),
     ] = None,
     rerun: Annotated[
         str | None,
@@ -287,18 +314,8 @@ def sweep(
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
-    """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
-
-    The specification's ``plugins`` and ``--plugins`` are code: a local module is imported
-    from its file once the rest of the specification is valid, said on stderr, and refused
-    under ``--no-local-plugins`` (or ``WORKBENCH_NO_LOCAL_PLUGINS=1``).
-    Without SPEC: the quick suite, a first look in about a minute; `workbench sweep full`
-    is the full comparison. Before the first run it prints the planned runs and an
-    estimate of the time from measured costs (docs/suites.md).
-
-    Exit status 1 if some runs could not be completed (their worker was killed from
-    outside or lost): they have no row, and running the same command again redoes them.
-    """
+    """``workbench sweep``: run a sweep, resuming if interrupted (the help is the
+    decorator's ``help``)."""
     from workbench.errors import ConfigError
     from workbench.runs import store
     from workbench.runs.dask_pool import CLIENT_LOG
