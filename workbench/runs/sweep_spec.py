@@ -3,7 +3,8 @@
 A sweep specification is a TOML file, or the name of a suite shipped with the workbench in
 ``workbench/runs/suites/NAME.toml`` (``quick``, the default sweep: a first look in about a
 minute; ``full``, the full comparison; ``iftomm``, the IFToMM benchmark problems; ``ivp``,
-the IVP test set's; :func:`suite_names` lists them)::
+the IVP test set's; ``nonsmooth``, the contact integrators; :func:`suite_names` lists
+them)::
 
     out = "reports/latest"         # output directory (``--out`` overrides)
     jobs = 2                       # local worker processes (``--jobs`` overrides)
