@@ -131,6 +131,38 @@ def test_any_workbench_error_from_a_command_exits_2(fake_registry, runner, monke
     assert_one_line_error(result.stderr, "must be positive | second line")
 
 
+BROKEN_PIPE_SCRIPT = """
+from workbench.cli.app import app
+
+@app.command("pipe-test")
+def pipe_test() -> None:
+    raise BrokenPipeError(32, "Broken pipe")
+
+app(["pipe-test"])
+"""
+
+
+@pytest.mark.parametrize("reader_gone", [True, False])
+def test_a_broken_pipe_is_quiet_only_when_the_reader_of_stdout_left(reader_gone):
+    """`workbench ... | head`: the reader left with what it wanted, nothing to report (exit
+    1, Click's way); a broken pipe elsewhere (stdout still read) is an error said in one
+    line (exit 2)."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", BROKEN_PIPE_SCRIPT],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    if reader_gone:
+        child.stdout.close()  # before the child writes: its stdout's reader is gone
+    _, err = child.communicate(timeout=600)
+    assert "Traceback" not in err
+    if reader_gone:
+        assert child.returncode == 1 and err == ""
+    else:
+        assert child.returncode == 2 and err.startswith("error: Broken pipe"), err
+
+
 def test_usage_errors_exit_2(runner):
     assert runner.invoke(cli.app, ["no-such-command"]).exit_code == 2
     assert runner.invoke(cli.app, ["describe"]).exit_code == 2

@@ -58,6 +58,19 @@ def os_error_line(error: OSError) -> str:
     )
 
 
+def _stdout_reader_gone() -> bool:
+    """Whether standard output is a pipe whose reading end was closed (the write end
+    then polls as an error)."""
+    import select
+
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _fd, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll here, or no file behind stdout
+        return False
+
+
 def on_interrupt(describe: Callable[[], str]) -> None:
     """Register what the current command says when Ctrl-C stops it: ``describe()`` names
     what was kept and how to resume (called then, so it can count what is on disk)."""
@@ -87,6 +100,11 @@ class WorkbenchGroup(typer.core.TyperGroup):
             return super().invoke(ctx)
         except WorkbenchError as error:
             raise fail(error) from None
+        except BrokenPipeError as error:
+            if _stdout_reader_gone():  # `workbench ... | head` had what it wanted: Click
+                raise  # ends quietly (exit 1), as it does for its own output
+            typer.echo(f"error: {os_error_line(error)}", err=True)
+            raise typer.Exit(EXIT_BAD_INPUT) from None
         except OSError as error:  # a full or read-only disk, a path that is not a directory
             typer.echo(f"error: {os_error_line(error)}", err=True)
             raise typer.Exit(EXIT_BAD_INPUT) from None
