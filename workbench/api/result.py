@@ -189,24 +189,53 @@ def _axes(ax: Any) -> Any:
     if ax is None:
         import matplotlib.pyplot as plt
 
-        _, ax = plt.subplots(figsize=(7, 3.5))
+        # constrained layout: the x label and title stay inside the figure when saved
+        _, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
     return ax
 
 
 def _plot_series(result: Result, columns: list[str], label: str, ax: Any) -> Any:
+    """``columns`` of the series on a log y axis: only their positive finite values (a 0
+    or NaN is left out, not clamped, so the axis spans what was measured); a column with
+    none is not drawn and a note on the axes says why."""
     ax = _axes(ax)
     series = result.series
+    missing = []
     for column in columns:
         values = series[column].to_numpy(dtype=float)
-        if np.isfinite(values).any():
-            ax.plot(series["t"], np.maximum(values, 1e-300), label=column)
+        shown = np.isfinite(values) & (values > 0)
+        if shown.any():
+            ax.plot(series["t"], np.where(shown, values, np.nan), label=column)
+        else:
+            missing.append(f"{column}: {_why_not_shown(values)}")
     ax.set_yscale("log")
     ax.set_xlabel("t [s]")
     ax.set_ylabel(label)
     ax.set_title(_title(result.row))
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize="small")
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:  # a column not drawn gets a legend line that says why, without a handle
+        from matplotlib.lines import Line2D
+
+        blank = Line2D([], [], linestyle="none")
+        ax.legend(handles + [blank] * len(missing), labels + missing, fontsize="small")
+    elif missing:  # nothing drawn: no invented y scale, the note in the middle instead
+        times = series["t"].to_numpy(dtype=float)
+        if len(times) > 1:
+            ax.set_xlim(times.min(), times.max())
+        ax.tick_params(axis="y", which="both", left=False, labelleft=False)
+        note = "nothing to plot on a log axis:\n" + "\n".join(missing)
+        ax.text(0.5, 0.5, note, transform=ax.transAxes, ha="center", va="center")
     return ax
+
+
+def _why_not_shown(values: np.ndarray) -> str:
+    """What a series with no positive finite value holds, in a few words."""
+    measured = values[~np.isnan(values)]
+    if not measured.size:
+        return "not measured (NaN)"
+    if not measured.any():
+        return "exactly 0" + (" where measured" if measured.size < values.size else "")
+    return "has no positive finite value"
 
 
 __all__ = ["Result", "SERIES_COLUMNS"]
