@@ -50,7 +50,7 @@ def plot_work_precision(
     if ax is None:
         import matplotlib.pyplot as plt
 
-        _, ax = plt.subplots(figsize=(7, 4.5))
+        _, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")  # labels inside
     for label, curve in runs.groupby(list(by)):
         curve = curve.sort_values("rtol", ascending=False)
         name = " / ".join(map(str, label if isinstance(label, tuple) else (label,)))
