@@ -163,6 +163,22 @@ def test_a_broken_pipe_is_quiet_only_when_the_reader_of_stdout_left(reader_gone)
         assert child.returncode == 2 and err.startswith("error: Broken pipe"), err
 
 
+def test_every_commands_help_reaches_the_terminal_as_paragraphs_to_wrap():
+    """Typer's rich help keeps a docstring's line breaks after its first paragraph (a
+    70-column terminal broke `record --help` mid-sentence): each command's paragraphs
+    come to it as single lines."""
+    import click
+    import typer
+
+    group = typer.main.get_command(cli.app)
+    context = click.Context(group)
+    names = group.list_commands(context)
+    assert {"sweep", "run", "record", "view"} <= set(names)
+    for name in names:
+        for paragraph in (group.get_command(context, name).help or "").split("\n\n"):
+            assert "\n" not in paragraph or paragraph.startswith("\b"), (name, paragraph)
+
+
 def test_usage_errors_exit_2(runner):
     assert runner.invoke(cli.app, ["no-such-command"]).exit_code == 2
     assert runner.invoke(cli.app, ["describe"]).exit_code == 2

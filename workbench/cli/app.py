@@ -88,11 +88,30 @@ def interrupted_line() -> str:
     return "stopped by Ctrl-C; files already written are kept"
 
 
+def reflowed(text: str) -> str:
+    """A command's docstring with each paragraph on one line, so that the help wraps it
+    to the terminal (Typer's rich help keeps the line breaks of every paragraph but the
+    first); a paragraph that begins with Click's ``\\b`` keeps its lines."""
+    import inspect
+
+    paragraphs = inspect.cleandoc(text).split("\n\n")
+    return "\n\n".join(
+        p if p.startswith("\b") else " ".join(line.strip() for line in p.splitlines())
+        for p in paragraphs
+    )
+
+
 class WorkbenchGroup(typer.core.TyperGroup):
     """The one place where a WorkbenchError becomes a one-line message and exit code 2.
 
     A command's bad arguments (``--rtol abc``, an unknown option) are one line too, with
     the command's help to turn to; ``workbench COMMAND`` alone still prints its usage."""
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> Any:
+        command = super().get_command(ctx, cmd_name)
+        if command is not None and command.help:
+            command.help = reflowed(command.help)
+        return command
 
     def invoke(self, ctx: click.Context) -> Any:
         _ON_INTERRUPT.clear()
