@@ -48,7 +48,8 @@ def _positive(values) -> np.ndarray:
 )
 def test_a_log_plot_spans_the_measured_values(free, plot, column) -> None:
     values = free.series[column].to_numpy(dtype=float)
-    assert values[0] == 0  # the case that broke the axis: the run starts on the reference
+    if column == "energy_err":  # |E(0) - E(0)| / scale: 0 on every machine, the case that
+        assert values[0] == 0  # broke the axis (the reference error's first sample too, here)
     measured = _positive(values)
     low, high = measured.min(), measured.max()
     ax = getattr(free, plot)()
