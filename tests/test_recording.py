@@ -372,6 +372,31 @@ def test_a_merge_takes_the_runs_quantities_from_each_files_index(
     assert plots == {q for quantities in expected.values() for q in quantities}
 
 
+@pytest.mark.parametrize(
+    "garbage", ["not json", "[1, 2]", '{"runs": 5}', '{"runs": {"x": 3}}', '"text"']
+)
+def test_a_malformed_index_is_no_index(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, garbage: str
+) -> None:
+    """A recording is data from whoever made the folder: an index that is not one is
+    ignored, the merge goes on and offers every plot for the file's runs (none is lost)."""
+
+    def bad_index(self: RerunSink) -> None:
+        self.recording.log("series_index", rr.AnyValues(series_index=garbage), static=True)
+
+    monkeypatch.setattr(RerunSink, "log_index", bad_index)
+    sink = RerunSink()
+    sink.begin_file(tmp_path / "bad.rrd")
+    run = sink.log_run(*_args(fake_run(1e-3)))
+    bad = sink.end_file()
+    monkeypatch.undo()
+    merged = merge_recordings([bad], tmp_path / "all.rrd")
+    reader = RerunSink()
+    assert reader.add_recording(merged) == [run]
+    assert reader.run_quantities[run] == list(SERIES_QUANTITIES)
+    assert set(blueprint_views(merged)) - {"fake-problem"} == set(SERIES_QUANTITIES)
+
+
 def test_one_sink_writes_a_file_a_run(tmp_path: Path) -> None:
     """A worker's sink: each file holds its own run's values only (read back), a file
     with nothing logged is not left behind, and the files merge as separate ones do."""

@@ -708,14 +708,11 @@ class RerunSink:
         for chunk in reader.stream():  # one chunk at a time (to_chunks: a list of all)
             parts, run = _parsed_entity(chunk.entity_path, heads)
             if parts == [SERIES_INDEX] and chunk.is_static:
-                batch = chunk.to_record_batch()
-                if SERIES_INDEX in batch.schema.names:
-                    text = batch.column(SERIES_INDEX)[0].as_py()
-                    content = json.loads(text[0] if isinstance(text, list) else text)
-                    if "runs" not in content:
-                        indexed = not found  # announced before any run: trusted
-                    elif indexed:
-                        index = content["runs"]
+                content = _index_content(chunk.to_record_batch())
+                if content is not None and "runs" not in content:
+                    indexed = not found  # announced before any run: trusted
+                elif content is not None and indexed:
+                    index = content["runs"]
                 continue
             if parts[:1] != ["runs"]:
                 continue  # recording properties and anything not a run or a problem
@@ -758,8 +755,8 @@ class RerunSink:
             self.recording.send_chunks(chunk)
         if indexed:  # a run the index does not name (not written so): every plot offered
             for run in found:
-                quantities = (index or {}).get(run, list(SERIES_QUANTITIES))
-                self.run_quantities[run] = [str(q) for q in quantities]
+                quantities = (index or {}).get(run, SERIES_QUANTITIES)
+                self.run_quantities[run] = [q for q in SERIES_QUANTITIES if q in quantities]
                 self.quantities.update(self.run_quantities[run])
         for shared, pieces in poses.items():
             runs = named.get(shared) or found[:1]  # a run's own file names none: its run
@@ -776,6 +773,26 @@ class RerunSink:
                 if run not in known and run not in gathered:
                     gathered[run] = (times[order], translation[:, k], matrix[:, k])
         return found
+
+
+def _index_content(batch: Any) -> dict[str, Any] | None:
+    """A :data:`SERIES_INDEX` chunk's content: ``{}`` (announced) or ``{"runs": {run path:
+    [quantity, ...]}}``; None when it is anything else (a file is data: a malformed index
+    is no index, its runs then offer every plot)."""
+    if SERIES_INDEX not in batch.schema.names or batch.num_rows == 0:
+        return None
+    text = batch.column(SERIES_INDEX)[0].as_py()
+    text = text[0] if isinstance(text, list) and text else text
+    try:
+        content = json.loads(text) if isinstance(text, str) else None
+    except ValueError:
+        return None
+    if not isinstance(content, dict):
+        return None
+    runs = content.get("runs", {})
+    if not isinstance(runs, dict) or not all(isinstance(q, list) for q in runs.values()):
+        return None
+    return content
 
 
 def series_quantities(batch: Any) -> list[str]:
