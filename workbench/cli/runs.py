@@ -70,13 +70,7 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
             )
 
 
-@app.command(
-    # the help, one string a paragraph: Typer's rich help keeps a docstring's line breaks
-    # after its first paragraph (the options' help is written the same way)
-    help="Run one problem with one formalism and integrator and print its metrics.\n\n"
-    "The checks are a sweep specification's (tolerances, typed options, step counts); the "
-    "run executes in a child process that is killed at --time-limit, as a sweep's are."
-)
+@app.command()
 def run(
     ctx: typer.Context,
     problem: Annotated[
@@ -133,8 +127,11 @@ def run(
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
-    """``workbench run``: run one problem with one formalism and integrator and print its
-    metrics (the help is the decorator's ``help``)."""
+    """Run one problem with one formalism and integrator and print its metrics.
+
+    The checks are a sweep specification's (tolerances, typed options, step counts); the
+    run executes in a child process that is killed at --time-limit, as a sweep's are.
+    """
     import os
     from pathlib import Path
 
@@ -225,20 +222,7 @@ def _cell(value: Any) -> str:
     return "" if value is None else str(value)
 
 
-@app.command(
-    # the help, one string a paragraph: Typer's rich help keeps a docstring's line breaks
-    # after its first paragraph (the options' help is written the same way)
-    help="Run a sweep (problems x formalisms x integrators x tolerances); resumes if "
-    "interrupted.\n\n"
-    "Without SPEC: the quick suite, a first look in about a minute; `workbench sweep full` is "
-    "the full comparison. Before the first run it prints the planned runs and an estimate of "
-    "the time from measured costs (docs/suites.md).\n\n"
-    "The specification's `plugins` and --plugins are code: a local module is imported from "
-    "its file once the rest of the specification is valid, said on stderr, and refused under "
-    "--no-local-plugins (or WORKBENCH_NO_LOCAL_PLUGINS=1).\n\n"
-    "Exit status 1 if some runs could not be completed (their worker was killed from outside "
-    "or lost): they have no row, and running the same command again redoes them."
-)
+@app.command()
 def sweep(
     ctx: typer.Context,
     spec: Annotated[
@@ -314,8 +298,19 @@ def sweep(
     plugins: PluginsOption = None,
     no_local_plugins: NoLocalPluginsOption = False,
 ) -> None:
-    """``workbench sweep``: run a sweep, resuming if interrupted (the help is the
-    decorator's ``help``)."""
+    """Run a sweep (problems x formalisms x integrators x tolerances); resumes if interrupted.
+
+    Without SPEC: the quick suite, a first look in about a minute; `workbench sweep full`
+    is the full comparison. Before the first run it prints the planned runs and an
+    estimate of the time from measured costs (docs/suites.md).
+
+    The specification's `plugins` and --plugins are code: a local module is imported from
+    its file once the rest of the specification is valid, said on stderr, and refused
+    under --no-local-plugins (or WORKBENCH_NO_LOCAL_PLUGINS=1).
+
+    Exit status 1 if some runs could not be completed (their worker was killed from
+    outside or lost): they have no row, and running the same command again redoes them.
+    """
     from workbench.errors import ConfigError
     from workbench.runs import store
     from workbench.runs.dask_pool import CLIENT_LOG
