@@ -120,3 +120,42 @@ def test_a_sweep_reads_its_row_files_once_for_table_and_report(
     assert result.exit_code == 0, result.output
     assert reads == [out, out]
     assert "warning: 1 unreadable result file" in result.output
+
+
+def test_a_resume_remakes_the_report_in_the_cost_measure_the_user_chose(
+    fake_plugins, tmp_path, monkeypatch
+) -> None:
+    """`workbench report OUT --cost n_rhs` is kept: a resume with nothing new keeps that
+    report (its key has the measure), one with a run redone remakes it in n_rhs, not in the
+    default; a settings file naming no known measure is ignored (the default)."""
+    from workbench.cli import app
+
+    out = tmp_path / "out"
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text(out, '["test-rk45"]', problems=FALLING))
+    monkeypatch.setattr("sys.argv", ["workbench", "sweep", str(spec)])
+    index = out / "report" / "index.html"
+
+    def invoke(*arguments: str) -> str:
+        result = CliRunner().invoke(app, list(arguments))
+        assert result.exit_code == 0, result.output
+        return result.output
+
+    invoke("sweep", str(spec))
+    assert "cost measure: rhs evaluations" not in index.read_text()
+    invoke("report", str(out), "--cost", "n_rhs")
+    assert "cost measure: rhs evaluations" in index.read_text()
+
+    kept = invoke("sweep", str(spec))
+    assert "index.html (unchanged: made from the same rows)" in kept
+
+    next((out / store.RUNS_DIR).glob("*.json")).unlink()  # a run redone: the report remade
+    redone = invoke("sweep", str(spec))
+    assert "unchanged" not in redone and "(cost measure n_rhs" in redone
+    assert "cost measure: rhs evaluations" in index.read_text()
+
+    (out / "report" / "settings.json").write_text('{"cost": "rm -rf"}')  # not a measure
+    next((out / store.RUNS_DIR).glob("*.json")).unlink()
+    default = invoke("sweep", str(spec))
+    assert "(cost measure" not in default
+    assert "cost measure: rhs evaluations" not in index.read_text()

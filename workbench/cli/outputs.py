@@ -23,7 +23,8 @@ CostOption = Annotated[
         "--cost",
         help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
         "(default), integrate_wall, n_rhs or work (counted work: evaluations weighted "
-        "by their unit CPU costs, docs/reports.md).",
+        "by their unit CPU costs, docs/reports.md). A sweep resumed into RESULTS "
+        "remakes its report in the measure chosen here.",
     ),
 ]
 WaitOption = Annotated[

@@ -359,12 +359,14 @@ def sweep(
         )
     )
     typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
-    from workbench.outputs.report import current_report, report_directory
+    from workbench.outputs.report import current_report, kept_cost, report_directory
 
     kept = " (unchanged: made from the same rows)"
+    cost = kept_cost(summary.out / "report")  # `workbench report --cost` chose it before
+    measure = f" (cost measure {cost}, as `workbench report --cost` chose)" if cost else ""
     if summary.unfinished and not store.completed_run_ids(summary.out):
         typer.echo("report: none (no run has a row yet)")
-    elif index := current_report(summary.out, stale=summary.stale):
+    elif index := current_report(summary.out, stale=summary.stale, cost=cost):
         typer.echo(f"report: {index}{kept}")
     elif no_report:
         older = summary.out / "report" / "index.html"
@@ -374,8 +376,8 @@ def sweep(
             + f"); `workbench report {summary.out}` writes it"
         )
     else:
-        index = _sweep_report(summary, report_directory)
-        typer.echo(f"report: {index}")
+        index = _sweep_report(summary, report_directory, cost)
+        typer.echo(f"report: {index}{measure}")
     if summary.recording is not None:
         same = "unchanged: made from the same runs; " * (
             summary.recording.name in summary.unchanged
@@ -498,7 +500,7 @@ def record(
         raise typer.Exit(1)
 
 
-def _sweep_report(summary: Any, report_directory: Any) -> Any:
+def _sweep_report(summary: Any, report_directory: Any, cost: str | None) -> Any:
     """The sweep's report (its warnings one line each on stderr); a report that cannot be
     finished (e.g. a figure worker killed twice) is one line and exit 1: the rows are
     kept and ``workbench report OUT`` rebuilds it."""
@@ -513,6 +515,7 @@ def _sweep_report(summary: Any, report_directory: Any) -> Any:
                 summary.out,
                 command=" ".join(["workbench", *sys.argv[1:]]),
                 stale=summary.stale,
+                cost=cost,
                 rows=summary.rows,  # read once by the sweep's consolidation
             )
         except (WorkbenchError, OSError):

@@ -73,6 +73,7 @@ from workbench.outputs.report.tables import latex_table, markdown_table, write_t
 from workbench.outputs.report.writer import (
     SeriesLoader,
     current_report,
+    kept_cost,
     report_directory,
     write_report,
 )
@@ -95,6 +96,7 @@ __all__ = [
     "drift_figure",
     "drift_runs",
     "drift_table",
+    "kept_cost",
     "latex_table",
     "library_versions",
     "machine_description",

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import warnings
 from collections.abc import Callable, Mapping
@@ -14,7 +15,12 @@ from pathlib import Path
 import pandas as pd
 
 from workbench.errors import ConfigError, WorkbenchError
-from workbench.files import check_folder_target, check_no_links, refuse_links
+from workbench.files import (
+    check_folder_target,
+    check_no_links,
+    refuse_links,
+    write_json_atomic,
+)
 from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
@@ -27,7 +33,7 @@ from workbench.outputs.report.analysis import (
     status_counts,
     status_matrix,
 )
-from workbench.outputs.report.cost import Cost, resolve_cost
+from workbench.outputs.report.cost import COST_MEASURES, Cost, resolve_cost
 from workbench.outputs.report.decision import decision_frame, decision_rows, decision_targets
 from workbench.outputs.report.figures import (
     FIGURE_FORMATS,
@@ -278,7 +284,26 @@ def report_directory(
     )  # fmt: skip
     if key is not None:
         output_keys.remember(index, key, root=target)
+    write_json_atomic({"cost": cost}, target / SETTINGS_FILE, durable=False, root=target)
     return index
+
+
+SETTINGS_FILE = "settings.json"
+"""A report's choices (its cost measure: ``{"cost": key or null}``), beside its index."""
+
+
+def kept_cost(report_dir: str | os.PathLike[str]) -> str | None:
+    """The cost measure the report in ``report_dir`` was asked for (``workbench report
+    --cost``), so that a sweep's resume remakes it in the same measure; None: the default,
+    no report, or a settings file that names no known measure (it is data, not trusted)."""
+    path = Path(report_dir) / SETTINGS_FILE
+    try:
+        if path.is_symlink() or path.stat().st_size > 4096:
+            return None
+        cost = json.loads(path.read_text(encoding="utf-8")).get("cost")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return cost if isinstance(cost, str) and cost in COST_MEASURES else None
 
 
 def report_key(
