@@ -78,10 +78,12 @@ def test_run_refuses_bad_input_in_one_line(fake_plugins) -> None:
 
 
 def test_a_failed_run_is_returned_with_its_reason(fake_plugins) -> None:
-    result = workbench.run("test-pendulum", "minimal-ode", "test-raise", index=1)
+    with pytest.warns(RuntimeWarning, match="test-raise: failed: .*raised"):
+        result = workbench.run("test-pendulum", "minimal-ode", "test-raise", index=1)
     assert result.row["status"] == "failed" and not result.ok
     assert "raised" in result.row["message"]
-    skipped = workbench.run("test-slider-crank", "test-trees-only", "test-rk45", index=1)
+    with pytest.warns(RuntimeWarning, match="test-rk45: skipped: .*does not support"):
+        skipped = workbench.run("test-slider-crank", "test-trees-only", "test-rk45", index=1)
     assert skipped.row["status"] == "skipped" and "does not support" in skipped.row["message"]
     assert skipped.trajectory.empty
     with pytest.raises(workbench.WorkbenchError, match="no equations"):

@@ -120,7 +120,8 @@ def test_list_and_describe_refuse_what_is_no_name(fake_plugins) -> None:
 
 
 def test_a_skipped_result_says_why_in_its_repr(fake_plugins) -> None:
-    skipped = workbench.run("test-slider-crank", "test-trees-only", "test-rk45", index=1)
+    with pytest.warns(RuntimeWarning, match="skipped"):
+        skipped = workbench.run("test-slider-crank", "test-trees-only", "test-rk45", index=1)
     assert skipped.row["status"] == "skipped"
     assert f"message={skipped.row['message']}" in repr(skipped)
     assert "=," not in repr(skipped)  # no empty values

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -87,7 +88,8 @@ def run(
 
     The run executes in this process, with no time limit (``workbench run`` kills its
     child at ``--time-limit``). A run that fails or is skipped is returned, not raised:
-    its ``row["status"]`` and ``row["message"]`` say what happened. Bad input raises
+    its ``row["status"]`` and ``row["message"]`` say what happened, and a RuntimeWarning
+    says it too (a script sees it without printing the Result). Bad input raises
     before anything runs: ``PluginError`` for an unknown name, ``ConfigError`` for a bad
     option, tolerance or ``out``; ``OutputBusyError`` (a ConfigError) when another process
     writes into ``out``, unless ``wait``: then it waits for it.
@@ -150,7 +152,7 @@ def run(
         if out is not None:
             outcome.row.setdefault("log", "")  # nothing captured here: '' as the schema says
             store.write_run(Path(out), outcome.row, outcome.series)
-    return Result(
+    result = Result(
         # every SCHEMA column, NaN where not measured: a skipped or failed run's row had
         # none of the metrics, so row["scd"] raised KeyError where load_results gives NaN
         store.frame_from_rows([outcome.row]).iloc[0],
@@ -159,6 +161,12 @@ def run(
         sink.problem,
         sink.charts,
     )
+    status = outcome.row.get("status")
+    if status not in ("ok", None):  # returned, not raised; said, not only in the repr
+        message = outcome.row.get("message") or "no message"
+        warnings.warn(f"{spec.problem} / {spec.formalism} / {spec.integrator}: {status}: "
+                      f"{message}", RuntimeWarning, stacklevel=2)  # fmt: skip
+    return result
 
 
 def results_directory(out: Any, make: bool = False) -> Path | None:
