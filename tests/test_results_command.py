@@ -177,7 +177,7 @@ def test_results_names_the_reports_winner_and_its_tie(results: Path) -> None:
         expected = decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
         if decision.is_tie:
             expected = "tie: " + "; ".join(decision.tied)
-        assert row.verdict == expected
+        assert row.verdict == f"at scd {target:.3g}, {expected}"
 
 
 def test_the_summary_ranks_by_the_reports_cost_and_names_it() -> None:
@@ -206,10 +206,11 @@ def test_a_problems_line_ranks_the_pairs_reaching_its_highest_target_not_the_las
     runs.loc[runs["run_id"] == "c", ["scd"]] = [3.0]
     (row,) = results_table(runs).itertuples()
     assert (row.scd, row.pair, row.integrate_cpu_s) == (6.3, "b / y", 0.1)
-    assert row.verdict.startswith("2x ahead") and row.verdict.endswith("of a / x")
+    # the line says the target it names the pair at: b / y did not reach the 6.3 shown
+    assert row.verdict.startswith("at scd 6, 2x ahead") and row.verdict.endswith("of a / x")
     runs["scd"] = [1.5, 1.2, 0.5]  # below every target: ranked at the best scd reached
     (row,) = results_table(runs).itertuples()
-    assert row.pair == "a / x"
+    assert row.pair == "a / x" and row.verdict == "at scd 1.5, only pair"
 
 
 def test_a_count_the_integrator_does_not_report_is_shown_empty_not_minus_one() -> None:

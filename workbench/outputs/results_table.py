@@ -215,7 +215,8 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_
     ok run without warnings, and the pair, rtol, ``cost`` and rhs evaluations of the
     cheapest such run reaching the target: the highest of the report's accuracy targets
     (:data:`~workbench.outputs.report.decision.FALLBACK_TARGETS`, scd 2 to 10) such a run
-    reached (the best scd when none; not a column: the table was too wide), with its margin or tie
+    reached (the best scd when none; not a column, the table was too wide: its verdict
+    begins with it), with its margin or tie
     (:func:`workbench.outputs.report.ranking.decide`, the report's ranking). Ranked at
     the best scd itself, the line named whichever run reached the last digit, almost
     always alone ("only pair"), not the cheapest of those that reach a target."""
@@ -244,11 +245,14 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_
 
 
 def _verdict(decision: Decision | None) -> str:
+    """The line's verdict, led by the target it was judged at (the line's scd column is
+    the best reached, which the named pair need not have reached)."""
     if decision is None or decision.pair is None:
         return ""
+    at = f"at scd {decision.target:.3g}, "
     if decision.is_tie:
-        return "tie: " + "; ".join(decision.tied)
-    return decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
+        return at + "tie: " + "; ".join(decision.tied)
+    return at + decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
 
 
 def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) -> str:
