@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from tests.test_sweep import spec_text
-from workbench.outputs.report import current_report
+from workbench.outputs.report import current_report, kept_cost
 from workbench.runs import output_keys, store
 
 FALLING = '["test-falling"]'  # an analytic reference: no reference pipeline to run
@@ -154,6 +154,12 @@ def test_a_resume_remakes_the_report_in_the_cost_measure_the_user_chose(
     assert "unchanged" not in redone and "(cost measure n_rhs" in redone
     assert "cost measure: rhs evaluations" in index.read_text()
 
+    elsewhere = tmp_path / "settings.json"  # a link out of OUT: not read
+    elsewhere.write_text('{"cost": "n_rhs"}')
+    (out / "report" / "settings.json").unlink()
+    (out / "report" / "settings.json").symlink_to(elsewhere)
+    assert kept_cost(out) is None
+    (out / "report" / "settings.json").unlink()
     (out / "report" / "settings.json").write_text('{"cost": "rm -rf"}')  # not a measure
     next((out / store.RUNS_DIR).glob("*.json")).unlink()
     default = invoke("sweep", str(spec))

@@ -362,7 +362,7 @@ def sweep(
     from workbench.outputs.report import current_report, kept_cost, report_directory
 
     kept = " (unchanged: made from the same rows)"
-    cost = kept_cost(summary.out / "report")  # `workbench report --cost` chose it before
+    cost = kept_cost(summary.out)  # `workbench report --cost` chose it before
     measure = f" (cost measure {cost}, as `workbench report --cost` chose)" if cost else ""
     if summary.unfinished and not store.completed_run_ids(summary.out):
         typer.echo("report: none (no run has a row yet)")

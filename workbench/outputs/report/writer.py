@@ -16,8 +16,10 @@ import pandas as pd
 
 from workbench.errors import ConfigError, WorkbenchError
 from workbench.files import (
+    LinkRefusedError,
     check_folder_target,
     check_no_links,
+    open_no_follow,
     refuse_links,
     write_json_atomic,
 )
@@ -292,16 +294,17 @@ SETTINGS_FILE = "settings.json"
 """A report's choices (its cost measure: ``{"cost": key or null}``), beside its index."""
 
 
-def kept_cost(report_dir: str | os.PathLike[str]) -> str | None:
-    """The cost measure the report in ``report_dir`` was asked for (``workbench report
-    --cost``), so that a sweep's resume remakes it in the same measure; None: the default,
-    no report, or a settings file that names no known measure (it is data, not trusted)."""
-    path = Path(report_dir) / SETTINGS_FILE
+def kept_cost(results_dir: str | os.PathLike[str]) -> str | None:
+    """The cost measure the report in ``results_dir/report`` was asked for (``workbench
+    report --cost``), so that a sweep's resume remakes it in the same measure; None: the
+    default, no report, or a settings file that names no known measure or is reached
+    through a link (it is data in someone's folder: nothing outside it is read)."""
+    path = Path(results_dir) / "report" / SETTINGS_FILE
     try:
-        if path.is_symlink() or path.stat().st_size > 4096:
-            return None
-        cost = json.loads(path.read_text(encoding="utf-8")).get("cost")
-    except (OSError, ValueError, AttributeError):
+        descriptor = open_no_follow(path, os.O_RDONLY, results_dir)
+        with os.fdopen(descriptor, "rb") as file:
+            cost = json.loads(file.read(4096)).get("cost")
+    except (OSError, ValueError, AttributeError, LinkRefusedError):
         return None
     return cost if isinstance(cost, str) and cost in COST_MEASURES else None
 
