@@ -154,6 +154,10 @@ def test_a_resume_remakes_the_report_in_the_cost_measure_the_user_chose(
     assert "unchanged" not in redone and "(cost measure n_rhs" in redone
     assert "cost measure: rhs evaluations" in index.read_text()
 
+    next((out / store.RUNS_DIR).glob("*.json")).unlink()  # no report: the hint keeps the measure
+    hint = invoke("sweep", str(spec), "--no-report")
+    assert f"`workbench report {out} --cost n_rhs` writes it" in hint
+
     elsewhere = tmp_path / "settings.json"  # a link out of OUT: not read
     elsewhere.write_text('{"cost": "n_rhs"}')
     (out / "report" / "settings.json").unlink()

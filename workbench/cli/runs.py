@@ -373,7 +373,7 @@ def sweep(
         typer.echo(
             "report: not written (--no-report"
             + (f"; {older} is not current: other rows or code made it" if older.is_file() else "")
-            + f"); `workbench report {summary.out}` writes it"
+            + f"); `workbench report {summary.out}{f' --cost {cost}' if cost else ''}` writes it"
         )
     else:
         index = _sweep_report(summary, report_directory, cost)
