@@ -631,8 +631,8 @@ def results(
         return
     header, cells = table_cells(table)
     shown = Table(title=title, title_justify="left")
-    for name in header:
-        shown.add_column(name, overflow="fold")
+    for name in header:  # a problem's name whole: what a line is about (a narrow
+        shown.add_column(name, overflow="fold", no_wrap=name == "problem")  # cell split it)
     for line in cells:
         shown.add_row(*line)
     out = console()
