@@ -224,3 +224,20 @@ def test_a_count_the_integrator_does_not_report_is_shown_empty_not_minus_one() -
     assert np.isnan(shown.loc["a", "n_lu"]) and shown.loc["b", "n_lu"] == 7
     assert shown.loc["c", "n_lu"] == 0 and shown.loc["c", "n_rejected"] == 2
     assert shown["n_rejected"].isna().sum() == 2 and (shown["n_rhs"] > 0).all()
+
+
+def test_a_line_a_pair_names_its_target_and_where_takes_double_equals() -> None:
+    """--by pair has no verdict: its target column says at which scd the run shown (its
+    rtol and cost) was chosen, which is not the best scd the pair reached (a / x: best
+    6.3, target 6). ``==`` reads as ``=`` (as Python spells it), not as a value '=...'."""
+    from tests.test_timing import disagreeing_runs
+
+    runs = disagreeing_runs()
+    runs.loc[runs["run_id"] == "a", ["scd", "integrate_cpu_s"]] = [6.3, 0.2]
+    table = results_table(runs, by="pair").set_index("pair")
+    assert table.loc["a / x", "scd"] == 6.3 and table.loc["a / x", "target"] == 6
+    assert "target" not in results_table(runs).columns  # a line a problem: in its verdict
+    assert len(results_table(runs, by="run", where=["pair==a / x"])) == 1
+    assert results_table(runs, by="run", where=["pair==a / x"]).equals(
+        results_table(runs, by="run", where=["pair=a / x"])
+    )

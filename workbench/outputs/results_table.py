@@ -45,7 +45,7 @@ GROUPINGS: tuple[str, ...] = ("problem", "pair", "run")
 KEY_COLUMNS = frozenset({"run_id", "problem", "pair", "formalism", "integrator", "rtol"})
 """Leading columns that say which run or group a line is: repeated in every part of a
 LaTeX table split to fit the page."""
-CONDITION = re.compile(r"^\s*([A-Za-z0-9_.\- ]+?)\s*(<=|>=|!=|=|<|>)\s*(.*?)\s*$")
+CONDITION = re.compile(r"^\s*([A-Za-z0-9_.\- ]+?)\s*(<=|>=|!=|==|=|<|>)\s*(.*?)\s*$")
 
 
 def with_option_columns(frame: pd.DataFrame) -> pd.DataFrame:
@@ -121,8 +121,8 @@ anything not measured), not as a count of -1; ``--where`` sees the stored -1."""
 
 
 def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
-    """The rows meeting every condition ``column OP value`` (OP one of = != < <= > >=;
-    numbers compare as numbers, the rest as text)."""
+    """The rows meeting every condition ``column OP value`` (OP one of = != < <= > >=, and
+    == for =; numbers compare as numbers, the rest as text)."""
     keep = pd.Series(True, index=frame.index)
     for condition in conditions:
         match = CONDITION.match(condition)
@@ -132,6 +132,7 @@ def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
                 "(e.g. status=ok, scd>=6)"
             )
         column, op, value = match.groups()
+        op = "=" if op == "==" else op  # as Python and pandas spell it
         _check_columns(frame, [column], "--where")
         values = frame[column]
         number = pd.to_numeric(pd.Series([value]), errors="coerce").iloc[0]
@@ -169,7 +170,7 @@ def unmatched(frame: pd.DataFrame, conditions: Sequence[str]) -> list[str]:
     said = []
     for condition in conditions:
         match = CONDITION.match(condition)
-        if not match or match.group(2) != "=" or match.group(1) not in frame.columns:
+        if not match or match.group(2) not in ("=", "==") or match.group(1) not in frame.columns:
             continue
         column, _, value = match.groups()
         values = frame[column].astype(str)
@@ -215,8 +216,8 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_
     ok run without warnings, and the pair, rtol, ``cost`` and rhs evaluations of the
     cheapest such run reaching the target: the highest of the report's accuracy targets
     (:data:`~workbench.outputs.report.decision.FALLBACK_TARGETS`, scd 2 to 10) such a run
-    reached (the best scd when none; not a column, the table was too wide: its verdict
-    begins with it), with its margin or tie
+    reached (the best scd when none; not a column of a line a problem, the table was too
+    wide: its verdict begins with it; a column of a line a pair), with its margin or tie
     (:func:`workbench.outputs.report.ranking.decide`, the report's ranking). Ranked at
     the best scd itself, the line named whichever run reached the last digit, almost
     always alone ("only pair"), not the cheapest of those that reach a target."""
@@ -234,6 +235,8 @@ def summary(runs: pd.DataFrame, keys: Sequence[str], cost: str = "integrate_cpu_
         for status in ("failed", "timeout", "skipped"):
             row[status] = int((group["status"] == status).sum())
         row["scd"] = best  # (the target, the highest even scd <= it: said in the caption)
+        if "pair" in keys:  # no verdict to say it: the target the run shown was chosen at
+            row["target"] = target
         if "pair" not in keys:
             row["pair"] = cheapest["pair"] if cheapest is not None else ""
         for column in dict.fromkeys(("rtol", cost, "n_rhs")):
