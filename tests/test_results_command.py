@@ -241,3 +241,13 @@ def test_a_line_a_pair_names_its_target_and_where_takes_double_equals() -> None:
     assert results_table(runs, by="run", where=["pair==a / x"]).equals(
         results_table(runs, by="run", where=["pair=a / x"])
     )
+
+
+@pytest.mark.parametrize("fmt", ["latex", "markdown"])
+def test_a_filter_that_keeps_nothing_writes_no_broken_table(results: Path, fmt: str) -> None:
+    """An empty LaTeX tabular (``\\begin{tabular}{}``) stops pdflatex and an empty Markdown
+    table is ``|  |``: no table is written, and stderr says why."""
+    result = runner.invoke(app, ["results", str(results), "-w", "scd>=99", "-f", fmt])
+    assert result.exit_code == 0, result.output
+    assert "tabular" not in result.stdout and "|" not in result.stdout
+    assert "no line to write" in result.output and "meets --where scd>=99" in result.output

@@ -626,6 +626,9 @@ def results(
         )  # fmt: skip
     statement = resolve_cost(prepare_results(frame)).statement()
     title = caption(table, len(frame), by, path, statement)
+    if fmt in ("markdown", "latex") and len(table) == 0:  # an empty tabular{} breaks LaTeX
+        typer.echo(f"note: no line to write as {fmt}: the table is empty", err=True)
+        return
     if fmt != "table":
         typer.echo(render(table, fmt, title), nl=False)
         return
