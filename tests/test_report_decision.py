@@ -203,3 +203,21 @@ def test_fixed_step_runs_do_not_make_a_pendulum_stiff() -> None:
     ratio = dop853["n_steps"] / bdf["n_steps"]
     assert said.startswith(f"not stiff: explicit integrators took {ratio:.2g}x"), said
     assert "rejected" not in said  # DOP853 does not report its rejections; rk4 has none
+
+
+def test_a_tie_is_explained_in_the_cost_measure_that_made_it() -> None:
+    """Counted right-hand sides have no spread: two pairs tie when the counts are equal,
+    and the why says so, not that timed samples overlap (they played no part)."""
+    from workbench.outputs.report.decision import why
+    from workbench.outputs.report.traits import problem_traits
+
+    runs = costed([("a / x", 6.0, 1.0, 0.9, 1.1), ("b / y", 6.0, 3.0, 2.9, 3.1)])
+    runs["n_rhs"] = [500, 500]  # the same count, very different times
+    by_count = decide(runs, 4.0, "n_rhs")
+    assert by_count.is_tie and not decide(runs, 4.0, "integrate_cpu_s").is_tie
+    traits = problem_traits(runs)
+    text = why(traits, [by_count], runs, "n_rhs")
+    assert "right-hand-side counts are equal" in text and "timed samples" not in text
+    timed = costed([("a / x", 6.0, 1.00, 0.95, 1.10), ("b / y", 6.5, 1.05, 0.98, 1.20)])
+    text = why(traits, [decide(timed, 4.0, "integrate_cpu_s")], timed, "integrate_cpu_s")
+    assert "timed samples' ranges overlap" in text

@@ -75,6 +75,16 @@ class Cost:
         return text + (f"; {self.note}" if self.note else "")
 
 
+def tie_rule(column: str) -> str:
+    """When two pairs tie in the cost ``column``: a clause for captions and the page
+    (:mod:`workbench.outputs.report.ranking` compares the runs' cost intervals)."""
+    if column == "n_rhs":  # a count has no spread: its interval is the count itself
+        return "their right-hand-side counts are equal"
+    if column == "work_s":
+        return "their counted work's intervals (from the unit costs' timed batches) overlap"
+    return "their timed samples' ranges overlap"
+
+
 def check_cost(key: str | None) -> str | None:
     """``key`` if it names a cost measure (None: the default); ConfigError otherwise."""
     if key is not None and key not in COST_MEASURES:
@@ -120,4 +130,12 @@ def _measured(runs: pd.DataFrame, column: str) -> bool:
     return bool(np.isfinite(values).any())
 
 
-__all__ = ["COST_LABELS", "COST_MEASURES", "DEFAULT_COST", "Cost", "check_cost", "resolve_cost"]
+__all__ = [
+    "COST_LABELS",
+    "COST_MEASURES",
+    "DEFAULT_COST",
+    "Cost",
+    "check_cost",
+    "resolve_cost",
+    "tie_rule",
+]

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from workbench.outputs.report.cost import tie_rule
 from workbench.outputs.report.overview import trusted
 from workbench.outputs.report.ranking import Decision, decide
 from workbench.outputs.report.traits import FAMILIES, Traits, favoured, problem_traits
@@ -62,7 +63,7 @@ class DecisionRow:
     traits: list[str] = field(default_factory=list)
 
 
-def why(traits: Traits, cells: list[Decision], runs: pd.DataFrame) -> str:
+def why(traits: Traits, cells: list[Decision], runs: pd.DataFrame, cost: str = "") -> str:
     """Traits, stiffness and the families of the winning pairs, in one or two sentences."""
     parts = list(traits.traits)
     if traits.stiffness:
@@ -73,7 +74,7 @@ def why(traits: Traits, cells: list[Decision], runs: pd.DataFrame) -> str:
     if won:
         text += (". " if text else "") + f"Winning pairs by kind: {won}"
     if any(d.is_tie for d in cells):
-        text += ". Tied pairs cost the same within their timed samples' spread"
+        text += f". Tied pairs: {tie_rule(cost)}"
     if any(d.pair and not d.tie_known for d in cells):
         text += ". Some costs have one timed sample (or no interval): ties cannot be told there"
     return text + "." if text else "No run of this problem finished without warnings."
@@ -99,7 +100,7 @@ def decision_rows(
                 section.anchor if section is not None else "",
                 traits.family,
                 cells,
-                why(traits, cells, group),
+                why(traits, cells, group, cost),
                 picture=section.picture if section is not None else None,
                 traits=traits.traits,
             )

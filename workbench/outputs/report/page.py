@@ -20,7 +20,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescap
 
 from workbench.execution.environment import cpu_model, distribution_versions
 from workbench.outputs.report.analysis import run_environment
-from workbench.outputs.report.cost import Cost, resolve_cost
+from workbench.outputs.report.cost import Cost, resolve_cost, tie_rule
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.scorecards import Scorecard
 from workbench.outputs.report.tables import shows_index, table_cells
@@ -169,6 +169,7 @@ def render_page(
             scorecards=[(c.title, c.note, PageTable.of(c.table, c.name)) for c in scorecards],
             command=command,
             cost_name=cost.name,
+            tie_rule=tie_rule(cost.column),
             cost_statement=cost.statement(),
             timing_warning=timing_warning,
             decision=decision,

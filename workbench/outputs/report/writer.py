@@ -35,7 +35,7 @@ from workbench.outputs.report.analysis import (
     status_counts,
     status_matrix,
 )
-from workbench.outputs.report.cost import COST_MEASURES, Cost, resolve_cost
+from workbench.outputs.report.cost import COST_MEASURES, Cost, resolve_cost, tie_rule
 from workbench.outputs.report.decision import decision_frame, decision_rows, decision_targets
 from workbench.outputs.report.figures import (
     FIGURE_FORMATS,
@@ -82,8 +82,7 @@ SUMMARY_CAPTION = (
 )
 DECISION_CAPTION = (
     "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
-    "its cost and how far ahead of the runner-up it is; tie: pairs whose timed samples' "
-    "ranges overlap; {statement}"
+    "its cost and how far ahead of the runner-up it is; tie: pairs where {tie}; {statement}"
 )
 STATUS_CAPTION = (
     "Runs by status, per problem (the report's table splits them by pair); the numbers in "
@@ -174,7 +173,7 @@ def write_report(
         decision_table,
         out / "tables",
         "decision",
-        DECISION_CAPTION.format(statement=measure.statement()),
+        DECISION_CAPTION.format(tie=tie_rule(measure.column), statement=measure.statement()),
         latex=decision_table.drop(columns="family"),  # rows stay in family order
     )
     page = render_page(
