@@ -221,3 +221,13 @@ def test_a_tie_is_explained_in_the_cost_measure_that_made_it() -> None:
     timed = costed([("a / x", 6.0, 1.00, 0.95, 1.10), ("b / y", 6.5, 1.05, 0.98, 1.20)])
     text = why(traits, [decide(timed, 4.0, "integrate_cpu_s")], timed, "integrate_cpu_s")
     assert "timed samples' ranges overlap" in text
+
+
+def test_every_cost_measure_has_its_label_as_a_table_header() -> None:
+    """A report in any measure heads its cost column with the measure's name and unit
+    (``--cost work`` showed ``work_s``)."""
+    from workbench.outputs.report.cost import COST_MEASURES
+    from workbench.outputs.report.tables import header
+
+    for column, label in COST_MEASURES.values():
+        assert header(column) == label
