@@ -231,3 +231,23 @@ def test_every_cost_measure_has_its_label_as_a_table_header() -> None:
 
     for column, label in COST_MEASURES.values():
         assert header(column) == label.removesuffix(" [-]")  # a count has no unit
+
+
+def test_the_ranking_table_says_when_it_lists_only_the_first_pairs(tmp_path: Path) -> None:
+    """Nine pairs, eight listed: the caption says so (a pair left out of the table was not
+    said), and the cost-at-target caption claims no 'within reach' of the pairs it prints."""
+    from workbench.outputs.report.writer import RANKED_SHOWN, overview_of
+
+    results = synthetic_results(
+        formalisms=("minimal-ode", "absolute-dae", "recursive"),
+        integrators=("radau", "generalized-alpha", "scipy-dop853"),
+    )
+    (tmp_path / "figures").mkdir(), (tmp_path / "tables").mkdir()
+    overview_of(prepare_results(results), tmp_path)
+    ranking = pd.read_csv(tmp_path / "tables" / "ranking.csv")
+    assert len(ranking) == RANKED_SHOWN < 9
+    caption = (tmp_path / "tables" / "ranking.tex").read_text()
+    assert f"the first {RANKED_SHOWN} of 9 pairs" in caption
+    assert "within reach of the best on the most" not in (
+        tmp_path / "tables" / "cost-at-target.tex"
+    ).read_text()

@@ -82,8 +82,12 @@ def heat_map_figure(
         "overview-heat-map",
         f"Cost ({name}) of each pair at scd >= {target:g}, divided by the least cost of any "
         "pair on that problem"
-        + (f"; the {columns} pairs within reach of the best on the most problems of {pairs}"
-           if shown else ""),  # fmt: skip
+        + (
+            f"; {columns} of the {pairs} pairs: those reaching the target, in the order of "
+            "the ranking (most problems within reach of the best first)"
+            if shown
+            else ""
+        ),  # fmt: skip
     )
 
 

@@ -355,7 +355,10 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
     ratio_table.attrs["one_format"] = True  # one quantity: one number format
-    shown = f"the {len(top)} pairs within reach of the best on the most problems"
+    shown = (
+        f"{len(top)} of the {ratio.shape[1]} pairs, those reaching the target in the order of "
+        "the ranking (most problems within reach of the best first)"
+    )
     write_table(
         ratio_table,
         out / "tables",
@@ -380,8 +383,9 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
         f"on both {measure.name} and scd; {measure.statement()}",
     )
     factor = f"{recommendation.factor:g}x"
+    ranked = len(recommendation.table)
     ranking = (
-        recommendation.table.head(8)
+        recommendation.table.head(RANKED_SHOWN)
         .reset_index()
         .rename(
             columns={
@@ -395,7 +399,8 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
         ranking,
         out / "tables",
         "ranking",
-        f"Pairs at scd >= {target:g}: {recommendation.sentence} ({measure.statement()})",
+        f"Pairs at scd >= {target:g}: {recommendation.sentence} ({measure.statement()})"
+        + (f"; the first {RANKED_SHOWN} of {ranked} pairs" if ranked > RANKED_SHOWN else ""),
     )
     return Overview(
         sentence=recommendation.sentence,
@@ -409,6 +414,7 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
 
 
 TOP_PAIRS = 10  # pair columns of the heat map and of the printed cost-at-target table
+RANKED_SHOWN = 8  # pairs of the ranking table (its caption says when there are more)
 
 
 def top_pairs(ratio: pd.DataFrame, ranked: pd.Index, count: int = TOP_PAIRS) -> list[str]:
