@@ -351,7 +351,7 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
 def main() -> None:
     def worker_args(cmd: list[str], args) -> None:
         cmd.extend(["--sizes", *map(str, args.sizes), "--robots", *args.robots])
-        cmd.extend(["--copies", args.copies])
+        cmd.extend(["--copies", args.copies, "--prepared", str(PREPARED)])
 
     runner = pyperf.Runner(
         processes=10, program_args=("-m", "benchmarks.peers_pyperf"), add_cmdline_args=worker_args
@@ -359,6 +359,8 @@ def main() -> None:
     runner.argparser.add_argument("--sizes", nargs="*", default=[str(n) for n in SIZES])
     runner.argparser.add_argument("--robots", nargs="*", default=list(ROBOTS))
     runner.argparser.add_argument("--copies", default="", help=argparse.SUPPRESS)
+    # the parent's file, named to the workers: pyperf gives them no TMPDIR of the parent's
+    runner.argparser.add_argument("--prepared", default=str(PREPARED), help=argparse.SUPPRESS)
     args = runner.parse_args()
     models = [("random", n) for n in args.sizes] + [("robots", r) for r in args.robots]
     if not args.worker:
@@ -371,7 +373,7 @@ def main() -> None:
             prepared.append(prepare(kind, name))
             print(f"prepared {kind} {name}", file=sys.stderr, flush=True)
         PREPARED.write_text(json.dumps(prepared))
-    prepared = json.loads(PREPARED.read_text())
+    prepared = json.loads(Path(args.prepared).read_text())
     if not args.worker:  # the workers' copies, a benchmark's kept until its last process ends
         args.copies = tempfile.mkdtemp(prefix=PREPARED.stem + "-", dir=COPIES)
     suite = []

@@ -45,7 +45,7 @@ def test_overlapping_intervals_are_a_tie_and_apart_ones_a_margin() -> None:
     assert tied.verdict() == "tie"
     apart = decide(runs[runs["pair"] != "b / y"], 4.0, "integrate_cpu_s")
     assert not apart.is_tie and apart.runner_up == "c / z"
-    assert apart.margin == pytest.approx(3.0) and apart.verdict() == "3x ahead"
+    assert apart.margin == pytest.approx(3.0) and apart.verdict() == "3.00x ahead"
     # a target only c reaches: the only pair
     assert decide(runs, 6.8, "integrate_cpu_s").verdict() == "only pair"
     assert decide(runs, 9.0, "integrate_cpu_s").verdict() == "none reached"
@@ -251,3 +251,15 @@ def test_the_ranking_table_says_when_it_lists_only_the_first_pairs(tmp_path: Pat
     assert "within reach of the best on the most" not in (
         tmp_path / "tables" / "cost-at-target.tex"
     ).read_text()
+
+
+def test_a_margin_is_printed_with_the_digits_that_tell_it_from_one() -> None:
+    """'.3g' printed a 1.003 margin as '1x ahead' and the heat map's 1.017 as '1', the
+    winner's own value; and 1.4 beside 1.19."""
+    from workbench.outputs.report.ranking import ratio_text
+
+    assert [ratio_text(v) for v in (1.0, 1.003, 1.017, 1.4, 1.19, 7.3, 12.34, 140.2)] == [
+        "1", "1.003", "1.017", "1.40", "1.19", "7.30", "12.3", "140",
+    ]  # fmt: skip
+    runs = costed([("a / x", 6.0, 1.000, 0.999, 1.001), ("b / y", 6.0, 1.003, 1.002, 1.004)])
+    assert decide(runs, 4.0, "integrate_cpu_s").verdict() == "1.003x ahead"

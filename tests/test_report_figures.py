@@ -105,3 +105,18 @@ def test_the_heat_map_shows_the_top_pairs_readably(tmp_path) -> None:
     assert len(decimals) == 1, numbers  # not '1' beside '1.000'
     full = (tmp_path / "tables" / "cost-at-target.csv").read_text(encoding="utf-8")
     assert full.splitlines()[0].count(",") == 42  # the CSV keeps every pair
+
+
+def test_under_rhs_evaluations_the_time_panel_is_the_default_time_measure() -> None:
+    """`--cost n_rhs` drew integration wall time beside CPU time everywhere else, and the
+    caption did not say which time it was or why."""
+    runs = two_pairs(3e-2, 6e-1)
+    runs["integrate_cpu_s"] = runs["wall_s"]
+    runs["integrate_s"] = 10 * runs["wall_s"]  # wall time: a decade off CPU time
+    figure, caption = work_precision_drawing(runs, "p", "n_rhs")
+    x, _y = band(figure.axes[0])
+    assert set(np.asarray(x, dtype=float)) <= set(runs["integrate_cpu_s"].astype(float))
+    assert "time panel shows integration CPU time, the default measure" in caption
+    assert "integration CPU time" in figure.axes[0].get_xlabel()
+    _figure, caption = work_precision_drawing(runs, "p", "integrate_cpu_s")
+    assert "time panel" not in caption

@@ -148,11 +148,15 @@ def test_a_latex_table_split_to_fit_the_page_says_which_run_each_line_is(
 
 
 def test_caption_reads_well_and_names_the_cost_measure(results: Path) -> None:
-    """Not '11 runs of 36 runs in out-arm': what a line is, of how many runs, the measure."""
+    """Not '11 runs of 36 runs in out-arm': what a line is, of how many runs, the measure;
+    a table for a paper or a page does not name the folder on this machine ('in out')."""
     latex = runner.invoke(app, ["results", str(results), "-f", "latex", "--by", "run",
                                 "-w", "problem=heavy-top"])  # fmt: skip
     assert latex.exit_code == 0, latex.output
-    assert "\\caption{12 of the 24 runs in " in latex.output
+    assert "\\caption{12 of the 24 runs}" in latex.output
+    assert str(results.parent.name) not in latex.output
+    terminal = runner.invoke(app, ["results", str(results), "--by", "run"])
+    assert "The 24 runs in " in " ".join(terminal.output.split())  # the terminal's says
     summary = runner.invoke(app, ["results", str(results), "-f", "latex"])
     assert "a line a problem" in summary.output and "cost measure: wall time" in summary.output
     assert "runs of" not in summary.output
@@ -207,7 +211,7 @@ def test_a_problems_line_ranks_the_pairs_reaching_its_highest_target_not_the_las
     (row,) = results_table(runs).itertuples()
     assert (row.scd, row.pair, row.integrate_cpu_s) == (6.3, "b / y", 0.1)
     # the line says the target it names the pair at: b / y did not reach the 6.3 shown
-    assert row.verdict.startswith("at scd 6, 2x ahead") and row.verdict.endswith("of a / x")
+    assert row.verdict.startswith("at scd 6, 2.00x ahead") and row.verdict.endswith("of a / x")
     runs["scd"] = [1.5, 1.2, 0.5]  # below every target: ranked at the best scd reached
     (row,) = results_table(runs).itertuples()
     assert row.pair == "a / x" and row.verdict == "at scd 1.5, only pair"

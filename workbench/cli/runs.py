@@ -625,7 +625,8 @@ def results(
             err=True,
         )  # fmt: skip
     statement = resolve_cost(prepare_results(frame)).statement()
-    title = caption(table, len(frame), by, path, statement)
+    # a table for a paper or a page does not name this machine's folder
+    title = caption(table, len(frame), by, path if fmt == "table" else "", statement)
     if fmt in ("markdown", "latex") and len(table) == 0:  # an empty tabular{} breaks LaTeX
         typer.echo(f"note: no line to write as {fmt}: the table is empty", err=True)
         return

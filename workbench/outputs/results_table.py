@@ -260,14 +260,16 @@ def _verdict(decision: Decision | None) -> str:
 
 def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) -> str:
     """The caption of the printed table: what a line is, of how many runs, and where
-    they are; the cost measure of a summary."""
+    they are (``path`` '': not said, as in a paper's table, where the folder on this
+    machine means nothing); the cost measure of a summary."""
+    where = f" in {path}" if path else ""
     if by == "run":
         shown = f"{len(table)} of the {runs} runs" if len(table) != runs else f"The {runs} runs"
         same = table.attrs.get("same")
-        return f"{shown} in {path}" + (f"; in each of them {same}" if same else "")
+        return f"{shown}{where}" + (f"; in each of them {same}" if same else "")
     lines = {"problem": "a line a problem", "pair": "a line a problem and pair"}[by]
     return (
-        f"The {runs} runs in {path}, {lines}: the best scd reached without warnings, the "
+        f"The {runs} runs{where}, {lines}: the best scd reached without warnings, the "
         f"highest target of scd 2, 4, 6, 8, 10 reached and the cheapest run reaching it "
         f"({statement})"
     )

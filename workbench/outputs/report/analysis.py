@@ -254,6 +254,24 @@ def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
     return chosen[["pair", *columns]].reset_index(drop=True)
 
 
+def drift_table_contents(table: pd.DataFrame) -> str:
+    """What a :func:`drift_table` holds, for its caption: only the quantities it has a
+    column of (a caption named invariant errors where no run measured one)."""
+    maxima = [name for column, name in (("drift_pos_max", "position drift"),
+              ("drift_vel_max", "velocity drift"), ("drift_nh_max", "nonholonomic drift"),
+              ("energy_err_max", "relative energy error"),
+              ("invariant_err_max", "relative invariant error")) if column in table]  # fmt: skip
+    parts = []
+    if maxima:  # 'largest a, b and c'
+        head = ", ".join(maxima[:-1])
+        parts.append("largest " + (f"{head} and " if head else "") + maxima[-1])
+    if table.columns.str.startswith("err_").any():
+        parts.append("pose errors (end, L2 and maximum over the samples)")
+    if "scd" in table:
+        parts.append("scd")
+    return "; ".join(parts) or "the pairs"
+
+
 def run_environment(runs: pd.DataFrame) -> list[str]:
     """What the runs recorded about where they ran: 'name: value[, value...]' per column
     (``version_*``, ``machine``, ``cpu_count`` of the result rows; distinct values)."""

@@ -324,8 +324,8 @@ def work_precision_drawing(
 ) -> tuple[Any, str] | None:
     """The figure and caption of a problem's work-precision diagram (None: no ok run
     with an scd): scd against the ``cost`` column (the report's cost measure,
-    :mod:`workbench.outputs.report.cost`; the integration's wall time when that is rhs
-    evaluations) and against rhs evaluations (log x), one curve a pair.
+    :mod:`workbench.outputs.report.cost`; the default time measure when that is rhs
+    evaluations, which have the other panel) and against rhs evaluations (log x), one curve a pair.
 
     The runs on each panel's Pareto front (:func:`~workbench.outputs.report.overview.
     pareto_mask`) are joined by a thick grey line; a dotted line marks the digits the
@@ -333,10 +333,12 @@ def work_precision_drawing(
     """
     import matplotlib.pyplot as plt
 
-    from workbench.outputs.report.cost import COST_LABELS
+    from workbench.outputs.report.cost import COST_LABELS, resolve_cost
     from workbench.outputs.report.overview import pareto_mask
 
-    time_axis = cost if cost != RHS_AXIS[0] else "integrate_s"
+    # under rhs evaluations the left panel is the time the other measures default to
+    # (integration CPU time; wall time for rows without it), said in the caption
+    time_axis = cost if cost != RHS_AXIS[0] else resolve_cost(runs).column
     work_axes = ((time_axis, COST_LABELS.get(time_axis, time_axis)), RHS_AXIS)
     ok = ok_runs(runs)
     ok = ok[np.isfinite(ok["scd"])]
@@ -385,8 +387,10 @@ def work_precision_drawing(
         f"{problem}: work-precision diagrams (scd against {work_axes[0][1].split(' [')[0]} "
         "and rhs evaluations, one-off costs such as building and compiling excluded; grey "
         "band: the Pareto front, runs no other run beats on both cost and accuracy; the "
-        f"report's cost measure: {measure})",
-    )
+        f"report's cost measure: {measure}"
+        + (f"; the time panel shows {work_axes[0][1].split(' [')[0]}, the default measure"
+           if cost == RHS_AXIS[0] else "") + ")",
+    )  # fmt: skip
 
 
 def _run_series(series: Mapping[str, pd.DataFrame | None], run_id: str) -> pd.DataFrame | None:
@@ -454,6 +458,7 @@ def drift_figure(
     legend_room = 2.5 / (min(3.2 * columns, 16) + 2.5)
     figure.subplots_adjust(left=0.07, right=0.98 - legend_room, bottom=0.1, top=0.86,
                            wspace=0.08, hspace=0.25)  # fmt: skip
+    zero, seen = set(), set()  # panels (row, column): a run measured 0 throughout; any
     for row in chosen.itertuples():
         run_series = _run_series(series, row.run_id)
         if run_series is None:
@@ -463,16 +468,26 @@ def drift_figure(
         for k, (column, _label) in enumerate(drawn):
             if column not in run_series:
                 continue
+            seen.add((k, formalisms.index(formalism)))
             values = np.abs(run_series[column].to_numpy(dtype=float))
             keep = np.isfinite(values) & (values > 0)
             if keep.any():
                 ax = axes[k, formalisms.index(formalism)]
                 ax.plot(t[keep], values[keep], linewidth=1, **styles(row.pair, markers=False))
+            elif np.isfinite(values).any():
+                zero.add((k, formalisms.index(formalism)))
+    empty = []  # an empty panel says why, and so does the caption
     for k, (_column, label) in enumerate(drawn):
         for j, formalism in enumerate(formalisms):
             ax = axes[k, j]
             if ax.lines:
                 log_axis(ax, "y")
+            else:
+                why = "exactly zero at every sample" if (k, j) in zero else "not measured"
+                why = why if (k, j) in seen else "without a stored time series"
+                ax.text(0.5, 0.5, why.replace(" at", "\nat"), transform=ax.transAxes,
+                        ha="center", va="center", fontsize="small", color="0.3")  # fmt: skip
+                empty.append(f"{formalism}'s {label.split(' [')[0]} {why}")
             if k == 0:
                 ax.set_title(formalism, fontsize="small")
             if j == 0:
@@ -488,6 +503,8 @@ def drift_figure(
     caption = f"{problem}: constraint drift and energy error over time at rtol = {rtol:g}"
     if absent:
         caption += "; not drawn: " + "; ".join(absent.values())
+    if empty:
+        caption += "; empty panels: " + "; ".join(empty)
     return save_figure(figure, out, f"{slug(problem)}-drift", caption), rtol
 
 

@@ -13,6 +13,7 @@ import pandas as pd
 
 from workbench.outputs.report.figures import FigureFiles, PairStyles, log_axis, save_figure
 from workbench.outputs.report.overview import COST_COLUMNS, trusted
+from workbench.outputs.report.ranking import ratio_text
 
 NOT_REACHED_TEXT = "not\nreached"
 
@@ -57,7 +58,7 @@ def heat_map_figure(
                         bbox={"facecolor": "0.88", "edgecolor": "none", "pad": 0.5})  # fmt: skip
                 continue
             color = "white" if value > 3 else "black"
-            ax.text(j, i, f"{value:.2g}", ha="center", va="center", fontsize=9, color=color)
+            ax.text(j, i, ratio_text(value), ha="center", va="center", fontsize=9, color=color)
     labels = [str(c).replace(" / ", "\n/ ") for c in ratio.columns]
     ax.set_xticks(range(columns), labels, rotation=30, ha="right", rotation_mode="anchor",
                   fontsize=9)  # fmt: skip

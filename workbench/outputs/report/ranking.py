@@ -24,6 +24,19 @@ from workbench.outputs.report.trust import ok_runs, warned
 NOT_REACHED = "none reached"
 
 
+def ratio_text(value: float) -> str:
+    """A cost ratio (a margin, a heat map's cell) with the digits that tell it from 1:
+    '1' (exactly), '1.003', '1.40', '12.3', '140' ('.3g' printed 1.003 as '1', the
+    winner's own value, and 1.4 beside 1.19)."""
+    if value == 1.0:
+        return "1"
+    if value < 1.1:
+        return f"{value:.3f}"
+    if value < 10:
+        return f"{value:.2f}"
+    return f"{value:.1f}" if value < 100 else f"{value:.0f}"
+
+
 def cost_interval(runs: pd.DataFrame, cost: str) -> tuple[pd.Series, pd.Series]:
     """The least and greatest value of ``cost`` over each run's timed samples.
 
@@ -110,7 +123,7 @@ class Decision:
             return "tie"
         if not self.runner_up:
             return "only pair"
-        ahead = f"{self.margin:.3g}x ahead"
+        ahead = f"{ratio_text(self.margin)}x ahead"
         return ahead if self.tie_known else f"{ahead} (one sample: tie unknown)"
 
 

@@ -29,6 +29,7 @@ from workbench.outputs.report.analysis import (
     coverage_notice,
     drift_runs,
     drift_table,
+    drift_table_contents,
     oversubscription_warning,
     prepare_results,
     status_by_problem,
@@ -84,10 +85,8 @@ DECISION_CAPTION = (
     "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
     "its cost and how far ahead of the runner-up it is; tie: pairs where {tie}; {statement}"
 )
-STATUS_CAPTION = (
-    "Runs by status, per problem (the report's table splits them by pair); the numbers in "
-    "brackets refer to the reasons listed below"
-)
+STATUS_CAPTION = "Runs by status, per problem (the report's table splits them by pair)"
+STATUS_NOTES = "; the numbers in brackets refer to the reasons listed below"
 
 
 def write_report(
@@ -132,8 +131,9 @@ def write_report(
     caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
     printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs", "runner-up")]
     write_table(summary, out / "tables", "summary", caption, latex=summary[printed])
+    status_caption = STATUS_CAPTION + (STATUS_NOTES if footnotes else "")  # none: no notes
     write_table(
-        matrix, out / "tables", "status", STATUS_CAPTION,
+        matrix, out / "tables", "status", status_caption,
         latex=status_by_problem(runs, matrix), notes=footnotes,
     )  # fmt: skip
     runs.drop(columns=list(LABEL_COLUMNS)).to_csv(out / "tables" / "results.csv", index=False)
@@ -474,10 +474,7 @@ def problem_section(
     if rtol is not None:
         name = f"drift-{slug(problem)}-rtol-{rtol:g}"
         frame = drift_table(runs)
-        caption = (
-            f"{problem}: largest constraint drift, energy and invariant errors and pose errors "
-            f"(end, L2 and maximum over the samples) of every pair at rtol = {rtol:g}"
-        )
+        caption = f"{problem}, every pair at rtol = {rtol:g}: {drift_table_contents(frame)}"
         write_table(frame, out / "tables", name, caption)
         table = PageTable.of(frame, name)
     return ProblemSection(

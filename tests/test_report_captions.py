@@ -1,0 +1,55 @@
+"""What the report's captions say matches what their tables and figures show: a status
+table without notes points to none, a drift table's caption names only the quantities it
+has columns of, and an empty drift panel says why it is empty (exactly zero, not
+measured) on the panel and in the caption (the double pendulum's minimal-coordinate
+panels were empty, unexplained)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tests.test_report import synthetic_results, synthetic_series
+from workbench.outputs.report import write_report
+from workbench.outputs.report.analysis import drift_runs, prepare_results
+from workbench.outputs.report.figures import drift_figure
+
+
+def all_ok() -> pd.DataFrame:
+    """One problem, 2 x 2 pairs, every run ok; no invariant measured."""
+    runs = synthetic_results(problems=("simple-pendulum",), integrators=("radau", "bdf"))
+    assert (runs["status"] == "ok").all()
+    return runs.assign(invariant_err_max=np.nan)
+
+
+def test_the_status_caption_points_to_notes_only_when_there_are_some(tmp_path: Path) -> None:
+    write_report(all_ok(), synthetic_series, tmp_path / "ok", "cmd", progress=False)
+    status = (tmp_path / "ok" / "tables" / "status.tex").read_text(encoding="utf-8")
+    assert "Runs by status" in status and "listed below" not in status
+    drift = next((tmp_path / "ok" / "tables").glob("drift-*.tex")).read_text(encoding="utf-8")
+    assert "position drift" in drift and "energy error" in drift
+    assert "invariant" not in drift  # no column of it
+    failing = synthetic_results(problems=("simple-pendulum", "heavy-top"))
+    assert (failing["status"] != "ok").any()
+    write_report(failing, synthetic_series, tmp_path / "failed", "cmd", progress=False)
+    status = (tmp_path / "failed" / "tables" / "status.tex").read_text(encoding="utf-8")
+    assert "listed below" in status and "[1]" in status
+
+
+def test_an_empty_drift_panel_says_why(tmp_path: Path) -> None:
+    runs = prepare_results(all_ok())
+
+    def series(run_id: str) -> pd.DataFrame:  # minimal coordinates: no position drift
+        frame = synthetic_series(run_id)
+        return frame.assign(drift_pos=0.0) if "minimal-ode" in run_id else frame
+
+    _rtol, chosen = drift_runs(runs)
+    (tmp_path / "figures").mkdir()
+    figure, _ = drift_figure(runs, {r: series(r) for r in chosen["run_id"]}, tmp_path, "p")
+    assert figure is not None
+    assert "empty panels: minimal-ode's position constraint drift exactly zero at every sample" in (
+        figure.caption
+    )
+    assert "absolute-dae's position" not in figure.caption  # drawn there
