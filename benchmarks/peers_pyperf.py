@@ -343,7 +343,8 @@ def summarize(suite: pyperf.BenchmarkSuite, prepared: list[dict], load: list[flo
             })  # fmt: skip
         row.update({"processes": f"{len(ours)}+{len(pin)}", "load1_before": load[0],
                     "load1_after": load[1], "copies": COPIED, "cpu": cpu_model(),
-                    "l2_kib": l2_kib()})  # fmt: skip
+                    "l2_kib": l2_kib(),
+                    "date": time.strftime("%Y-%m-%d", time.gmtime())})  # fmt: skip
         rows.append(row)
     return rows
 
