@@ -110,9 +110,9 @@ def targets() -> list[Row]:
     sim = RESULTS / "simulation_targets.csv"
     if sim.exists():
         pairs = {"a": "same DOP853 both sides", "b": "best of ours / best peer"}
-        for row in pd.read_csv(sim).query("pair in ('a', 'b')").itertuples():
-            note = f"{row.ours} / {row.peer}; load {row.load_1min:.1f}"
-            if not pd.isna(getattr(row, "floor", NAN)):
+        for _, row in pd.read_csv(sim).query("pair in ('a', 'b')").iterrows():
+            note = f"{row.ours} / {row.peer}; load {row.load_1min:.1f}" + _measured_on(row)
+            if not pd.isna(row.get("floor", NAN)):
                 note += (
                     f"; floor {row.floor:.2f} (only the rhs differing), "
                     f"{row.ratio_if_rhs_free:.2f} with a free rhs"
@@ -282,7 +282,8 @@ def issue36_targets() -> list[Row]:
     else:  # the issue asks for any machine: the worst of all machines measured
         rows.append(Row(f"the same on every machine measured ({len(machines)}, each its own "
                         "cache): the worst upper end over its target", worst, 1.0,
-                        note=f"missed: {', '.join(missed) or 'none'}" + _cache_fit_note()))  # fmt: skip
+                        note=f"missed: {', '.join(missed) or 'none'}"
+                        + _cache_fit_note()))  # fmt: skip
     auto = RESULTS / "compile_auto.csv"  # python -m benchmarks.compile_auto
     if auto.exists():
         table = pd.read_csv(auto).set_index("variant")
@@ -307,7 +308,7 @@ def issue36_targets() -> list[Row]:
         found = best[best["case"] == case] if len(best) else best
         if len(found):
             row = found.iloc[0]
-            note = f"{row.ours} / {row.peer}; load {row.load_1min:.1f}"
+            note = f"{row.ours} / {row.peer}; load {row.load_1min:.1f}" + _measured_on(row)
             walls = RESULTS / "simulation.csv"
             if walls.exists():  # how near the all-compiled anchor itself comes to the target
                 table = pd.read_csv(walls).query("case == @case").set_index("pipeline")
@@ -331,6 +332,7 @@ def issue36_targets() -> list[Row]:
             row = anchor.iloc[0]
             note = row.note if isinstance(row.get("note"), str) and row.note else ""
             note = note or f"{row.ours} / {row.peer}; load {row.load_1min:.1f}"
+            note += _measured_on(row)
             rows.append(Row(f"whole simulation, {case}, best of ours / all-compiled anchor",
                             row.ratio, 1.5, low=row.low, high=row.high, interval="95 % CI",
                             note=note))  # fmt: skip
@@ -338,6 +340,12 @@ def issue36_targets() -> list[Row]:
             rows.append(Row(f"whole simulation, {case}, ours / all-compiled anchor", NAN, 1.5,
                             note="run python -m benchmarks.simulation"))  # fmt: skip
     return rows
+
+
+def _measured_on(row: pd.Series) -> str:
+    """'; <cpu>, <date>' of a benchmark's row where it names them (older files do not)."""
+    where = [str(row[k]) for k in ("cpu", "date") if isinstance(row.get(k), str)]
+    return "; " + ", ".join(where) if where else ""
 
 
 def paired_rows() -> list[Row]:

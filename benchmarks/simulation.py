@@ -77,6 +77,7 @@ from scipy.stats import bootstrap
 
 from benchmarks.anchor import Anchor, AnchorUnavailable
 from benchmarks.simulation_models import CASES, TOLERANCE, Case, Peers, case, check_equal
+from workbench.execution.environment import cpu_model
 from workbench.plugin.registry import get_formalism, get_integrator
 from workbench.plugins.integrators import scipy_ivp
 
@@ -413,6 +414,7 @@ def measure(name: str, repeat: int, rng: np.random.Generator) -> tuple[list[dict
             "low": low, "high": high, "best_ratio": best_ratio, "target": TARGETS[pair],
             "met": high <= TARGETS[pair], "note": note,
             "repeats": repeat, "load_1min": load, "cpu_count": os.cpu_count(),
+            "cpu": cpu_model(), "date": time.strftime("%Y-%m-%d", time.gmtime()),
             "compile_s": pipelines.compile_s, "max_rel_diff": pipelines.max_rel_diff,
             # where the time goes: each side's rhs calls and median wall a call (all in it)
             "rhs_calls_ours_side": counted[ours]["rhs_calls"],
