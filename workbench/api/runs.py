@@ -13,6 +13,7 @@ from workbench.api.result import Result
 from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec, execute_run, normalized_spec
 from workbench.execution.timing import DEFAULT_REPEAT_BUDGET, DEFAULT_REPEATS, Timing
+from workbench.execution.worker_env import threads_as_workers
 from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
 from workbench.plugin.options import option_fields
@@ -58,6 +59,7 @@ def route_options(classes: dict[str, type], options: dict[str, Any]) -> dict[str
     return routed
 
 
+@threads_as_workers()  # from the plugins' imports on: BLAS pools start as a worker's
 def run(
     problem: str | type,
     formalism: str | type,
@@ -87,7 +89,9 @@ def run(
     ``repeats``, ``repeat_budget``: how often the integration is timed.
 
     The run executes in this process, with no time limit (``workbench run`` kills its
-    child at ``--time-limit``). A run that fails or is skipped is returned, not raised:
+    child at ``--time-limit``), its BLAS/OpenMP libraries held meanwhile to a sweep
+    worker's threads (``WORKBENCH_THREADS``, default 1), so it is timed as a sweep times it.
+    A run that fails or is skipped is returned, not raised:
     its ``row["status"]`` and ``row["message"]`` say what happened, and a RuntimeWarning
     says it too (a script sees it without printing the Result). Bad input raises
     before anything runs: ``PluginError`` for an unknown name, ``ConfigError`` for a bad
