@@ -309,6 +309,51 @@ def oversubscription_warning(runs: pd.DataFrame) -> str:
     )
 
 
+STALLED_SPAN = 2.0
+"""Decades of rtol over which a pair's scd must move before it is called stalled."""
+STALLED_BEHIND = 3.0
+"""Digits behind the problem's best pair that a stalled pair's best scd must be."""
+
+
+def stalled_pairs(runs: pd.DataFrame) -> list[str]:
+    """Pairs whose error does not shrink with the tolerance while other pairs' does: over
+    ``STALLED_SPAN`` decades of rtol their ok runs' scd moves by less than one digit, and
+    their best is ``STALLED_BEHIND`` digits behind the best of another pair on the problem
+    (``runs`` prepared). Each run looks fine on its own (a formalism whose pendulum never
+    falls conserves its energy and its constraints: its rows were ok at scd 0.8, beside
+    5.9), so only the runs together show it; one sentence a pair, for the first screen.
+    Not a verdict of wrong: penalty contact's error is its stiffness's (the nonsmooth
+    suite's compliant-contact pairs are named too), and the sentence says so."""
+    ok = ok_runs(runs)
+    ok = ok[np.isfinite(pd.to_numeric(ok["scd"], errors="coerce"))]
+    found = []
+    for problem, rows in ok.groupby("problem", sort=False):
+        for pair, own in rows.groupby("pair", sort=False):
+            decades = np.log10(own["rtol"].max() / own["rtol"].min())
+            others = rows[rows["pair"] != pair]
+            steps = pd.to_numeric(own.get("fixed_step_s", pd.Series(dtype=float)), "coerce")
+            if decades < STALLED_SPAN or others.empty or steps.dropna().nunique() == 1:
+                continue  # (one fixed step for every rtol: the tolerance sets no step)
+            best = others.loc[others["scd"].idxmax()]
+            low, high = own["scd"].min(), own["scd"].max()
+            if high - low < 1.0 and high <= best["scd"] - STALLED_BEHIND:
+                formalism = str(own["formalism"].iloc[0])
+                found.append(
+                    f"{problem}: {pair} stays at scd {_span(low, high)} from rtol "
+                    f"{own['rtol'].max():g} to {own['rtol'].min():g} while {best['pair']} "
+                    f"reaches {best['scd']:.3g}: something the tolerance does not control "
+                    f"sets its error: a model its integrator regularizes (penalty contact's "
+                    f"stiffness), a fixed option, or its equations (python -m "
+                    f"workbench.testing formalism {formalism} checks them)"
+                )
+    return found
+
+
+def _span(low: float, high: float) -> str:
+    """'0.78' or '0.78-0.91': a range of scd, one number when both ends print alike."""
+    return f"{low:.2g}" if f"{low:.2g}" == f"{high:.2g}" else f"{low:.2g}-{high:.2g}"
+
+
 def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
     """A notice for the first screen when the rows are not the whole sweep that was
     planned (``plan``: :func:`workbench.runs.store.load_plan`): planned vs present runs,

@@ -142,6 +142,7 @@ def render_page(
     timing_warning: str = "",
     decision: DecisionPage | None = None,
     coverage: str = "",
+    stalled: Sequence[str] = (),
 ) -> str:
     """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
 
@@ -149,7 +150,9 @@ def render_page(
     footnotes: as :func:`workbench.outputs.report.analysis.status_matrix` gives them,
     ``"[n] text"``; the page numbers them itself. cost: the cost measure in force (stated
     on the page); timing_warning: shown at the top when not empty. decision: the first
-    screen's table (none: not shown); coverage: the partial-sweep notice ('' : none).
+    screen's table (none: not shown); coverage: the partial-sweep notice ('' : none);
+    stalled: pairs whose error does not shrink with the tolerance
+    (:func:`~workbench.outputs.report.analysis.stalled_pairs`), shown at the top.
     """
     cost = cost or resolve_cost(runs)
     problems = list(dict.fromkeys(runs["problem"]))
@@ -172,6 +175,7 @@ def render_page(
             tie_rule=tie_rule(cost.column),
             cost_statement=cost.statement(),
             timing_warning=timing_warning,
+            stalled=list(stalled),
             decision=decision,
             coverage=coverage,
             run_environment="; ".join(run_environment(runs)),

@@ -32,6 +32,7 @@ from workbench.outputs.report.analysis import (
     drift_table_contents,
     oversubscription_warning,
     prepare_results,
+    stalled_pairs,
     status_by_problem,
     status_counts,
     status_matrix,
@@ -176,6 +177,7 @@ def write_report(
         DECISION_CAPTION.format(tie=tie_rule(measure.column), statement=measure.statement()),
         latex=decision_table.drop(columns="family"),  # rows stay in family order
     )
+    stalled = stalled_pairs(runs)
     page = render_page(
         title,
         runs,
@@ -190,6 +192,7 @@ def write_report(
         timing_warning=oversubscription_warning(runs),
         decision=DecisionPage(decided, targets, measure.column),
         coverage=coverage_notice(runs, plan),
+        stalled=stalled,
     )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
@@ -198,6 +201,7 @@ def write_report(
             f"{len(runs)} runs of {len(problems)} problem(s) and {runs['pair'].nunique()} "
             f"formalism / integrator pair(s); {measure.statement()}.",
             *([coverage_notice(runs, plan) + "."] if plan and coverage_notice(runs, plan) else []),
+            *(f"Not converging: {line}." for line in stalled),
             overview.sentence,
         ]
         write_paper(

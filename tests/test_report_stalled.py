@@ -1,0 +1,64 @@
+"""A pair whose runs each look fine but whose error does not shrink with the tolerance is
+named at the top of the report: a formalism written wrong (here the scaffold's template
+left as it is, unit mass matrix and no forces: the pendulum never falls) conserves its
+energy and its constraints, so its rows were ``ok`` at scd 0.8 beside 8.5 and nothing
+said so. Correct pairs of real runs are not named (their scd grows with 1/rtol)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pandas as pd
+
+import workbench as wb
+from tests.test_report import synthetic_results
+from tests.test_scaffold import isolated_registry  # noqa: F401 - a fixture
+from workbench.outputs.report import write_report
+from workbench.outputs.report.analysis import prepare_results, stalled_pairs
+from workbench.plugin.scaffold import scaffold
+
+TOLERANCES = (1e-4, 1e-6, 1e-8)
+
+
+def template_formalism(folder: Path) -> type:
+    """``workbench new formalism``'s module with its TODO raise deleted: M = I, Q = 0."""
+    scaffold("formalism", "stalled-template", where=folder)
+    path = folder / "stalled_template.py"
+    text = path.read_text(encoding="utf-8")
+    start = text.index("        # TODO: write the mass matrix and the forces")
+    path.write_text(text[:start] + text[text.index("        mass = ca.SX.eye"):], "utf-8")
+    spec = importlib.util.spec_from_file_location("stalled_template", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.StalledTemplate
+
+
+def test_a_pair_that_does_not_converge_is_named_and_correct_ones_are_not(
+    tmp_path: Path, isolated_registry: None  # noqa: F811 - the fixture
+) -> None:
+    wrong = template_formalism(tmp_path)
+    rows = [
+        wb.run("simple-pendulum", formalism, "scipy-dop853", rtol=rtol).row
+        for formalism in ("minimal-ode", wrong)
+        for rtol in TOLERANCES
+    ]
+    runs = prepare_results(pd.DataFrame(rows))
+    assert (runs["status"] == "ok").all()  # each run alone looks fine
+    found = stalled_pairs(runs)
+    assert len(found) == 1 and found[0].startswith("simple-pendulum: stalled-template /")
+    assert "workbench.testing formalism stalled-template checks them" in found[0]
+    assert stalled_pairs(runs[runs["formalism"] == "minimal-ode"]) == []
+    page = write_report(runs, None, tmp_path / "report", "cmd", progress=False).read_text("utf-8")
+    assert 'id="stalled"' in page and "stalled-template / scipy-dop853 stays at scd" in page
+
+
+def test_pairs_that_converge_or_have_one_fixed_step_are_not_named() -> None:
+    runs = prepare_results(synthetic_results())  # scd grows as rtol shrinks
+    assert stalled_pairs(runs) == []
+    flat = runs.copy()
+    behind = flat["pair"] == flat["pair"].iloc[0]
+    flat.loc[behind, "scd"] = 0.5  # stuck, far behind the others
+    assert len(stalled_pairs(flat)) == 2  # on each of the two problems
+    flat.loc[behind, "fixed_step_s"] = 1e-3  # the tolerance sets no step here
+    assert stalled_pairs(flat) == []
