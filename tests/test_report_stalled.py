@@ -62,3 +62,6 @@ def test_pairs_that_converge_or_have_one_fixed_step_are_not_named() -> None:
     assert len(stalled_pairs(flat)) == 2  # on each of the two problems
     flat.loc[behind, "fixed_step_s"] = 1e-3  # the tolerance sets no step here
     assert stalled_pairs(flat) == []
+    flat["fixed_step_s"] = float("nan")
+    flat["penetration_max"] = 0.0  # contacts: a step or a stiffness sets the error
+    assert stalled_pairs(flat) == []
