@@ -97,11 +97,11 @@ def threads_as_workers() -> Iterator[int]:
 
 def _default_threads(internal_api: str, saved: dict[str, str | None]) -> int:
     """The threads a library of ``internal_api`` starts with under the variables ``saved``
-    (its own variable, else one a CPU this process may use)."""
+    (its own variable, else one a CPU, as OpenBLAS and OpenMP start)."""
     name = {"openblas": "OPENBLAS_NUM_THREADS", "mkl": "MKL_NUM_THREADS",
             "blis": "BLIS_NUM_THREADS"}.get(internal_api, "OMP_NUM_THREADS")  # fmt: skip
     value = (saved.get(name) or "").strip()
-    return int(value) if value.isdigit() and int(value) >= 1 else len(os.sched_getaffinity(0))
+    return int(value) if value.isdigit() and int(value) >= 1 else os.cpu_count() or 1
 
 
 _threads_seen: dict[int, int | None] = {}  # modules loaded -> threads_in_force()

@@ -458,7 +458,7 @@ def drift_figure(
     legend_room = 2.5 / (min(3.2 * columns, 16) + 2.5)
     figure.subplots_adjust(left=0.07, right=0.98 - legend_room, bottom=0.1, top=0.86,
                            wspace=0.08, hspace=0.25)  # fmt: skip
-    zero, seen = set(), set()  # panels (row, column): a run measured 0 throughout; any
+    zero, seen = set(), set()  # panels (row, column) of a run all 0; of a run with data
     for row in chosen.itertuples():
         run_series = _run_series(series, row.run_id)
         if run_series is None:
