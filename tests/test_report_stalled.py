@@ -60,6 +60,9 @@ def test_pairs_that_converge_or_have_one_fixed_step_are_not_named() -> None:
     behind = flat["pair"] == flat["pair"].iloc[0]
     flat.loc[behind, "scd"] = 0.5  # stuck, far behind the others
     assert len(stalled_pairs(flat)) == 2  # on each of the two problems
+    warned = flat.copy()
+    warned.loc[behind, "warnings"] = "left its assembly branch at a singular configuration"
+    assert stalled_pairs(warned) == []  # said in its rows already
     flat.loc[behind, "fixed_step_s"] = 1e-3  # the tolerance sets no step here
     assert stalled_pairs(flat) == []
     flat["fixed_step_s"] = float("nan")

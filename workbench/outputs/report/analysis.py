@@ -316,17 +316,18 @@ STALLED_BEHIND = 3.0
 
 
 def stalled_pairs(runs: pd.DataFrame) -> list[str]:
-    """Pairs whose error does not shrink with the tolerance while other pairs' does: over
-    ``STALLED_SPAN`` decades of rtol their ok runs' scd moves by less than one digit, and
-    their best is ``STALLED_BEHIND`` digits behind the best of another pair on the problem
-    (``runs`` prepared). Each run looks fine on its own (a formalism whose pendulum never
-    falls conserves its energy and its constraints: its rows were ok at scd 0.8, beside
-    5.9), so only the runs together show it; one sentence a pair, for the first screen.
-    Problems with contacts are left out: a time step or a penalty stiffness sets those
-    errors, not rtol (the nonsmooth suite's compliant-contact pairs stall by design)."""
+    """Pairs whose error does not shrink with the tolerance while other pairs' does:
+    over ``STALLED_SPAN`` decades of rtol the scd of their trusted runs (ok, no warning)
+    moves by less than one digit, and their best is ``STALLED_BEHIND`` digits behind the
+    best of another pair on the problem (``runs`` prepared). Each run looks fine on its
+    own (a formalism whose pendulum never falls conserves its energy and constraints:
+    its rows were ok at scd 0.8, beside 5.9), so only the runs together show it; one
+    sentence a pair, for the first screen. Runs with warnings say so already; problems
+    with contacts are left out: a time step or a penalty stiffness sets those errors,
+    not rtol (the nonsmooth suite's compliant-contact pairs stall by design)."""
     ok = ok_runs(runs)
-    ok = ok[np.isfinite(pd.to_numeric(ok["scd"], errors="coerce"))]
-    found = []
+    ok = ok[~warned(ok) & np.isfinite(pd.to_numeric(ok["scd"], errors="coerce"))]
+    found = []  # (runs with warnings say so already: a pair left its branch, ...)
     for problem, rows in ok.groupby("problem", sort=False):
         contact = pd.to_numeric(rows.get("penetration_max", pd.Series(dtype=float)), "coerce")
         if contact.notna().any():  # a time step or a penalty stiffness sets the error
