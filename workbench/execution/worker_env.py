@@ -66,7 +66,7 @@ def threads_as_workers() -> Iterator[int]:
     library first loaded meanwhile gets the threads it would have had. For a run in the
     caller's own process (``wb.run`` in a notebook): its timing then matches a sweep's,
     and no BLAS pool's threads, started by the plugins' imports, spin beside the timed
-    integration (a first double-pendulum BDF run took 68 ms of CPU in 35 ms of wall
+    integration (a first double pendulum BDF run took 68 ms of CPU in 35 ms of wall
     time with 2 threads a pool)."""
     count = worker_threads()
     saved = {name: os.environ.get(name) for name in thread_environment(count)}

@@ -324,7 +324,7 @@ def stalled_pairs(runs: pd.DataFrame) -> list[str]:
     its rows were ok at scd 0.8, beside 5.9), so only the runs together show it; one
     sentence a pair, for the first screen. Runs with warnings say so already; problems
     with contacts are left out: a time step or a penalty stiffness sets those errors,
-    not rtol (the nonsmooth suite's compliant-contact pairs stall by design)."""
+    not rtol (the nonsmooth suite's penalty-contact pairs stall by design)."""
     ok = ok_runs(runs)
     ok = ok[~warned(ok) & np.isfinite(pd.to_numeric(ok["scd"], errors="coerce"))]
     found = []  # (runs with warnings say so already: a pair left its branch, ...)
