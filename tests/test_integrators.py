@@ -308,7 +308,11 @@ def test_casadi_idas_starts_from_the_consistent_derivative(problem, rtol):
                    formalism_options={"index": 1})  # fmt: skip
     row = execute_run(spec).row
     assert row["status"] == "ok", row["message"]
-    assert row["scd"] > 5.0
+    # the double pendulum's swings amplify an integration error about 1e3-1e4 times by the
+    # end, by the machine's rounding as much as the method: scd 5.0-6 on two AMD machines,
+    # 4.70 on an Intel Xeon (AVX-512). A start from x' = 0 failed at t = 0; 3 digits hold
+    # on every path this test has met
+    assert row["scd"] > 3.0
 
 
 # (c) casadi-collocation: steps follow rtol; a failed implicit step is reported where it was
