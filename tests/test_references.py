@@ -115,9 +115,9 @@ pipelines' recorded agreement (a second machine's rounding is a second draw of i
 
 def check_reproduced_by_the_stored_pipeline(name: str) -> None:
     """The stored pipeline run again gives the stored poses, within ``REPRODUCED`` times
-    the pipelines' recorded agreement. A change to a formalism's arithmetic (e.g. another factorization) moves the
-    result at round-off times the problem's sensitivity: the stored file must then be
-    remade with its recorded command."""
+    the pipelines' recorded agreement. A change to a formalism's arithmetic (e.g. another
+    factorization) moves the result at round-off times the problem's sensitivity: the
+    stored file must then be remade with its recorded command."""
     stored = recorded(name)
     meta = stored.metadata
     first = meta["pipelines"][meta["stored_pipeline"]]
