@@ -78,8 +78,9 @@ def test_run_refuses_bad_input_in_one_line(fake_plugins) -> None:
 
 
 def test_a_failed_run_is_returned_with_its_reason(fake_plugins) -> None:
-    with pytest.warns(RuntimeWarning, match="test-raise: failed: .*raised"):
+    with pytest.warns(RuntimeWarning, match="test-raise: failed: .*raised") as said:
         result = workbench.run("test-pendulum", "minimal-ode", "test-raise", index=1)
+    assert said[0].filename == __file__  # the caller's line, not contextlib's
     assert result.row["status"] == "failed" and not result.ok
     assert "raised" in result.row["message"]
     with pytest.warns(RuntimeWarning, match="test-rk45: skipped: .*does not support"):

@@ -169,7 +169,7 @@ def run(
     if status not in ("ok", None):  # returned, not raised; said, not only in the repr
         message = outcome.row.get("message") or "no message"
         warnings.warn(f"{spec.problem} / {spec.formalism} / {spec.integrator}: {status}: "
-                      f"{message}", RuntimeWarning, stacklevel=2)  # fmt: skip
+                      f"{message}", RuntimeWarning, stacklevel=3)  # fmt: skip
     return result
 
 
