@@ -18,6 +18,7 @@ import pandas as pd
 from workbench.errors import ConfigError
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.outputs.report.ranking import cheapest_table
+from workbench.outputs.report.tables import HEADERS
 from workbench.outputs.report.trust import ok_runs, warned
 
 STATUSES: tuple[str, ...] = ("ok", "ok with warnings", "failed", "timeout", "skipped")
@@ -257,10 +258,9 @@ def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
 def drift_table_contents(table: pd.DataFrame) -> str:
     """What a :func:`drift_table` holds, for its caption: only the quantities it has a
     column of (a caption named invariant errors where no run measured one)."""
-    maxima = [name for column, name in (("drift_pos_max", "position drift"),
-              ("drift_vel_max", "velocity drift"), ("drift_nh_max", "nonholonomic drift"),
-              ("energy_err_max", "relative energy error"),
-              ("invariant_err_max", "relative invariant error")) if column in table]  # fmt: skip
+    # their headers without 'max' and the unit: 'max position drift [m or rad]'
+    maxima = [HEADERS[c].removeprefix("max ").split(" [")[0] for c in DRIFT_TABLE_COLUMNS
+              if c in table and c.endswith("_max") and not c.startswith("err_")]  # fmt: skip
     parts = []
     if maxima:  # 'largest a, b and c'
         head = ", ".join(maxima[:-1])
