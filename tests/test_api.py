@@ -201,3 +201,35 @@ def test_a_sweep_of_importable_plugins_uses_worker_processes(fake_plugins, tmp_p
     assert api_sweep.local_plugins(spec) == []
     # the pool of two workers ran them (a run in this process says workers 1)
     assert set(frame["workers"]) == {2}
+    # a second sweep into the same folder returns its own run only, not the first's two
+    second = workbench.sweep(
+        {"plugins": ["tests.fake_plugins"], "jobs": 2, "repeats": 1},
+        problems=["test-pendulum"],
+        formalisms=[{"name": "minimal-ode", "options": {"index": 1}}],
+        integrators=["test-rk45"],
+        tolerances=[1e-5],
+        out=tmp_path,
+    )
+    assert second["rtol"].tolist() == [1e-5]
+    assert len(workbench.load_results(tmp_path)) == 3
+    in_process = workbench.sweep(
+        {"plugins": ["tests.fake_plugins"], "repeats": 1},
+        problems=["test-pendulum"],
+        formalisms=[{"name": "minimal-ode", "options": {"index": 1}}],
+        integrators=["test-rk45"],
+        tolerances=[1e-4, 1e-7],
+        out=tmp_path,
+        in_process=True,
+    )
+    assert sorted(in_process["rtol"]) == [1e-7, 1e-4]  # the 1e-4 run done before, kept
+    # its report and paper folder from Python, as `workbench report` / `paper` make them
+    index = workbench.report(tmp_path, cost="n_rhs")
+    assert index == tmp_path / "report" / "index.html"
+    assert "test-pendulum" in index.read_text()
+    main = workbench.paper(tmp_path, tmp_path / "my-paper", compile=False)
+    assert main == tmp_path / "my-paper" / "main.tex"
+    assert "\\begin{document}" in main.read_text()
+    with pytest.raises(ConfigError, match="unknown cost measure 'cpu'"):
+        workbench.report(tmp_path, cost="cpu")
+    with pytest.raises(ConfigError, match="no results folder or file"):
+        workbench.report(tmp_path / "missing")

@@ -27,8 +27,10 @@ API = (
     "load_results",
     "load_series",
     "load_trajectory",
+    "paper",
     "plot_work_precision",
     "record",
+    "report",
     "run",
     "sweep",
 )

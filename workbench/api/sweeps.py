@@ -45,14 +45,16 @@ def sweep(
     wait: bool = False,
     **keys: Any,
 ) -> pd.DataFrame:
-    """Run a sweep and return its results frame (as ``workbench.load_results``).
+    """Run a sweep and return its runs' rows (the frame ``workbench.load_results`` gives).
 
     ``spec``: a sweep specification file, a suite name (``"iftomm"``), a dict of its keys,
     or None; ``keys`` add or replace keys (``problems=[...]``, ``formalisms=[...]``,
     ``integrators=[...]``, ``tolerances=[...]``, ``jobs=2``, ``store_trajectories=False``;
     see the sweep specification's keys). In the three lists a plugin class may stand for
     its name (registered if it is not). ``out``: the results directory (default the
-    specification's ``out``); runs already there are not redone unless ``fresh``.
+    specification's ``out``, ``reports/latest`` under the current folder without one); runs
+    already there are not redone unless ``fresh``, and are returned with the new ones; rows
+    of other sweeps in the same ``out`` are not returned (``load_results(out)`` gives all).
     ``progress``: called as ``progress(done, total)`` after each run, or a tqdm-like bar
     (an object with ``update``: its ``total`` is set and it advances one a run).
     ``in_process``: run here instead of in worker processes (default: only when a
@@ -89,15 +91,26 @@ def sweep(
     local = local_plugins(parsed)
     here = bool(local) if in_process is None else in_process
     callback = _progress(progress)
+    rows = None
     if here:
         with out_lock(parsed.out, wait=wait, command="workbench.sweep (Python)"):
             run_here(parsed, callback, fresh)
     else:
         summary = run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
                             say=lambda line: None, wait=wait)  # fmt: skip
-        if summary.rows is not None:  # what the consolidation read: not read again
-            return summary.rows
-    return store.load_results(parsed.out)
+        rows = summary.rows  # what the consolidation read: not read again
+    if rows is None:
+        rows = store.load_results(parsed.out)
+    return this_sweeps_rows(rows, parsed)
+
+
+def this_sweeps_rows(rows: pd.DataFrame, sweep: SweepSpec) -> pd.DataFrame:
+    """The rows of ``sweep``'s runs, in the order of the folder's table: an ``out`` may hold
+    other sweeps' runs, which a notebook's plot of this sweep must not mix in."""
+    if rows.empty or "run_id" not in rows:
+        return rows
+    ours = {spec.run_id for spec in sweep.runs}
+    return rows[rows["run_id"].isin(ours)].reset_index(drop=True)
 
 
 def record(
