@@ -262,3 +262,24 @@ def test_dash_o_is_option_everywhere_and_the_old_output_directory_is_refused(
     for name in ("sweep", "report"):
         shown = runner.invoke(cli.app, [name, "--help"]).stdout
         assert "--out" in shown and not re.search(r"\s-o\s", shown), name
+
+
+
+def test_all_names_the_broken_plugin_it_leaves_out(runner, tmp_path, monkeypatch):
+    from workbench.plugin.registry import REGISTRY, PluginInfo
+    from workbench.runs.sweep_spec import parse_spec
+
+    REGISTRY.discover()
+    broken = PluginInfo("formalism", "half-done", None, "half_done", "...", "ImportError: libfoo")
+    monkeypatch.setitem(REGISTRY.entries["formalism"], "half-done", broken)
+    text = 'problems = ["simple-pendulum"]\nformalisms = "all"\ntolerances = [1e-6]\n'
+    with pytest.warns(UserWarning, match=r"formalisms = \"all\" leaves out the broken "
+                      r"formalism plugin half-done \(ImportError: libfoo\)"):  # fmt: skip
+        spec = parse_spec(text + f'integrators = ["scipy-dop853"]\nout = "{tmp_path}"\n')
+    assert "minimal-ode" in {run.formalism for run in spec.runs}
+    # the CLI says it on one line of stderr, also when the sweep is then refused
+    (tmp_path / "bad.toml").write_text(text + 'integrators = ["no-such-integrator"]\n')
+    result = runner.invoke(cli.app, ["sweep", str(tmp_path / "bad.toml")])
+    assert result.exit_code == 2, result.output
+    assert "warning: formalisms = \"all\" leaves out the broken formalism plugin " in result.stderr
+    assert "no-such-integrator" in result.stderr and "Traceback" not in result.output

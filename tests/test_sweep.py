@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -218,6 +219,17 @@ def test_no_report_writes_the_rows_and_says_how_to_write_the_report(fake_plugins
     older = out / "report" / "index.html"
     assert f"{older} is not current: other rows or code made it" in result.output
     assert len(store.load_results(out)) == 4
+    assert "why runs failed" not in result.output  # none did
+    # a sweep with failed runs names the command that lists them with their reasons
+    spec.write_text(spec_text(tmp_path / "failing", '["test-raise"]'))
+    result = runner.invoke(app, ["sweep", str(spec), "--no-report", "--no-recording"])
+    assert "(0 ok, 2 failed" in result.output, result.output
+    line = next(x for x in result.output.splitlines() if x.startswith("why runs failed"))
+    command = shlex.split(line.split(": ", 1)[1])
+    assert command[:2] == ["workbench", "results"]
+    listed = runner.invoke(app, command[1:])
+    assert listed.exit_code == 0, listed.output
+    assert listed.output.count("raised") == 2 and "The 2 runs in" in listed.output
 
 
 @pytest.mark.parametrize(

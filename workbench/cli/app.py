@@ -10,7 +10,8 @@ Tables go through :func:`console` (rich); plain messages through ``typer.echo``.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Annotated, Any
 
 import click
@@ -168,6 +169,22 @@ def refuse_short_out(value: str | None, command: str) -> None:
             f"{command}: -o is --option NAME=VALUE (workbench run, describe); the output "
             f"directory is --out: {command} ... --out {value}"
         )
+
+
+@contextmanager
+def warnings_on_stderr() -> Iterator[None]:
+    """Python warnings raised inside (unreadable rows, plugins left out), one line each on
+    stderr when it ends, however it ends: not Python's two-line form naming our source."""
+    import warnings
+
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield
+    finally:
+        for warning in caught:
+            typer.echo(f"warning: {warning.message}", err=True)
 
 
 def console() -> Console:

@@ -43,9 +43,7 @@ def _write_report(
 ) -> Any:
     """The report of RESULTS (under its lock when it is a folder: not while a sweep writes
     it, no link in it), its warnings one line each on stderr; returns its index.html."""
-    import warnings
-
-    from workbench.cli.app import on_interrupt
+    from workbench.cli.app import on_interrupt, warnings_on_stderr
     from workbench.outputs.report import report_directory
     from workbench.outputs.report.cost import check_cost
 
@@ -60,11 +58,8 @@ def _write_report(
             f"run `workbench {command} {' '.join(sys.argv[2:]) or results_path}` again"
         )
     )
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings_on_stderr():
         index = report_directory(results_path, out, cost=cost, paper=paper)
-    for warning in caught:
-        typer.echo(f"warning: {warning.message}", err=True)
     typer.echo(f"report: {index}")
     return index
 

@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import shlex
 import sys
 from typing import Annotated, Any
 
 import typer
 from rich.table import Table
 
-from workbench.cli.app import app, console, option_value, refuse_short_out
+from workbench.cli.app import (
+    app,
+    console,
+    option_value,
+    refuse_short_out,
+    warnings_on_stderr,
+)
 from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.execution.timing import (
@@ -329,7 +336,8 @@ def sweep(
         check_scheduler_address(scheduler)  # before OUT is made
     kinds = parse_rerun(rerun)
     # None: unless WORKBENCH_NO_LOCAL_PLUGINS is set
-    loaded = load_spec(spec, plugins or [], False if no_local_plugins else None)
+    with warnings_on_stderr():  # "all" leaving out a broken plugin
+        loaded = load_spec(spec, plugins or [], False if no_local_plugins else None)
     _say_on_interrupt(loaded, out)
     hold_out_lock(ctx, out or loaded.out, wait)  # the report below too
     from workbench.outputs.recording import SweepRecorder
@@ -359,6 +367,12 @@ def sweep(
         )
     )
     typer.echo(f"results: {summary.out}/ (workbench results {summary.out})")
+    if summary.counts["failed"] or summary.counts["timeout"]:
+        typer.echo(
+            f"why runs failed or timed out: workbench results {shlex.quote(str(summary.out))} "
+            '--by run --where "status!=ok" --where "status!=skipped" '
+            "--columns problem,pair,rtol,status,message"
+        )
     from workbench.outputs.report import current_report, kept_cost, report_directory
 
     kept = " (unchanged: made from the same rows)"
@@ -504,12 +518,9 @@ def _sweep_report(summary: Any, report_directory: Any, cost: str | None) -> Any:
     """The sweep's report (its warnings one line each on stderr); a report that cannot be
     finished (e.g. a figure worker killed twice) is one line and exit 1: the rows are
     kept and ``workbench report OUT`` rebuilds it."""
-    import warnings
-
     from workbench.errors import WorkbenchError, one_line
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings_on_stderr():
         try:
             index = report_directory(
                 summary.out,
@@ -528,8 +539,6 @@ def _sweep_report(summary: Any, report_directory: Any, cost: str | None) -> Any:
                 err=True,
             )
             raise typer.Exit(1) from None
-    for warning in caught:
-        typer.echo(f"warning: {warning.message}", err=True)
     return index
 
 
@@ -589,8 +598,6 @@ def results(
     ] = "table",
 ) -> None:
     """Print a sweep's results: a line a problem (or --by pair, --by run), filtered and sorted."""
-    import warnings
-
     from workbench.errors import ConfigError
     from workbench.outputs.report.analysis import prepare_results
     from workbench.outputs.report.cost import resolve_cost
@@ -607,11 +614,8 @@ def results(
 
     if fmt not in FORMATS:
         raise ConfigError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings_on_stderr():
         frame = load_results(path)
-    for warning in caught:
-        typer.echo(f"warning: {warning.message}", err=True)
 
     def split(text: str | None) -> list[str]:
         return [item.strip() for item in (text or "").split(",") if item.strip()]

@@ -62,6 +62,7 @@ import re
 import reprlib
 import sys
 import tomllib
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from importlib import resources
@@ -458,7 +459,17 @@ def _plan(
     if all_entry is not None:
         all_options, all_key, all_rtols = all_entry
         declared: set[str] = set()
-        for info in registry.list_plugins(kind):
+        plugins = registry.list_plugins(kind)
+        broken = [info for info in plugins if info.plugin is None]
+        if broken:  # "all" is every working one: say which were left out, and why
+            warnings.warn(
+                f'{key} = "all" leaves out the broken {kind} plugin'
+                f"{'s' if len(broken) > 1 else ''} "
+                + "; ".join(f"{info.name} ({info.error_line})" for info in broken)
+                + " (`workbench list` shows why)",
+                stacklevel=2,
+            )  # fmt: skip
+        for info in plugins:
             if info.plugin is not None:
                 fields = _option_names(info.plugin)
                 declared |= fields
