@@ -73,6 +73,8 @@ def test_run_gives_the_row_the_named_trajectory_and_plots(fake_plugins, tmp_path
 def test_run_refuses_bad_input_in_one_line(fake_plugins) -> None:
     with pytest.raises(ConfigError, match="no_such_option=: no option of that name"):
         workbench.run("test-pendulum", "minimal-ode", "test-rk45", no_such_option=1)
+    with pytest.raises(ConfigError, match=r"indx=: no option .* \(did you mean index\?\)"):
+        workbench.run("test-pendulum", "minimal-ode", "test-rk45", indx=1)
     with pytest.raises(workbench.WorkbenchError, match="did you mean"):
         workbench.run("test-pendulum", "minimal-odee", "test-rk45")
 

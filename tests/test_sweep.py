@@ -369,6 +369,11 @@ def test_run_and_results_commands(fake_plugins, tmp_path) -> None:
         app, ["run", "test-pendulum", "-f", "minimal-ode", "-i", "test-rk4", "-o", "nonsense=1"]
     )
     assert result.exit_code == 2 and "nonsense" in result.output
+    result = runner.invoke(
+        app, ["run", "test-pendulum", "-f", "minimal-ode", "-i", "test-rk4", "-o", "indx=1"]
+    )
+    assert result.exit_code == 2 and "-o indx: no option" in result.output
+    assert "(did you mean index?)" in result.output
     result = runner.invoke(app, ["results", str(tmp_path)])
     assert result.exit_code == 0 and "test-pendulum" in result.output
 

@@ -16,7 +16,7 @@ from workbench.execution.timing import DEFAULT_REPEAT_BUDGET, DEFAULT_REPEATS, T
 from workbench.execution.worker_env import threads_as_workers
 from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
-from workbench.plugin.options import option_fields
+from workbench.plugin.options import option_fields, unknown_option
 from workbench.runs import store
 from workbench.runs.out_lock import out_lock
 
@@ -53,8 +53,7 @@ def route_options(classes: dict[str, type], options: dict[str, Any]) -> dict[str
                 break
         else:
             raise ConfigError(
-                f"{option}=: no option of that name in the problem, formalism or integrator; "
-                "see workbench.describe(NAME)"
+                f"{option}=: {unknown_option(option, classes)}; see workbench.describe(NAME)"
             )
     return routed
 

@@ -26,7 +26,7 @@ from workbench.execution.timing import (
     check_repeats,
 )
 from workbench.plugin import registry
-from workbench.plugin.options import option_fields
+from workbench.plugin.options import option_fields, unknown_option
 
 
 def _run_options(assignments: list[str]) -> dict[str, dict[str, Any]]:
@@ -72,8 +72,7 @@ def _assign_options(parsed: dict[str, dict[str, Any]], classes: dict[str, type])
                 break
         else:
             raise ConfigError(
-                f"-o {option}: no option of that name in the problem, formalism or integrator; "
-                "see `workbench describe NAME`"
+                f"-o {option}: {unknown_option(option, classes)}; see `workbench describe NAME`"
             )
 
 

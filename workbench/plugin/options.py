@@ -38,6 +38,20 @@ def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
     return rows
 
 
+def unknown_option(option: str, classes: Mapping[str, type]) -> str:
+    """Why ``option`` (given without its plugin's kind) is refused: no plugin of ``classes``
+    (kind -> plugin class) declares it, with the close names that some do declare."""
+    names = [
+        name
+        for plugin in classes.values()
+        if getattr(plugin, "Options", None) is not None
+        for name, _, _ in option_fields(plugin.Options)
+    ]
+    close = difflib.get_close_matches(option, list(dict.fromkeys(names)), n=3)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    return f"no option of that name in the problem, formalism or integrator{hint}"
+
+
 @functools.cache
 def _type_hints(options_class: type) -> dict[str, Any]:
     """``typing.get_type_hints`` of an options class, once: it evaluates the string
