@@ -101,3 +101,16 @@ def test_labels_and_title_fit_in_the_figure(free, plot) -> None:
         extent = label.get_window_extent()
         assert extent.y0 >= box.y0 and extent.y1 <= box.y1, label.get_text()
         assert extent.x0 >= box.x0 and extent.x1 <= box.x1, label.get_text()
+
+
+def test_two_plots_side_by_side_keep_their_titles_apart(free) -> None:
+    """A notebook's ``fig, (a, b) = plt.subplots(1, 2)``: the titles name the run and do
+    not run into each other (on one line, each was 515 px wide over a 225 px panel)."""
+    figure, (left, right) = plt.subplots(1, 2)
+    free.plot(ax=left)
+    free.plot_energy(ax=right)
+    figure.canvas.draw()
+    first, second = left.title.get_window_extent(), right.title.get_window_extent()
+    assert first.x1 < second.x0
+    for part in ("double-pendulum", "recursive / scipy-dop853", "rtol 1e-06"):
+        assert part in left.title.get_text() and part in right.title.get_text()

@@ -119,7 +119,7 @@ class Result:
         for name in names:
             ax.plot(trajectory["t"], trajectory[name], label=name)
         ax.set_xlabel("t [s]")
-        ax.set_title(_title(self.row))
+        ax.set_title(_plot_title(self.row))
         if len(names) <= 12:
             ax.legend(fontsize="small")
         return ax
@@ -173,6 +173,12 @@ def _title(row: pd.Series) -> str:
     return f"{row['problem']} / {row['formalism']} / {row['integrator']} @ rtol {row['rtol']:g}"
 
 
+def _plot_title(row: pd.Series) -> str:
+    """The run on two lines: two plots side by side in a default figure keep their titles
+    apart (on one line each overran its neighbour)."""
+    return f"{row['problem']}, rtol {row['rtol']:g}\n{row['formalism']} / {row['integrator']}"
+
+
 def _text(value: Any) -> str:
     if isinstance(value, float):
         return "" if math.isnan(value) else f"{value:.4g}"
@@ -211,7 +217,7 @@ def _plot_series(result: Result, columns: list[str], label: str, ax: Any) -> Any
     ax.set_yscale("log")
     ax.set_xlabel("t [s]")
     ax.set_ylabel(label)
-    ax.set_title(_title(result.row))
+    ax.set_title(_plot_title(result.row))
     handles, labels = ax.get_legend_handles_labels()
     if handles:  # a column not drawn gets a legend line that says why, without a handle
         from matplotlib.lines import Line2D
