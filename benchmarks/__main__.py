@@ -94,7 +94,9 @@ def targets() -> list[Row]:
                             else "wall time grows with the load; CPU below"))  # fmt: skip
             if "compile_cpu_s" in spatial:
                 rows.append(Row("compile CPU time, spatial chain N = 50 (s, gcc included)",
-                                spatial.loc[50, "compile_cpu_s"], 2.0))  # fmt: skip
+                                spatial.loc[50, "compile_cpu_s"], 2.0,
+                                note="one compile; peers.csv: the Zen 5, 2026-11-25"))  # fmt: skip
+    rows += compile_rows()
     general = RESULTS / "peers_general.csv"
     if general.exists():
         for row in pd.read_csv(general).to_dict("records"):
@@ -346,6 +348,26 @@ def _measured_on(row: pd.Series) -> str:
     """'; <cpu>, <date>' of a benchmark's row where it names them (older files do not)."""
     where = [str(row[k]) for k in ("cpu", "date") if isinstance(row.get(k), str)]
     return "; " + ", ".join(where) if where else ""
+
+
+def compile_rows() -> list[Row]:
+    """The N = 50 chain's cold compiles (``python -m benchmarks.compile_time``), a line a
+    machine: the median CPU seconds and their range."""
+    table = RESULTS / "compile_time.csv"
+    if not table.exists():
+        return []
+    rows = []
+    for (model, cpu, l2), group in pd.read_csv(table).groupby(["model", "cpu", "l2_kib"]):
+        seconds = group["compile_cpu_s"]
+        loads = pd.concat([group["load1_before"], group["load1_after"]])
+        rows.append(Row(
+            f"compile CPU time, {model}, cold (s, gcc included; L2 {l2} KiB)",
+            float(seconds.median()), 2.0, low=float(seconds.min()), high=float(seconds.max()),
+            interval=f"{len(group)} compiles",
+            note=f"{cpu}, {', '.join(sorted(set(group['date'])))}; load "
+            f"{loads.min():.1f}-{loads.max():.1f}",
+        ))  # fmt: skip
+    return rows
 
 
 def paired_rows() -> list[Row]:
