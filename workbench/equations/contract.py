@@ -64,6 +64,39 @@ class MechanicalSystem:
             self.position_constraints = zero
         if self.velocity_constraints is None:
             self.velocity_constraints = zero
+        self._check_shapes()
+
+    def _check_shapes(self) -> None:
+        """PluginError naming the first field whose shape does not fit q and v: a field of
+        the wrong size met CasADi only later, as an assertion from its C++ source."""
+        nq, nv = _column_length("q", self.q), _column_length("v", self.v)
+        m = _column_length("position_constraints", self.position_constraints)
+        expected = [("t", self.t, (1, 1), "a scalar"), ("qdot", self.qdot, (nq, 1), f"nq = {nq}"),
+                    ("mass", self.mass, (nv, nv), f"nv x nv = {nv} x {nv}"),
+                    ("forces", self.forces, (nv, 1), f"nv = {nv}")]  # fmt: skip
+        if self.acceleration is not None:
+            expected.append(("acceleration", self.acceleration, (nv, 1), f"nv = {nv}"))
+        for name, value, shape, what in expected:
+            actual = _shape(name, value)
+            if actual != shape and actual[0] * actual[1] + shape[0] * shape[1] > 0:
+                raise PluginError(f"MechanicalSystem.{name} {_shape_text(value)}, expected {what}")
+        rows = _column_length("velocity_constraints", self.velocity_constraints)
+        columns = _shape("velocity_constraints", self.velocity_constraints)[1] if rows else 1
+        if rows < m or columns != 1:
+            raise PluginError(
+                f"MechanicalSystem.velocity_constraints {_shape_text(self.velocity_constraints)}"
+                f", expected a column of at least the {m} position constraints' time derivatives"
+            )
+        for name, names, size in (("q_names", self.q_names, nq), ("v_names", self.v_names, nv)):
+            if len(names) != size:
+                raise PluginError(
+                    f"MechanicalSystem.{name} has {len(names)} names, expected {size}"
+                )
+        if self.constraint_names and len(self.constraint_names) != rows:
+            raise PluginError(
+                f"MechanicalSystem.constraint_names has {len(self.constraint_names)} names, "
+                f"expected one a velocity constraint ({rows})"
+            )
 
     @property
     def n_holonomic(self) -> int:
@@ -72,6 +105,32 @@ class MechanicalSystem:
     @property
     def n_constraints(self) -> int:
         return int(self.velocity_constraints.numel())
+
+
+def _shape(name: str, value: Any) -> tuple[int, int]:
+    """(rows, columns) of an expression or array (a 1-D array is a column)."""
+    shape = getattr(value, "shape", None)
+    if shape is None or len(shape) > 2:
+        raise PluginError(
+            f"MechanicalSystem.{name} is {type(value).__name__}, expected a CasADi expression"
+        )
+    return (tuple(shape) + (1, 1))[:2] if len(shape) < 2 else (shape[0], shape[1])
+
+
+def _shape_text(value: Any) -> str:
+    rows, columns = _shape("", value)
+    return f"has {rows} rows" if columns == 1 else f"is {rows} x {columns}"
+
+
+def _column_length(name: str, value: Any) -> int:
+    """The length of a column vector (an empty expression of any shape: 0); PluginError
+    for anything else."""
+    rows, columns = _shape(name, value)
+    if rows * columns == 0:
+        return 0
+    if columns != 1:
+        raise PluginError(f"MechanicalSystem.{name} is {rows} x {columns}, expected a column")
+    return rows
 
 
 @dataclass
