@@ -56,7 +56,12 @@ import casadi as ca
 import numpy as np
 
 from workbench.errors import ConfigError
-from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.integrator import (
+    IntegrationTask,
+    Integrator,
+    Trajectory,
+    nonfinite_after,
+)
 from workbench.plugin.registry import integrator
 
 
@@ -197,8 +202,14 @@ class CasadiBase(Integrator):
                 _, result, _ = self.run(task, layout, times)
         if result is None:
             trajectory.times, trajectory.y = task.times[:1], task.y0[None, :].copy()
-            return
-        trajectory.times, trajectory.y = times, self.states(result, layout, n)
+        else:
+            trajectory.times, trajectory.y = times, self.states(result, layout, n)
+        if error is not None and hasattr(task.form, "rhs"):  # an ode: y' = f(t, y) to probe
+            reached, rhs = trajectory.y[-1], task.form.rhs.function  # no solver cost counted
+            end = float(task.times[min(trajectory.times.size, task.times.size - 1)])
+            trajectory.message += nonfinite_after(
+                "right-hand side", lambda t: rhs(t, reached), float(trajectory.times[-1]), end
+            )
 
     @staticmethod
     def unknown_stats(trajectory: Trajectory) -> None:

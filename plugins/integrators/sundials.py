@@ -26,6 +26,8 @@ exposed (-1).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
@@ -34,7 +36,12 @@ from sksundae.cvode import CVODE
 from sksundae.ida import IDA
 
 from workbench.errors import ConfigError
-from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.integrator import (
+    IntegrationTask,
+    Integrator,
+    Trajectory,
+    nonfinite_after,
+)
 from workbench.plugin.registry import integrator
 
 ALGEBRAIC_ATOL = 1e10  # error weight 1 / (rtol |y| + atol) ~ 0: out of the error test
@@ -72,10 +79,33 @@ def _common_options(task: IntegrationTask, highest_order: int) -> dict[str, Any]
     }
 
 
+class LastValue:
+    """The latest evaluation of the equations (its time and the function's own output
+    array, overwritten by each call: nothing copied), to say after a failure whether they
+    had turned NaN or infinite, which the solver does not say (it names its own symptom:
+    step size underflow); else they are probed after the time reached (``nonfinite_after``)."""
+
+    def __init__(self, what: str, evaluate: Callable[[float, Any], np.ndarray]) -> None:
+        self.what, self.evaluate = what, evaluate  # evaluate(t, the solver's result)
+        self.t, self.value = math.nan, None
+
+    def note(self, result: Any, t_end: float) -> str:
+        if self.value is not None and not np.isfinite(self.value).all():
+            return f" (the {self.what} was NaN or infinite at t = {self.t:.6g})"
+        probe = lambda t: self.evaluate(t, result)  # noqa: E731
+        return nonfinite_after(self.what, probe, float(result.t), t_end)
+
+
 def _march(
-    solver: Any, task: IntegrationTask, trajectory: Trajectory, name: str, y0: np.ndarray
+    solver: Any,
+    task: IntegrationTask,
+    trajectory: Trajectory,
+    name: str,
+    y0: np.ndarray,
+    last: LastValue,
 ) -> None:
-    """Step one accepted step at a time to times[-1], interpolating every output passed."""
+    """Step one accepted step at a time to times[-1], interpolating every output passed;
+    a failure's message says when ``last`` was NaN or infinite."""
     times = task.times
     rows, reached = [np.array(y0, dtype=float)], [times[0]]
     k, steps, t_last, replay = 1, 0, float(times[0]), False
@@ -90,6 +120,7 @@ def _march(
         if not result.success:
             trajectory.success = False
             trajectory.message = f"{name}: at t = {float(result.t):g}: {result.message}"
+            trajectory.message += last.note(result, float(times[-1]))
             break
         if not np.all(np.isfinite(result.y)):
             # NaN fails every comparison, so the error test passes it: stop here ourselves
@@ -103,6 +134,7 @@ def _march(
         if result.t <= t_last:
             trajectory.success = False
             trajectory.message = f"{name}: no progress at t = {t_last:g} (step size underflow)"
+            trajectory.message += last.note(result, float(times[-1]))
             break
         steps, t_last = steps + 1, float(result.t)
         while k < len(times) and times[k] <= result.t:
@@ -125,9 +157,11 @@ class CvodeBase(Integrator):
 
     def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
         rhs, jacobian = task.form.rhs, task.form.jacobian
+        last = LastValue("right-hand side", lambda t, result: rhs.into(t, result.y)[0])
 
         def rhsfn(t: float, y: np.ndarray, yp: np.ndarray) -> None:
-            yp[:] = rhs.into(t, y)[0]
+            last.t, last.value = t, rhs.into(t, y)[0]
+            yp[:] = last.value
 
         def jacfn(t: float, y: np.ndarray, yp: np.ndarray, jj: np.ndarray) -> None:
             jj[:, :] = jacobian.into(t, y)[0]
@@ -139,7 +173,7 @@ class CvodeBase(Integrator):
             **_common_options(task, 5 if self.method == "BDF" else 12),
         )
         solver.init_step(task.times[0], task.y0)
-        _march(solver, task, trajectory, self.name, task.y0)
+        _march(solver, task, trajectory, self.name, task.y0, last)
         trajectory.stats.n_rejected = -1
 
 
@@ -170,8 +204,11 @@ class Ida(Integrator):
         algebraic = np.flatnonzero(form.algebraic)
         setups = [0]  # IDA evaluates the Jacobian at each linear setup
 
+        last = LastValue("residual", lambda t, result: residual.into(t, result.y, result.yp)[0])
+
         def resfn(t: float, y: np.ndarray, yp: np.ndarray, res: np.ndarray) -> None:
-            res[:] = residual.into(t, y, yp)[0]
+            last.t, last.value = t, residual.into(t, y, yp)[0]
+            res[:] = last.value
 
         def jacfn(
             t: float, y: np.ndarray, yp: np.ndarray, res: np.ndarray, cj: float, jj: np.ndarray
@@ -198,6 +235,6 @@ class Ida(Integrator):
             trajectory.success = False
             trajectory.message = f"{self.name}: initial conditions: {start.message}"
             return
-        _march(solver, task, trajectory, self.name, start.y)
+        _march(solver, task, trajectory, self.name, start.y, last)
         trajectory.stats.n_lu = setups[0]
         trajectory.stats.n_rejected = -1

@@ -148,6 +148,22 @@ def check_tolerances(rtol: Any, atol: Any) -> None:
             raise ConfigError(f"{name}: {problem}")
 
 
+def nonfinite_after(what: str, evaluate: Any, t: float, t_end: float) -> str:
+    """After a failed integration: whether the equations are NaN or infinite just after the
+    time ``t`` reached, which an adaptive solver reports only as its own symptom (step size
+    underflow, too much work). ``evaluate(t')`` gives the equations' values at the state
+    reached; they are probed at 13 times from t + 1e-12 (t_end - t) to t_end. Returns
+    " (the WHAT is NaN or infinite after t = ...: at t = ... + ..., from the state
+    reached)" to append to the failure's message, or "" where every probe is finite."""
+    for step in (t_end - t) * np.logspace(-12, 0, 13):
+        if not np.isfinite(np.asarray(evaluate(t + step), dtype=float)).all():
+            return (
+                f" (the {what} is NaN or infinite after t = {t:g}: at t = {t:g} + "
+                f"{step:.2g}, from the state reached)"
+            )
+    return ""
+
+
 class Integrator:
     """Base class of integrator plugins (see the module docstring)."""
 
