@@ -1,6 +1,9 @@
 """The conformance suite (workbench.testing) passes the real plugins and catches wrong
 ones, naming the check, the problem and the size of the error."""
 
+import math
+
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -58,6 +61,21 @@ class WrongJacobian(MinimalOde):
         jacobian = equations.forms["ode"].jacobian
         equations.forms["ode"].jacobian = lambda t, y: (2.0 * jacobian(t, y)[0],)
         return equations
+
+
+class LateNan(MinimalOde):
+    """minimal-ode whose forces turn NaN after t = 0.5 s (beyond the kit's short run)."""
+
+    name = "test-late-nan"
+    summary = "minimal-ode with NaN forces after 0.5 s (test)"
+
+    def build(self, model, options=None):
+        options = self.parse_options(options)
+        kinematics = TreeKinematics(model)
+        system = minimal_mechanical_system(model, kinematics)
+        system.forces = system.forces + ca.if_else(system.t > 0.5, math.nan, 0.0)
+        ode = system.n_constraints == 0 or options.index == 1
+        return build_joint_space_equations(self.name, model, kinematics, system, options, ode)
 
 
 def failure(report, check, problem=""):
@@ -222,3 +240,16 @@ def test_command_line_prints_the_report_and_exits_1_on_failure(register, capsys)
     out = capsys.readouterr().out
     assert "FAIL  accelerations" in out and "simple-pendulum" in out
     assert main(["formalism", "nope"]) == 2
+
+
+def test_the_summary_says_over_what_span_the_trajectory_was_checked(register):
+    """A formalism whose forces turn NaN after 0.5 s passes the kit's 0.2 s run and fails
+    every run of a sweep: the summary says how far its PASS reaches."""
+    register("formalism", LateNan)
+    report = check_formalism("test-late-nan", ["double-pendulum"])
+    assert report.ok, str(report)
+    span = "trajectory checked over 0.2 s, not a run's whole time span"
+    assert report.summary().endswith(f"0 failed, 0 skipped; {span}")
+    longer = check_formalism("test-late-nan", ["double-pendulum"], checks=["motion"], horizon=0.4)
+    assert "trajectory checked over 0.4 s" in longer.summary()
+    assert "checked over" not in check_formalism("test-late-nan", checks="structural").summary()

@@ -10,6 +10,7 @@ a plugin module first, as ``workbench run`` does: an installed module, or a modu
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -63,7 +64,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     shown = report.failures if args.failures else report.results
-    print("\n".join([report.summary(), *(r.line() for r in shown)]))
+    try:
+        print("\n".join([report.summary(), *(r.line() for r in shown)]), flush=True)
+    except BrokenPipeError:  # `... | head` had what it wanted: end quietly (exit 1), as
+        # `workbench` does (Click's way); stdout to /dev/null, so exit has nothing to flush
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     return 0 if report.ok else 1
 
 

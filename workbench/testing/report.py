@@ -52,6 +52,7 @@ class ConformanceReport:
     kind: str
     subject: str
     results: list[CheckResult] = field(default_factory=list)
+    span: float = math.nan  # s of the motion checks' run, said by the summary (NaN: none)
 
     def add(
         self,
@@ -88,10 +89,13 @@ class ConformanceReport:
 
     def summary(self) -> str:
         counts = {s: sum(r.status == s for r in self.results) for s in ("pass", "fail", "skip")}
-        return (
+        text = (
             f"{self.kind} {self.subject!r}: {counts['pass']} passed, {counts['fail']} failed, "
             f"{counts['skip']} skipped"
         )
+        if math.isnan(self.span):
+            return text
+        return f"{text}; trajectory checked over {self.span:g} s, not a run's whole time span"
 
     def __str__(self) -> str:
         return "\n".join([self.summary(), *(r.line() for r in self.results)])
