@@ -12,7 +12,7 @@ class Unprintable(Exception):
 
 def test_lines_are_joined_after_the_type_name() -> None:
     assert one_line(ValueError("first\n\n  second  \n")) == "ValueError: first | second"
-    assert one_line(ConfigError("bad\nvalue")) == "workbench.errors.ConfigError: bad | value"
+    assert one_line(ConfigError("bad\nvalue")) == "ConfigError: bad | value"
     assert one_line(KeyError("k")) == "KeyError: 'k'"
     assert one_line(ValueError()) == "ValueError"
 

@@ -165,11 +165,9 @@ def workbench(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 
 def test_a_sweep_of_an_attacking_robot_keeps_the_outside_bytes_out(box, tmp_path):
-    """End to end: a sweep of a URDF whose mesh leads outside through a symbolic link
-    records the run as failed with the one-line refusal, and no file under OUT (rows,
-    series, logs, recordings, report) holds a byte of the outside file."""
-    from workbench.runs.store import load_results
-
+    """End to end: a sweep of a URDF whose mesh leads outside through a symbolic link is
+    refused before any run, in one line naming the refusal (exit 2; it used to run and
+    record every run as failed), and no file it wrote holds a byte of the outside file."""
     robot, _ = box
     (robot / "robot.urdf").write_text(urdf("link.stl"))
     spec = tmp_path / "spec.toml"
@@ -178,12 +176,11 @@ def test_a_sweep_of_an_attacking_robot_keeps_the_outside_bytes_out(box, tmp_path
         'integrators = ["scipy-dop853"]\ntolerances = [1e-4]\nout = "OUT"\n'
     )
     result = workbench("sweep", str(spec), cwd=tmp_path)
-    assert "Traceback" not in result.stderr, result.stderr
-    (row,) = load_results(tmp_path / "OUT").to_dict("records")
-    assert row["status"] == "failed" and "link.stl" in row["message"], row["message"]
-    assert "through a symbolic link" in row["message"] and "outside" in row["message"]
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "link.stl" in result.stderr
+    assert "through a symbolic link" in result.stderr and "outside" in result.stderr
     files = [path for path in (tmp_path / "OUT").rglob("*") if path.is_file()]
-    assert files and not [path for path in files if SECRET.encode() in path.read_bytes()]
+    assert not [path for path in files if SECRET.encode() in path.read_bytes()]
 
 
 def test_the_command_line_names_package_roots_and_allowed_folders(box, tmp_path):

@@ -84,6 +84,24 @@ tolerances = [1e-6]
         parse_spec(text.replace('mjcf = "robots/arm.xml"', 'urdf = "robots/gone.urdf"'), str(spec))
     with pytest.raises(ConfigError, match="not a URDF file"):
         parse_spec(text.replace("mjcf =", "urdf ="), str(spec))
+    # a file that does not read as a model, or a q0 naming no joint of it: refused before
+    # any run (each run failed with it, and the sweep ended with exit code 0)
+    with pytest.raises(ConfigError, match=r"line 1: problems\[0\]\.options: .*'elbw' is not a "
+                       r"joint of arm.xml \(its joints: .*elbow"):  # fmt: skip
+        parse_spec(text.replace("shoulder = 0.2", "elbw = 0.2"), str(spec))
+    broken = tmp_path / "robots" / "broken.urdf"
+    broken.write_text(
+        '<robot name="r"><link name="a"/><joint name="j" type="revolute"><parent link="a"/>'
+        '<child link="gone"/><axis xyz="0 0 1"/></joint></robot>'
+    )
+    unknown_link = r"problems\[0\]\.options: .*broken.urdf: joint 'j'.*'gone'"
+    with pytest.raises(ConfigError, match=unknown_link):
+        parse_spec(text.replace('mjcf = "robots/arm.xml"', 'urdf = "robots/broken.urdf"')
+                   .replace(", q0 = { shoulder = 0.2 }", ""), str(spec))  # fmt: skip
+    # `workbench run` alike: one line, exit 2, no run
+    result = workbench("run", str(broken), "-f", "recursive", "-i", "scipy-dop853", cwd=tmp_path)
+    assert result.returncode == 2 and "unknown child link 'gone'" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "run failed" not in result.stderr
 
 
 def test_initial_state_from_options_or_keyframe():

@@ -25,7 +25,8 @@ def one_line(error: BaseException, with_type: bool = True) -> str:
     """``error`` as one line of text: its message's non-empty lines joined with ' | '.
 
     ``with_type``: start with the exception's type as a traceback names it
-    (``ValueError: ...``, ``workbench.errors.ModelError: ...``), which is what a
+    (``ValueError: ...``, ``numpy.linalg.LinAlgError: ...``; this module's own errors by
+    their names alone, ``ModelError: ...``), which is what a
     plugin's error needs to be recognized; the command line leaves it out, its
     WorkbenchErrors being messages written for the user. A message-less error is its
     type's name either way. Notes added to the error (``add_note``) are not shown.
@@ -39,7 +40,7 @@ def one_line(error: BaseException, with_type: bool = True) -> str:
         return message or type(error).__name__
     kind = type(error)
     name = kind.__qualname__
-    if kind.__module__ not in ("builtins", "__main__"):
+    if kind.__module__ not in ("builtins", "__main__", __name__):  # ours by their names
         name = f"{kind.__module__}.{name}"
     return f"{name}: {message}" if message else name
 

@@ -176,6 +176,9 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
 
     check_tolerances(spec.rtol, spec.atol)
     problem = registry.get_problem(spec.problem)(spec.problem_options)
+    from workbench.plugin.robot_problem import check_robot_file, run_problem_names
+
+    check_robot_file(problem)  # a robot's file and q0 now, not as the run's failure
     problem_options = options_dict(problem.options)
     formalism_options = options_dict(
         registry.get_formalism(spec.formalism).parse_options(spec.formalism_options)
@@ -184,8 +187,6 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
     parsed = integrator_class.parse_options(spec.integrator_options)
     integrator_class.check_step_count(parsed, problem_span(problem))
     integrator_options = options_dict(parsed)
-    from workbench.plugin.robot_problem import run_problem_names
-
     return RunSpec(
         run_problem_names([(spec.problem, problem_options)])[0],
         spec.formalism,

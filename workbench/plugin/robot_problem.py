@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, ModelError
 from workbench.model import JointSpringDamper, Model
 from workbench.model.importers import ImportedRobot, load_robot, robot_format
 from workbench.model.importers.file_roots import DEFAULT_MAX_MB
@@ -179,6 +179,18 @@ class RobotProblem(Problem):
             f"problem 'robot', option {option}: give a table {{joint = value}} or a list of "
             f"numbers, not {value!r}"
         )
+
+
+def check_robot_file(problem: Any) -> None:
+    """A robot problem's file, model and ``q0`` / ``v0`` read now (other problems: nothing):
+    ConfigError naming what is wrong before any run, not each run's failure."""
+    if not isinstance(problem, RobotProblem):
+        return
+    try:
+        problem.model()  # the file, its model and q0
+        problem.initial_joint_velocities()
+    except ModelError as error:
+        raise ConfigError(str(error)) from None
 
 
 def robot_problem_options(path: str | Path, base: Path | None = None) -> dict[str, Any]:

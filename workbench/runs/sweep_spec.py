@@ -630,11 +630,13 @@ def _normalized_options(
     fail: Callable[[str, str], ConfigError],
 ) -> tuple[dict[str, Any], Any]:
     from workbench.plugin.options import options_dict
+    from workbench.plugin.robot_problem import check_robot_file
 
     plugin = registry.REGISTRY.get(kind, name)
     try:
         if kind == "problem":
             instance = plugin(options)
+            check_robot_file(instance)  # its file and q0 now, not as every run's failure
             parsed = instance.options
         else:
             if kind == "formalism" and "compile" not in options:
