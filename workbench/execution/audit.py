@@ -36,7 +36,8 @@ Columns (:data:`AUDIT_COLUMNS`):
   (or the largest along a run that stays); NaN both when the branch was not followed (no
   position constraints, or the coordinates changed chart).
 
-Warnings (column ``warnings``, "; "-separated, one line): a run that left its assembly
+Warnings (column ``warnings``, "; "-separated, one line): a run whose state never moved
+(:func:`motionless_warning`); a run that left its assembly
 branch; a singular passage (ratio below SINGULAR_RATIO) only where the branch could not
 be followed (a passage alone is no error: the exact motion of IFToMM A02 passes through
 singular points); for a fixed velocity partition, a singular partition; a change of DOF
@@ -236,6 +237,23 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
             f"{accuracy:.1e}: scd capped at {-math.log10(accuracy):.2f}"
         )
     return [" ".join(w.replace(";", ",").split()) for w in found]  # "; " separates them
+
+
+STILL = 1e-12  # no state moved by more than this times max(1, |y(0)|): nothing moved
+
+
+def motionless_warning(y: np.ndarray) -> str | None:
+    """The warning of a run whose states (rows of ``y``, two or more) never left their
+    initial values: an equilibrium (a robot at rest in its neutral pose, by default), where
+    every error is 0 and every pair looks perfect, which says nothing of the methods."""
+    if len(y) < 2 or not np.isfinite(y).all():
+        return None
+    if np.abs(y - y[0]).max() > STILL * max(1.0, float(np.abs(y[0]).max())):
+        return None
+    return (
+        "nothing moved: the state stayed at its initial value (an equilibrium), so errors, "
+        "energy and drift are 0 whatever the method; start it elsewhere (options q0 / v0)"
+    )
 
 
 def at_reference_accuracy(metrics: dict[str, Any], accuracy: float) -> str | None:

@@ -51,6 +51,7 @@ from workbench.execution.audit import (
     at_reference_accuracy,
     audit_warnings,
     health_audit,
+    motionless_warning,
 )
 from workbench.execution.contact_metrics import contact_metrics, penetration_series
 from workbench.execution.references import ReferencePoses
@@ -227,6 +228,8 @@ def metric_columns(
     audit = health_audit(equations, times, y[:n], sampled.rotations, rtol, charts)
     audit["reference_accuracy"] = reference.accuracy
     found = audit_warnings(audit, row, rtol, problem.conservative)
+    still = motionless_warning(np.asarray(y[:n], dtype=float))
+    found += [still] if still else []
     audit.pop(MEASURE, None)
     if row["err_end"] / length < reference.accuracy:  # more digits than the reference has
         row["scd"] = -math.log10(reference.accuracy)
