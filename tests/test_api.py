@@ -231,6 +231,8 @@ def test_a_sweep_of_importable_plugins_uses_worker_processes(fake_plugins, tmp_p
     main = workbench.paper(tmp_path, tmp_path / "my-paper", compile=False)
     assert main == tmp_path / "my-paper" / "main.tex"
     assert "\\begin{document}" in main.read_text()
+    # in the measure the report was made in: the two documents agree
+    assert "cost measure: rhs evaluations." in main.read_text()
     with pytest.raises(ConfigError, match="unknown cost measure 'cpu'"):
         workbench.report(tmp_path, cost="cpu")
     with pytest.raises(ConfigError, match="no results folder or file"):

@@ -113,8 +113,14 @@ def test_workbench_paper_of_a_small_sweep_compiles(tmp_path: Path) -> None:
     runner = CliRunner()
     swept = runner.invoke(app, ["sweep", str(spec), "--out", str(tmp_path / "out")])
     assert swept.exit_code == 0, swept.output
+    chosen = runner.invoke(app, ["report", str(tmp_path / "out"), "--cost", "n_rhs"])
+    assert chosen.exit_code == 0, chosen.output
     made = runner.invoke(app, ["paper", str(tmp_path / "out")])
     assert made.exit_code == 0, made.output
+    # in the measure the report was made in: report and paper recommend the same
+    assert "cost measure n_rhs, as `workbench report --cost` chose before" in made.output
+    main = (tmp_path / "out" / "paper" / "main.tex").read_text(encoding="utf-8")
+    assert "cost measure: rhs evaluations." in main
     pdf = tmp_path / "out" / "paper" / "main.pdf"
     assert f"paper: {pdf}" in made.output and pdf.stat().st_size > 10_000
     assert "overfull" not in made.output  # none at all

@@ -22,7 +22,8 @@ def report(
 
     ``out``: the report folder (default ``RESULTS/report``). ``cost``: the cost measure of
     its diagrams, tables and recommendation (``integrate_cpu``, the default,
-    ``integrate_wall``, ``n_rhs`` or ``work``). A folder is read under its lock
+    ``integrate_wall``, ``n_rhs`` or ``work``); without it, the measure the folder's report
+    was last made in, so that report and paper agree. A folder is read under its lock
     (``OutputBusyError`` while a sweep writes it, unless ``wait``). What the report finds
     wrong with rows (unreadable files) comes as warnings; ConfigError when there are no
     results.
@@ -70,7 +71,7 @@ def _write(
     paper_folder: Path | None,
 ) -> Path:
     """The report, under the results folder's lock when it is a folder."""
-    from workbench.outputs.report import report_directory
+    from workbench.outputs.report import kept_cost, report_directory
     from workbench.outputs.report.cost import check_cost
     from workbench.runs.out_lock import out_lock
 
@@ -83,4 +84,5 @@ def _write(
     if not source.is_dir():
         return report_directory(source, out, cost=cost, paper=paper_folder)
     with out_lock(source, wait=wait, command="workbench.report (Python)"):
+        cost = cost if cost is not None else kept_cost(source)
         return report_directory(source, out, cost=cost, paper=paper_folder)

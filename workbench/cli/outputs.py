@@ -23,8 +23,8 @@ CostOption = Annotated[
         "--cost",
         help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
         "(default), integrate_wall, n_rhs or work (counted work: evaluations weighted "
-        "by their unit CPU costs, docs/reports.md). A sweep resumed into RESULTS "
-        "remakes its report in the measure chosen here.",
+        "by their unit CPU costs, docs/reports.md). A sweep resumed into RESULTS, and "
+        "report and paper without --cost, keep the measure chosen here.",
     ),
 ]
 WaitOption = Annotated[
@@ -50,8 +50,12 @@ def _write_report(
     check_cost(cost)  # before anything is read
     if os.path.isdir(results_path):
         from workbench.cli.runs import hold_out_lock
+        from workbench.outputs.report import kept_cost
 
         hold_out_lock(ctx, results_path, wait)
+        if cost is None and (cost := kept_cost(results_path)):
+            typer.echo(f"cost measure {cost}, as `workbench report --cost` chose before "
+                       "(--cost integrate_cpu for the default)")  # fmt: skip
     on_interrupt(
         lambda: (
             f"the results in {results_path} are untouched, the {command} is unfinished; "
