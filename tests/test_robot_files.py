@@ -102,6 +102,10 @@ tolerances = [1e-6]
     result = workbench("run", str(broken), "-f", "recursive", "-i", "scipy-dop853", cwd=tmp_path)
     assert result.returncode == 2 and "unknown child link 'gone'" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "run failed" not in result.stderr
+    # `describe` says only that, without the robot problem's generic description first
+    described = workbench("describe", str(broken), cwd=tmp_path)
+    assert described.returncode == 2 and described.stdout == ""
+    assert "unknown child link 'gone'" in described.stderr
 
 
 def test_initial_state_from_options_or_keyframe():

@@ -99,6 +99,10 @@ def describe(
     name, option = robot_file_problem(name, option or [], package_path, allow_root)
     kind, plugin = registry.any_plugin(name)
     options = _problem_options(name, kind, option)
+    model_tables = []  # a problem's model first: a file that does not read is one line alone
+    if kind == "problem":
+        problem = plugin(options)
+        model_tables = [_problem_table(problem), _parameters_table(problem)]
     out = console()
     out.print(f"{name} ({kind}, {plugin.__module__})", style="bold")
     summary = getattr(plugin, "summary", "")
@@ -108,10 +112,8 @@ def describe(
         out.print(f"source: {plugin.source}")
     out.print(f"capabilities: {capabilities_text(plugin)}")
     out.print(_options_table(plugin))
-    if kind == "problem":
-        problem = plugin(options)
-        out.print(_problem_table(problem))
-        out.print(_parameters_table(problem))
+    for table in model_tables:
+        out.print(table)
 
 
 def _problem_options(name: str, kind: str, assignments: list[str]) -> dict[str, Any]:
