@@ -240,6 +240,13 @@ def test_a_line_a_pair_names_its_target_and_where_takes_double_equals() -> None:
     runs.loc[runs["run_id"] == "a", ["scd", "integrate_cpu_s"]] = [6.3, 0.2]
     table = results_table(runs, by="pair").set_index("pair")
     assert table.loc["a / x", "scd"] == 6.3 and table.loc["a / x", "target"] == 6
+    # a tighter, costlier run of a / x reaches 7.8, the line's best scd; the run shown is
+    # the cheapest at the target 6, rtol 1e-6: its own scd (6.3) says it did not reach 7.8
+    tighter = runs[runs["run_id"] == "a"].assign(run_id="a2", rtol=1e-9, scd=7.8,
+                                                 integrate_cpu_s=0.9)  # fmt: skip
+    line = results_table(pd.concat([runs, tighter]), by="pair").set_index("pair").loc["a / x"]
+    assert (line["scd"], line["target"], line["run scd"], line["rtol"]) == (7.8, 6, 6.3, 1e-6)
+    assert table.loc["b / y", "run scd"] == 5.0 and table.loc["b / y", "target"] == 4
     assert "target" not in results_table(runs).columns  # a line a problem: in its verdict
     assert len(results_table(runs, by="run", where=["pair==a / x"])) == 1
     assert results_table(runs, by="run", where=["pair==a / x"]).equals(

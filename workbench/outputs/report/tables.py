@@ -31,6 +31,7 @@ HEADERS: dict[str, str] = {
     "status": "status",
     "target scd": "target scd",
     "scd": "scd [digits]",
+    "run scd": "its scd [digits]",
     "wall_s": "wall time [s]",
     "cpu_s": "CPU time [s]",
     "n_rhs": "rhs evaluations",
