@@ -527,9 +527,17 @@ def execute_run(
                 row.update(metric_row)
                 atlas = getattr(equations, "atlas", None)
                 switched = switch_note(atlas, trajectory) if atlas is not None else ""
-                row["notes"] = "; ".join(
-                    filter(None, [row.get("notes", ""), state.get("notes", ""), switched])
+                own_reference = (
+                    f"the reference was computed with this formalism ({spec.formalism}): "
+                    "the error measures its integration, not its equations (the other "
+                    "formalisms' agreement with the reference checks those)"
+                    if reference.formalism == spec.formalism
+                    else ""
                 )
+                row["notes"] = "; ".join(
+                    filter(None, [row.get("notes", ""), state.get("notes", ""), switched,
+                                  own_reference])
+                )  # fmt: skip
                 own = "; ".join(getattr(trajectory, "warnings", None) or [])
                 if own:  # the integrator's own (e.g. the accuracy asked was not attempted)
                     found = "; ".join(filter(None, [row.get("warnings", ""), own]))

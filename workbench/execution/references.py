@@ -71,7 +71,8 @@ DIRECTORY = "references"
 POSE_COLUMNS = ["x", "y", "z", "p0", "p1", "p2", "p3"]
 PIPELINES_GROUP = "workbench.reference_pipelines"
 
-_REFERENCE_MEMORY: dict[str, tuple[np.ndarray, str, float]] = {}  # poses, description, accuracy
+# poses, description, accuracy, the pipeline's formalism
+_REFERENCE_MEMORY: dict[str, tuple[np.ndarray, str, float, str]] = {}
 
 
 class ReferenceDisagreement(IntegrationError):
@@ -561,6 +562,7 @@ class ReferencePoses:
     description: str = ""
     seconds: float = 0.0
     accuracy: float = math.nan  # relative to the length scale; see ACCURACY
+    formalism: str = ""  # a computed reference's: whose equations it integrated
 
 
 # The relative accuracy an analytic reference states when it does not say: exact up to the
@@ -634,8 +636,10 @@ def computed_reference(
     key["fingerprint"] = problem_fingerprint(problem)
     digest = reference_hash(key)
     if digest in _REFERENCE_MEMORY:
-        poses, description, accuracy = _REFERENCE_MEMORY[digest]
-        return ReferencePoses("computed", poses, description, accuracy=accuracy)
+        poses, description, accuracy, formalism = _REFERENCE_MEMORY[digest]
+        return ReferencePoses(
+            "computed", poses, description, accuracy=accuracy, formalism=formalism
+        )
     path = None
     if reference_dir is not None:
         # a robot run's name holds its file's folders and options: keep the file name one
@@ -651,9 +655,12 @@ def computed_reference(
                 about = json.loads(path.with_suffix(".json").read_text())
                 description = f"{about['description']} (read from {path.name})"
                 accuracy = float(about["accuracy"])
-                _REFERENCE_MEMORY[digest] = (poses, description, accuracy)
+                formalism = str(about.get("formalism", ""))
+                _REFERENCE_MEMORY[digest] = (poses, description, accuracy, formalism)
                 seconds = time.perf_counter() - started
-                return ReferencePoses("computed", poses, description, seconds, accuracy)
+                return ReferencePoses(
+                    "computed", poses, description, seconds, accuracy, formalism
+                )
             except Exception:  # noqa: BLE001 - an unreadable cache file is recomputed
                 pass
         pipeline, poses, bodies, cost, estimate = solve_first_available(
@@ -661,20 +668,23 @@ def computed_reference(
         )
         accuracy = stated_accuracy(float(estimate["relative"])) if estimate else math.nan
         description = (
-            f"computed: {pipeline.label()}, rtol {cost['rtol']:g}, atol {cost['atol']:g}, "
+            f"computed: {pipeline.label()}"  # the label says the pipeline's own rtol
+            + ("" if pipeline.rtol else f", rtol {cost['rtol']:g}")
+            + f", atol {cost['atol']:g}, "
             + (f"accuracy {accuracy:.2g} L ({estimate['estimated_by']})" if estimate else
                "accuracy not estimated (the pipeline has no check)")
         )  # fmt: skip
         if path is not None:
             try:
                 write_parquet_atomic(_poses_to_frame(times, poses, bodies), path)
-                about = {"description": description, "accuracy": accuracy, "estimate": estimate}
+                about = {"description": description, "accuracy": accuracy, "estimate": estimate,
+                         "formalism": pipeline.formalism}  # fmt: skip
                 write_json_atomic(about, path.with_suffix(".json"))
             except OSError:  # a read-only output dir only costs the recomputation
                 pass
-    _REFERENCE_MEMORY[digest] = (poses, description, accuracy)
+    _REFERENCE_MEMORY[digest] = (poses, description, accuracy, pipeline.formalism)
     seconds = time.perf_counter() - started
-    return ReferencePoses("computed", poses, description, seconds, accuracy)
+    return ReferencePoses("computed", poses, description, seconds, accuracy, pipeline.formalism)
 
 
 def problem_reference(
