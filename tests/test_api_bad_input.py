@@ -102,10 +102,16 @@ def test_plots_name_a_missing_problem_or_column(fake_plugins, tmp_path) -> None:
     results = workbench.load_results(tmp_path)
     with pytest.raises(ConfigError, match="no runs of problem 'test-pendulm'"):
         workbench.plot_work_precision(results, problem="test-pendulm")
-    with pytest.raises(ConfigError, match="no column 'n_rhss'; cost columns: .*n_rhs"):
+    with pytest.raises(ConfigError, match="no column 'n_rhss'; cost measures: integrate_cpu, "
+                       "integrate_wall, n_rhs, work; cost columns: .*n_rhs"):  # fmt: skip
         workbench.plot_work_precision(results, cost="n_rhss")
     axes = workbench.plot_work_precision(results, cost="n_rhs", by="formalism")
     assert [line.get_label() for line in axes.get_lines()] == ["minimal-ode"]
+    # a measure by the name workbench.report takes, or its column: the same curve
+    measured = workbench.plot_work_precision(results, cost="integrate_cpu")
+    column = workbench.plot_work_precision(results, cost="integrate_cpu_s")
+    assert measured.get_xlabel() == "integration CPU time [s]"
+    assert (measured.get_lines()[0].get_xdata() == column.get_lines()[0].get_xdata()).all()
     with pytest.raises(ConfigError, match="expected the results frame"):
         workbench.plot_work_precision(str(tmp_path))
 

@@ -114,3 +114,5 @@ def test_two_plots_side_by_side_keep_their_titles_apart(free) -> None:
     assert first.x1 < second.x0
     for part in ("double-pendulum", "recursive / scipy-dop853", "rtol 1e-06"):
         assert part in left.title.get_text() and part in right.title.get_text()
+    assert left.get_ylabel() == "coordinates (SI units)"  # it had none
+    assert free.plot(["joint1.v"]).get_ylabel() == "velocities (SI units)"

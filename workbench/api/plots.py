@@ -20,21 +20,26 @@ def plot_work_precision(
     """scd (correct digits at the end) against ``cost`` (log x), one curve per ``by``
     group (a column or a tuple of columns), one point per tolerance, of the ok runs of
     ``problem`` (default: the only problem in ``results``). ``results`` as
-    ``workbench.load_results`` returns it; ``cost``: any cost column (``integrate_cpu_s``,
-    ``integrate_s``, ``n_rhs``...). Returns the Axes; ConfigError for a problem or a
-    column that ``results`` do not have."""
+    ``workbench.load_results`` returns it; ``cost``: a cost measure as ``workbench.report``
+    takes it (``integrate_cpu``, ``integrate_wall``, ``n_rhs``, ``work``) or any cost
+    column (``integrate_cpu_s``, ``n_steps``...). Returns the Axes; ConfigError for a
+    problem or a column that ``results`` do not have."""
     if not isinstance(results, pd.DataFrame):
         raise ConfigError(
             "results: expected the results frame (workbench.load_results(OUT) or "
             f"workbench.sweep(...)), not {type(results).__name__}"
         )
     by = (by,) if isinstance(by, str) else tuple(by)
+    from workbench.outputs.report.cost import COST_MEASURES
+
+    cost, cost_label = COST_MEASURES.get(cost, (cost, cost))  # a measure by its name too
     for column in ("problem", "status", "scd", "rtol", cost, *by):
         if column not in results.columns:
             numeric = [c for c in results.columns if c.startswith(("n_", "integrate_", "work_"))]
             raise ConfigError(
                 f"results have no column {column!r}"
-                + (f"; cost columns: {', '.join(numeric)}" if column == cost else "")
+                + (f"; cost measures: {', '.join(COST_MEASURES)}; cost columns: "
+                   f"{', '.join(numeric)}" if column == cost else "")  # fmt: skip
             )
     names = sorted(results["problem"].unique())
     if problem is None:
@@ -56,7 +61,7 @@ def plot_work_precision(
         name = " / ".join(map(str, label if isinstance(label, tuple) else (label,)))
         ax.plot(curve[cost], curve["scd"], marker="o", markersize=4, label=name)
     ax.set_xscale("log")
-    ax.set_xlabel(cost)
+    ax.set_xlabel(cost_label)
     ax.set_ylabel("scd = -log10(relative end error)")
     ax.set_title(f"{problem}: work-precision")
     ax.grid(True, alpha=0.3)

@@ -119,6 +119,10 @@ class Result:
         for name in names:
             ax.plot(trajectory["t"], trajectory[name], label=name)
         ax.set_xlabel("t [s]")
+        velocities = [name.endswith(".v") for name in names]
+        shown = "velocities" if all(velocities) else "coordinates" if not any(velocities) else (
+            "coordinates and velocities")  # fmt: skip
+        ax.set_ylabel(f"{shown} (SI units)")
         ax.set_title(_plot_title(self.row))
         if len(names) <= 12:
             ax.legend(fontsize="small")
