@@ -313,8 +313,13 @@ def results_table(
         table = runs[chosen].copy()
         for column in [c for c in table.columns if c in UNREPORTED_COUNTS]:
             table[column] = table[column].where(table[column] != -1)  # shown empty
-        if not columns:
-            table.attrs["same"] = ", ".join(f"{c}={v}" for c, v in same.items() if v != "")
+        if not columns:  # said once: the options not at their plugins' defaults
+            # (a default said nothing: "integrator.first_step=null" in a paper's caption)
+            changed = changed_options(prepared.loc[runs.index])
+            moved = {key for options in changed for key in options}
+            table.attrs["same"] = ", ".join(
+                f"{c}={v}" for c, v in same.items() if v != "" and c in moved
+            )
     else:
         table = summary(runs, ["problem"] if by == "problem" else ["problem", "pair"], cost.column)
         if columns:
