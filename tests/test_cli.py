@@ -73,6 +73,15 @@ def test_list_prints_one_table_per_kind(fake_registry, runner):
     assert "planar, tree" in result.stdout
     assert "ode (index <= 0), dae (index <= 1)" in result.stdout
     assert "toy-pendulum" in result.stdout
+    problems = runner.invoke(cli.app, ["list", "problems"]).stdout
+    assert "capabilities" not in problems  # problems declare none: a column of '-' a row
+    assert "toy-pendulum" in problems
+
+
+def test_describe_prints_no_negative_zero(runner):
+    result = runner.invoke(cli.app, ["describe", "slider-crank"])
+    assert result.exit_code == 0, result.output
+    assert "crank_pin = 0," in result.stdout and "-0," not in result.stdout
 
 
 def test_list_shows_a_broken_plugin_with_its_error(fake_registry, runner):

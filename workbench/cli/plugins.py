@@ -44,13 +44,15 @@ def _plugin_table(kind: Kind, infos: list[PluginInfo]) -> Table:
     table = Table(title=f"{kind}s", title_justify="left")
     table.add_column("name", no_wrap=True)
     table.add_column("summary")
-    table.add_column("capabilities")
+    declared = kind != "problem"  # problems declare none: a column of '-' said nothing
+    if declared:
+        table.add_column("capabilities")
     table.add_column("status")
     for info in infos:
         summary = "" if info.plugin is None else info.summary
-        status = _status(info)
+        capabilities = [capabilities_text(info.plugin)] if declared else []
         style = "red" if info.plugin is None else None
-        table.add_row(info.name, summary, capabilities_text(info.plugin), status, style=style)
+        table.add_row(info.name, summary, *capabilities, _status(info), style=style)
     return table
 
 
@@ -213,7 +215,7 @@ def _values(value: Any) -> str:
     import numpy as np
 
     array = np.atleast_1d(np.asarray(value, dtype=float))
-    text = ", ".join(f"{x:.4g}" for x in array)
+    text = ", ".join(f"{x + 0.0:.4g}" for x in array)  # + 0.0: -0 reads 0
     return text if array.size == 1 else f"({text})"
 
 
