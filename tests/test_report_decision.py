@@ -263,3 +263,20 @@ def test_a_margin_is_printed_with_the_digits_that_tell_it_from_one() -> None:
     ]  # fmt: skip
     runs = costed([("a / x", 6.0, 1.000, 0.999, 1.001), ("b / y", 6.0, 1.003, 1.002, 1.004)])
     assert decide(runs, 4.0, "integrate_cpu_s").verdict() == "1.003x ahead"
+
+
+def test_pairs_cut_short_by_the_tolerance_grid_are_named_in_the_why() -> None:
+    """A pair still improving at the tightest rtol it ran, short of the target the table
+    awards: its cost there was not measured, so the "why" says the grid decided (a stiff
+    mechanism's implicit pairs at scd 4.4-5.2 at rtol 1e-7 beside an explicit winner)."""
+    runs = costed([
+        ("a / x", 4.0, 1.0, 0.9, 1.1), ("a / x", 6.5, 2.0, 1.9, 2.1),  # reaches 6
+        ("b / y", 3.0, 0.5, 0.4, 0.6), ("b / y", 5.2, 0.8, 0.7, 0.9),  # still improving
+        ("c / z", 5.0, 0.5, 0.4, 0.6), ("c / z", 4.9, 0.9, 0.8, 1.0),  # saturated
+    ])  # fmt: skip
+    runs["rtol"] = [1e-4, 1e-7] * 3
+    (row,) = decision_rows(runs, [4.0, 6.0], "integrate_cpu_s")
+    assert "Not measured: 1 pair(s) still improving at their tightest rtol (1e-07) fell " \
+        "short of scd 6; a tighter rtol would price them there (b / y)" in row.why
+    reaching = runs[runs["pair"] != "b / y"]
+    assert "Not measured" not in decision_rows(reaching, [4.0, 6.0], "integrate_cpu_s")[0].why

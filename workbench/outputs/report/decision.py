@@ -77,7 +77,28 @@ def why(traits: Traits, cells: list[Decision], runs: pd.DataFrame, cost: str = "
         text += f". Tied pairs: {tie_rule(cost)}"
     if any(d.pair and not d.tie_known for d in cells):
         text += ". Some costs have one timed sample (or no interval): ties cannot be told there"
+    reached = [d.target for d in cells if d.pair]
+    short = short_of(runs, max(reached), cost) if reached and cost else {}
+    if short:
+        looser = " or looser" if len(set(short.values())) > 1 else ""
+        text += (
+            f". Not measured: {len(short)} pair(s) still improving at their tightest rtol "
+            f"({min(short.values()):g}{looser}) fell short of scd {max(reached):g}; a tighter "
+            f"rtol would price them there ({', '.join(sorted(short))})"
+        )
     return text + "." if text else "No run of this problem finished without warnings."
+
+
+def short_of(runs: pd.DataFrame, target: float, cost: str) -> dict[str, float]:
+    """Pairs (-> their tightest rtol) whose trusted runs all fall short of ``target`` while
+    their best is their tightest run: still improving where the tolerance grid ends, so
+    the table's winner at ``target`` won over pairs whose cost there was never measured."""
+    found = {}
+    for pair, group in trusted(runs, cost).groupby("pair"):
+        tightest = group.loc[group["rtol"].idxmin()]
+        if group["scd"].max() < target and len(group) > 1 and tightest["scd"] >= group["scd"].max():
+            found[str(pair)] = float(tightest["rtol"])
+    return found
 
 
 def decision_rows(
