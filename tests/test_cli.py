@@ -292,3 +292,11 @@ def test_all_names_the_broken_plugin_it_leaves_out(runner, tmp_path, monkeypatch
     assert result.exit_code == 2, result.output
     assert "warning: formalisms = \"all\" leaves out the broken formalism plugin " in result.stderr
     assert "no-such-integrator" in result.stderr and "Traceback" not in result.output
+
+
+def test_another_tool_s_word_for_a_command_names_ours(runner):
+    result = runner.invoke(cli.app, ["plugins"])
+    assert result.exit_code == 2
+    assert "No such command 'plugins'; did you mean `workbench list`?" in result.output
+    close = runner.invoke(cli.app, ["lst"])  # click's own hint for a misspelling stays
+    assert close.exit_code == 2 and "Did you mean 'list'?" in close.output

@@ -102,6 +102,11 @@ def reflowed(text: str) -> str:
     )
 
 
+OTHER_WORDS = {"plugins": "list", "ls": "list", "show": "describe", "info": "describe",
+               "simulate": "run", "benchmark": "sweep", "view-report": "report"}  # fmt: skip
+"""Commands by words other tools use for them, named when one is typed."""
+
+
 class WorkbenchGroup(typer.core.TyperGroup):
     """The one place where a WorkbenchError becomes a one-line message and exit code 2.
 
@@ -113,6 +118,17 @@ class WorkbenchGroup(typer.core.TyperGroup):
         if command is not None and command.help:
             command.help = reflowed(command.help)
         return command
+
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> Any:
+        """An unknown command names the one meant where it is another tool's word for it
+        (``workbench plugins``: ``workbench list``); click's own close-spelling hints stay."""
+        try:
+            return super().resolve_command(ctx, args)
+        except USAGE_ERRORS as error:
+            meant = OTHER_WORDS.get(args[0]) if args else None
+            if meant is not None:
+                error.message = f"{error.message.rstrip('.')}; did you mean `workbench {meant}`?"
+            raise
 
     def invoke(self, ctx: click.Context) -> Any:
         _ON_INTERRUPT.clear()
