@@ -1,8 +1,8 @@
 """A pair whose runs each look fine but whose error does not shrink with the tolerance is
 named at the top of the report: a formalism written wrong (here the scaffold's template
-left as it is, unit mass matrix and no forces: the pendulum never falls) conserves its
-energy and its constraints, so its rows were ``ok`` at scd 0.8 beside 8.5 and nothing
-said so. Correct pairs of real runs are not named (their scd grows with 1/rtol)."""
+left as it is, unit mass matrix and no forces) conserves its energy and its constraints,
+so its rows were ``ok`` at scd -0.3 beside 9.6 and nothing said so. Correct pairs of real
+runs are not named (their scd grows with 1/rtol)."""
 
 from __future__ import annotations
 
@@ -38,19 +38,24 @@ def test_a_pair_that_does_not_converge_is_named_and_correct_ones_are_not(
     tmp_path: Path, isolated_registry: None  # noqa: F811 - the fixture
 ) -> None:
     wrong = template_formalism(tmp_path)
+    # the two-joint robot starts moving: the template's free motion (M = I, Q = 0) runs,
+    # each run fine alone, and never approaches the reference
     rows = [
-        wb.run("simple-pendulum", formalism, "scipy-dop853", rtol=rtol).row
+        wb.run("two-joint-robot", formalism, "scipy-dop853", rtol=rtol).row
         for formalism in ("minimal-ode", wrong)
         for rtol in TOLERANCES
     ]
     runs = prepare_results(pd.DataFrame(rows))
-    assert (runs["status"] == "ok").all()  # each run alone looks fine
+    assert (runs["status"] == "ok").all() and not runs["warnings"].any()  # each looks fine
     found = stalled_pairs(runs)
-    assert len(found) == 1 and found[0].startswith("simple-pendulum: stalled-template /")
+    assert len(found) == 1 and found[0].startswith("two-joint-robot: stalled-template /")
     assert "workbench.testing formalism stalled-template checks them" in found[0]
     assert stalled_pairs(runs[runs["formalism"] == "minimal-ode"]) == []
     page = write_report(runs, None, tmp_path / "report", "cmd", progress=False).read_text("utf-8")
     assert 'id="stalled"' in page and "stalled-template / scipy-dop853 stays at scd" in page
+    # on the pendulum released at rest the template moves nothing: each row says so itself
+    at_rest = wb.run("simple-pendulum", wrong, "scipy-dop853", rtol=1e-6).row
+    assert at_rest["status"] == "ok" and "nothing moved" in at_rest["warnings"]
 
 
 def test_pairs_that_converge_or_have_one_fixed_step_are_not_named() -> None:
