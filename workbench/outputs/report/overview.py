@@ -79,6 +79,34 @@ def cost_at_target(runs: pd.DataFrame, target: float, cost: str = "wall_s") -> p
     return least.reindex(index=problems, columns=pairs).rename_axis(index="problem", columns=None)
 
 
+NOT_REACHED = "not reached"
+SKIPPED = "skipped"
+NOT_RUN = "not run"
+UNREACHED_MEANING: dict[str, str] = {
+    NOT_REACHED: "the pair ran but did not reach the target without warnings",
+    SKIPPED: "every run of the pair on the problem was skipped, not supported (the status "
+    "table gives the reason)",
+    NOT_RUN: "the sweep has no run of the pair on the problem",
+}
+"""What a cell of the cost-at-target table without a value means, by its reason
+(:func:`unreached_reasons`), for captions."""
+
+
+def unreached_reasons(runs: pd.DataFrame, costs: pd.DataFrame) -> pd.DataFrame:
+    """Why a cell of ``costs`` (problem x pair, :func:`cost_at_target` or its ratio) has no
+    value: :data:`SKIPPED` when every run of the pair on the problem has status
+    ``skipped`` (it does not support the problem: a pair that never ran did not fall short
+    of the target), :data:`NOT_RUN` when the pair has no run on it, :data:`NOT_REACHED`
+    otherwise; '' where the cell has a value."""
+    groups = runs.groupby(["problem", "pair"], sort=False)["status"]
+    skipped = groups.agg(lambda status: bool((status == "skipped").all())).unstack("pair")
+    skipped = skipped.reindex(index=costs.index, columns=costs.columns)
+    reasons = pd.DataFrame(NOT_REACHED, index=costs.index, columns=costs.columns, dtype=object)
+    reasons = reasons.mask(skipped.isna(), NOT_RUN)
+    reasons = reasons.mask(skipped.fillna(False).astype(bool), SKIPPED)
+    return reasons.where(costs.isna(), "")
+
+
 def cost_ratio(costs: pd.DataFrame) -> pd.DataFrame:
     """``costs`` divided by each problem's least cost (rows with no value stay NaN)."""
     return costs.div(costs.min(axis=1), axis=0)

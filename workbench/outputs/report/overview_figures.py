@@ -7,24 +7,56 @@ Drawn in the parent process (one figure each), with the Agg backend.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from workbench.outputs.report.figures import FigureFiles, PairStyles, log_axis, save_figure
-from workbench.outputs.report.overview import COST_COLUMNS, trusted
+from workbench.outputs.report.overview import (
+    COST_COLUMNS,
+    NOT_REACHED,
+    NOT_RUN,
+    SKIPPED,
+    UNREACHED_MEANING,
+    trusted,
+)
 from workbench.outputs.report.ranking import ratio_text
-
-NOT_REACHED_TEXT = "not\nreached"
 
 
 def heat_map_figure(
-    ratio: pd.DataFrame, target: float, cost: str, out: Path, pairs: int | None = None
+    ratio: pd.DataFrame,
+    target: float,
+    cost: str,
+    out: Path,
+    pairs: int | None = None,
+    reasons: pd.DataFrame | None = None,
 ) -> FigureFiles | None:
-    """Problem x pair heat map of ``ratio`` (cost / the problem's best at scd >= target;
-    :func:`~workbench.outputs.report.overview.cost_ratio`; give it the top pairs, and the
-    number of pairs in all as ``pairs``), the ratio written in each cell, a hatched grey
-    "not reached" where the pair never reached the target without warnings. Sized to be
+    """The heat map of :func:`heat_map_drawing`, saved into ``out`` (None: nothing reached
+    the target)."""
+    drawn = heat_map_drawing(ratio, target, cost, pairs, reasons)
+    if drawn is None:
+        return None
+    figure, caption = drawn
+    return save_figure(figure, out, "overview-heat-map", caption)
+
+
+def heat_map_drawing(
+    ratio: pd.DataFrame,
+    target: float,
+    cost: str,
+    pairs: int | None = None,
+    reasons: pd.DataFrame | None = None,
+) -> tuple[Any, str] | None:
+    """The figure and caption of the problem x pair heat map of ``ratio`` (cost / the
+    problem's best at scd >= target; :func:`~workbench.outputs.report.overview.cost_ratio`;
+    give it the top pairs, and the number of pairs in all as ``pairs``), the ratio written
+    in each cell (None: no cell has one). An empty cell says why, from ``reasons``
+    (:func:`~workbench.outputs.report.overview.unreached_reasons`, default: all "not
+    reached"): a hatched grey "not reached" where the pair ran but never reached the
+    target without warnings, a white "skipped (not supported)" (dotted border) where every
+    run of the pair was skipped, as it does not support the problem, a white "not run"
+    where it has no run there; the title and the caption say which is which. Sized to be
     read at its natural width (about 1100 px): 9-10 pt labels at 90 dpi."""
     import matplotlib
 
@@ -47,15 +79,14 @@ def heat_map_figure(
         norm=LogNorm(vmin=1.0, vmax=max(top, 10.0)),
         aspect="auto",
     )
+    shown_reasons: list[str] = []
     for i in range(rows):
         for j in range(columns):
             value = values[i, j]
             if not np.isfinite(value):
-                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="0.88",
-                                       edgecolor="0.55", hatch="///", linewidth=0))  # fmt: skip
-                ax.text(j, i, NOT_REACHED_TEXT, ha="center", va="center", fontsize=8,
-                        color="0.15", linespacing=0.9,
-                        bbox={"facecolor": "0.88", "edgecolor": "none", "pad": 0.5})  # fmt: skip
+                reason = NOT_REACHED if reasons is None else str(reasons.iat[i, j] or NOT_REACHED)
+                shown_reasons.append(reason)
+                _empty_cell(ax, Rectangle, i, j, reason)
                 continue
             color = "white" if value > 3 else "black"
             ax.text(j, i, ratio_text(value), ha="center", va="center", fontsize=9, color=color)
@@ -74,13 +105,14 @@ def heat_map_figure(
     bar.ax.yaxis.set_minor_formatter(plain)
     bar.ax.tick_params(labelsize=8)
     shown = "" if pairs is None or pairs <= columns else f"the {columns} best of {pairs} pairs; "
+    present = [reason for reason in EMPTY_CELLS if reason in shown_reasons]
+    legend = "; ".join(EMPTY_CELLS[reason][0] for reason in present)
     ax.set_title(f"cost at scd >= {target:g} relative to the best pair of each problem\n"
-                 f"({shown}1 = best; hatched: not reached without warnings)",
+                 f"({shown}1 = best" + (f"; {legend}" if legend else "") + ")",
                  fontsize=10)  # fmt: skip
-    return save_figure(
+    meanings = [f"{EMPTY_CELLS[reason][1]} {UNREACHED_MEANING[reason]}" for reason in present]
+    return (
         figure,
-        out,
-        "overview-heat-map",
         f"Cost ({name}) of each pair at scd >= {target:g}, divided by the least cost of any "
         "pair on that problem"
         + (
@@ -88,8 +120,32 @@ def heat_map_figure(
             "the ranking (most problems within reach of the best first)"
             if shown
             else ""
-        ),  # fmt: skip
+        )
+        + "".join(f"; {meaning}" for meaning in meanings),  # fmt: skip
     )
+
+
+# how an empty cell is told in the title and the caption, and drawn: (title, the look
+# the caption names, text in the cell, face colour, hatch, border style)
+EMPTY_CELLS: dict[str, tuple[str, str, str, str, str | None, str]] = {
+    NOT_REACHED: ("hatched: not reached without warnings", "hatched grey:", "not\nreached",
+                  "0.88", "///", "solid"),
+    SKIPPED: ("white 'skipped': not supported", "white, 'skipped':", "skipped\n(not\nsupported)",
+              "white", None, "dotted"),
+    NOT_RUN: ("white 'not run': no run", "white, 'not run':", "not\nrun", "white", None,
+              "dotted"),
+}  # fmt: skip
+
+
+def _empty_cell(ax, rectangle, i: int, j: int, reason: str) -> None:
+    """Draw the cell (row ``i``, column ``j``) of a pair without a value at the target,
+    in the look of its ``reason`` (:data:`EMPTY_CELLS`), the reason written in it."""
+    _title, _look, text, face, hatch, border = EMPTY_CELLS.get(reason, EMPTY_CELLS[NOT_REACHED])
+    ax.add_patch(rectangle((j - 0.5, i - 0.5), 1, 1, facecolor=face, edgecolor="0.55",
+                           hatch=hatch, linewidth=0 if hatch else 1, linestyle=border))  # fmt: skip
+    ax.text(j, i, text, ha="center", va="center", fontsize=8,
+            color="0.15" if hatch else "0.35", style="normal" if hatch else "italic",
+            linespacing=0.9, bbox={"facecolor": face, "edgecolor": "none", "pad": 0.5})  # fmt: skip
 
 
 def fixed_step_rows(runs: pd.DataFrame) -> pd.DataFrame:

@@ -83,10 +83,12 @@ def write_table(
     caption: str | None = None,
     latex: pd.DataFrame | None = None,
     notes: Sequence[str] = (),
+    keys: int | None = None,
 ) -> list[Path]:
     """Write ``table`` as ``name``.csv, .md and .tex (booktabs, captioned, labelled
     ``tab:<name>``) into ``directory``; ``latex``: another table for the .tex (one that
-    fits a page, e.g. a summary of a wide matrix), ``notes``: lines under it."""
+    fits a page, e.g. a summary of a wide matrix), ``notes``: lines under it, ``keys``:
+    the leading columns a .tex split to fit the page repeats (:func:`latex_table`)."""
     paths = [directory / f"{name}.{ext}" for ext in ("csv", "md", "tex")]
     index = shows_index(table)
     table.to_csv(paths[0], index=index)
@@ -98,10 +100,21 @@ def write_table(
     printed = table if latex is None else latex
     latex = latex_table(
         printed, index=shows_index(printed), caption=caption or name, label=f"tab:{name}",
-        notes=notes,
+        notes=notes, keys=keys,
     )  # fmt: skip
     paths[2].write_text(latex, encoding="utf-8")
     return paths
+
+
+def leading_keys(table: pd.DataFrame, names: Sequence[str]) -> int:
+    """How many of ``table``'s first columns are among ``names`` (the columns that say
+    what a row is about: a LaTeX table split into parts repeats them in every part)."""
+    count = 0
+    for column in table.columns:
+        if str(column) not in names:
+            break
+        count += 1
+    return count
 
 
 def shows_index(table: pd.DataFrame) -> bool:
@@ -148,8 +161,11 @@ def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], li
     """The readable header and the rows of ``table`` as text, one format a column
     (:func:`column_formatter`), the index first when ``index``. A table whose
     ``attrs["one_format"]`` is true (a matrix of one quantity, e.g. cost ratios) has one
-    format for all its columns, so no column shows '1' beside another's '1.000'."""
+    format for all its columns, so no column shows '1' beside another's '1.000'. A missing
+    value is an empty cell, or the text ``attrs["missing"][row label][column]`` says why it
+    is missing (the CSV, for pandas, keeps it empty)."""
     head = ([header(table.index.name or "")] if index else []) + [header(c) for c in table.columns]
+    missing = table.attrs.get("missing") or {}
     if table.attrs.get("one_format") and len(table.columns):
         stacked = pd.Series(table.to_numpy(dtype=float).ravel())
         formats = [column_formatter("", stacked)] * len(table.columns)
@@ -158,6 +174,11 @@ def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], li
     rows = []
     for label, row in zip(table.index, table.itertuples(index=False), strict=True):
         cells = [fmt(value) for fmt, value in zip(formats, row, strict=True)]
+        why = missing.get(label, {})
+        cells = [
+            str(why.get(column, "")) if _missing(value) else cell
+            for column, value, cell in zip(table.columns, row, cells, strict=True)
+        ]
         rows.append(([str(label)] if index else []) + cells)
     return head, rows
 
@@ -373,8 +394,13 @@ def latex_table(
     if keys is None:
         keys = 1 if (kinds and not kinds[0]) else 0
     parts = _chunks(columns, keys) if columns else [[]]
-    # the parts stack in one float: their lines add up
-    long = caption is not None and _text_lines(rows, columns) * len(parts) > LONG_ROWS
+    # the parts stack in one float: their lines add up, each part's rows as tall as its
+    # own wrapped cells make them
+    lines = sum(
+        _text_lines([[row[k] for k in part] for row in rows], [columns[k] for k in part])
+        for part in parts
+    )
+    long = caption is not None and lines > LONG_ROWS
     blocks = []
     for number, part in enumerate(parts):
         align = "".join(columns[k].spec for k in part)

@@ -49,11 +49,16 @@ from workbench.outputs.report.figures import (
     work_precision_figure,
 )
 from workbench.outputs.report.overview import (
+    NOT_REACHED,
+    NOT_RUN,
+    SKIPPED,
+    UNREACHED_MEANING,
     cost_at_target,
     cost_ratio,
     pareto_mask,
     recommend,
     trusted,
+    unreached_reasons,
 )
 from workbench.outputs.report.overview_figures import convergence_figure, heat_map_figure
 from workbench.outputs.report.page import (
@@ -72,7 +77,7 @@ from workbench.outputs.report.pool import (
     submit_or_none,
 )
 from workbench.outputs.report.scorecards import scorecards
-from workbench.outputs.report.tables import write_table
+from workbench.outputs.report.tables import leading_keys, write_table
 from workbench.outputs.report.traits import Traits, problem_traits
 from workbench.runs import output_keys
 from workbench.runs.progress import progress_bar
@@ -131,7 +136,9 @@ def write_report(
     matrix, footnotes = status_matrix(runs)
     caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
     printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs", "runner-up")]
-    write_table(summary, out / "tables", "summary", caption, latex=summary[printed])
+    # a row is a problem at a target: both repeated when the LaTeX is split into parts
+    keys = leading_keys(summary[printed], ("problem", "target scd"))
+    write_table(summary, out / "tables", "summary", caption, latex=summary[printed], keys=keys)
     status_caption = STATUS_CAPTION + (STATUS_NOTES if footnotes else "")  # none: no notes
     write_table(
         matrix, out / "tables", "status", status_caption,
@@ -354,21 +361,36 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     recommendation = recommend(runs, cost=measure.column)
     target, cost = recommendation.target, recommendation.cost
     ratio = cost_ratio(cost_at_target(runs, target, cost))
+    reasons = unreached_reasons(runs, ratio)
     top = top_pairs(ratio, recommendation.table.index)
-    heat_map = heat_map_figure(ratio[top], target, cost, out, pairs=ratio.shape[1])
+    heat_map = heat_map_figure(
+        ratio[top], target, cost, out, pairs=ratio.shape[1], reasons=reasons[top]
+    )
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
     ratio_table.attrs["one_format"] = True  # one quantity: one number format
+    # an empty cell says why when the pair did not fall short (Markdown and LaTeX)
+    told = reasons.where(reasons != NOT_REACHED, "")
+    ratio_table.attrs["missing"] = {
+        problem: {pair: text for pair, text in row.items() if text}
+        for problem, row in told.iterrows()
+        if (row != "").any()
+    }
     shown = (
         f"{len(top)} of the {ratio.shape[1]} pairs, those reaching the target in the order of "
         "the ranking (most problems within reach of the best first)"
+    )
+    written = [NOT_REACHED] + [r for r in (SKIPPED, NOT_RUN) if (told[top] == r).any().any()]
+    meanings = "; ".join(
+        f"{'empty' if reason == NOT_REACHED else reason}: {UNREACHED_MEANING[reason]}"
+        for reason in written
     )
     write_table(
         ratio_table,
         out / "tables",
         "cost-at-target",
         f"{measure.name.capitalize()} of each pair at scd >= {target:g} divided by the least "
-        f"on the problem (1: the best; empty: not reached without warnings); "
+        f"on the problem (1: the best; {meanings}); "
         f"{measure.statement()}" + (f"; printed: {shown}" if len(top) < ratio.shape[1] else ""),
         latex=ratio_table[top],
     )
@@ -385,26 +407,31 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
         "pareto",
         "Pareto front of each problem: the runs without warnings that no other run beats "
         f"on both {measure.name} and scd; {measure.statement()}",
+        keys=leading_keys(pareto, ("problem", "pair", "rtol")),  # a row is a run
     )
     factor = f"{recommendation.factor:g}x"
     ranked = len(recommendation.table)
-    ranking = (
-        recommendation.table.head(RANKED_SHOWN)
-        .reset_index()
-        .rename(
-            columns={
-                "within": f"problems within {factor} of the best",
-                "reached": f"problems reaching scd >= {target:g}",
-                "geometric mean ratio": "geometric mean of cost / best",
-            }
-        )
+    ranking = recommendation.table.reset_index().rename(
+        columns={
+            "within": f"problems within {factor} of the best",
+            "reached": f"problems reaching scd >= {target:g}",
+            "geometric mean ratio": "geometric mean of cost / best",
+        }
     )
+    # the page, CSV and Markdown list every pair; the LaTeX, on a page of a paper, the
+    # first RANKED_SHOWN, and says so and where the others are
     write_table(
         ranking,
         out / "tables",
         "ranking",
         f"Pairs at scd >= {target:g}: {recommendation.sentence} ({measure.statement()})"
-        + (f"; the first {RANKED_SHOWN} of {ranked} pairs" if ranked > RANKED_SHOWN else ""),
+        + (
+            f"; printed: the first {RANKED_SHOWN} of {ranked} pairs (all {ranked} in the "
+            "report's tables/ranking.csv and ranking.md)"
+            if ranked > RANKED_SHOWN
+            else ""
+        ),
+        latex=ranking.head(RANKED_SHOWN),
     )
     return Overview(
         sentence=recommendation.sentence,
@@ -418,7 +445,7 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
 
 
 TOP_PAIRS = 10  # pair columns of the heat map and of the printed cost-at-target table
-RANKED_SHOWN = 8  # pairs of the ranking table (its caption says when there are more)
+RANKED_SHOWN = 8  # pairs the LaTeX ranking table prints (its caption says when there are more)
 
 
 def top_pairs(ratio: pd.DataFrame, ranked: pd.Index, count: int = TOP_PAIRS) -> list[str]:
