@@ -315,6 +315,27 @@ STALLED_BEHIND = 3.0
 """Digits behind the problem's best pair that a stalled pair's best scd must be."""
 
 
+def reference_source(runs: pd.DataFrame) -> str:
+    """Where one problem's reference came from, as most of its rows say it (the cache file
+    it was read from left out); for a reference computed with a formalism that is also
+    swept, that its runs are scored against their own equations. '' when no row says."""
+    if "reference" not in runs:
+        return ""
+    said = runs["reference"].dropna().astype(str)
+    said = said[said != ""].str.replace(r" \(read from [^()]*\)$", "", regex=True)
+    if said.empty:
+        return ""
+    text = said.mode().iloc[0]
+    if text.startswith("computed: "):
+        formalism = text.removeprefix("computed: ").split(" + ")[0].split("(")[0]
+        if formalism in set(runs.get("formalism", pd.Series(dtype=str)).astype(str)):
+            text += (
+                f"; {formalism}'s runs are scored against their own equations (their error "
+                "is the integration's alone; the other formalisms' agreement checks them)"
+            )
+    return text
+
+
 def stalled_pairs(runs: pd.DataFrame) -> list[str]:
     """Pairs whose error does not shrink with the tolerance while other pairs' does:
     over ``STALLED_SPAN`` decades of rtol the scd of their trusted runs (ok, no warning)

@@ -72,6 +72,7 @@ class ProblemSection:
     error: FigureFiles | None = None
     picture: FigureFiles | None = None  # the mechanism at its initial pose
     traits: Any = None  # its Traits (workbench.outputs.report.traits), model left out
+    reference: str = ""  # where its reference came from (analysis.reference_source)
 
 
 @dataclass

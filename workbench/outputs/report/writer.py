@@ -32,6 +32,7 @@ from workbench.outputs.report.analysis import (
     drift_table_contents,
     oversubscription_warning,
     prepare_results,
+    reference_source,
     stalled_pairs,
     status_by_problem,
     status_counts,
@@ -520,4 +521,5 @@ def problem_section(
         error=error,
         picture=picture,
         traits=traits,
+        reference=reference_source(runs),
     )
