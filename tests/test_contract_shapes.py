@@ -5,17 +5,16 @@ in the conformance kit alike."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import casadi as ca
 import pytest
 
 import workbench as wb
+from tests.test_report_stalled import template_formalism
 from tests.test_scaffold import isolated_registry  # noqa: F401 - a fixture
 from workbench.equations.contract import MechanicalSystem
 from workbench.errors import PluginError
-from workbench.plugin.scaffold import scaffold
 from workbench.testing import check_formalism
 
 
@@ -52,22 +51,9 @@ def test_the_right_shapes_pass() -> None:
     assert (built.n_holonomic, built.n_constraints) == (1, 2)
 
 
-def template_with_forces_too_long(folder: Path) -> type:
-    """``workbench new formalism``'s module, written with a forces vector of nv + 1 rows."""
-    scaffold("formalism", "long-forces", where=folder)
-    path = folder / "long_forces.py"
-    text = path.read_text(encoding="utf-8")
-    start = text.index("        # TODO: write the mass matrix and the forces")
-    text = text[:start] + text[text.index("        mass = ca.SX.eye"):]
-    path.write_text(text.replace("ca.SX.zeros(k.nv)", "ca.SX.zeros(k.nv + 1)"), "utf-8")
-    spec = importlib.util.spec_from_file_location("long_forces", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.LongForces
-
-
 def test_a_run_and_the_kit_name_the_field(tmp_path: Path, isolated_registry: None) -> None:  # noqa: F811
-    formalism = template_with_forces_too_long(tmp_path)
+    # the scaffold's module, written with a forces vector of nv + 1 rows
+    formalism = template_formalism(tmp_path, "long-forces", "ca.SX.zeros(k.nv + 1)")
     with pytest.warns(RuntimeWarning):
         row = wb.run("double-pendulum", formalism, "scipy-dop853").row
     assert row["status"] == "failed"

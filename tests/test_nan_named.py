@@ -5,29 +5,19 @@ finite equations gets no such note."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 import workbench as wb
+from tests.test_report_stalled import template_formalism
 from tests.test_scaffold import isolated_registry  # noqa: F401 - a fixture
-from workbench.plugin.scaffold import scaffold
 
 
 @pytest.fixture
 def nan_after_half_a_second(tmp_path: Path, isolated_registry: None) -> type:  # noqa: F811
     """The scaffold's formalism with M = I and Q = sqrt(0.5 - t): NaN from t = 0.5 on."""
-    scaffold("formalism", "nan-late", where=tmp_path)
-    path = tmp_path / "nan_late.py"
-    text = path.read_text(encoding="utf-8")
-    start = text.index("        # TODO: write the mass matrix and the forces")
-    text = text[:start] + text[text.index("        mass = ca.SX.eye"):]
-    path.write_text(text.replace("ca.SX.zeros(k.nv)", "ca.SX.zeros(k.nv) + ca.sqrt(0.5 - k.t)"))
-    spec = importlib.util.spec_from_file_location("nan_late", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.NanLate
+    return template_formalism(tmp_path, "nan-late", "ca.SX.zeros(k.nv) + ca.sqrt(0.5 - k.t)")
 
 
 @pytest.mark.parametrize(

@@ -21,17 +21,22 @@ from workbench.plugin.scaffold import scaffold
 TOLERANCES = (1e-4, 1e-6, 1e-8)
 
 
-def template_formalism(folder: Path) -> type:
-    """``workbench new formalism``'s module with its TODO raise deleted: M = I, Q = 0."""
-    scaffold("formalism", "stalled-template", where=folder)
-    path = folder / "stalled_template.py"
+def template_formalism(
+    folder: Path, name: str = "stalled-template", forces: str = "ca.SX.zeros(k.nv)"
+) -> type:
+    """``workbench new formalism NAME``'s module with its TODO raise deleted: M = I and the
+    forces ``forces`` (an expression in the template's ``k``; as written, Q = 0)."""
+    scaffold("formalism", name, where=folder)
+    module = name.replace("-", "_")
+    path = folder / f"{module}.py"
     text = path.read_text(encoding="utf-8")
     start = text.index("        # TODO: write the mass matrix and the forces")
-    path.write_text(text[:start] + text[text.index("        mass = ca.SX.eye"):], "utf-8")
-    spec = importlib.util.spec_from_file_location("stalled_template", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.StalledTemplate
+    text = text[:start] + text[text.index("        mass = ca.SX.eye"):]
+    path.write_text(text.replace("ca.SX.zeros(k.nv)", forces), "utf-8")
+    spec = importlib.util.spec_from_file_location(module, path)
+    loaded = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(loaded)
+    return getattr(loaded, "".join(part.title() for part in name.split("-")))
 
 
 def test_a_pair_that_does_not_converge_is_named_and_correct_ones_are_not(

@@ -35,19 +35,29 @@ def register(monkeypatch):
     return add
 
 
-class ScaledForces(MinimalOde):
-    """minimal-ode with every generalized force 1 % too large (a deliberate bug)."""
+class ChangedForces(MinimalOde):
+    """minimal-ode with its generalized forces changed by :meth:`changed` (a test's bug)."""
 
-    name = "test-scaled-forces"
-    summary = "minimal-ode with forces 1 % too large (test)"
+    def changed(self, system):
+        raise NotImplementedError
 
     def build(self, model, options=None):
         options = self.parse_options(options)
         kinematics = TreeKinematics(model)
         system = minimal_mechanical_system(model, kinematics)
-        system.forces = 1.01 * system.forces
+        system.forces = self.changed(system)
         ode = system.n_constraints == 0 or options.index == 1
         return build_joint_space_equations(self.name, model, kinematics, system, options, ode)
+
+
+class ScaledForces(ChangedForces):
+    """minimal-ode with every generalized force 1 % too large (a deliberate bug)."""
+
+    name = "test-scaled-forces"
+    summary = "minimal-ode with forces 1 % too large (test)"
+
+    def changed(self, system):
+        return 1.01 * system.forces
 
 
 class WrongJacobian(MinimalOde):
@@ -63,19 +73,14 @@ class WrongJacobian(MinimalOde):
         return equations
 
 
-class LateNan(MinimalOde):
+class LateNan(ChangedForces):
     """minimal-ode whose forces turn NaN after t = 0.5 s (beyond the kit's short run)."""
 
     name = "test-late-nan"
     summary = "minimal-ode with NaN forces after 0.5 s (test)"
 
-    def build(self, model, options=None):
-        options = self.parse_options(options)
-        kinematics = TreeKinematics(model)
-        system = minimal_mechanical_system(model, kinematics)
-        system.forces = system.forces + ca.if_else(system.t > 0.5, math.nan, 0.0)
-        ode = system.n_constraints == 0 or options.index == 1
-        return build_joint_space_equations(self.name, model, kinematics, system, options, ode)
+    def changed(self, system):
+        return system.forces + ca.if_else(system.t > 0.5, math.nan, 0.0)
 
 
 def failure(report, check, problem=""):
