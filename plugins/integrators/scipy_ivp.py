@@ -18,7 +18,12 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK45, OdeSolver, Radau, solve_ivp
 
 from workbench.errors import ConfigError
-from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.integrator import (
+    IntegrationTask,
+    Integrator,
+    LastEvaluation,
+    Trajectory,
+)
 from workbench.plugin.registry import integrator
 
 LEAST_RTOL = 100 * np.finfo(float).eps  # scipy.integrate._ivp.common.validate_tol's floor
@@ -62,7 +67,7 @@ class ScipyIvp(Integrator):
         form, options = task.form, task.options
         accepted = [0]
 
-        last: list[Any] = [None, None]  # (t, value) of the latest evaluation
+        last = LastEvaluation("right-hand side")
 
         def rhs(t: float, y: np.ndarray) -> np.ndarray:
             # a copy: RK stages keep the returned arrays. No finiteness test here: at
@@ -70,7 +75,7 @@ class ScipyIvp(Integrator):
             # looks at the latest value instead (a NaN makes the method shrink its step
             # until it gives up, evaluating at the NaN to the end)
             value = form.rhs.into(t, y)[0].copy()
-            last[0], last[1] = t, value
+            last.t, last.value = t, value
             return value
 
         if task.rtol < LEAST_RTOL:  # SciPy raises it to LEAST_RTOL, said only by a UserWarning
@@ -101,10 +106,7 @@ class ScipyIvp(Integrator):
         if solution.status < 0:
             trajectory.success = False
             trajectory.message = f"{self.name}: {solution.message}"
-            if last[1] is not None and not np.isfinite(last[1]).all():
-                trajectory.message += (
-                    f" (the right-hand side was NaN or infinite at t = {last[0]:.6g})"
-                )
+            trajectory.message += last.note()
 
 
 # workbench name -> (SciPy method, uses the Jacobian, summary)

@@ -26,7 +26,6 @@ exposed (-1).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
@@ -39,8 +38,8 @@ from workbench.errors import ConfigError
 from workbench.plugin.integrator import (
     IntegrationTask,
     Integrator,
+    LastEvaluation,
     Trajectory,
-    nonfinite_after,
 )
 from workbench.plugin.registry import integrator
 
@@ -79,33 +78,18 @@ def _common_options(task: IntegrationTask, highest_order: int) -> dict[str, Any]
     }
 
 
-class LastValue:
-    """The latest evaluation of the equations (its time and the function's own output
-    array, overwritten by each call: nothing copied), to say after a failure whether they
-    had turned NaN or infinite, which the solver does not say (it names its own symptom:
-    step size underflow); else they are probed after the time reached (``nonfinite_after``)."""
-
-    def __init__(self, what: str, evaluate: Callable[[float, Any], np.ndarray]) -> None:
-        self.what, self.evaluate = what, evaluate  # evaluate(t, the solver's result)
-        self.t, self.value = math.nan, None
-
-    def note(self, result: Any, t_end: float) -> str:
-        if self.value is not None and not np.isfinite(self.value).all():
-            return f" (the {self.what} was NaN or infinite at t = {self.t:.6g})"
-        probe = lambda t: self.evaluate(t, result)  # noqa: E731
-        return nonfinite_after(self.what, probe, float(result.t), t_end)
-
-
 def _march(
     solver: Any,
     task: IntegrationTask,
     trajectory: Trajectory,
     name: str,
     y0: np.ndarray,
-    last: LastValue,
+    last: LastEvaluation,
+    probe: Callable[[float, Any], np.ndarray],
 ) -> None:
     """Step one accepted step at a time to times[-1], interpolating every output passed;
-    a failure's message says when ``last`` was NaN or infinite."""
+    a failure's message says when the equations were NaN or infinite: ``last``, else
+    ``probe(t, the solver's result)`` after the time reached."""
     times = task.times
     rows, reached = [np.array(y0, dtype=float)], [times[0]]
     k, steps, t_last, replay = 1, 0, float(times[0]), False
@@ -120,7 +104,7 @@ def _march(
         if not result.success:
             trajectory.success = False
             trajectory.message = f"{name}: at t = {float(result.t):g}: {result.message}"
-            trajectory.message += last.note(result, float(times[-1]))
+            trajectory.message += _nonfinite_note(last, probe, result, float(times[-1]))
             break
         if not np.all(np.isfinite(result.y)):
             # NaN fails every comparison, so the error test passes it: stop here ourselves
@@ -134,7 +118,7 @@ def _march(
         if result.t <= t_last:
             trajectory.success = False
             trajectory.message = f"{name}: no progress at t = {t_last:g} (step size underflow)"
-            trajectory.message += last.note(result, float(times[-1]))
+            trajectory.message += _nonfinite_note(last, probe, result, float(times[-1]))
             break
         steps, t_last = steps + 1, float(result.t)
         while k < len(times) and times[k] <= result.t:
@@ -148,6 +132,12 @@ def _march(
     trajectory.stats.n_steps = steps
 
 
+def _nonfinite_note(last: LastEvaluation, probe: Any, result: Any, t_end: float) -> str:
+    """Whether the equations were NaN or infinite: the last evaluation, else probed at the
+    solver's result after its time."""
+    return last.note(lambda t: probe(t, result), float(result.t), t_end)
+
+
 class CvodeBase(Integrator):
     """CVODE on the ode form; subclasses set ``method``."""
 
@@ -157,7 +147,7 @@ class CvodeBase(Integrator):
 
     def integrate(self, task: IntegrationTask, trajectory: Trajectory) -> None:
         rhs, jacobian = task.form.rhs, task.form.jacobian
-        last = LastValue("right-hand side", lambda t, result: rhs.into(t, result.y)[0])
+        last = LastEvaluation("right-hand side")
 
         def rhsfn(t: float, y: np.ndarray, yp: np.ndarray) -> None:
             last.t, last.value = t, rhs.into(t, y)[0]
@@ -173,7 +163,8 @@ class CvodeBase(Integrator):
             **_common_options(task, 5 if self.method == "BDF" else 12),
         )
         solver.init_step(task.times[0], task.y0)
-        _march(solver, task, trajectory, self.name, task.y0, last)
+        probe = lambda t, result: rhs.into(t, result.y)[0]  # noqa: E731
+        _march(solver, task, trajectory, self.name, task.y0, last, probe)
         trajectory.stats.n_rejected = -1
 
 
@@ -204,7 +195,7 @@ class Ida(Integrator):
         algebraic = np.flatnonzero(form.algebraic)
         setups = [0]  # IDA evaluates the Jacobian at each linear setup
 
-        last = LastValue("residual", lambda t, result: residual.into(t, result.y, result.yp)[0])
+        last = LastEvaluation("residual")
 
         def resfn(t: float, y: np.ndarray, yp: np.ndarray, res: np.ndarray) -> None:
             last.t, last.value = t, residual.into(t, y, yp)[0]
@@ -235,6 +226,7 @@ class Ida(Integrator):
             trajectory.success = False
             trajectory.message = f"{self.name}: initial conditions: {start.message}"
             return
-        _march(solver, task, trajectory, self.name, start.y, last)
+        probe = lambda t, result: residual.into(t, result.y, result.yp)[0]  # noqa: E731
+        _march(solver, task, trajectory, self.name, start.y, last, probe)
         trajectory.stats.n_lu = setups[0]
         trajectory.stats.n_rejected = -1

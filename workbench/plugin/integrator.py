@@ -148,6 +148,24 @@ def check_tolerances(rtol: Any, atol: Any) -> None:
             raise ConfigError(f"{name}: {problem}")
 
 
+class LastEvaluation:
+    """The latest evaluation of an integrator's equations (its time and value: a reference
+    is enough where the value is copied or the array reused), kept so that a failure can say
+    the equations had turned NaN or infinite; solvers name only their own symptom (step
+    size underflow, too much work). A reference costs no check a call."""
+
+    def __init__(self, what: str) -> None:
+        self.what, self.t, self.value = what, math.nan, None
+
+    def note(self, probe: Any = None, t: float = math.nan, t_end: float = math.nan) -> str:
+        """" (the WHAT was NaN or infinite at t = ...)" for the latest evaluation; else,
+        given ``probe(t')`` (the equations at the state reached), :func:`nonfinite_after`;
+        else ""."""
+        if self.value is not None and not np.isfinite(self.value).all():
+            return f" (the {self.what} was NaN or infinite at t = {self.t:.6g})"
+        return nonfinite_after(self.what, probe, t, t_end) if probe is not None else ""
+
+
 def nonfinite_after(what: str, evaluate: Any, t: float, t_end: float) -> str:
     """After a failed integration: whether the equations are NaN or infinite just after the
     time ``t`` reached, which an adaptive solver reports only as its own symptom (step size
