@@ -33,3 +33,19 @@ def test_a_timed_out_run_keeps_its_stage_and_how_far_it_got(tmp_path) -> None:
     else:
         assert math.isnan(row["t_reached"])
     assert not list(tmp_path.rglob("*.progress*"))  # read and removed
+
+
+def test_a_run_killed_before_its_first_evaluation_reports_no_time(tmp_path, fake_plugins) -> None:
+    """A worker reuses the equations it built for the run before (same problem and
+    formalism); a run that hangs before evaluating them must not report the time the
+    earlier run's integration ended at (it read "at t = 2 s of 2 s")."""
+    finished = RunSpec("test-pendulum", "minimal-ode", "test-rk45", 1e-6, 1e-9)
+    hung = RunSpec("test-pendulum", "minimal-ode", "test-hang", 1e-6, 1e-9)
+    statuses: list[str] = []
+    run_local([finished, hung], tmp_path, 3.0, ["tests.fake_plugins"], 1, statuses.append)
+    assert statuses == ["ok", "timeout"]
+    rows = store.load_results(tmp_path).set_index("integrator")
+    assert rows.loc["test-rk45", "t_reached"] == 2.0
+    assert rows.loc["test-hang", "stage"] == "integrate"
+    assert math.isnan(rows.loc["test-hang", "t_reached"])
+    assert "at t =" not in rows.loc["test-hang", "message"]

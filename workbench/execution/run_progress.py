@@ -58,10 +58,14 @@ class RunProgress:
             for f in members
             if isinstance(f, FastFunction) and f._inputs and f._inputs[0].size == 1
         ]
+        for buffer in self._time_buffers:  # equations built for an earlier run keep its
+            buffer[0] = math.nan  # last time there; every call sets it before evaluating
 
     def t_reached(self) -> float:
+        """The latest time the equations were evaluated at in this run (NaN before the
+        first evaluation, or where the integrator evaluates them elsewhere)."""
         values = [float(buffer[0]) for buffer in self._time_buffers]
-        return max(values) if values else math.nan
+        return max((v for v in values if math.isfinite(v)), default=math.nan)
 
     def snapshot(self) -> dict[str, Any]:
         return {
