@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import textwrap
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -315,6 +315,27 @@ def test_wrong_type_names_the_expected_type():
     with pytest.raises(ConfigError, match="must be a table"):
         parse([("rtol", 1e-3)])
 
+
+
+def test_container_options_are_checked_item_by_item():
+    """tuple, list and dict options were taken as given: "abc" for a pair of floats ran."""
+
+    @dataclass(frozen=True)
+    class Weights:
+        pair: tuple[float, float] = (1.0, 2.0)
+        many: tuple[float, ...] = ()
+        counts: list[int] = field(default_factory=list)
+        scales: dict[str, float] = field(default_factory=dict)
+
+    parsed = parse_options(Weights, {"pair": [1, 2], "many": [3], "counts": [4],
+                                     "scales": {"a": 1}}, "x")  # fmt: skip
+    assert parsed == Weights((1.0, 2.0), (3.0,), [4], {"a": 1.0})
+    assert isinstance(parsed.pair[0], float) and isinstance(parsed.pair, tuple)
+    for bad in ({"pair": "abc"}, {"pair": "(1,2)"}, {"pair": [1, 2, 3]}, {"pair": ["a", 2]},
+                {"many": 3.0}, {"counts": [1.5]}, {"scales": [1]}, {"scales": {"a": "b"}}):
+        name = next(iter(bad))
+        with pytest.raises(ConfigError, match=f"option '{name}' must be of type"):
+            parse_options(Weights, bad, "x")
 
 def test_literal_choices():
     expected = "option 'method' must be one of 'bdf', 'radau', not 'rk4'"

@@ -7,6 +7,7 @@ Range checks live in the dataclass's ``__post_init__`` and raise :class:`ConfigE
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import difflib
 import functools
@@ -114,12 +115,35 @@ def _coerce(owner: str, name: str, annotation: Any, value: Any) -> Any:
     elif annotation is str:
         if isinstance(value, str):
             return value
+    elif (origin or annotation) in (tuple, list, dict):
+        with contextlib.suppress(ConfigError):  # an item of the wrong type: said below
+            return _coerce_container(owner, name, annotation, value)
     else:
         return value
     raise ConfigError(
         f"{owner}: option {name!r} must be of type {type_name(annotation)}, "
         f"not {type(value).__name__} {value!r}"
     )
+
+
+def _coerce_container(owner: str, name: str, annotation: Any, value: Any) -> Any:
+    """``value`` as the tuple, list or dict ``annotation`` names, each item coerced to its
+    type (TOML and ``-o name=[1, 2]`` give lists); ConfigError if it is not one."""
+    kind, args = typing.get_origin(annotation) or annotation, typing.get_args(annotation)
+    if kind is dict:
+        if not isinstance(value, Mapping):
+            raise ConfigError(name)
+        key_type, value_type = args or (Any, Any)
+        return {_coerce(owner, name, key_type, k): _coerce(owner, name, value_type, v)
+                for k, v in value.items()}  # fmt: skip
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(name)
+    if kind is tuple and args and args[-1] is not Ellipsis:  # tuple[float, float]: fixed
+        if len(value) != len(args):
+            raise ConfigError(name)
+        return tuple(_coerce(owner, name, a, v) for a, v in zip(args, value, strict=True))
+    items = [_coerce(owner, name, args[0] if args else Any, v) for v in value]
+    return tuple(items) if kind is tuple else items
 
 
 def parse_options(options_class: type, values: Mapping[str, Any] | None, owner: str) -> Any:
