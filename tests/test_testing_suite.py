@@ -258,3 +258,49 @@ def test_the_summary_says_over_what_span_the_trajectory_was_checked(register):
     longer = check_formalism("test-late-nan", ["double-pendulum"], checks=["motion"], horizon=0.4)
     assert "trajectory checked over 0.4 s" in longer.summary()
     assert "checked over" not in check_formalism("test-late-nan", checks="structural").summary()
+
+
+class FrozenMultipliers(Integrator):
+    """Backward Euler on the dae form whose Newton solves only the differential
+    equations: the algebraic variables (the multipliers) keep their first values (test)."""
+
+    name = "test-frozen-multipliers"
+    summary = "backward Euler leaving the algebraic variables alone (test)"
+    accepts = {"dae": 1}
+
+    def integrate(self, task, trajectory):
+        residual, jacobian = task.form.residual, task.form.jacobian
+        differential = ~np.asarray(task.form.algebraic, bool)
+        y, out = task.y0.copy(), [task.y0.copy()]
+        for t0, t1 in zip(task.times[:-1], task.times[1:], strict=True):
+            n = max(1, math.ceil((t1 - t0) / 1e-3))
+            h = (t1 - t0) / n
+            for i in range(n):
+                z = y.copy()
+                for _ in range(4):
+                    (r,) = residual(t0 + (i + 1) * h, z, (z - y) / h)
+                    (J,) = jacobian(t0 + (i + 1) * h, z, (z - y) / h, 1.0 / h)
+                    J = np.asarray(J.toarray() if hasattr(J, "toarray") else J)
+                    block = J[np.ix_(differential, differential)]
+                    z[differential] -= np.linalg.solve(block, np.ravel(r)[differential])
+                y = z
+            out.append(y.copy())
+        trajectory.times, trajectory.y = task.times, np.array(out)
+        trajectory.stats.n_steps = len(task.times)
+
+
+def test_a_dae_method_that_never_solves_for_the_multipliers_fails_the_closed_loop(register):
+    """Both analytic problems have no loop: such a method passed their accuracy; on the
+    slider-crank its links come apart, while IDA holds them together."""
+    from workbench.testing.integrator import CLOSED_LOOP, _check_closed_loop
+    from workbench.testing.report import ConformanceReport
+
+    register("integrator", FrozenMultipliers)
+    reports = {}
+    for plugin in (FrozenMultipliers, REGISTRY.get("integrator", "sundials-ida")):
+        reports[plugin.name] = ConformanceReport("integrator", plugin.name)
+        _check_closed_loop(reports[plugin.name], plugin, None)
+    wrong = failure(reports["test-frozen-multipliers"], "closed-loop", CLOSED_LOOP)
+    assert wrong.error > 1e-2 and "position constraints' residual" in wrong.message
+    (right,) = reports["sundials-ida"].results
+    assert right.status == "pass" and right.error < 1e-5, right.message

@@ -4,6 +4,7 @@ x'' = -sin t, exact solution x = sin t) and a method that ignores rtol; the "fai
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 from workbench.plugin.integrator import Integrator, step_for_tolerance
 from workbench.plugin.registry import REGISTRY, PluginInfo
 from workbench.testing import check_integrator
-from workbench.testing.integrator import TIME_DEPENDENCE_ERROR
+from workbench.testing.integrator import TIME_DEPENDENCE_RATIO
 
 GYRO = ["torque-free-symmetric-gyro"]
 
@@ -69,6 +70,28 @@ class WrongStageTime(Midpoint):
         return t
 
 
+class ForwardEuler(Midpoint):
+    """Explicit Euler, order 1, its step from rtol as the docs say (test): right, but
+    above the kit's absolute bound on the driven block at rtol 1e-8."""
+
+    name = "test-forward-euler"
+    summary = "explicit Euler, order 1, step from rtol (test)"
+
+    def integrate(self, task: Any, trajectory: Any) -> None:
+        rhs, y = task.form.rhs, task.y0.copy()
+        step = step_for_tolerance(task.rtol, 1)
+        out, steps = [y.copy()], 0
+        for t0, t1 in zip(task.times[:-1], task.times[1:], strict=True):
+            n = max(1, int(np.ceil((t1 - t0) / step)))
+            h = (t1 - t0) / n
+            for k in range(n):
+                y = y + h * rhs(t0 + k * h, y)[0]
+            steps += n
+            out.append(y.copy())
+        trajectory.times, trajectory.y = task.times, np.array(out)
+        trajectory.stats.n_steps = steps
+
+
 class IgnoresRtol(Midpoint):
     """The midpoint rule at 0.1 ms whatever rtol says: accurate, but deaf to rtol (test)."""
 
@@ -111,8 +134,19 @@ def test_the_right_midpoint_passes_and_the_wrong_stage_time_is_caught(register: 
     # h/2 (1 - cos 2) at t = 2 s; h = 1e-4 s at rtol 1e-8
     h = step_for_tolerance(1e-8, 2)
     expected = h / 2 * (np.sin(2.0) + 1 - np.cos(2.0))
-    assert caught.error == pytest.approx(expected, rel=0.05)
-    assert caught.error > 100 * TIME_DEPENDENCE_ERROR
+    measured = float(re.search(r"rtol 1e-08: ([0-9.e+-]+), above", caught.message)[1])
+    assert measured == pytest.approx(expected, rel=0.05)
+    assert caught.error > 100 * TIME_DEPENDENCE_RATIO  # against the autonomous twin
+
+
+def test_a_right_first_order_method_passes_time_dependence(register: Any) -> None:
+    """Its error on the driven block (h = 1e-5 s) is above the absolute bound, as on the
+    autonomous twin x'' = -x: its order, not a stage at the wrong time (it failed)."""
+    register(ForwardEuler)
+    report = check_integrator(ForwardEuler, GYRO)
+    passed = result(report, "time-dependence")
+    assert passed.status == "pass", passed.message
+    assert "above 1e-06" in passed.message and passed.error < 2.0
 
 
 def test_a_method_ignoring_rtol_is_caught(register: Any) -> None:
