@@ -142,8 +142,19 @@ def test_a_fixed_plugin_makes_its_rows_stale_and_rerun_stale_redoes_them(
 
     marked = mark_stale(store.load_results(out), kept.stale)
     assert all("stale" in warning_kinds(w) for w in marked["warnings"])
+    # and so does a report made later by `workbench report`, which imports no plugin of
+    # the sweep's (it showed the rows as trusted again)
+    from workbench.outputs.report.writer import report_directory
+    from workbench.runs.resume import stale_in_plan
+
+    assert stale_in_plan(store.load_plan(out), store.load_results(out)) == kept.stale
+    index = report_directory(out, tmp_path / "later-report")
+    assert "ok with warnings: stale, redo with `workbench sweep --rerun stale`" in (
+        index.read_text()
+    )
     redone, lines = sweep_lines(text, rerun={"stale"})
     assert redone.total == 2 and redone.counts["ok"] == 2 and redone.stale == {}
+    assert stale_in_plan(store.load_plan(out), store.load_results(out)) == {}
     assert any(line.startswith("redoing 2 stale row(s)") for line in lines)
     fixed = store.load_results(out).set_index("run_id")
     assert (fixed["scd"] > buggy["scd"] + 3).all()  # 0.05 g/2 off -> the rk45 tolerance

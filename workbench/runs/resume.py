@@ -17,15 +17,22 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
 from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec
-from workbench.execution.producer import stale_reason, unknown_producer
+from workbench.execution.producer import (
+    LIBRARY_COLUMNS,
+    PLUGIN_COLUMNS,
+    stale_reason,
+    unknown_producer,
+)
 from workbench.runs import store
 
 RERUN_KINDS = ("failed", "timeout", "skipped", "stale")
+PRODUCER_COLUMNS = (*PLUGIN_COLUMNS, *LIBRARY_COLUMNS)
 SHOWN = 10  # broken or stale runs named one a line; the rest counted
 
 
@@ -50,6 +57,9 @@ class ResumePlan:
     done: int = 0  # runs of this sweep with a whole row (stale ones included)
     broken: dict[str, str] = field(default_factory=dict)  # run id -> what is wrong
     stale: dict[str, str] = field(default_factory=dict)  # run id -> what changed
+    # run id -> its row's producer columns then: a later report keeps the mark while the
+    # row is the same (:func:`stale_in_plan`)
+    stale_rows: dict[str, dict[str, str]] = field(default_factory=dict)
     unknown: int = 0  # done rows whose producer is unknown (written before schema 4)
     rerun: frozenset[str] = frozenset()
     fresh: bool = False
@@ -108,10 +118,31 @@ def plan_resume(
         stale = stale_reason(row)
         if stale:
             plan.stale[spec.run_id] = stale
+            plan.stale_rows[spec.run_id] = {c: str(row.get(c)) for c in PRODUCER_COLUMNS}
         plan.unknown += unknown_producer(row)
         if row.get("status") in rerun or (stale and "stale" in rerun):
             plan.todo.append(spec)
     return plan
+
+
+def stale_in_plan(plan: Mapping[str, Any] | None, frame: pd.DataFrame) -> dict[str, str]:
+    """The stale rows (run id -> what changed) the last sweep found in its folder
+    (``plan``: :func:`workbench.runs.store.load_plan`) whose row in ``frame`` is still the
+    one it judged: what a report made later by ``workbench report`` marks stale, as the
+    sweep's own report did (that command imports none of the sweep's own plugins)."""
+    stored = (plan or {}).get("stale")
+    if not isinstance(stored, dict) or len(frame) == 0:
+        return {}
+    rows = frame.drop_duplicates("run_id").set_index("run_id")
+    kept = {}
+    for run_id, entry in stored.items():
+        if not isinstance(entry, dict) or run_id not in rows.index:
+            continue
+        row = rows.loc[run_id]
+        then = entry.get("row", {})
+        if all(str(row.get(column)) == str(value) for column, value in then.items()):
+            kept[run_id] = str(entry.get("reason", ""))
+    return kept
 
 
 def mark_stale(frame: pd.DataFrame, stale: Mapping[str, str]) -> pd.DataFrame:
@@ -131,4 +162,4 @@ def mark_stale(frame: pd.DataFrame, stale: Mapping[str, str]) -> pd.DataFrame:
     return frame
 
 
-__all__ = ["RERUN_KINDS", "ResumePlan", "mark_stale", "parse_rerun", "plan_resume"]
+__all__ = ["RERUN_KINDS", "ResumePlan", "mark_stale", "parse_rerun", "plan_resume", "stale_in_plan"]

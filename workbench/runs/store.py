@@ -37,7 +37,7 @@ import json
 import math
 import os
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -381,10 +381,16 @@ __all__ = [
 ]
 
 
-def write_plan(out: str | os.PathLike[str], run_ids: Iterable[str], source: str) -> None:
-    """Record the run ids a sweep planned in ``out`` (its source: a file or a suite)."""
+def write_plan(
+    out: str | os.PathLike[str],
+    run_ids: Iterable[str],
+    source: str,
+    stale: Mapping[str, dict[str, Any]] | None = None,
+) -> None:
+    """Record the run ids a sweep planned in ``out`` (its source: a file or a suite) and
+    the done rows it found stale (run id -> {"reason", "row": its producer columns})."""
     ids = list(dict.fromkeys(str(run_id) for run_id in run_ids))
-    plan = {"source": source, "runs": len(ids), "run_ids": ids}
+    plan = {"source": source, "runs": len(ids), "run_ids": ids, "stale": dict(stale or {})}
     write_json_atomic(plan, Path(out) / PLAN_FILE, root=Path(out))
 
 

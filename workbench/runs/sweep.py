@@ -146,7 +146,9 @@ def run_sweep(
         files.write_json_atomic(environment, out_dir / store.ENVIRONMENT_FILE, root=out_dir)
         if sweep.text:
             files.write_text_atomic(sweep.text, out_dir / "sweep.toml", root=out_dir)
-        store.write_plan(out_dir, (spec.run_id for spec in sweep.runs), sweep.source)
+        stale = {run_id: {"reason": why, "row": plan.stale_rows[run_id]}
+                 for run_id, why in plan.stale.items()}  # fmt: skip
+        store.write_plan(out_dir, (spec.run_id for spec in sweep.runs), sweep.source, stale)
         counts: Counter = Counter()
         states = sweep.store_trajectories
         # the local pool forks its workers: no thread may be running then (see _context)

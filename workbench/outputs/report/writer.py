@@ -248,7 +248,8 @@ def report_directory(
 
     stale: rows made by other code than the sweep's (run id -> what changed, as
     :func:`workbench.runs.resume.plan_resume` found them), marked with a ``stale``
-    warning (:func:`workbench.runs.resume.mark_stale`).
+    warning (:func:`workbench.runs.resume.mark_stale`); None: those the folder's last
+    sweep found, while their rows are unchanged (:func:`~workbench.runs.resume.stale_in_plan`).
 
     out_dir: default ``<results directory>/report``. command: for the footer; default the
     equivalent ``workbench report`` command line. Time series are read from the directory's
@@ -269,11 +270,16 @@ def report_directory(
     frame = load_results(source) if rows is None else rows
     if len(frame) == 0:
         raise ConfigError(f"no result rows in {source}: run `workbench sweep --out {source}` first")
+    directory = source if source.is_dir() else source.parent
+    plan = load_plan(directory)
+    if stale is None:  # `workbench report`: the marks of the folder's last sweep
+        from workbench.runs.resume import stale_in_plan
+
+        stale = stale_in_plan(plan, frame)
     if stale:
         from workbench.runs.resume import mark_stale
 
         frame = mark_stale(frame, stale)
-    directory = source if source.is_dir() else source.parent
     target = Path(out_dir) if out_dir is not None else directory / "report"
     check_folder_target(target)  # before the report's seconds of work, not after them
     if out_dir is None:
@@ -290,7 +296,6 @@ def report_directory(
     index = target / "index.html"
     key = report_key(source, stale, cost) if source.is_dir() else None
     output_keys.forget(index)
-    plan = load_plan(directory)
     index = write_report(
         frame, series_loader, target, command, progress=progress, cost=cost, plan=plan,
         paper=paper,
