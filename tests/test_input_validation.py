@@ -397,3 +397,26 @@ def test_fuzzed_run_command_lines_give_one_line_or_a_row(monkeypatch) -> None:
     assert time.perf_counter() - started < 1800  # only a hang
     assert outcomes["rows"] >= 5 and outcomes["errors"] >= 100, outcomes
     print(outcomes)
+
+
+def test_a_negative_or_non_finite_step_is_refused_for_a_plugin_without_its_own_check() -> None:
+    """`-o step=-1` ran "ok" with a plugin's own fallback step; NaN raised a bare ValueError
+    inside the run. 0 is the plugin's to read ("from rtol" in moreau-jean)."""
+    import math
+    from dataclasses import dataclass
+
+    from workbench.errors import ConfigError
+    from workbench.plugin.integrator import Integrator
+
+    @dataclass(frozen=True)
+    class StepOptions:
+        step: float | None = None
+
+    class FixedStep(Integrator):
+        name = "test-fixed-step"
+
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ConfigError, match="option step must be a positive number"):
+            FixedStep.check_step_count(StepOptions(bad), 1.0)
+    for fine in (None, 0.0, 1e-3):
+        FixedStep.check_step_count(StepOptions(fine), 1.0)

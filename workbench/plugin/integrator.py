@@ -219,7 +219,16 @@ class Integrator:
 
     @classmethod
     def check_step_count(cls, options: Any, span: float) -> None:
-        """ConfigError when ``options`` would need more than MAX_STEPS steps over ``span``."""
+        """ConfigError when ``options`` would need more than MAX_STEPS steps over ``span``,
+        or give a negative or non-finite ``step`` (-1 ran as if unset; 0 is left to the
+        plugin, which may read it as "from rtol")."""
+        step = getattr(options, "step", None)
+        if isinstance(step, int | float) and not isinstance(step, bool):
+            if not (math.isfinite(step) and step >= 0):
+                raise ConfigError(
+                    f"integrator {cls.name!r}: option step must be a positive number of "
+                    f"seconds, not {step!r}"
+                )
         steps = cls.min_steps(options, span)
         if steps > MAX_STEPS:
             raise ConfigError(
