@@ -304,3 +304,33 @@ def test_a_dae_method_that_never_solves_for_the_multipliers_fails_the_closed_loo
     assert wrong.error > 1e-2 and "position constraints' residual" in wrong.message
     (right,) = reports["sundials-ida"].results
     assert right.status == "pass" and right.error < 1e-5, right.message
+
+
+class Sleeper(CoarseEuler):
+    """Never returns from its first solve (test)."""
+
+    name = "test-sleeper"
+    summary = "sleeps (test)"
+
+    def integrate(self, task, trajectory):
+        import time
+
+        time.sleep(600)
+
+
+def test_a_hung_integrator_is_named_by_the_check_it_hangs_in(register, monkeypatch):
+    """The kit printed nothing and never ended on a hung method: each motion check now
+    says it starts and runs under a time limit; the checks after a hung one are skipped."""
+    from workbench.testing import integrator as kit
+
+    monkeypatch.setattr(kit, "CHECK_TIME_LIMIT", 2.0)
+    register("integrator", Sleeper)
+    started = []
+    report = check_integrator(Sleeper, ["torque-free-symmetric-gyro"], progress=started.append)
+    hung = failure(report, "accuracy", "torque-free-symmetric-gyro")
+    assert "did not finish within 2 s" in hung.message
+    assert started == ["checking accuracy on torque-free-symmetric-gyro ..."]
+    skipped = {(r.check, r.status) for r in report.results if r.check != "accuracy"}
+    assert {("time-dependence", "skip"), ("failure", "skip")} <= skipped
+    with pytest.raises(Exception, match='checks must be "all" or "structural"'):
+        check_integrator(Sleeper, checks=["accuracy"])

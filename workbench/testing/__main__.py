@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.kind == "formalism":
             report = check_formalism(name, problems, checks=checks)
         elif args.kind == "integrator":
-            report = check_integrator(name, problems, checks=checks)
+            report = check_integrator(name, problems, checks=checks, progress=_progress)
         else:
             report = check_problem(name, checks=checks)
     except WorkbenchError as error:
@@ -71,6 +71,11 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
     return 0 if report.ok else 1
+
+
+def _progress(line: str) -> None:
+    """A check starting, on stderr: a hung plugin shows where it hangs."""
+    print(line, file=sys.stderr, flush=True)
 
 
 def _say_if_not_registered(kind: str, name: str) -> None:

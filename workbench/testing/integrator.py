@@ -44,7 +44,7 @@ import numpy as np
 
 from workbench.equations import FORMS, MechanicalSystem, build_joint_space_equations
 from workbench.equations.initial import consistent_initial_state
-from workbench.errors import one_line
+from workbench.errors import ConfigError, one_line
 from workbench.execution.references import given_reference
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import Model
@@ -63,6 +63,7 @@ HORIZON = 1.0  # s
 # run only: newmark's steps shrinking towards t = 1 took 43.5 s of CPU on a quiet Zen 3
 # EPYC (2026-11-27), under 30 on the Zen 5 the kit was first run on
 FAILURE_TIME_LIMIT = 120.0
+CHECK_TIME_LIMIT = 300.0  # s a motion check may take; newmark's slowest took 5 s (Intel Xeon)
 FAILURE_EARLIEST = 0.5  # s; y' = 1/(1 - t) is harmless up to here
 DRIVEN_HORIZON = 2.0  # s
 TIME_DEPENDENCE_ERROR = 1e-6  # |x - sin t| + |x' - cos t| at the end, at rtol 1e-8
@@ -79,12 +80,17 @@ def check_integrator(
     problems: Any = None,
     options: dict[str, Any] | None = None,
     checks: str = "all",
+    progress: Any = None,
 ) -> Any:
     """Check an integrator (registered name or class); returns a ConformanceReport.
 
     ``problems``: None (:data:`ANALYTIC_PROBLEMS`) or names / Problem instances with a
-    reference. ``checks``: "structural" or "all".
+    reference. ``checks``: "structural" or "all". ``progress``: called with a line as each
+    motion check starts (the CLI prints them). Each motion check runs in a forked process
+    under :data:`CHECK_TIME_LIMIT`: a hung method is named, and the checks after it skipped.
     """
+    if checks not in ("all", "structural"):
+        raise ConfigError(f'checks must be "all" or "structural", not {checks!r}')
     plugin = resolve_plugin("integrator", integrator)
     report = ConformanceReport("integrator", getattr(plugin, "name", plugin.__qualname__))
     defaults = check_structure(report, "integrator", plugin, Integrator)
@@ -104,13 +110,42 @@ def check_integrator(
         report.passed("accepts", message=", ".join(f"{k} (<= {v})" for k, v in accepts.items()))
     if checks == "structural" or bad or defaults is None:
         return report
-    for problem in problem_instances(problems or ANALYTIC_PROBLEMS):
-        _check_accuracy(report, plugin, options, problem)
+    steps = [(f"accuracy on {problem.name}", "accuracy", problem.name,
+              lambda r, p=problem: _check_accuracy(r, plugin, options, p))
+             for problem in problem_instances(problems or ANALYTIC_PROBLEMS)]  # fmt: skip
     if problems is None:
-        _check_closed_loop(report, plugin, options)
-    _check_time_dependence(report, plugin, options)
-    _check_failure(report, plugin, options)
+        steps.append(("closed-loop on the slider-crank", "closed-loop", CLOSED_LOOP,
+                      lambda r: _check_closed_loop(r, plugin, options)))  # fmt: skip
+    steps += [
+        ("time-dependence on the driven block", "time-dependence", "driven block x''=-sin t",
+         lambda r: _check_time_dependence(r, plugin, options)),
+        ("failure on the blow-up", "failure", "blow-up y''=y'^2",
+         lambda r: _check_failure(r, plugin, options)),
+    ]  # fmt: skip
+    for i, (what, check, problem, run) in enumerate(steps):
+        if progress is not None:
+            progress(f"checking {what} ...")
+        if check == "failure":  # under a limit of its own (FAILURE_TIME_LIMIT)
+            run(report)
+        elif not _within_time_limit(report, check, problem, run):
+            for _what, later, later_problem, _run in steps[i + 1 :]:
+                report.skipped(later, later_problem, "an earlier check did not finish in time")
+            break
     return report
+
+
+def _within_time_limit(report: ConformanceReport, check: str, problem: str, run: Any) -> bool:
+    """``run(report)`` in a forked process under :data:`CHECK_TIME_LIMIT`, its results
+    added to ``report``; False (with a failed result) when it did not finish in time."""
+    part = ConformanceReport(report.kind, report.subject)
+    try:
+        results = with_time_limit(lambda: (run(part), part.results)[1], CHECK_TIME_LIMIT)
+    except TimeoutError:
+        report.failed(check, problem, f"did not finish within {CHECK_TIME_LIMIT:g} s: a hung "
+                      "or very slow method (the checks after it are skipped)")  # fmt: skip
+        return False
+    report.results.extend(results)
+    return True
 
 
 def formalism_for(accepts: dict[str, int], model: Model) -> tuple[str, dict[str, Any]]:
@@ -422,7 +457,8 @@ def _check_failure(report: ConformanceReport, plugin: type, options: Any) -> Non
             f"(t < {FAILURE_EARLIEST:g}): it failed for another reason than the blow-up"
         )
     if problems:
-        report.failed("failure", "blow-up y''=y'^2", "; ".join(problems))
+        said = f" (its message: {trajectory.message[:160]})" if trajectory.message else ""
+        report.failed("failure", "blow-up y''=y'^2", "; ".join(problems) + said)
     else:
         report.passed(
             "failure",
