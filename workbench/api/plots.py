@@ -41,6 +41,9 @@ def plot_work_precision(
                 + (f"; cost measures: {', '.join(COST_MEASURES)}; cost columns: "
                    f"{', '.join(numeric)}" if column == cost else "")  # fmt: skip
             )
+    from workbench.outputs.report.analysis import problem_labels
+
+    results = results.assign(problem=problem_labels(results))  # one label a mechanism
     names = sorted(results["problem"].unique())
     if problem is None:
         if not names:

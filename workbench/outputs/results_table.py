@@ -52,9 +52,10 @@ CONDITION = re.compile(r"^\s*([A-Za-z0-9_.\- ]+?)\s*(<=|>=|!=|==|=|<|>)\s*(.*?)\
 
 def with_option_columns(frame: pd.DataFrame) -> pd.DataFrame:
     """``frame`` with its JSON option columns spread into one column an option
-    (``formalism.index``, ``integrator.step``; empty where a plugin has no such option)."""
+    (``problem.initial_angle``, ``formalism.index``, ``integrator.step``; empty where a
+    plugin has no such option)."""
     out = frame.copy()
-    for kind in ("formalism", "integrator"):
+    for kind in ("problem", "formalism", "integrator"):
         column = f"{kind}_options"
         if column not in out:
             continue
@@ -73,11 +74,12 @@ def changed_options(runs: pd.DataFrame) -> list[dict[str, str]]:
 
     seen: dict[tuple[str, str, str], dict[str, str]] = {}
     out: list[dict[str, str]] = [{} for _ in range(len(runs))]
-    for kind in ("formalism", "integrator"):
+    for kind in ("problem", "formalism", "integrator"):
         if f"{kind}_options" not in runs or kind not in runs:
             continue
         texts = runs[f"{kind}_options"].astype(object).fillna("").astype(str)
-        for changed, name, text in zip(out, runs[kind].astype(str), texts, strict=True):
+        names = runs.get("problem_name", runs[kind]) if kind == "problem" else runs[kind]
+        for changed, name, text in zip(out, names.astype(str), texts, strict=True):
             if (kind, name, text) not in seen:
                 seen[kind, name, text] = {
                     f"{kind}.{key}": json.dumps(value, default=str).replace('"', "")
@@ -94,7 +96,8 @@ def options_text(changed: Sequence[dict[str, str]], leave_out: Sequence[str]) ->
     names = {c for row in changed for c in row if c not in leave_out}
     keys = [c.split(".", 1)[1] for c in names]
     short = {c: k if keys.count(k) == 1 else c for c, k in zip(names, keys, strict=True)}
-    order = sorted(names, key=lambda c: (not c.startswith("formalism."), c))
+    order = sorted(names, key=lambda c: (c.split(".")[0] != "problem",
+                                         c.split(".")[0] != "formalism", c))  # fmt: skip
     return [", ".join(f"{short[c]}={row[c]}" for c in order if c in row) for row in changed]
 
 

@@ -81,7 +81,8 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
         runs[column] = (
             pd.to_numeric(runs[column], errors="coerce") if column in runs else float("nan")
         )
-    for column in ("run_id", "message", "formalism_options", "integrator_options"):
+    for column in ("run_id", "message", "problem_options", "formalism_options",
+                   "integrator_options"):  # fmt: skip
         if column not in runs:
             runs[column] = ""
         runs[column] = runs[column].astype(object).fillna("").astype(str)
@@ -89,9 +90,21 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
         runs["run_id"] = [f"run-{index}" for index in range(len(runs))]
     for column in ("problem", "formalism", "integrator", "status"):
         runs[column] = runs[column].astype(str)
+    # a problem run with several option sets is several mechanisms: each its own answer
+    # (`simple-pendulum[initial_angle=0.3]`); the plugin's name stays in problem_name
+    runs["problem_name"] = runs["problem"]
+    runs["problem"] = problem_labels(runs)
     runs["formalism_label"], runs["integrator_label"] = pair_labels(runs)
     runs["pair"] = runs["formalism_label"] + " / " + runs["integrator_label"]
     return runs
+
+
+def problem_labels(runs: pd.DataFrame) -> pd.Series:
+    """Each row's problem, with the options that vary between its rows appended
+    (``simple-pendulum[initial_angle=0.3]``): one label a mechanism."""
+    options = runs.get("problem_options", pd.Series("", index=runs.index))
+    options = options.astype(object).fillna("").astype(str)
+    return _with_varying_options(runs["problem"].astype(str), options)
 
 
 def pair_labels(runs: pd.DataFrame) -> tuple[pd.Series, pd.Series]:

@@ -168,7 +168,8 @@ def problem_traits(runs: pd.DataFrame) -> Traits:
     """The :class:`Traits` of one problem's rows (prepared)."""
     first = runs.iloc[0]
     options = str(first.get("problem_options", "") or "")
-    model = problem_model(str(first["problem"]), "" if options == "nan" else options)
+    name = str(first.get("problem_name", first["problem"]))  # a variant's plugin
+    model = problem_model(name, "" if options == "nan" else options)
     family, traits = model_traits(model) if model is not None else ("other", [])
     return Traits(family, traits, stiffness(runs), model)
 
