@@ -444,10 +444,14 @@ def test_the_cache_command_says_what_is_wrong_with_its_settings(cache, monkeypat
     blocker = cache.parent / "a-file"
     blocker.write_text("")
     monkeypatch.setenv("WORKBENCH_CACHE", str(blocker / "cache"))
-    for command in (["cache", "info"], ["cache", "clear", "--yes"]):
+    out = cache.parent / "out"
+    run = ["run", "simple-pendulum", "-f", "recursive", "-i", "rk4", "--out", str(out)]
+    sweep = ["sweep", "quick", "--out", str(out)]  # every run failed with it, exit 0
+    for command in (["cache", "info"], ["cache", "clear", "--yes"], run, sweep):
         refused = runner.invoke(app, command)
         assert refused.exit_code == 2 and "Traceback" not in refused.output
         assert f"{blocker} is not one (set WORKBENCH_CACHE" in refused.output
+    assert not out.exists()
 
 
 def test_a_compile_block_inside_another_is_counted_once() -> None:

@@ -309,6 +309,22 @@ def user_cache_dir() -> Path:
     return Path(configured) if configured else Path.home() / ".cache" / "mbs-workbench"
 
 
+def usable_cache_dir() -> Path:
+    """:func:`user_cache_dir`; ConfigError when it is not a folder and cannot be made one
+    (a file in its place or above it: WORKBENCH_CACHE names something else). Checked before
+    runs start: every run of a sweep failed with it, one by one."""
+    directory = user_cache_dir()
+    blocking = next(
+        (p for p in (directory, *directory.parents) if p.exists() and not p.is_dir()), None
+    )
+    if blocking is not None:
+        raise ConfigError(
+            f"the cache {directory} cannot be a folder: {blocking} is not one "
+            "(set WORKBENCH_CACHE to a folder, or unset it for ~/.cache/mbs-workbench)"
+        )
+    return directory
+
+
 @contextlib.contextmanager
 def file_lock(path: Path) -> Iterator[None]:
     """An exclusive advisory lock on ``path`` (created if missing), released by the OS if

@@ -41,21 +41,10 @@ def info() -> None:
 
 
 def _usable_cache_dir() -> Any:
-    """The cache folder; ConfigError when it is not a folder and cannot be made one (a
-    file in its place or above it: WORKBENCH_CACHE names something else)."""
-    from workbench.equations import compiled
-    from workbench.errors import ConfigError
+    """The cache folder (:func:`workbench.files.usable_cache_dir`)."""
+    from workbench.files import usable_cache_dir
 
-    directory = compiled.cache_dir()
-    blocking = next(
-        (p for p in (directory, *directory.parents) if p.exists() and not p.is_dir()), None
-    )
-    if blocking is not None:
-        raise ConfigError(
-            f"the compile cache {directory} cannot be a folder: {blocking} is not one "
-            "(set WORKBENCH_CACHE to a folder, or unset it for ~/.cache/mbs-workbench)"
-        )
-    return directory
+    return usable_cache_dir()
 
 
 @cache_app.command("clear")

@@ -333,6 +333,9 @@ def sweep(
         from workbench.runs.dask_pool import check_scheduler_address
 
         check_scheduler_address(scheduler)  # before OUT is made
+    from workbench.files import usable_cache_dir
+
+    usable_cache_dir()  # also before OUT is made
     kinds = parse_rerun(rerun)
     # None: unless WORKBENCH_NO_LOCAL_PLUGINS is set
     with warnings_on_stderr():  # "all" leaving out a broken plugin

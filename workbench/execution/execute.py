@@ -171,10 +171,12 @@ def normalized_spec(spec: RunSpec) -> RunSpec:
 
     Two specs that mean the same run then have the same id.
     """
+    from workbench.files import usable_cache_dir
     from workbench.plugin.integrator import check_tolerances
     from workbench.plugin.options import options_dict
 
     check_tolerances(spec.rtol, spec.atol)
+    usable_cache_dir()  # before the run, not as its failure
     problem = registry.get_problem(spec.problem)(spec.problem_options)
     from workbench.plugin.robot_problem import check_robot_file, run_problem_names
 

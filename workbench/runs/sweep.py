@@ -116,6 +116,7 @@ def run_sweep(
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if not limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {limit}")
+    files.usable_cache_dir()  # a file there failed every run, one by one
     if scheduler:
         check_scheduler_address(scheduler)  # before anything is written into out_dir
     timing = Timing(
