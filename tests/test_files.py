@@ -97,3 +97,19 @@ def test_a_writers_own_missing_file_is_not_taken_for_a_missing_folder(tmp_path) 
     with pytest.raises(FileNotFoundError):
         atomic_write(tmp_path / "x.txt", write, root=tmp_path)
     assert len(calls) == 1 and list(tmp_path.iterdir()) == []
+
+
+def test_check_writable_says_a_folder_cannot_be_written_before_the_work(tmp_path) -> None:
+    """`workbench record` into a read-only OUT ran every run again and then said they
+    had failed; it now asks first. (A read-only folder cannot be made for root here, so a
+    file and a missing folder stand in for it: the same OSError path.)"""
+    from workbench.errors import ConfigError
+    from workbench.files import check_writable
+
+    check_writable(tmp_path)
+    assert not list(tmp_path.iterdir())  # the probe leaves nothing
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    for folder in (afile, tmp_path / "missing"):
+        with pytest.raises(ConfigError, match=f"cannot write into {folder}: "):
+            check_writable(folder)

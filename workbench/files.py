@@ -26,6 +26,7 @@ import os
 import re
 import secrets
 import stat
+import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -112,6 +113,20 @@ def check_folder_target(path: str | os.PathLike[str]) -> None:
                 f"cannot write into {target}: {existing} is a file, not a folder; "
                 "name a folder (it is created if missing) or move the file away"
             )
+
+
+def check_writable(folder: str | os.PathLike[str]) -> None:
+    """ConfigError when no file can be made in ``folder`` (read-only, immutable, not
+    ours): said before the work whose results would go there, not after it."""
+    try:
+        descriptor, name = tempfile.mkstemp(prefix=".writable-", dir=folder)
+    except OSError as error:
+        raise ConfigError(
+            f"cannot write into {folder}: {error.strerror or error}; make it writable or "
+            "work on a copy"
+        ) from None
+    os.close(descriptor)
+    os.unlink(name)
 
 
 def make_dirs(directory: str | os.PathLike[str], root: str | os.PathLike[str]) -> None:

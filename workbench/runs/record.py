@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec
 from workbench.execution.timing import Timing
+from workbench.files import check_writable
 from workbench.plugin.robot_problem import FILE_OPTIONS
 from workbench.runs import store
 from workbench.runs.local_pool import merge_run_recordings, run_local
@@ -140,6 +141,7 @@ def record_runs(
     if not out_dir.is_dir():
         raise ConfigError(f"no output directory {out_dir}: give the OUT of a sweep")
     with out_lock(out_dir, wait=wait, say=say):
+        check_writable(out_dir)  # before the runs, not as each one's failure
         specs, left_out = chosen_runs(out_dir, choose, allow_roots)
         summary = RecordSummary(None, 0, left_out)
         if specs:
