@@ -127,6 +127,18 @@ def test_a_graph_that_does_not_compile_stays_in_the_vm_with_a_warning():
     assert np.all(np.isfinite(value))
 
 
+def test_a_jit_run_measured_in_the_vm_is_warned(tmp_path):
+    """A failed compile left the row ok, warning-free and labelled jit: its cost, the VM's,
+    stood in the jit pair's place and could be recommended as such."""
+    spec = RunSpec("double-pendulum", "recursive", "scipy-dop853", 1e-6, 1e-9, {},
+                   {"compile": "jit", "compile_flags": "-no-such-flag"})  # fmt: skip
+    with pytest.warns(compiled.CompileWarning):
+        row = execute_run(spec, reference_dir=tmp_path).row
+    assert row["status"] == "ok"
+    assert row["warnings"].startswith("not compiled: compile=jit:")
+    assert "(its cost is the VM's)" in row["warnings"]
+
+
 def test_a_run_with_jit_end_to_end(tmp_path):
     rows = {}
     for mode in ("none", "jit"):
@@ -137,6 +149,7 @@ def test_a_run_with_jit_end_to_end(tmp_path):
         rows[mode] = execute_run(spec, reference_dir=tmp_path).row
     plain, jit = rows["none"], rows["jit"]
     assert plain["status"] == jit["status"] == "ok" and jit["message"] == ""
+    assert "not compiled" not in jit["warnings"]
     assert plain["compile_s"] == 0.0 and jit["compile_s"] > 0.0
     assert jit["n_rhs"] == plain["n_rhs"]  # the same numbers give the same steps
     assert jit["err_end"] == pytest.approx(plain["err_end"], rel=1e-6, abs=1e-14)

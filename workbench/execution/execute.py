@@ -545,8 +545,9 @@ def execute_run(
                     found = "; ".join(filter(None, [row.get("warnings", ""), own]))
                     row["warnings"] = one_line_text(found)
                 if samples.difference:  # the samples did not time the same work
-                    found = "; ".join(filter(None, [row.get("warnings", ""), samples.difference]))
-                    row["warnings"] = one_line_text(f"not reproducible: {found}")
+                    found = "; ".join(filter(None, [row.get("warnings", ""),
+                                                    f"not reproducible: {samples.difference}"]))
+                    row["warnings"] = one_line_text(found)  # fmt: skip
                 stages.stop()
                 stages.wall["metrics"] = max(0.0, stages.wall["metrics"] - reference.seconds)
 
@@ -572,6 +573,10 @@ def execute_run(
     compile_warnings = getattr(state.get("equations"), "compile_warnings", [])
     if compile_warnings:
         row["message"] = " | ".join(filter(None, [row["message"], *compile_warnings]))
+        if spec.formalism_options.get("compile") == "jit" and row["status"] == "ok":
+            # measured in the VM under a jit label: not a compiled run to recommend
+            found = f"not compiled: {compile_warnings[0]} (its cost is the VM's)"
+            row["warnings"] = one_line_text("; ".join(filter(None, [row["warnings"], found])))
     compiler = getattr(state.get("equations"), "compiler", None)
     if compiler is not None and compiler.summary() and row.get("status") != "skipped":
         row["notes"] = "; ".join(filter(None, [row.get("notes", ""), compiler.summary()]))
