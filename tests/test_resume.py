@@ -365,3 +365,17 @@ def test_dask_lost_tasks_are_retried_once_then_left_unfinished(
     (reason,) = killed.unfinished.values()
     assert "SIGKILL" in reason and "(2 attempts)" in reason
     assert list(store.load_results(tmp_path)["status"]) == ["ok"]  # the old row is kept
+
+
+def test_a_sweep_into_a_folder_of_another_sweep_says_so(fake_plugins, tmp_path) -> None:
+    """A different specification swept into an existing OUT mixed with its rows without
+    a word (the report said so only later)."""
+    first, _ = sweep_lines(spec_text(tmp_path, '["test-rk45"]', problems=FALLING))
+    assert first.counts["ok"] == 2
+    again = spec_text(tmp_path, '["test-rk4"]', problems=FALLING)
+    second, lines = sweep_lines(again)
+    assert second.counts["ok"] == 2 and len(store.load_results(tmp_path)) == 4
+    (said,) = [line for line in lines if "of other sweeps" in line]
+    assert said.startswith("the folder holds 2 row(s) of other sweeps")
+    _, lines = sweep_lines(again)  # the same sweep again: its own 2, the other's 2
+    assert any("holds 2 row(s) of other sweeps" in line for line in lines)

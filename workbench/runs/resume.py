@@ -64,6 +64,8 @@ class ResumePlan:
     rerun: frozenset[str] = frozenset()
     fresh: bool = False
     labels: dict[str, str] = field(default_factory=dict)
+    others: int = 0  # rows in the folder that are not runs of this sweep
+    others_source: str = ""  # what the folder's last sweep was run from, if known
 
     def lines(self) -> list[str]:
         """One line a finding, for the start of the sweep."""
@@ -93,6 +95,13 @@ class ResumePlan:
                     f"({example}); kept and marked stale in the report: redo them with "
                     "`--rerun stale`"
                 )
+        if self.others:
+            last = f" (its last sweep: {self.others_source})" if self.others_source else ""
+            lines.append(
+                f"the folder holds {self.others} row(s) of other sweeps{last}: kept beside "
+                "this sweep's, and its results and report show them too (another --out "
+                "keeps sweeps apart)"
+            )
         if self.unknown:
             lines.append(
                 f"{self.unknown} done row(s) do not record what produced them (written "
@@ -109,6 +118,10 @@ def plan_resume(
     labels = {spec.run_id: spec.label() for spec in runs}
     plan = ResumePlan(len(runs), [], rerun=rerun, fresh=fresh, labels=labels)
     plan.broken = {run_id: why for run_id, why in broken.items() if run_id in labels}
+    plan.others = sum(run_id not in labels for run_id in whole)
+    last = store.load_plan(out) if plan.others else None
+    if last and last.get("source") and not set(last["run_ids"]) <= set(labels):
+        plan.others_source = str(last["source"])
     for spec in runs:
         row = whole.get(spec.run_id)
         if fresh or row is None:
