@@ -136,6 +136,8 @@ def test_the_shipped_tables_estimate_the_quick_suite_short_and_the_full_one_long
     assert {s.run_id for s in quick.runs} <= set(costs.by_id)  # every run measured
     lines = estimate_lines(quick.runs, len(quick.runs), quick.jobs, costs)
     assert len(lines) == 1 and "from measured costs" in lines[0]
+    # the tables that gave costs, not every table there is
+    assert lines[0].endswith("(from measured costs: workbench/runs/suites/quick.costs.json)")
     full = load_spec("full")
     lines = estimate_lines(full.runs, len(full.runs), full.jobs, known_costs({}, 30.0, "full"))
     assert "full.costs.json" in lines[0] and lines[1].startswith("warning: this sweep is long")

@@ -64,23 +64,38 @@ class Costs:
     by_problem: dict[str, list[float]] = field(default_factory=dict)
     overhead_s: float = 0.0
     sources: list[str] = field(default_factory=list)
+    # where each cost came from (a later source replaces an earlier one), and the sources
+    # of the costs :meth:`seconds` used: what the plan line names
+    origin: dict[str, str] = field(default_factory=dict)
+    problem_origins: dict[str, set[str]] = field(default_factory=dict)
+    used: set[str] = field(default_factory=set)
 
-    def add(self, run_id: str, key: str, problem: str, seconds: float) -> None:
+    def add(self, run_id: str, key: str, problem: str, seconds: float, source: str = "") -> None:
         self.by_id[run_id] = seconds
         self.by_key[key] = seconds
         self.by_problem.setdefault(problem, []).append(seconds)
+        self.origin[run_id] = self.origin[key] = source
+        self.problem_origins.setdefault(problem, set()).add(source)
 
     def seconds(self, spec: RunSpec) -> tuple[float, str]:
         """(seconds of ``spec``, how they were found: "run", "problem" or "all")."""
         if spec.run_id in self.by_id:
+            self.used.add(self.origin.get(spec.run_id, ""))
             return self.by_id[spec.run_id], "run"
         key = _key(spec.problem, spec.formalism, spec.integrator, spec.rtol)
         if key in self.by_key:
+            self.used.add(self.origin.get(key, ""))
             return self.by_key[key], "run"
         # the mean, not the median: the estimate is of a sum, and the slow runs make it
         if spec.problem in self.by_problem:
+            self.used |= self.problem_origins.get(spec.problem, set())
             return statistics.fmean(self.by_problem[spec.problem]), "problem"
+        self.used |= set(self.sources)
         return statistics.fmean(self.by_id.values()), "all"
+
+    def used_sources(self) -> list[str]:
+        """The sources of the costs used so far, in :attr:`sources`' order."""
+        return [source for source in self.sources if source in self.used] or self.sources
 
 
 def cost_table(rows: Iterable[Mapping[str, Any]], time_limit: float) -> list[list[Any]]:
@@ -115,16 +130,19 @@ def known_costs(
     tables = sorted(shipped_tables(), key=lambda f: f.name != f"{suite}.costs.json")
     for table in reversed(tables):  # the suite's own table last: it wins
         data = json.loads(table.read_text("utf-8"))
+        source = f"workbench/runs/suites/{table.name}"
         for run_id, problem, formalism, integrator, rtol, seconds in data["runs"]:
-            costs.add(run_id, _key(problem, formalism, integrator, rtol), problem, seconds)
+            costs.add(run_id, _key(problem, formalism, integrator, rtol), problem, seconds,
+                      source)  # fmt: skip
         if table.name == f"{suite}.costs.json" or not costs.overhead_s:
             costs.overhead_s = float(data.get("overhead_s", 0.0))
-        costs.sources.append(f"workbench/runs/suites/{table.name}")
+        costs.sources.append(source)
     measured = [row for row in out_rows.values() if row.get("status")]
+    source = "the rows already in the output directory"
     for run_id, problem, formalism, integrator, rtol, seconds in cost_table(measured, time_limit):
-        costs.add(run_id, _key(problem, formalism, integrator, rtol), problem, seconds)
+        costs.add(run_id, _key(problem, formalism, integrator, rtol), problem, seconds, source)
     if measured:
-        costs.sources.append("the rows already in the output directory")
+        costs.sources.append(source)
     return costs
 
 
@@ -179,7 +197,7 @@ def estimate_lines(
     )
     lines = [
         f"{planned} on {workers} worker(s); estimated {duration(seconds)} on an idle machine "
-        f"({how}: {', '.join(costs.sources)})"
+        f"({how}: {', '.join(costs.used_sources())})"
     ]
     if seconds > LONG_S:
         lines.append(
