@@ -378,3 +378,30 @@ def test_option_fields_and_type_names():
     assert names["method"] == "'bdf' | 'radau'"
     assert names["stabilization"] == "float | None"
     assert option_fields(NoOptions) == []
+
+
+def test_a_plugin_whose_decorator_was_forgotten_is_named_with_the_fix(tmp_path, monkeypatch):
+    """`unknown integrator 'my-euler'; known: <26 names>` did not say that my_euler.py,
+    imported, defines it without @integrator; the kit even suggested the --plugins flag
+    that had been given."""
+    import importlib
+
+    (tmp_path / "forgot_decorator.py").write_text(textwrap.dedent('''
+        from workbench.plugin.integrator import Integrator
+
+        class Forgotten(Integrator):
+            name = "test-forgotten"
+            summary = "no decorator (test)"
+            accepts = {"ode": 0}
+    '''))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "forgot_decorator", raising=False)
+    importlib.import_module("forgot_decorator")
+    try:
+        with pytest.raises(PluginError) as caught:
+            registry_module.REGISTRY.get("integrator", "test-forgotten")
+        message = str(caught.value)
+        assert "forgot_decorator.py defines Forgotten(Integrator) named 'test-forgotten'" in message
+        assert "put @integrator" in message and "forgot_decorator.py:Forgotten" in message
+    finally:
+        sys.modules.pop("forgot_decorator", None)

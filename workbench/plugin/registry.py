@@ -20,6 +20,7 @@ import traceback
 import warnings
 from dataclasses import dataclass, field
 from importlib import metadata
+from pathlib import Path
 from typing import Any, Literal
 
 from workbench.errors import PluginError, WorkbenchError, one_line
@@ -189,7 +190,7 @@ class Registry:
                 hint = f"did you mean {', '.join(close)}?"
             else:
                 hint = f"known: {', '.join(names)}" if names else f"no {kind} is registered"
-            raise PluginError(f"unknown {kind} {name!r}; {hint}")
+            raise PluginError(f"unknown {kind} {name!r}; {unregistered_hint(kind, name) or hint}")
         if info.plugin is None:
             raise PluginError(
                 f"{kind} {name!r} is broken: {info.error_line} (module {info.module})"
@@ -202,6 +203,32 @@ def _robot_problem_name(name: str) -> bool:
     from workbench.model.importers import robot_format
 
     return robot_format(name.split("[", 1)[0]) is not None
+
+
+def unregistered_hint(kind: Kind, name: str) -> str:
+    """"" unless an imported module defines a ``kind`` class called ``name`` that was never
+    registered (its decorator forgotten): then say so and how to fix it."""
+    import sys
+
+    from workbench.plugin.formalism import Formalism
+    from workbench.plugin.integrator import Integrator
+    from workbench.plugin.problem import Problem
+
+    base = {"problem": Problem, "formalism": Formalism, "integrator": Integrator}[kind]
+    for module in list(sys.modules.values()):
+        for value in list(getattr(module, "__dict__", {}).values()):
+            if (isinstance(value, type) and issubclass(value, base) and value is not base
+                    and getattr(value, "name", None) == name
+                    and getattr(value, "__module__", None) == module.__name__):  # fmt: skip
+                where = getattr(module, "__file__", None) or module.__name__
+                return (
+                    f"{where} defines {value.__name__}({base.__name__}) named {name!r} but "
+                    f"does not register it: put @{kind} (from workbench.plugin.registry "
+                    f"import {kind}) above its class, or name it as "
+                    f"{Path(where).name if where.endswith('.py') else module.__name__}:"
+                    f"{value.__name__}"
+                )
+    return ""
 
 
 def close_matches(name: str, names: list[str]) -> list[str]:

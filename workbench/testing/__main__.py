@@ -19,7 +19,7 @@ from workbench.plugin.local_modules import (
     NO_LOCAL_PLUGINS_VARIABLE,
     load_plugins,
 )
-from workbench.plugin.registry import REGISTRY
+from workbench.plugin.registry import REGISTRY, unregistered_hint
 from workbench.testing import check_formalism, check_integrator, check_problem
 
 
@@ -83,7 +83,12 @@ def _say_if_not_registered(kind: str, name: str) -> None:
     ``--package``) is not imported unless named: say how, rather than "unknown"."""
     REGISTRY.discover()
     module = name.replace("-", "_")
-    if name not in REGISTRY.entries[kind] and Path(f"{module}.py").is_file():
+    if name in REGISTRY.entries[kind]:
+        return
+    forgotten = unregistered_hint(kind, name)  # imported, its decorator forgotten
+    if forgotten:
+        raise WorkbenchError(f"{kind} {name!r} is not registered; {forgotten}")
+    if Path(f"{module}.py").is_file() and module not in sys.modules:
         raise WorkbenchError(
             f"{kind} {name!r} is not registered; ./{module}.py is not imported unless named: "
             f"python -m workbench.testing {kind} {name} --plugins {module}.py"
