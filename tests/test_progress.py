@@ -31,3 +31,21 @@ def test_hidden_bar_draws_nothing(capsys: pytest.CaptureFixture) -> None:
         bar.update(2, "note")
         bar.tick()
     assert capsys.readouterr().err == ""
+
+
+def test_plain_lines_say_the_time_left_at_the_pace_so_far(monkeypatch) -> None:
+    """A 800-run sweep printed only the time elapsed; once 5 s have passed the lines add
+    what is left at the pace so far (none at the end, none before any run is done)."""
+    import io
+
+    from workbench.runs import progress
+
+    clock = iter([0.0, 10.0, 20.0])
+    monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
+    stream = io.StringIO()
+    lines = progress.ProgressLines("sweep", 4, stream=stream)  # started at t = 0
+    lines.update(1)  # t = 10 s: 1 of 4 done
+    lines.update(4)  # t = 20 s: done
+    first, last = stream.getvalue().splitlines()
+    assert first == "sweep  1/4 (25%)  0:00:10, about 0:00:30 left"
+    assert last == "sweep  4/4 (100%)  0:00:20"

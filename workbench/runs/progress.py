@@ -2,8 +2,9 @@
 
 ``with progress_bar("sweep", total) as bar:`` then ``bar.step(text)`` after each item, or
 ``bar.update(completed, note)`` when the caller counts itself. The bar reads
-``<name>[: <text>]  ━━━━━  3/10  0:00:04  <note>``; a disabled bar (``show=False``) has the
-same methods and draws nothing, so callers never test whether it is shown.
+``<name>[: <text>]  ━━━━━  3/10  0:00:04 left 0:00:09  <note>``; a disabled bar
+(``show=False``) has the same methods and draws nothing, so callers never test whether
+it is shown.
 
 Where stderr is not a terminal (piped, ``nohup``, CI) the same calls print plain lines
 instead (:class:`ProgressLines`: every tenth of the total and at least every 30 s).
@@ -53,7 +54,8 @@ class ProgressBar:
 
 class ProgressLines(ProgressBar):
     """Progress as plain lines on stderr where no bar can be drawn (stderr not a terminal):
-    ``<name>[: <text>]  3/10 (30%)  0:00:04  <note>`` (as the bar) at every tenth of the
+    ``<name>[: <text>]  3/10 (30%)  0:00:12, about 0:00:28 left  <note>`` (the time left at
+    the pace so far, once 5 s have passed) at every tenth of the
     total and at least every ``every_s`` seconds while items finish, and once at the end."""
 
     def __init__(self, name: str, total: int, every_s: float = 30.0, stream: Any = None) -> None:
@@ -87,13 +89,21 @@ class ProgressLines(ProgressBar):
     def _print(self, now: float) -> None:
         percent = f" ({100 * self._completed // self.total}%)" if self.total else ""
         elapsed = int(now - self._started)
-        clock = f"{elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}"
+        clock = _clock(elapsed)
+        if self.total and 0 < self._completed < self.total and elapsed >= 5:
+            # at the pace so far: runs differ, so "about", and only once some are done
+            left = elapsed * (self.total - self._completed) / self._completed
+            clock += f", about {_clock(int(left))} left"
         name = f"{self.name}: {self._text}" if self._text else self.name
         note = f"  {self._note}" if self._note else ""
         stream = self._stream or sys.stderr
         print(f"{name}  {self._completed}/{self.total}{percent}  {clock}{note}", file=stream)
         stream.flush()
         self._printed_at, self._printed_count = now, self._completed
+
+
+def _clock(seconds: int) -> str:
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
 def _is_terminal(stream: Any) -> bool:
@@ -126,7 +136,14 @@ def progress_bar(
         lines.finish()
         return
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     # markup off: plugin labels such as "radau[order=5]" are text, not rich markup
     progress = Progress(
@@ -134,6 +151,8 @@ def progress_bar(
         BarColumn(),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),  # at the recent pace (rich's estimate)
         TextColumn("{task.fields[note]}", markup=False),
         console=Console(stderr=True, highlight=False, markup=False),
         transient=transient,
