@@ -93,12 +93,16 @@ COPIED = ("a copy a process: ours' library and fastcall; pin.aba's pinocchio_pyw
           "libpinocchio_default, libeigenpy, libboost_python; aba_call")  # fmt: skip
 
 
-def l2_kib() -> int | None:
+def l2_kib(cache: str = "/sys/devices/system/cpu/cpu0/cache") -> int | None:
     """KiB of level-2 cache a core (Linux's sysfs), None where not given."""
-    from workbench.equations.compiled import l2_cache_bytes
-
-    size = l2_cache_bytes()
-    return size // 1024 if size else None
+    for index in sorted(Path(cache).glob("index*")):
+        try:
+            if (index / "level").read_text().strip() == "2":
+                size = (index / "size").read_text().strip().upper()
+                return int(size[:-1]) * 1024 if size.endswith("M") else int(size.rstrip("K"))
+        except (OSError, ValueError):
+            continue
+    return None
 
 
 def results_stem() -> str:

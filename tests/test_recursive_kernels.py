@@ -10,7 +10,7 @@ from tests.test_recursive import random_body, random_frame, random_state
 from workbench.equations import compiled
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import AppliedForce, JointForce, JointSpringDamper, Model, SpringDamper
-from workbench.plugin.registry import get_formalism, get_problem
+from workbench.plugin.registry import get_formalism
 from workbench.plugins.formalisms import recursive as rec
 from workbench.plugins.formalisms import recursive_kernels as rk
 
@@ -84,7 +84,6 @@ def test_a_compiled_build_above_the_threshold_compiles_the_kernels(monkeypatch, 
     threshold (here lowered to 0), the VM keeps the unrolled one, and both agree."""
     monkeypatch.setenv("WORKBENCH_CACHE", str(tmp_path))
     monkeypatch.setattr(rk, "KERNELS_ABOVE_INSTRUCTIONS", 0)
-    monkeypatch.setattr(rk, "KERNELS_FROM_INSTRUCTIONS", 0)
     model = kernel_tree(6, 4)
     equations = get_formalism("recursive")().build(model, {"compile": "jit"})
     rhs = equations.forms["ode"].rhs
@@ -142,46 +141,3 @@ def test_the_kernels_keep_their_values_in_local_variables(monkeypatch, tmp_path)
     for _ in range(3):
         y = random_state(TreeKinematics(model), rng)
         assert np.array_equal(np.asarray(loaded(0.7, y)), np.asarray(kernels(0.7, y)))
-
-
-def _instructions_run(function: ca.Function) -> int:
-    """Instructions an MX graph runs a call: its own, and each called function's."""
-    return sum(
-        function.instruction_MX(i).which_function().n_instructions()
-        if function.instruction_id(i) == ca.OP_CALL else 1
-        for i in range(function.n_instructions())
-    )  # fmt: skip
-
-
-def test_the_kernels_are_taken_where_folding_gains_little_and_the_cache_is_small(
-    monkeypatch,
-) -> None:
-    """Above the lower threshold the kernels are compiled for a tree whose unrolled graph
-    folds little (rotated frames, full inertias: the kernels run about 1.6x its
-    instructions) where its code would fill a quarter of a core's L2, not with a large
-    L2, and never for a chain whose axis-aligned frames fold to zeros and ones (about
-    2.5x); :func:`kernel_instructions` counts what the kernels' graph runs."""
-    monkeypatch.setattr(rk, "KERNELS_FROM_INSTRUCTIONS", 0)
-    tree = kernel_tree(9, 1, forces=False)
-    chain = get_problem("spatial-chain")({"n_links": 9}).model()
-    for model, taken in ((chain, False), (tree, True)):
-        unrolled = rec.ode_function(model).n_instructions()
-        run = _instructions_run(rec.ode_function(model, kernels=True))
-        assert abs(rk.kernel_instructions(model) - run) <= 0.1 * run
-        small = unrolled * rk.CODE_BYTES_PER_INSTRUCTION  # the unrolled code fills the L2
-        assert rk.use_kernels(model, unrolled, l2_bytes=small) is taken
-        assert not rk.use_kernels(model, unrolled, l2_bytes=8 * small)
-    monkeypatch.setattr(rk, "KERNELS_FROM_INSTRUCTIONS", unrolled)  # the floor holds
-    assert not rk.use_kernels(tree, unrolled, l2_bytes=1)
-
-
-def test_l2_cache_bytes_reads_sysfs(tmp_path) -> None:
-    for index, (level, size) in enumerate([("1", "32K"), ("2", "2048K"), ("3", "32M")]):
-        folder = tmp_path / f"index{index}"
-        folder.mkdir()
-        (folder / "level").write_text(level + "\n")
-        (folder / "size").write_text(size + "\n")
-    assert compiled.l2_cache_bytes(str(tmp_path)) == 2048 * 1024
-    (tmp_path / "index1" / "size").write_text("1M\n")
-    assert compiled.l2_cache_bytes(str(tmp_path)) == 2**20
-    assert compiled.l2_cache_bytes(str(tmp_path / "none")) is None

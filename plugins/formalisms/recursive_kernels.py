@@ -32,7 +32,6 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from workbench.equations import compiled
 from workbench.mechanics import joints as jk
 from workbench.mechanics.kinematics import TreeKinematics
 from workbench.model import GROUND, Model
@@ -240,53 +239,13 @@ instructions (random tree N = 7), 5.9 / 10.8 at 29,829 (N = 50), 14.0 / 20.9 at 
 the unrolled library (1.2-1.6 MB) no longer stays in cache (docs/performance.md). With
 the kernels' values in local variables (``compiled.uses_locals``) they cost the unrolled
 code's time from N = 50 on (5.74 / 5.81 us, N = 100 11.9 / 12.0, N = 200 24.0) and 1.5x
-below (N = 7, 20)."""
-
-KERNELS_FROM_INSTRUCTIONS = 20_000
-KERNELS_WORK_RATIO = 2.0
-UNROLLED_L2_SHARE = 0.25
-"""Between :data:`KERNELS_FROM_INSTRUCTIONS` and :data:`KERNELS_ABOVE_INSTRUCTIONS` the
-kernels are compiled where the unrolled graph's machine code (about
-:data:`CODE_BYTES_PER_INSTRUCTION` a instruction) would take more than
-:data:`UNROLLED_L2_SHARE` of a core's level-2 cache and the kernels run at most
-:data:`KERNELS_WORK_RATIO` times its instructions (:func:`kernel_instructions`): there
-the unrolled code gains little from its folded constants and is the one to fall out of
-the cache. Random trees of mixed joints run 1.5-1.6x in the kernels; chains and robots,
-whose frames fold to zeros and ones, 2.5-5.3x, and keep the unrolled code.
-On an Intel Xeon (2 MiB of L2 a core), kernels / unrolled a call in C, both in cache:
-random tree N = 35 1.07, N = 50 1.04, N = 100 1.00; spatial chain N = 50 1.72, N = 100
-1.57. At N = 50 the kernels' machine code is 79 against 287 KiB, with 1,051 against
-4,630 first-level instruction misses a call and no misses of a 256 KiB L2 against 2,738
-(cachegrind). So N = 50 takes the kernels on a core with 512 KiB or 1 MiB of L2 (where
-the unrolled code's ratio to ``pin.aba`` was bimodal from process to process) and keeps
-the unrolled code with 2 MiB (docs/performance-targets.md)."""
-CODE_BYTES_PER_INSTRUCTION = 11  # .text / instructions: 11.1-11.2 for N = 50-150 and chains
-DEFAULT_L2_BYTES = 512 * 2**10  # where the machine does not say
+below (N = 7, 20): the threshold was left where it was."""
 
 
-def kernel_instructions(model: Model) -> int:
-    """Instructions the kernels run a call: each link's outward, inward and accelerate
-    kernels of its joint type (the applied forces and the calls themselves left out)."""
-    kinematics = TreeKinematics(model.validate())
-    passes = ("outward", "inward", "accelerate")
-    return sum(
-        sum(_kernels(_convention(joint))[name].n_instructions() for name in passes)
-        for joint in kinematics.order
-    )
-
-
-def use_kernels(model: Model, instructions: int, l2_bytes: int | None = None) -> bool:
+def use_kernels(model: Model, instructions: int) -> bool:
     """Whether the ode right-hand side of ``model`` compiles better as kernels, from the
-    unrolled graph's ``instructions`` and a core's level-2 cache (``l2_bytes``, by default
-    this machine's): :data:`KERNELS_ABOVE_INSTRUCTIONS`, :data:`UNROLLED_L2_SHARE`."""
-    if instructions <= KERNELS_FROM_INSTRUCTIONS or not supports(model):
-        return False
-    if instructions > KERNELS_ABOVE_INSTRUCTIONS:
-        return True
-    l2_bytes = l2_bytes or compiled.l2_cache_bytes() or DEFAULT_L2_BYTES
-    if CODE_BYTES_PER_INSTRUCTION * instructions <= UNROLLED_L2_SHARE * l2_bytes:
-        return False
-    return kernel_instructions(model) <= KERNELS_WORK_RATIO * instructions
+    unrolled graph's ``instructions`` (:data:`KERNELS_ABOVE_INSTRUCTIONS`)."""
+    return instructions > KERNELS_ABOVE_INSTRUCTIONS and supports(model)
 
 
 def ode_rhs_kernels(model: Model, kinematics: TreeKinematics, t: ca.MX, y: ca.MX) -> ca.MX:

@@ -196,17 +196,6 @@ def cpu_flags() -> frozenset[str]:
     return frozenset()
 
 
-def l2_cache_bytes(cache: str = "/sys/devices/system/cpu/cpu0/cache") -> int | None:
-    """Bytes of level-2 cache a core (Linux's sysfs), None where not given."""
-    for index in sorted(Path(cache).glob("index*")):
-        with contextlib.suppress(OSError, ValueError):
-            if (index / "level").read_text().strip() == "2":
-                size = (index / "size").read_text().strip().upper()
-                scale = 2**20 if size.endswith("M") else 2**10
-                return int(size.rstrip("KM")) * scale
-    return None
-
-
 def compiler_error(stderr: str) -> str:
     """The line of a C compiler's output that says what went wrong: the first ``#error``
     or ``error:`` line (the first line is often only "In function ..."), else the first."""
