@@ -198,3 +198,16 @@ def test_seven_formalisms_get_seven_line_styles_and_markers() -> None:
     assert len(looks) == 21  # every pair looks different
     assert len({str(styles.marks[f][1]) for f in styles.formalisms}) == 7  # line styles
     assert len({styles.marks[f][0] for f in styles.formalisms}) == 7  # markers
+
+
+def test_a_problems_counts_tell_ok_runs_with_warnings_apart() -> None:
+    """A problem's line read "15 runs: 15 ok." while its status table counted one of
+    them as "ok with warnings"."""
+    import pandas as pd
+
+    from workbench.outputs.report.analysis import status_counts
+
+    runs = pd.DataFrame({"status": ["ok", "ok", "failed", "ok"],
+                         "warnings": ["", "energy: drifts", "", None]})  # fmt: skip
+    assert status_counts(runs) == "2 ok, 1 ok with warnings, 1 failed"
+    assert status_counts(runs.assign(warnings="x")[:2]) == "2 ok with warnings"

@@ -234,9 +234,20 @@ def statuses(values: Iterable[str]) -> list[str]:
 
 
 def status_counts(runs: pd.DataFrame) -> str:
-    """``"4 ok, 1 failed"``: how many runs ended in each status."""
+    """``"3 ok, 1 ok with warnings, 1 failed"``: how many runs ended in each status, the
+    ok runs with warnings apart (as the status table and `workbench results` count them)."""
+    from workbench.outputs.report.trust import warned as with_warnings
+
     counts = runs["status"].value_counts()
-    return ", ".join(f"{counts[s]} {s}" for s in statuses(runs["status"]))
+    warned = int(((runs["status"] == "ok") & with_warnings(runs)).sum())
+    parts = []
+    for status in statuses(runs["status"]):
+        count = int(counts[status]) - (warned if status == "ok" else 0)
+        if count:
+            parts.append(f"{count} {status}")
+        if status == "ok" and warned:
+            parts.append(f"{warned} ok with warnings")
+    return ", ".join(parts)
 
 
 def _one_line(text: str, limit: int = 300) -> str:
