@@ -210,19 +210,21 @@ def unregistered_hint(kind: Kind, name: str) -> str:
     registered (its decorator forgotten): then say so and how to fix it."""
     import sys
 
-    from workbench.plugin.formalism import Formalism
-    from workbench.plugin.integrator import Integrator
-    from workbench.plugin.problem import Problem
+    base = kind.capitalize()  # workbench.plugin.<kind>.<Kind>, known by name (no cycle)
 
-    base = {"problem": Problem, "formalism": Formalism, "integrator": Integrator}[kind]
+    def is_plugin(value: Any) -> bool:
+        return isinstance(value, type) and any(
+            c.__name__ == base and c.__module__ == f"workbench.plugin.{kind}"
+            for c in value.__mro__[1:]
+        )
+
     for module in list(sys.modules.values()):
         for value in list(getattr(module, "__dict__", {}).values()):
-            if (isinstance(value, type) and issubclass(value, base) and value is not base
-                    and getattr(value, "name", None) == name
+            if (is_plugin(value) and getattr(value, "name", None) == name
                     and getattr(value, "__module__", None) == module.__name__):  # fmt: skip
                 where = getattr(module, "__file__", None) or module.__name__
                 return (
-                    f"{where} defines {value.__name__}({base.__name__}) named {name!r} but "
+                    f"{where} defines {value.__name__}({base}) named {name!r} but "
                     f"does not register it: put @{kind} (from workbench.plugin.registry "
                     f"import {kind}) above its class, or name it as "
                     f"{Path(where).name if where.endswith('.py') else module.__name__}:"

@@ -91,7 +91,7 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
     for column in ("problem", "formalism", "integrator", "status"):
         runs[column] = runs[column].astype(str)
     # a problem run with several option sets is several mechanisms: each its own answer
-    # (`simple-pendulum[initial_angle=0.3]`); the plugin's name stays in problem_name
+    # (`pendulum[angle=0.3]`); the plugin's name stays in problem_name
     runs["problem_name"] = runs["problem"]
     runs["problem"] = problem_labels(runs)
     runs["formalism_label"], runs["integrator_label"] = pair_labels(runs)
@@ -101,7 +101,7 @@ def prepare_results(results: pd.DataFrame) -> pd.DataFrame:
 
 def problem_labels(runs: pd.DataFrame) -> pd.Series:
     """Each row's problem, with the options that vary between its rows appended
-    (``simple-pendulum[initial_angle=0.3]``): one label a mechanism."""
+    (``pendulum[angle=0.3]``): one label a mechanism."""
     options = runs.get("problem_options", pd.Series("", index=runs.index))
     options = options.astype(object).fillna("").astype(str)
     return _with_varying_options(runs["problem"].astype(str), options)
