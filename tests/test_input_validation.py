@@ -228,7 +228,12 @@ def shaped_integrator(times_of, y_of):
             lambda t, y0: np.zeros((t.size, 1)),
             "y of shape (5, 1); expected (5,) and (5, 2)",
         ),
-        (lambda t: t, lambda t, y0: np.zeros((t.size - 1, 2)), "y of shape (4, 2)"),
+        (lambda t: t, lambda t, y0: np.zeros((t.size - 1, 2)),
+         "returned 5 output time(s) for 4 rows of y"),
+        # trajectory.times never set: the base class's start holds t0 only
+        (lambda t: t[:1], lambda t, y0: np.zeros((t.size, 2)),
+         "returned 1 output time(s) for 5 rows of y: set trajectory.times to the times of "
+         "y's rows (task.times[:5])"),
         (lambda t: t, lambda t, y0: np.zeros(2 * t.size), "y of shape (10,)"),
         (lambda t: t[::-1].copy(), lambda t, y0: np.zeros((t.size, 2)), "not increasing"),
         (lambda t: t * 1.5, lambda t, y0: np.zeros((t.size, 2)), "not the requested"),

@@ -261,3 +261,21 @@ def test_a_dotted_module_of_a_local_package(downloaded, capsys):
         for name in ("my_pkg", "my_pkg.plugins"):
             sys.modules.pop(name, None)
         local_modules._FROM_FILES.pop("my_pkg", None)
+
+
+def test_a_plugin_importing_its_sibling_is_told_how(downloaded) -> None:
+    """The folder stays off sys.path, and the error says so and how to name the sibling
+    (it was a bare ModuleNotFoundError)."""
+    (downloaded / "helper.py").write_text("import sibling\n" + HELPER)
+    text = spec_text(downloaded / "out", plugins='["helper"]')
+    (downloaded / "spec.toml").write_text(text)
+    with pytest.raises(ConfigError) as caught:
+        load_spec(str(downloaded / "spec.toml"))
+    message = str(caught.value)
+    assert "No module named 'sibling' (sibling.py beside it is not importable" in message
+    assert "name it with --plugins too, before helper.py" in message
+    sys.modules.pop("helper", None)
+    local_modules._FROM_FILES.pop("helper", None)
+    (downloaded / "spec.toml").write_text(spec_text(downloaded / "out",
+                                                    plugins='["sibling", "helper"]'))  # fmt: skip
+    assert load_spec(str(downloaded / "spec.toml")).plugins  # named first, it imports

@@ -405,3 +405,14 @@ def test_a_plugin_whose_decorator_was_forgotten_is_named_with_the_fix(tmp_path, 
         assert "put @integrator" in message and "forgot_decorator.py:Forgotten" in message
     finally:
         sys.modules.pop("forgot_decorator", None)
+
+
+def test_a_plugin_file_here_that_was_not_imported_is_named(tmp_path, monkeypatch):
+    """`workbench run ... -i my-midpoint` beside my_midpoint.py listed 26 known names."""
+    (tmp_path / "test_not_imported.py").write_text("# a plugin nobody named\n")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(PluginError) as caught:
+        registry_module.REGISTRY.get("integrator", "test-not-imported")
+    assert "./test_not_imported.py is not imported unless named: add --plugins " in str(
+        caught.value
+    )

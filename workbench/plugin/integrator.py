@@ -367,6 +367,14 @@ def _check_shapes(
             got_y = got_y.reshape(0, n_states)
         problem = ""
         if (
+            got_times.ndim == 1 and got_y.ndim == 2 and got_y.shape[1] in widths
+            and got_y.shape[0] != k
+        ):  # fmt: skip  (most often: trajectory.times never set, holding only t0)
+            problem = (
+                f"returned {k} output time(s) for {got_y.shape[0]} rows of y: set "
+                f"trajectory.times to the times of y's rows (task.times[:{got_y.shape[0]}])"
+            )
+        elif (
             got_times.ndim != 1
             or got_y.ndim != 2
             or got_y.shape[0] != k

@@ -168,6 +168,24 @@ def find_plugin_modules(
     return found
 
 
+def _beside_hint(module: PluginModule, error: Exception) -> str:
+    """Why a local plugin cannot import a module of its own folder, if that is the error:
+    its folder is not put on sys.path (a plugin file never shadows installed modules)."""
+    missing = getattr(error, "name", None)
+    if not module.local or not isinstance(error, ModuleNotFoundError) or not missing:
+        return ""
+    folder = Path(module.file).parent
+    beside = next((p for p in (folder / f"{missing}.py", folder / missing / "__init__.py")
+                   if p.is_file()), None)  # fmt: skip
+    if beside is None:
+        return ""
+    return (
+        f" ({beside.relative_to(folder)} beside it is not importable: a local plugin's "
+        f"folder is not put on sys.path; name it with --plugins too, before "
+        f"{Path(module.file).name}, or make the two a package)"
+    )
+
+
 def import_plugin_modules(
     modules: Iterable[PluginModule | str],
     source: str = "plugins",
@@ -188,7 +206,8 @@ def import_plugin_modules(
             raise
         except Exception as error:  # noqa: BLE001 - any import failure is a config error
             raise ConfigError(
-                f"{source}[{index}]: cannot import plugin module {module.name!r}: {one_line(error)}"
+                f"{source}[{index}]: cannot import plugin module {module.name!r}: "
+                f"{one_line(error)}{_beside_hint(module, error)}"
             ) from None
         if module.local and say is not None:
             where = getattr(loaded, "__file__", None) or module.file

@@ -206,8 +206,9 @@ def _robot_problem_name(name: str) -> bool:
 
 
 def unregistered_hint(kind: Kind, name: str) -> str:
-    """"" unless an imported module defines a ``kind`` class called ``name`` that was never
-    registered (its decorator forgotten): then say so and how to fix it."""
+    """How to get an unknown ``kind`` plugin ``name`` registered, or "": an imported module
+    defines a class of that name that was never registered (its decorator forgotten), or
+    a file of this folder named after it was not imported (no ``--plugins``)."""
     import sys
 
     base = kind.capitalize()  # workbench.plugin.<kind>.<Kind>, known by name (no cycle)
@@ -230,6 +231,12 @@ def unregistered_hint(kind: Kind, name: str) -> str:
                     f"{Path(where).name if where.endswith('.py') else module.__name__}:"
                     f"{value.__name__}"
                 )
+    module_name = name.replace("-", "_")  # what `workbench new` names its file
+    if Path(f"{module_name}.py").is_file() and module_name not in sys.modules:
+        return (
+            f"./{module_name}.py is not imported unless named: add --plugins "
+            f"{module_name}.py (in a sweep specification: plugins = [\"{module_name}.py\"])"
+        )
     return ""
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from pathlib import Path
 
 from workbench.errors import WorkbenchError
 from workbench.plugin.local_modules import (
@@ -82,17 +81,11 @@ def _say_if_not_registered(kind: str, name: str) -> None:
     """A plugin module of the current directory (what ``workbench new`` writes without
     ``--package``) is not imported unless named: say how, rather than "unknown"."""
     REGISTRY.discover()
-    module = name.replace("-", "_")
     if name in REGISTRY.entries[kind]:
         return
-    forgotten = unregistered_hint(kind, name)  # imported, its decorator forgotten
-    if forgotten:
-        raise WorkbenchError(f"{kind} {name!r} is not registered; {forgotten}")
-    if Path(f"{module}.py").is_file() and module not in sys.modules:
-        raise WorkbenchError(
-            f"{kind} {name!r} is not registered; ./{module}.py is not imported unless named: "
-            f"python -m workbench.testing {kind} {name} --plugins {module}.py"
-        )
+    hint = unregistered_hint(kind, name)  # its decorator forgotten, or no --plugins
+    if hint:
+        raise WorkbenchError(f"{kind} {name!r} is not registered; {hint}")
 
 
 if __name__ == "__main__":
