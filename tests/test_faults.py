@@ -352,9 +352,17 @@ def test_atomic_files_respect_the_umask(tmp_path, umask) -> None:
     assert (tmp_path / "row.json").stat().st_mode & 0o777 == 0o666 & ~umask
 
 
-@pytest.mark.parametrize("address", ["notaurl", "tcp://host-without-port"])
+@pytest.mark.parametrize(
+    ("address", "said"),
+    [
+        ("notaurl", "missing port number"),
+        ("tcp://host-without-port", "missing port number"),
+        ("tcp://127.0.0.1:99999", "port 99999 is not a TCP port"),  # waited 10 s for it
+        ("", "an empty address"),  # ran on the local pool
+    ],
+)
 def test_a_scheduler_address_dask_cannot_read_is_one_line_before_out_is_made(
-    tmp_path, address
+    tmp_path, address, said
 ) -> None:
     """Not an address (no port): exit 2 naming it, and OUT untouched (it used to get the
     plan, the logs and the spec before the connection failed)."""
@@ -363,5 +371,5 @@ def test_a_scheduler_address_dask_cannot_read_is_one_line_before_out_is_made(
     result = workbench("sweep", str(spec), "--out", str(tmp_path / "out"), "--scheduler", address)
     assert result.returncode == 2
     line = one_error_line(result.stderr)
-    assert f"--scheduler {address!r}: missing port number" in line and "tcp://host:port" in line
+    assert f"--scheduler {address!r}: {said}" in line and "tcp://host:port" in line
     assert not (tmp_path / "out").exists()

@@ -329,7 +329,7 @@ def sweep(
         raise ConfigError(f"--jobs must be >= 1, not {jobs}")
     if time_limit is not None and not time_limit > 0:
         raise ConfigError(f"--time-limit must be > 0 s, not {time_limit}")
-    if scheduler:
+    if scheduler is not None:  # (an empty one too: it ran on the local pool)
         from workbench.runs.dask_pool import check_scheduler_address
 
         check_scheduler_address(scheduler)  # before OUT is made

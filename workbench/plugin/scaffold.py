@@ -92,7 +92,10 @@ def scaffold(
     kind_: Kind = kind  # type: ignore[assignment]
     module = check_name(name)
     if name in plugin_names(kind_):
-        raise ConfigError(f"a {kind} named {name!r} is already registered; choose another name")
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ConfigError(
+            f"{article} {kind} named {name!r} is already registered; choose another name"
+        )
     class_name = "".join(part.capitalize() for part in module.split("_"))
     where = Path(where)
     values = {"name": name, "kind": kind, "module": module, "class_name": class_name}

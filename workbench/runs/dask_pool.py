@@ -421,9 +421,13 @@ def check_scheduler_address(scheduler: str) -> None:
     from distributed.comm.addressing import parse_address, parse_host_port
 
     try:
+        if not scheduler.strip():
+            raise ValueError("an empty address (the local pool is used without --scheduler)")
         scheme, location = parse_address(scheduler)
         if scheme in ("tcp", "tls"):
-            parse_host_port(location)
+            _host, port = parse_host_port(location)
+            if not 0 < int(port) < 65536:
+                raise ValueError(f"port {port} is not a TCP port (1-65535)")
     except (ValueError, TypeError) as error:
         raise ConfigError(
             f"--scheduler {scheduler!r}: {error}; give the address a `dask scheduler` prints "
