@@ -62,8 +62,17 @@ def test_rows_filter_sort_and_option_columns(results: Path) -> None:
         results_table(frame, by="run", sort=["nonsense"])
     with pytest.raises(ConfigError, match="COLUMN OP VALUE"):
         results_table(frame, where=["scd"])
-    with pytest.raises(ConfigError, match="needs a number"):
+    with pytest.raises(ConfigError, match="scd holds numbers"):
         results_table(frame, where=["scd>=many"])
+    with pytest.raises(ConfigError, match="needs a number"):
+        results_table(frame, where=["status>=many"])
+    # compared as text, `scd=` matched no row and `scd!=` every row
+    for condition in ("scd=", "scd!=", "rtol=1e-10.0"):
+        with pytest.raises(ConfigError, match="holds numbers; give one"):
+            results_table(frame, where=[condition])
+    with_nan = frame.assign(scd=[float("nan")] + list(frame["scd"][1:]))
+    unmeasured = int(with_nan["scd"].isna().sum())  # a failed run's too
+    assert len(results_table(with_nan, by="run", where=["scd=nan"])) == unmeasured >= 1
 
 
 def test_an_option_the_same_in_every_row_shown_is_said_once(results: Path) -> None:

@@ -144,6 +144,13 @@ def filter_rows(frame: pd.DataFrame, conditions: Sequence[str]) -> pd.DataFrame:
         numeric = pd.to_numeric(values, errors="coerce")
         if np.isfinite(number) and numeric.notna().any():
             left, right = numeric, number
+        elif value.strip().lower() == "nan" and op in ("=", "!="):  # not measured
+            left, right = numeric.isna(), op == "="
+            op = "="
+        elif pd.api.types.is_numeric_dtype(values) and not pd.api.types.is_bool_dtype(values):
+            # compared as text, `scd=` matched no row and `scd!=` every row
+            raise ConfigError(f"--where {condition!r}: {column} holds numbers; give one "
+                              f"(e.g. {column}{op}6), not {value!r}")  # fmt: skip
         elif op in ("=", "!="):
             left, right = values.astype(str), value
         else:
