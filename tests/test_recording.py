@@ -481,6 +481,17 @@ def test_view_without_display_says_how(
     assert "--serve-web" in outcome.output
 
 
+def test_view_of_a_file_that_is_not_a_recording_is_refused(tmp_path: Path) -> None:
+    """It printed the viewer's command for it and exited 0 (and with --run named its
+    folder as the recording)."""
+    text = tmp_path / "notes.txt"
+    text.write_text("hello\n")
+    for extra in ([], ["--run", "abc"]):
+        outcome = CliRunner().invoke(app, ["view", str(text), *extra])
+        assert outcome.exit_code == 2, outcome.output
+        assert f"{text} is not a Rerun recording (.rrd)" in outcome.output
+
+
 def test_view_with_display_starts_the_viewer(
     recording_file: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

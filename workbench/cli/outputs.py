@@ -172,6 +172,12 @@ def view(
             "`workbench record OUT` makes one of a sweep run with --no-recording or from "
             "Python"
         )
+    with recording.open("rb") as handle:
+        if handle.read(3) != b"RRF":  # Rerun's files begin with RRF and a version digit
+            raise ConfigError(
+                f"{recording} is not a Rerun recording (.rrd): give the recording.rrd of "
+                "a sweep's output directory (or the directory)"
+            )
     if run is not None:
         recording = one_run_recording(recording, run)
     viewer = rerun_command(shutil.which)
