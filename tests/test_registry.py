@@ -312,6 +312,9 @@ def test_wrong_type_names_the_expected_type():
         parse({"verbose": 1})
     with pytest.raises(ConfigError, match="option 'rtol' must be of type float, not bool"):
         parse({"rtol": True})
+    with pytest.raises(ConfigError) as caught:  # -o label=3 reads a number: say how to quote
+        parse({"label": 3})
+    assert """(text in quotes: -o 'label="3"', in TOML label = "3")""" in str(caught.value)
     with pytest.raises(ConfigError, match="must be a table"):
         parse([("rtol", 1e-3)])
 

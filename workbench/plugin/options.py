@@ -120,9 +120,12 @@ def _coerce(owner: str, name: str, annotation: Any, value: Any) -> Any:
             return _coerce_container(owner, name, annotation, value)
     else:
         return value
+    hint = ""
+    if annotation is str and isinstance(value, int | float):  # -o mode=3 reads a number
+        hint = f" (text in quotes: -o '{name}=\"{value}\"', in TOML {name} = \"{value}\")"
     raise ConfigError(
         f"{owner}: option {name!r} must be of type {type_name(annotation)}, "
-        f"not {type(value).__name__} {value!r}"
+        f"not {type(value).__name__} {value!r}{hint}"
     )
 
 
