@@ -89,6 +89,8 @@ def test_the_load_functions_name_a_wrong_folder_or_run_id(fake_plugins, tmp_path
         workbench.load_trajectory(tmp_path, None)
     with pytest.raises(ConfigError, match="no results in"):
         workbench.load_series(tmp_path / "elsewhere")
+    with pytest.raises(ConfigError, match="elsewhere: no such file or folder"):
+        workbench.load_trajectory(tmp_path / "elsewhere", row["run_id"])  # (no time series)
     with pytest.raises(ConfigError, match="expected the path of a results directory"):
         workbench.load_results(None)
     assert workbench.load_trajectory(tmp_path, row["run_id"]).equals(result.trajectory)

@@ -292,6 +292,8 @@ def load_series(
     if run_id is not None:
         _check_run_id(run_id)
         file = directory / f"{run_id}.parquet"
+        if not Path(path).exists():
+            raise ConfigError(f"no results at {path}: no such file or folder")
         if not file.is_file():
             raise ConfigError(f"no time series for run {run_id!r} in {path}")
         try:
