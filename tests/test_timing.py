@@ -176,6 +176,34 @@ def test_a_row_whose_median_is_outside_its_spread_is_not_whole() -> None:
     )
 
 
+def test_a_row_whose_scd_contradicts_its_own_error_is_not_whole(fake_plugins, tmp_path) -> None:
+    """A row edited to a better scd was shown, trusted, beside the end error it
+    contradicts: the row check now recomputes scd from err_end / length_scale (capped at
+    the digits the reference has), so such a row is left out with a warning naming it."""
+    from workbench.runs import store
+
+    spec = RunSpec("test-pendulum", "minimal-ode", "test-rk45", 1e-6, 1e-9, {}, {"index": 1})
+    result = execute_run(spec, reference_dir=tmp_path)
+    row = result.row
+    assert row["status"] == "ok" and row_defects(row, SCHEMA_COLUMNS) == []
+    edited = row | {"scd": row["scd"] + 2.0}
+    (defect,) = row_defects(edited, SCHEMA_COLUMNS)
+    assert defect.startswith(f"scd {edited['scd']!r} does not follow from err_end / length")
+    capped = row | {"err_end": 1e-30 * row["length_scale"]}  # below the reference's digits
+    capped["scd"] = -math.log10(capped["reference_accuracy"])
+    assert row_defects(capped, SCHEMA_COLUMNS) == []
+    out = tmp_path / "out"
+    store.write_run(out, edited, result.stored_series)
+    with pytest.warns(UserWarning, match="does not follow from err_end"):
+        assert len(store.load_results(out)) == 0
+    # a row copied under another file name was counted twice
+    store.write_run(out, row, result.stored_series)
+    copy = store.row_path(out, row["run_id"]).with_name("f" * 16 + ".json")
+    copy.write_bytes(store.row_path(out, row["run_id"]).read_bytes())
+    with pytest.warns(UserWarning, match="is not the file's name"):
+        assert list(store.load_results(out)["run_id"]) == [row["run_id"]]
+
+
 # ---- the report's cost measure ----------------------------------------------------------
 
 

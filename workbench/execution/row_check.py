@@ -101,8 +101,27 @@ def row_defects(row: dict[str, Any], schema_columns: list[str], name: str = "") 
         if not _kind_ok(value, kind):
             defects.append(f"{column} {value!r} is not a {kind}")
     if not defects:
-        defects += _timing_defects(row)
+        defects += _timing_defects(row) + _accuracy_defects(row)
     return defects
+
+
+def _accuracy_defects(row: dict[str, Any]) -> list[str]:
+    """scd follows from the row's own end error: -log10(err_end / length_scale), capped at
+    the digits the reference has (-log10(reference_accuracy)). A row edited by hand to a
+    better scd showed it beside the error it contradicts, trusted."""
+    values = [row.get(c) for c in ("scd", "err_end", "length_scale")]
+    if any(_is_missing(v) for v in values):
+        return []
+    scd, err_end, length = (float(v) for v in values)
+    if not (math.isfinite(scd) and err_end > 0 and length > 0):
+        return []
+    expected = -math.log10(err_end / length)
+    accuracy = row.get("reference_accuracy")
+    if not _is_missing(accuracy) and 0 < float(accuracy) and err_end / length < float(accuracy):
+        expected = -math.log10(float(accuracy))
+    if abs(scd - expected) <= 1e-9 * max(1.0, abs(expected)):
+        return []
+    return [f"scd {scd!r} does not follow from err_end / length_scale (it gives {expected:.6g})"]
 
 
 def _timing_defects(row: dict[str, Any]) -> list[str]:

@@ -256,7 +256,7 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     for row_file in sorted(directory.glob("*.json")):
         row = read_row(row_file)
         version = 0 if row is None else row_schema_version(row, row_file)
-        defects = ["unreadable"] if row is None else row_defects(row, SCHEMA_COLUMNS)
+        defects = ["unreadable"] if row is None else row_defects(row, SCHEMA_COLUMNS, row_file.stem)
         if version > SCHEMA_VERSION:
             newer.append((str(row_file), version))
         elif defects:
