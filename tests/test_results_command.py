@@ -270,3 +270,21 @@ def test_a_filter_that_keeps_nothing_writes_no_broken_table(results: Path, fmt: 
     assert result.exit_code == 0, result.output
     assert "tabular" not in result.stdout and "|" not in result.stdout
     assert "no line to write" in result.output and "meets --where scd>=99" in result.output
+
+
+def test_results_rank_in_the_measure_the_folders_report_was_made_in(results: Path) -> None:
+    """After `workbench report OUT --cost work` the report named one pair ahead and
+    `workbench results OUT` another (it ranked by CPU time whatever the report said)."""
+    folder = results.parent
+    (folder / "report").mkdir()
+    (folder / "report" / "settings.json").write_text(json.dumps({"cost": "n_rhs"}))
+    kept = runner.invoke(app, ["results", str(folder), "--format", "csv"])
+    assert kept.exit_code == 0, kept.output
+    assert "cost measure: n_rhs, as the folder's report (--cost to choose)" in kept.stderr
+    header = kept.stdout.splitlines()[0].split(",")
+    assert "n_rhs" in header and "integrate_cpu_s" not in header  # the cost column
+    chosen = runner.invoke(app, ["results", str(folder), "--cost", "integrate_cpu"])
+    assert chosen.exit_code == 0 and "as the folder's report" not in chosen.stderr
+    assert "integration CPU time" in chosen.stdout
+    plain = results_table(pd.read_parquet(results), cost="n_rhs")
+    assert plain.attrs["cost"].startswith("cheapest by")

@@ -16,6 +16,7 @@ from workbench.cli.app import (
     refuse_short_out,
     warnings_on_stderr,
 )
+from workbench.cli.outputs import CostOption
 from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.execution.timing import (
@@ -598,6 +599,7 @@ def results(
     fmt: Annotated[
         str, typer.Option("--format", "-f", help="table, csv, markdown or latex.")
     ] = "table",
+    cost: CostOption = None,
 ) -> None:
     """Print a sweep's results: a line a problem (or --by pair, --by run), filtered and sorted."""
     from workbench.errors import ConfigError
@@ -618,11 +620,21 @@ def results(
         raise ConfigError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
     with warnings_on_stderr():
         frame = load_results(path)
+    if cost is None:  # the measure of the folder's report, so that the two agree
+        from pathlib import Path
+
+        from workbench.outputs.report import kept_cost
+
+        cost = kept_cost(path) if Path(path).is_dir() else None
+        if cost is not None:
+            typer.echo(f"cost measure: {cost}, as the folder's report (--cost to choose)",
+                       err=True)  # fmt: skip
 
     def split(text: str | None) -> list[str]:
         return [item.strip() for item in (text or "").split(",") if item.strip()]
 
-    table = results_table(frame, by=by, columns=split(columns), where=where or [], sort=split(sort))
+    table = results_table(frame, by=by, columns=split(columns), where=where or [],
+                          sort=split(sort), cost=cost)  # fmt: skip
     if where and len(table) == 0:  # an empty table says nothing of why: a misspelled value?
         why = unmatched(with_option_columns(prepare_results(frame)), where)
         typer.echo(
@@ -630,7 +642,7 @@ def results(
             + " --where ".join(where) + ("; " + "; ".join(why) if why else ""),
             err=True,
         )  # fmt: skip
-    statement = resolve_cost(prepare_results(frame)).statement()
+    statement = resolve_cost(prepare_results(frame), cost).statement()
     # a table for a paper or a page does not name this machine's folder
     title = caption(table, len(frame), by, path if fmt == "table" else "", statement)
     if fmt in ("markdown", "latex") and len(table) == 0:  # an empty tabular{} breaks LaTeX

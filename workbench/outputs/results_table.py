@@ -297,13 +297,16 @@ def results_table(
     columns: Sequence[str] = (),
     where: Sequence[str] = (),
     sort: Sequence[str] = (),
+    cost: str | None = None,
 ) -> pd.DataFrame:
     """The table ``workbench results`` prints, from the rows of ``load_results``:
-    ``by`` "problem" or "pair" (:func:`summary`) or "run" (the rows themselves)."""
+    ``by`` "problem" or "pair" (:func:`summary`) or "run" (the rows themselves); ``cost``
+    a measure of :data:`~workbench.outputs.report.cost.COST_MEASURES` (default the
+    report's default)."""
     if by not in GROUPINGS:
         raise ConfigError(f"--by {by!r}: choose one of {', '.join(GROUPINGS)}")
     prepared = prepare_results(frame)
-    cost = resolve_cost(prepared)
+    cost = resolve_cost(prepared, cost)
     runs = filter_rows(with_option_columns(prepared), where)
     if by == "run":
         options = [c for c in runs.columns if c.startswith(("formalism.", "integrator."))]
