@@ -281,3 +281,8 @@ def test_pairs_cut_short_by_the_tolerance_grid_are_named_in_the_why() -> None:
         "short of scd 6; a tighter rtol would price them there (b / y)" in row.why
     reaching = runs[runs["pair"] != "b / y"]
     assert "Not measured" not in decision_rows(reaching, [4.0, 6.0], "integrate_cpu_s")[0].why
+    # b / y's tighter rtol was run and failed (or was warned): it was measured, not cut
+    # short by the grid ("a tighter rtol would price them" was wrong advice)
+    tried = pd.concat([runs, runs[runs["pair"] == "b / y"].tail(1).assign(
+        rtol=1e-10, status="failed", scd=float("nan"), run_id="tried")])  # fmt: skip
+    assert "Not measured" not in decision_rows(tried, [4.0, 6.0], "integrate_cpu_s")[0].why

@@ -94,8 +94,11 @@ def short_of(runs: pd.DataFrame, target: float, cost: str) -> dict[str, float]:
     their best is their tightest run: still improving where the tolerance grid ends, so
     the table's winner at ``target`` won over pairs whose cost there was never measured."""
     found = {}
+    tried = runs.groupby("pair")["rtol"].min()  # every run's, failed or warned ones too
     for pair, group in trusted(runs, cost).groupby("pair"):
         tightest = group.loc[group["rtol"].idxmin()]
+        if tried.get(pair, tightest["rtol"]) < tightest["rtol"]:
+            continue  # a tighter rtol was run and failed or was warned: not "never measured"
         if group["scd"].max() < target and len(group) > 1 and tightest["scd"] >= group["scd"].max():
             found[str(pair)] = float(tightest["rtol"])
     return found
