@@ -91,6 +91,9 @@ def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_run
     assert found.pair == "a / x" and found.within == 2 and found.reached == 3
     assert found.sentence.startswith("a / x is within 2x of the best wall time on 2 of 3")
     assert "scd >= 6" in found.sentence
+    # b scores the same: the sentence says so and what decided (it named a alone)
+    assert "; so is b / y: a / x is named for the lower geometric mean of its cost ratios " \
+        "to the best (1.59 against 1.65)." in found.sentence
 
 
 def test_target_is_the_highest_reached_on_two_thirds_of_the_problems() -> None:

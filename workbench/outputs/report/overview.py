@@ -150,10 +150,22 @@ class Recommendation:
         tail = (
             f" ({missing} problem(s) where no pair reached it without warnings)" if missing else ""
         )
-        return (
+        sentence = (
             f"{self.pair} is within {self.factor:g}x of the best {measure} on {self.within} "
-            f"of {self.reached} problems at scd >= {self.target:g}{tail}."
+            f"of {self.reached} problems at scd >= {self.target:g}{tail}"
         )
+        top = self.table.iloc[0]
+        level = self.table[(self.table["within"] == top["within"])
+                           & (self.table["reached"] == top["reached"])]  # fmt: skip
+        if len(level) > 1:  # named first only by the geometric mean: say so, and who else
+            others = [str(p) for p in level.index[1:4]] + ["..."] * (len(level) > 4)
+            gm = level["geometric mean ratio"]
+            sentence += (
+                f"; so is {', '.join(others)}: {self.pair} is named for the lower geometric "
+                f"mean of its cost ratios to the best ({gm.iloc[0]:.3g} against "
+                f"{gm.iloc[1]:.3g})"
+            )
+        return sentence + "."
 
 
 def recommend(
