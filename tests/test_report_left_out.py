@@ -110,7 +110,8 @@ def test_the_ranking_lists_every_pair_and_the_latex_says_how_many_it_leaves_out(
     tables = tmp_path / "tables"
     assert len(pd.read_csv(tables / "ranking.csv")) == 9
     markdown = (tables / "ranking.md").read_text(encoding="utf-8").splitlines()
-    assert len(markdown) == 2 + 9
+    assert len([line for line in markdown if line.startswith("| ")]) == 1 + 9
+    assert markdown[-1].startswith("Table: ")  # the caption: what the table measures
     page = (tmp_path / "index.html").read_text(encoding="utf-8")
     section = page.split("within reach of the best</h3>", 1)[1].split("</table>", 1)[0]
     assert section.count("<tr>") == 1 + 9

@@ -92,8 +92,12 @@ def write_table(
     index = shows_index(table)
     table.to_csv(paths[0], index=index)
     listed = "".join(f"\n- {note}" for note in notes)
+    # the caption under the table (pandoc's "Table:"): what was measured, what the
+    # empty cells mean (the .md said none of it)
+    said = f"\nTable: {markdown_text(caption)}\n" if caption else ""
     paths[1].write_text(
-        markdown_table(table, index=index) + (f"\n{listed.lstrip()}\n" if notes else ""),
+        markdown_table(table, index=index) + (f"\n{listed.lstrip()}\n" if notes else "")
+        + said,
         encoding="utf-8",
     )
     printed = table if latex is None else latex
@@ -180,6 +184,11 @@ def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], li
         ]
         rows.append(([str(label)] if index else []) + cells)
     return head, rows
+
+
+def markdown_text(text: str) -> str:
+    """``text`` for Markdown outside a table: one line, & and < as entities (no tag)."""
+    return " ".join(str(text).split()).replace("&", "&amp;").replace("<", "&lt;")
 
 
 def markdown_table(table: pd.DataFrame, index: bool = False) -> str:
