@@ -236,3 +236,16 @@ def main() -> None:
     except KeyboardInterrupt:  # outside a command (e.g. while importing)
         typer.echo("interrupted: stopped by Ctrl-C; files already written are kept", err=True)
         sys.exit(EXIT_INTERRUPTED)
+
+
+# the --cost of report, paper and results: the measure they rank in
+CostOption = Annotated[
+    str | None,
+    typer.Option(
+        "--cost",
+        help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
+        "(default), integrate_wall, n_rhs or work (counted work: evaluations weighted "
+        "by their unit CPU costs, docs/reports.md). A sweep resumed into RESULTS, and "
+        "report and paper without --cost, keep the measure chosen here.",
+    ),
+]

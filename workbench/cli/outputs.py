@@ -8,23 +8,13 @@ from typing import Annotated, Any
 
 import typer
 
-from workbench.cli.app import app, refuse_short_out
+from workbench.cli.app import CostOption, app, refuse_short_out
 
 ResultsArgument = Annotated[
     str,
     typer.Argument(
         metavar="RESULTS",
         help="A results directory (the output of `workbench sweep`) or a results.parquet.",
-    ),
-]
-CostOption = Annotated[
-    str | None,
-    typer.Option(
-        "--cost",
-        help="Cost measure of the diagrams, tables and recommendation: integrate_cpu "
-        "(default), integrate_wall, n_rhs or work (counted work: evaluations weighted "
-        "by their unit CPU costs, docs/reports.md). A sweep resumed into RESULTS, and "
-        "report and paper without --cost, keep the measure chosen here.",
     ),
 ]
 WaitOption = Annotated[

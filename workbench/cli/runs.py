@@ -10,13 +10,13 @@ import typer
 from rich.table import Table
 
 from workbench.cli.app import (
+    CostOption,
     app,
     console,
     option_value,
     refuse_short_out,
     warnings_on_stderr,
 )
-from workbench.cli.outputs import CostOption
 from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.execution.timing import (
