@@ -379,3 +379,15 @@ def test_a_sweep_into_a_folder_of_another_sweep_says_so(fake_plugins, tmp_path) 
     assert said.startswith("the folder holds 2 row(s) of other sweeps")
     _, lines = sweep_lines(again)  # the same sweep again: its own 2, the other's 2
     assert any("holds 2 row(s) of other sweeps" in line for line in lines)
+
+
+def test_a_report_names_ok_runs_whose_series_file_is_gone(fake_plugins, tmp_path) -> None:
+    """A deleted series file changed nothing the report said (its curves just went)."""
+    from workbench.outputs.report.writer import report_directory
+
+    first, _ = sweep_lines(spec_text(tmp_path, '["test-rk45"]', problems=FALLING))
+    assert first.counts["ok"] == 2
+    gone = sorted(store.load_results(tmp_path)["run_id"])[0]
+    store.series_path(tmp_path, gone).unlink()
+    with pytest.warns(UserWarning, match=f"1 ok run.s. have no time series file .e.g. {gone}"):
+        report_directory(tmp_path, tmp_path / "report-again")

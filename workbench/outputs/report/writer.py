@@ -280,6 +280,8 @@ def report_directory(
         from workbench.runs.resume import mark_stale
 
         frame = mark_stale(frame, stale)
+    if source.is_dir():
+        _say_missing_series(directory, frame)
     target = Path(out_dir) if out_dir is not None else directory / "report"
     check_folder_target(target)  # before the report's seconds of work, not after them
     if out_dir is None:
@@ -308,6 +310,23 @@ def report_directory(
 
 SETTINGS_FILE = "settings.json"
 """A report's choices (its cost measure: ``{"cost": key or null}``), beside its index."""
+
+
+def _say_missing_series(directory: Path, frame: pd.DataFrame) -> None:
+    """A warning naming the ok rows whose time series file is gone: their curves are left
+    out of the report (a deleted file changed nothing it said; a resume redoes the run)."""
+    from workbench.runs.store import series_path
+
+    ok = frame[frame["status"] == "ok"]
+    missing = [run_id for run_id in ok["run_id"].astype(str)
+               if not series_path(directory, run_id).is_file()]  # fmt: skip
+    if missing:
+        warnings.warn(
+            f"{len(missing)} ok run(s) have no time series file (e.g. {missing[0]}): their "
+            "drift and energy curves are left out; `workbench sweep` into this folder "
+            "redoes them",
+            stacklevel=3,
+        )
 
 
 def kept_cost(results_dir: str | os.PathLike[str]) -> str | None:
