@@ -205,7 +205,7 @@ def state_space_equations(
         for j in model.tree_joints
     }
     names = ", ".join(k.v_names[i] for i in independent)
-    return build_equations(
+    equations = build_equations(
         name,
         model,
         reduced,
@@ -215,6 +215,12 @@ def state_space_equations(
         notes=[f"state-space: independent velocities {names} (coordinate partitioning)"],
         compiler=Compiler.from_options(options),
     )
+    # the closure on the state's own q, for the branch audit: the observables' residuals
+    # are taken at the Newton-solved q and vanish whatever the state (the audit followed
+    # them and saw every run leave its branch)
+    g = k.closure_constraints
+    equations.position_closure = ca.Function("g_and_g_q", [k.t, k.q], [g, ca.jacobian(g, k.q)])
+    return equations
 
 
 def _gamma(system: MechanicalSystem) -> Any:

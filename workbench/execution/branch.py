@@ -489,13 +489,25 @@ def _truncated_solve(matrix: np.ndarray, rhs: np.ndarray, rank: int) -> np.ndarr
 
 
 def constraints_of(equations: Any) -> Constraints | None:
-    """(t, q) -> (g, dg/dq) of a run's equations: the mechanical form's holonomic rows, or,
-    when the formalism eliminated the loops (minimal velocities), the joints' position
-    residuals on the body poses (observables); None without position constraints. Its
+    """(t, q) -> (g, dg/dq) of a run's equations: their ``position_closure`` if they have
+    one (a formalism whose observables solve the loops themselves), the mechanical form's
+    holonomic rows, or, when the formalism eliminated the loops (minimal velocities), the
+    joints' position residuals on the body poses (observables); None without position
+    constraints. Its
     ``along`` evaluates n points in one mapped call of the symbolic Functions (made once
     per equations)."""
     mechanical = equations.forms.get("mechanical")
     made = equations.__dict__.setdefault("_branch_functions", {})
+    closure = getattr(equations, "position_closure", None)  # (t, q) -> (g, dg/dq), its own
+    if closure is not None and closure.size1_out(0) > 0:
+
+        def own(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            g, jacobian = closure(t, x)
+            g = np.array(g, dtype=float).ravel()
+            return g, np.array(jacobian, dtype=float).reshape(g.size, x.size)
+
+        own.along = _mapped_along(closure, made, 0)  # type: ignore[attr-defined]
+        return own
     if mechanical is not None and int(getattr(mechanical, "n_holonomic", 0) or 0) > 0:
         nq = equations.nq
 
