@@ -45,9 +45,15 @@ def one_line(error: BaseException, with_type: bool = True) -> str:
     return f"{name}: {message}" if message else name
 
 
+CASADI_NEWTON_ADVICE = "Set 'error_on_fail' option to false to ignore this error."
+"""CasADi's advice after a rootfinder's failure: for CasADi's own users, not ours."""
+NEWTON_FAILED = "(a Newton solve inside the equations did not converge)"
+
+
 def one_line_text(text: object) -> str:
     """``text`` as one line: its non-empty lines, stripped, joined with ' | '.
 
     What every ``message`` of a result row goes through (the row schema says one line).
     """
-    return " | ".join(line.strip() for line in str(text).splitlines() if line.strip())
+    lines = " | ".join(line.strip() for line in str(text).splitlines() if line.strip())
+    return lines.replace(CASADI_NEWTON_ADVICE, NEWTON_FAILED)

@@ -144,8 +144,9 @@ def state_space_equations(
     )
     closure = ca.substitute(k.closure_constraints, k.q, q_sub)
     residual = ca.Function("closure", [q_d_sym, ca.vertcat(k.t, k.q)], [closure])
-    solver = ca.rootfinder(
-        "partition", "newton", residual, {"error_on_fail": True, "abstol": 1e-13, "max_iter": 50}
+    solver = ca.rootfinder(  # named in its errors: what failed, in words
+        "state_space_dependent_coordinates", "newton", residual,
+        {"error_on_fail": True, "abstol": 1e-13, "max_iter": 50},
     )
     t, q, s = ca.MX.sym("t"), ca.MX.sym("q", k.nq), ca.MX.sym("s", len(independent))
     q_solved = solver(q[q_dependent], ca.vertcat(t, q))

@@ -567,9 +567,13 @@ def execute_run(
                     stages.stop()
     except Exception as error:  # noqa: BLE001 - a failing plugin is a result, not a crash
         stages.stop()
-        row.update(
-            status="failed", stage=stages.current, message=f"{stages.current}: {one_line(error)}"
-        )
+        said = f"{stages.current}: {one_line(error)}"
+        if row.get("status") == "failed" and row.get("stage") == "integrate":
+            # the integration's own failure first: the metrics of the part reached failed
+            # after it (it was replaced by theirs, the run's cause lost)
+            row["message"] = f"{row['message']}; then {said}"
+        else:
+            row.update(status="failed", stage=stages.current, message=said)
     compile_warnings = getattr(state.get("equations"), "compile_warnings", [])
     if compile_warnings:
         row["message"] = " | ".join(filter(None, [row["message"], *compile_warnings]))
