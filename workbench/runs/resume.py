@@ -131,7 +131,8 @@ def plan_resume(
         stale = stale_reason(row)
         if stale:
             plan.stale[spec.run_id] = stale
-            plan.stale_rows[spec.run_id] = {c: str(row.get(c)) for c in PRODUCER_COLUMNS}
+            plan.stale_rows[spec.run_id] = {c: row[c] for c in PRODUCER_COLUMNS
+                                            if isinstance(row.get(c), str)}  # fmt: skip
         plan.unknown += unknown_producer(row)
         if row.get("status") in rerun or (stale and "stale" in rerun):
             plan.todo.append(spec)
