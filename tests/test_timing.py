@@ -192,6 +192,9 @@ def test_a_row_whose_scd_contradicts_its_own_error_is_not_whole(fake_plugins, tm
     capped = row | {"err_end": 1e-30 * row["length_scale"]}  # below the reference's digits
     capped["scd"] = -math.log10(capped["reference_accuracy"])
     assert row_defects(capped, SCHEMA_COLUMNS) == []
+    older = {k: v for k, v in capped.items() if k != "reference_accuracy"}  # cap not kept
+    assert row_defects(older, SCHEMA_COLUMNS) == []  # fewer digits than its error: a cap
+    assert row_defects(older | {"scd": 40.0}, SCHEMA_COLUMNS)  # more: never
     out = tmp_path / "out"
     store.write_run(out, edited, result.stored_series)
     with pytest.warns(UserWarning, match="does not follow from err_end"):
