@@ -129,9 +129,9 @@ def test_rows_are_written_with_the_current_schema_version(tmp_path) -> None:
     spec = RunSpec("p", "f", "i", 1e-6, 1e-9)
     store.write_run(tmp_path, status_row(spec, "timeout", "too slow"), None)
     written = json.loads(store.row_path(tmp_path, spec.run_id).read_text())
-    assert written["schema_version"] == row_schema.SCHEMA_VERSION == 9
+    assert written["schema_version"] == row_schema.SCHEMA_VERSION == 10
     frame = store.load_results(tmp_path)
-    assert frame.loc[0, "schema_version"] == 9 and frame.attrs["migrated"] == []
+    assert frame.loc[0, "schema_version"] == 10 and frame.attrs["migrated"] == []
 
 
 def test_an_old_schema_directory_loads_migrated(tmp_path) -> None:
@@ -140,7 +140,7 @@ def test_an_old_schema_directory_loads_migrated(tmp_path) -> None:
     frame = store.load_results(tmp_path)
     assert frame.attrs["migrated"] == [str(store.row_path(tmp_path, "a" * 16))]
     loaded = frame.iloc[0].to_dict()
-    assert loaded["schema_version"] == 9
+    assert loaded["schema_version"] == 10
     assert math.isnan(loaded["scd_mixed"])  # never measured before schema 4
     # never audited: the warnings say so instead of reading as "nothing wrong"
     assert loaded["warnings"].startswith("not audited")
@@ -149,14 +149,14 @@ def test_an_old_schema_directory_loads_migrated(tmp_path) -> None:
     parquet = tmp_path / "old.parquet"
     pd.DataFrame([old, row("b" * 16)]).to_parquet(parquet)
     again = store.load_results(parquet)
-    assert list(again["schema_version"]) == [9, 9]
+    assert list(again["schema_version"]) == [10, 10]
     assert again.attrs["migrated"] == [str(parquet)]
 
 
 def test_a_schema_3_row_gets_the_trajectory_error_and_step_as_not_measured(tmp_path) -> None:
     write_row_file(tmp_path, row("e" * 16, schema_version=3, warnings=""))
     loaded = store.load_results(tmp_path).iloc[0]
-    assert loaded["schema_version"] == 9 and loaded["warnings"] == ""
+    assert loaded["schema_version"] == 10 and loaded["warnings"] == ""
     assert np.isnan(loaded["err_l2"]) and np.isnan(loaded["fixed_step_s"])
 
 
@@ -165,7 +165,7 @@ def test_a_schema_6_row_gets_the_repeated_timing_as_not_measured(tmp_path) -> No
     # the spread, CPU time, samples, load and workers were never measured (NaN, not 0)
     write_row_file(tmp_path, row("f" * 16, schema_version=6, integrate_s=0.25, warnings=""))
     loaded = store.load_results(tmp_path).iloc[0]
-    assert loaded["schema_version"] == 9 and loaded["integrate_s"] == 0.25
+    assert loaded["schema_version"] == 10 and loaded["integrate_s"] == 0.25
     new = ["integrate_s_min", "integrate_s_max", "integrate_cpu_s", "repeats", "load_avg"]
     assert all(np.isnan(loaded[column]) for column in [*new, "workers"])
     assert row_schema.MIGRATIONS[6](row("f" * 16, schema_version=6)).keys() >= {*new, "workers"}
@@ -177,14 +177,14 @@ def test_a_schema_7_row_gets_the_cpu_interval_as_not_measured(tmp_path) -> None:
         tmp_path, row("9" * 16, schema_version=7, integrate_cpu_s=0.5, repeats=1, warnings="")
     )
     loaded = store.load_results(tmp_path).iloc[0]
-    assert loaded["schema_version"] == 9 and loaded["integrate_cpu_s"] == 0.5
+    assert loaded["schema_version"] == 10 and loaded["integrate_cpu_s"] == 0.5
     assert np.isnan(loaded["integrate_cpu_s_min"]) and np.isnan(loaded["integrate_cpu_s_max"])
 
 
 def test_a_schema_8_row_gets_the_counted_work_as_not_measured(tmp_path) -> None:
     write_row_file(tmp_path, row("8" * 16, schema_version=8, n_rhs=120, warnings=""))
     loaded = store.load_results(tmp_path).iloc[0]
-    assert loaded["schema_version"] == 9 and loaded["n_rhs"] == 120
+    assert loaded["schema_version"] == 10 and loaded["n_rhs"] == 120
     never = ("work_s", "work_s_min", "work_s_max", "penetration_max", "n_events")
     assert all(np.isnan(loaded[c]) for c in never)
 
@@ -210,7 +210,7 @@ def test_mixed_directories(tmp_path) -> None:
     write_row_file(tmp_path, row("a" * 16))
     write_row_file(tmp_path, row("b" * 16, schema_version=row_schema.SCHEMA_VERSION))
     frame = store.load_results(tmp_path)
-    assert list(frame["schema_version"]) == [9, 9]
+    assert list(frame["schema_version"]) == [10, 10]
     assert frame.attrs["migrated"] == [str(store.row_path(tmp_path, "a" * 16))]
     for run_id in ("a" * 16, "b" * 16):  # an ok row is done with its series only
         files.write_parquet_atomic(series(run_id), store.series_path(tmp_path, run_id))
@@ -234,7 +234,7 @@ def test_a_schema_8_row_gets_the_contact_metrics_as_not_measured(tmp_path) -> No
     # rows before schema 9 had no contacts: their contact columns are NaN, not 0
     write_row_file(tmp_path, row("8" * 16, schema_version=8, warnings=""))
     loaded = store.load_results(tmp_path).iloc[0]
-    assert loaded["schema_version"] == 9 and loaded["warnings"] == ""
+    assert loaded["schema_version"] == 10 and loaded["warnings"] == ""
     columns = ["penetration_max", "complementarity_max", "n_events", "event_time_err_max",
                "energy_balance_err"]  # fmt: skip
     assert all(np.isnan(loaded[column]) for column in columns)

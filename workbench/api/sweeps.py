@@ -25,10 +25,12 @@ from workbench.execution.environment import sweep_environment
 from workbench.execution.execute import execute_run
 from workbench.execution.timing import Timing
 from workbench.files import sync_file_system
+from workbench.outputs.report.close_calls import close_calls
 from workbench.plugin import registry
 from workbench.runs import store
 from workbench.runs.out_lock import out_lock
 from workbench.runs.resume import plan_resume
+from workbench.runs.retime import retime_close_calls
 from workbench.runs.sweep import run_sweep
 from workbench.runs.sweep_spec import SUITE_NAME, SweepSpec, parse_spec, suite_text
 
@@ -97,7 +99,7 @@ def sweep(
             run_here(parsed, callback, fresh)
     else:
         summary = run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
-                            say=lambda line: None, wait=wait)  # fmt: skip
+                            say=lambda line: None, wait=wait, close_calls=close_calls)  # fmt: skip
         rows = summary.rows  # what the consolidation read: not read again
     if rows is None:
         rows = store.load_results(parsed.out)
@@ -242,6 +244,9 @@ def run_here(sweep: SweepSpec, progress: Callable[[int, int], Any] | None, fresh
         store.write_run(out, result.row, result.stored_series, sweep.store_trajectories)
         if progress is not None:
             progress(done, len(todo))
+    if sweep.retime:  # (in this process too: a class of this session cannot be forked)
+        retime_close_calls(out, sweep.runs, close_calls, sweep.retime, sweep.repeat_budget,
+                           sweep.time_limit, sweep.plugins, lambda line: None)  # fmt: skip
     sync_file_system(out)  # the rows and series, written without a sync each
     store.consolidate(out)
 

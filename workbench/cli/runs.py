@@ -238,7 +238,7 @@ def sweep(
             help="Sweep specification (TOML file) or suite name: a file of "
             "workbench/runs/suites/ (quick, full, iftomm, ivp, nonsmooth; an unknown name "
             "lists them); default: quick, a first look in about a minute.",
-        )
+        ),
     ] = None,
     jobs: Annotated[int | None, typer.Option("--jobs", "-j", help="Worker processes.")] = None,
     scheduler: Annotated[
@@ -280,6 +280,15 @@ def sweep(
         typer.Option(
             "--repeat-budget",
             help="CPU seconds of integration a run's samples may take together.",
+        ),
+    ] = None,
+    retime: Annotated[
+        int | None,
+        typer.Option(
+            "--retime",
+            help="Times each close call (pairs within 3x of a cheapest) is timed again after "
+            "the runs, at moments 2 s apart, so that a second sweep names the same winner "
+            "(default 5; 0: not at all).",
         ),
     ] = None,
     wait: Annotated[
@@ -344,6 +353,7 @@ def sweep(
     _say_on_interrupt(loaded, out)
     hold_out_lock(ctx, out or loaded.out, wait)  # the report below too
     from workbench.outputs.recording import SweepRecorder
+    from workbench.outputs.report.close_calls import close_calls
 
     summary = run_sweep(
         loaded,
@@ -357,6 +367,8 @@ def sweep(
         say=typer.echo,
         repeats=repeats,
         repeat_budget=repeat_budget,
+        close_calls=close_calls,
+        retime=retime,
     )
     shown = ("ok", "failed", "skipped", "timeout") + (("unfinished",) if summary.unfinished else ())
     counts = ", ".join(f"{summary.counts[s]} {s}" for s in shown)
@@ -423,11 +435,7 @@ def sweep(
         typer.echo(
             f"{len(summary.unfinished)} run(s) could not be completed, not by their own fault "
             f"(runs {runs}; e.g. run {first}: {why}); they have no row: resume with `{again}`"
-            + (
-                f" (Dask's own messages: {summary.out / 'logs' / CLIENT_LOG})"
-                if scheduler
-                else ""
-            ),
+            + (f" (Dask's own messages: {summary.out / 'logs' / CLIENT_LOG})" if scheduler else ""),
             err=True,
         )
         raise typer.Exit(1)

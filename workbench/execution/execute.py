@@ -41,6 +41,7 @@ stage; :func:`execute_run` itself does not raise for a failing plugin.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 import hashlib
@@ -48,6 +49,7 @@ import json
 import math
 import time
 from collections import OrderedDict
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -295,6 +297,20 @@ def cached_equations(spec: RunSpec, model: Any) -> tuple[Any, bool]:
     return equations, False
 
 
+@contextlib.contextmanager
+def equations_held(count: int) -> Iterator[None]:
+    """Meanwhile the caches hold ``count`` equations and problems at least: a process
+    that cycles through a few models again and again (:mod:`workbench.runs.retime`)
+    builds each once."""
+    global EQUATIONS_CACHE_SIZE
+    before = EQUATIONS_CACHE_SIZE
+    EQUATIONS_CACHE_SIZE = max(before, count)
+    try:
+        yield
+    finally:
+        EQUATIONS_CACHE_SIZE = before
+
+
 def release_freed_memory() -> None:
     """Hand the heap's free pages back to the system (glibc's ``malloc_trim``; elsewhere
     nothing): freed CasADi graphs otherwise stay in the worker's resident memory."""
@@ -399,6 +415,7 @@ def base_row(spec: RunSpec) -> dict[str, Any]:
         "integrator_options": canonical_json(spec.integrator_options),
         "rtol": float(spec.rtol),
         "atol": float(spec.atol),
+        "retimed": 0,
     }
 
 
@@ -418,12 +435,15 @@ def execute_run(
     sink: Any = None,
     reference_dir: Path | str | None = None,
     timing: Timing | None = None,
+    measure: bool = True,
 ) -> RunResult:
     """Run ``spec`` through the stages of the module docstring; never raises for a plugin.
 
     ``reference_dir``: where computed references are cached on disk (usually
     ``<out>/references``); None keeps them in memory only. ``timing``: how often the
     integration is timed (:class:`~workbench.execution.timing.Timing`; default its defaults).
+    ``measure`` False: stop after the integration, the row holding its status, counts and
+    timing only (another sample of a done run's cost: :mod:`workbench.runs.retime`).
     """
     timing = timing or Timing()
     PROGRESS.begin_run()
@@ -501,6 +521,8 @@ def execute_run(
                 state["samples"] = samples
                 state["trajectory"] = trajectory
                 _record_trajectory(row, trajectory)
+                if not measure:
+                    return RunResult(row | samples.columns())
 
                 stages.start("metrics")
                 row.update(counted_work(equations, form, row))
@@ -545,8 +567,12 @@ def execute_run(
                     found = "; ".join(filter(None, [row.get("warnings", ""), own]))
                     row["warnings"] = one_line_text(found)
                 if samples.difference:  # the samples did not time the same work
-                    found = "; ".join(filter(None, [row.get("warnings", ""),
-                                                    f"not reproducible: {samples.difference}"]))
+                    found = "; ".join(
+                        filter(
+                            None,
+                            [row.get("warnings", ""), f"not reproducible: {samples.difference}"],
+                        )
+                    )
                     row["warnings"] = one_line_text(found)  # fmt: skip
                 stages.stop()
                 stages.wall["metrics"] = max(0.0, stages.wall["metrics"] - reference.seconds)

@@ -116,6 +116,11 @@ SCHEMA: list[tuple[str, str]] = [
     ("n_events", "impacts and stick/slip switches the contact integrator reported"),
     ("event_time_err_max", "largest distance of a reference contact event to the run's (s)"),
     ("energy_balance_err", "energy lost against the restitution and friction laws, relative"),
+    (
+        "retimed",
+        "samples of the integration timed again after the runs, at moments apart "
+        "(workbench.runs.retime; 0: none)",
+    ),
 ]
 SCHEMA_COLUMNS = [name for name, _ in SCHEMA]
 SERIES_COLUMNS = ["run_id", "t", "drift_pos", "drift_vel", "drift_nh", "energy_err", "ref_err"]
@@ -151,7 +156,9 @@ UNKNOWN_PRODUCER = "unknown"
 #      contact metrics (workbench.execution.contact_metrics): penetration_max,
 #      complementarity_max, n_events, event_time_err_max, energy_balance_err; older rows
 #      did not time unit costs and had no contacts: NaN
-SCHEMA_VERSION = 9
+#  10  adds retimed (the close calls' samples timed again at moments apart, after the
+#      runs: workbench.runs.retime); older rows were not: 0
+SCHEMA_VERSION = 10
 
 
 def _migrate_1_to_2(row: dict[str, Any]) -> dict[str, Any]:
@@ -199,6 +206,10 @@ def _migrate_8_to_9(row: dict[str, Any]) -> dict[str, Any]:
     return row | {"schema_version": 9} | unrecorded
 
 
+def _migrate_9_to_10(row: dict[str, Any]) -> dict[str, Any]:
+    return row | {"schema_version": 10, "retimed": 0}
+
+
 # version -> the function that turns a row of that version into one of the next
 MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     1: _migrate_1_to_2,
@@ -209,6 +220,7 @@ MIGRATIONS: dict[int, Callable[[dict[str, Any]], dict[str, Any]]] = {
     6: _migrate_6_to_7,
     7: _migrate_7_to_8,
     8: _migrate_8_to_9,
+    9: _migrate_9_to_10,
 }
 
 

@@ -21,6 +21,11 @@ does not take the repeats away exactly when they are needed: with the defaults (
 one. One-off costs (build, compile, initial state, reference) are never in the samples:
 they have their own columns.
 
+Back-to-back samples share their moment: on a shared machine a slow second slows all of
+them, so they agree with each other far better than with a second sweep. The runs a
+report's decisions hinge on are therefore timed again after the runs, at moments apart
+(:mod:`workbench.runs.retime`, :func:`retimed_columns`).
+
 A repeat that does not reproduce the first one's statistics (steps, evaluations) or
 trajectory is reported as a warning: the integrator is not deterministic, and its samples
 did not time the same work.
@@ -42,6 +47,8 @@ from workbench.errors import ConfigError
 DEFAULT_REPEATS = 3
 DEFAULT_REPEAT_BUDGET = 3.0  # CPU s of integration a run may spend on its samples
 MAX_REPEATS = 1000
+DEFAULT_RETIME = 5  # times a sweep's close calls are timed again (workbench.runs.retime)
+MAX_RETIME = 100
 
 # the row columns this module fills (see workbench.execution.row_schema.SCHEMA)
 TIMING_COLUMNS = (
@@ -92,6 +99,16 @@ def repeats_problem(value: Any) -> str | None:
         return (
             f"must be an integer from 1 to {MAX_REPEATS} (timed samples of the integration; "
             f"1: time it once), not {value!r}"
+        )
+    return None
+
+
+def retime_problem(value: Any) -> str | None:
+    """What is wrong with ``value`` as the rounds of :mod:`workbench.runs.retime`, or None."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_RETIME:
+        return (
+            f"must be an integer from 0 to {MAX_RETIME} (times each close call is timed "
+            f"again after the runs, at moments apart; 0: not at all), not {value!r}"
         )
     return None
 
@@ -208,3 +225,29 @@ def oversubscribed(load_avg: Any, workers: Any, cpu_count: Any) -> bool:
         return False
     idle = cores - max(0.0, load - jobs)
     return jobs > idle
+
+
+def retimed_columns(row: dict[str, Any], wall: list[float], cpu: list[float]) -> dict[str, Any]:
+    """``row``'s timing columns with ``wall`` and ``cpu``: more samples of the same
+    integration, each taken at another moment (:mod:`workbench.runs.retime`).
+
+    The row's own samples were taken back to back and share their moment (a slow second
+    of a shared machine slows them all), so they count as one sample, their median. The
+    medians are then over that and the new samples; least and greatest over every sample;
+    ``repeats`` counts every sample, ``retimed`` the new ones."""
+    columns: dict[str, Any] = {}
+    for median_column, new in (("integrate_s", wall), ("integrate_cpu_s", cpu)):
+        own = [row.get(f"{median_column}{end}") for end in ("", "_min", "_max")]
+        known = [float(v) for v in own if _finite(v)]
+        medians = [float(own[0])] if _finite(own[0]) else []
+        columns[median_column] = statistics.median([*medians, *new])
+        columns[f"{median_column}_min"] = min([*known, *new])
+        columns[f"{median_column}_max"] = max([*known, *new])
+    repeats = row.get("repeats")
+    columns["repeats"] = (int(repeats) if _finite(repeats) else 1) + len(cpu)
+    columns["retimed"] = len(cpu)
+    return columns
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)

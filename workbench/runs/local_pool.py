@@ -220,7 +220,7 @@ WORKER_MODULES = (
 FORK_UNSAFE_MODULES = ("rerun", "distributed", "torch")
 
 
-def _context() -> Any:
+def worker_context() -> Any:
     """fork when it is safe, else forkserver (preloaded), else spawn.
 
     A forked worker inherits the parent's imported modules and discovered plugins, so it
@@ -274,7 +274,7 @@ def run_local(
     ``rebuild``: done runs to record again (their recording was left unwritten by a
     killed worker; rows kept); so are those of a worker killed here, once each.
     ``recorded(run_id)``: called as each of them is recorded again."""
-    context = _context()
+    context = worker_context()
     timed = (timing or Timing(workers=jobs)).to_dict()
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     rebuilds: deque[Keyed] = deque((equations_key(spec), spec) for spec in rebuild)

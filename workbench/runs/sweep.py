@@ -11,7 +11,8 @@ address, runs are submitted through ``distributed.Client(address).get_executor()
 task hands its run to a long-lived child of its Dask worker (the local pool's worker loop,
 killed and restarted on a time limit) and returns the row and series to the client, which
 writes them (:mod:`workbench.runs.dask_pool`). At the start
-the full environment is written to ``<out>/environment.json``; at the end the rows are
+the full environment is written to ``<out>/environment.json``; at the end the close calls
+are timed again at moments apart (:mod:`workbench.runs.retime`) and the rows are
 consolidated into ``<out>/results.parquet``.
 """
 
@@ -30,16 +31,17 @@ from typing import Any
 from workbench import files
 from workbench.errors import ConfigError
 from workbench.execution.environment import sweep_environment
-from workbench.execution.timing import Timing, check_budget, check_repeats
+from workbench.execution.timing import Timing, check_budget, check_repeats, retime_problem
 from workbench.files import make_dirs, sync_file_system
 from workbench.runs import output_keys, store
 from workbench.runs.dask_pool import check_scheduler_address, run_dask
 from workbench.runs.estimate import estimate_lines, known_costs
-from workbench.runs.local_pool import merge_run_recordings, run_local
+from workbench.runs.local_pool import merge_run_recordings, run_local, worker_context
 from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
 from workbench.runs.recording_batches import unwritten_runs
 from workbench.runs.resume import plan_resume
+from workbench.runs.retime import GAP_S, RETIMED_FILE, retime_close_calls
 from workbench.runs.sweep_spec import SweepSpec, load_spec, parse_spec
 
 __all__ = ["SweepSpec", "SweepSummary", "load_spec", "parse_spec", "run_sweep"]
@@ -86,6 +88,8 @@ def run_sweep(
     repeat_budget: float | None = None,
     wait: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    close_calls: Callable[[Any], Any] | None = None,
+    retime: int | None = None,
 ) -> SweepSummary:
     """Execute the runs of ``sweep`` not yet in ``out`` and consolidate the results.
 
@@ -106,7 +110,13 @@ def run_sweep(
 
     ``out`` is locked while the sweep runs (:func:`workbench.runs.out_lock.out_lock`):
     OutputBusyError if another process holds it, or with ``wait`` wait for it.
-    ``progress(done, total)`` is called as each run finishes (e.g. a notebook's bar)."""
+    ``progress(done, total)`` is called as each run finishes (e.g. a notebook's bar).
+
+    ``close_calls(rows)``: the run ids the sweep's decisions hinge on (a DataFrame of its
+    done rows); they are timed again ``retime`` times (default the specification's) at
+    moments apart once the runs are done (:mod:`workbench.runs.retime`; not with a Dask
+    scheduler, whose workers' machines timed them). Passed in, as ``recorder`` is: the
+    runs layer knows no report."""
 
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
@@ -119,6 +129,9 @@ def run_sweep(
     files.usable_cache_dir()  # a file there failed every run, one by one
     if scheduler:
         check_scheduler_address(scheduler)  # before anything is written into out_dir
+    rounds = sweep.retime if retime is None else retime
+    if retime_problem(rounds):
+        raise ConfigError(f"--retime {retime_problem(rounds)}")
     timing = Timing(
         check_repeats(sweep.repeats if repeats is None else repeats, "--repeats"),
         check_budget(
@@ -152,7 +165,7 @@ def run_sweep(
         store.write_plan(out_dir, (spec.run_id for spec in sweep.runs), sweep.source, stale)
         counts: Counter = Counter()
         states = sweep.store_trajectories
-        # the local pool forks its workers: no thread may be running then (see _context)
+        # the local pool forks its workers: no thread may be running then (see worker_context)
         with _progress(len(todo), show_progress, threaded=bool(scheduler)) as advance:
 
             def record(status: str) -> None:
@@ -181,13 +194,16 @@ def run_sweep(
                     states,
                     rebuild,
                 )
+        key = output_keys.rows_key(out_dir)
+        if close_calls is not None and rounds and not scheduler:
+            key = _retime(sweep, out_dir, key, close_calls, rounds, timing, limit, say)
         sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
         loaded: list[Any] = []  # the rows read by the consolidation, if it is done
         results, remade = output_keys.remake(
             out_dir / store.RESULTS_FILE,
-            output_keys.rows_key(out_dir),
+            key,
             lambda: store.consolidate(out_dir, loaded),
             root=out_dir,
         )
@@ -214,6 +230,32 @@ def run_sweep(
         unchanged=unchanged,
         rows=rows,
     )
+
+
+def _retime(
+    sweep: SweepSpec,
+    out_dir: Path,
+    key: str,
+    close_calls: Callable[[Any], Any],
+    rounds: int,
+    timing: Timing,
+    limit: float,
+    say: Callable[[str], None] | None,
+) -> str:
+    """The close calls timed again (:mod:`workbench.runs.retime`) unless the rows are those
+    the last re-timing left; the rows' key after it."""
+    marker = out_dir / RETIMED_FILE
+    if output_keys.is_current(marker, key):
+        return key
+    done = retime_close_calls(
+        out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit, sweep.plugins,
+        say or _stderr, worker_context(),
+    )  # fmt: skip
+    files.write_json_atomic({"rounds": rounds, "gap_s": GAP_S, "runs": done}, marker,
+                            root=out_dir)  # fmt: skip
+    key = output_keys.rows_key(out_dir) if done else key
+    output_keys.remember(marker, key, out_dir)
+    return key
 
 
 def _unwritten_recordings(sweep: SweepSpec, todo: list[Any], out_dir: Path) -> list[Any]:

@@ -11,6 +11,7 @@ them)::
     time_limit = 120.0             # seconds per run; a run over it is killed (``--time-limit``)
     repeats = 3                    # most timed samples of each integration (``--repeats``)
     repeat_budget = 3.0            # CPU s of integration for them (``--repeat-budget``)
+    retime = 5                     # close calls timed again after the runs (``--retime``)
     tolerances = [1e-4, 1e-6, 1e-8]  # rtol values
     atol_factor = 1e-3             # atol = rtol * atol_factor
     missing_plugins = "error"      # or "skip": leave out plugin names that are not registered
@@ -74,8 +75,10 @@ from workbench.execution.execute import RunSpec, problem_span
 from workbench.execution.timing import (
     DEFAULT_REPEAT_BUDGET,
     DEFAULT_REPEATS,
+    DEFAULT_RETIME,
     budget_problem,
     repeats_problem,
+    retime_problem,
 )
 from workbench.plugin import registry
 from workbench.plugin.integrator import tolerance_problem
@@ -115,6 +118,8 @@ TOP_LEVEL_KEYS = {
     "time_limit": "seconds per run (number > 0)",
     "repeats": "most timed samples of each run's integration (integer >= 1)",
     "repeat_budget": "CPU seconds of integration a run may spend on repeated samples (number >= 0)",
+    "retime": "times each close call is timed again after the runs, at moments apart "
+    "(integer from 0 to 100)",
     "tolerances": "list of rtol values (numbers > 0)",
     "atol_factor": "atol = rtol * atol_factor (number > 0)",
     "missing_plugins": '"error" or "skip"',
@@ -150,6 +155,7 @@ class SweepSpec:
     text: str = ""
     repeats: int = DEFAULT_REPEATS
     repeat_budget: float = DEFAULT_REPEAT_BUDGET
+    retime: int = DEFAULT_RETIME  # rounds of workbench.runs.retime
     store_trajectories: bool = True  # each run's states beside its series (store.write_run)
     suite: str = ""  # the name of the shipped suite it is ('' for a file)
 
@@ -280,9 +286,11 @@ def parse_spec(
     atol_factor = _positive(data.get("atol_factor", DEFAULT_ATOL_FACTOR), "atol_factor", fail)
     repeats = data.get("repeats", DEFAULT_REPEATS)
     repeat_budget = data.get("repeat_budget", DEFAULT_REPEAT_BUDGET)
+    retime = data.get("retime", DEFAULT_RETIME)
     for key, problem in (
         ("repeats", repeats_problem(repeats)),
         ("repeat_budget", budget_problem(repeat_budget)),
+        ("retime", retime_problem(retime)),
     ):
         if problem:
             raise fail(key, problem)
@@ -363,6 +371,7 @@ def parse_spec(
         text,
         repeats,
         float(repeat_budget),
+        retime,
         store_trajectories,
     )
 

@@ -4,7 +4,8 @@ runner-up it is, and the pairs tied with it.
 
 A pair's cost at a target is that of its cheapest trusted run (status ``ok``, no audit
 warning, finite scd and cost) whose scd reaches the target. Each timed cost has an
-interval, the least and greatest of the run's timed samples (:func:`cost_interval`);
+interval, the least and greatest of the run's timed samples (:func:`cost_interval`; for
+a run timed again at moments apart, the least and the median);
 pairs whose intervals overlap the winner's are **tied** with it: the timings cannot tell
 them apart, so the report names them all rather than one winner by noise. Rows without
 an interval (one sample, or written before intervals were recorded) cannot be told tied;
@@ -42,7 +43,10 @@ def cost_interval(runs: pd.DataFrame, cost: str) -> tuple[pd.Series, pd.Series]:
 
     ``<cost>_min`` / ``<cost>_max`` where the rows carry them (``integrate_cpu_s_min``,
     ``integrate_s_min``); for CPU time without its own, the wall-time interval scaled by
-    CPU / wall time; a counted cost (``n_rhs``) is exact (its interval is the value).
+    CPU / wall time; a counted cost (``n_rhs``) is exact (its interval is the value). A run
+    timed again at moments apart (``retimed`` > 0, :mod:`workbench.runs.retime`): from the
+    least to the median, its greatest being a slow spell's (pairs a few per cent apart
+    then agree from sweep to sweep: docs/performance.md).
     NaN where unknown, and for runs timed once (a single sample has no spread).
     """
     value = pd.to_numeric(runs[cost], errors="coerce") if cost in runs else None
@@ -59,6 +63,10 @@ def cost_interval(runs: pd.DataFrame, cost: str) -> tuple[pd.Series, pd.Series]:
     if cost == "work_s":  # its interval comes from the unit costs' batches, not repeats
         return low, high
     once = _column(runs, "repeats") < 2
+    # timed again at moments apart (workbench.runs.retime): from the least sample, which a
+    # slow spell did not reach, to the median; the greatest is a slow spell's
+    retimed = _column(runs, "retimed") > 0
+    high = high.mask(retimed, np.minimum(high, value))
     return low.mask(once), high.mask(once)
 
 

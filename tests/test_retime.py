@@ -1,0 +1,126 @@
+"""Close calls timed again at moments apart (workbench.runs.retime): the rows' samples, the
+ranking's interval, the choice of runs and a sweep end to end."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from tests.test_report_decision import costed
+from workbench.errors import ConfigError
+from workbench.execution.timing import retimed_columns
+from workbench.outputs.report.close_calls import close_calls
+from workbench.outputs.report.ranking import decide
+from workbench.runs import store
+from workbench.runs.retime import RETIMED_FILE, retimed_row
+from workbench.runs.sweep import parse_spec, run_sweep
+
+OWN = {"integrate_s": 0.021, "integrate_s_min": 0.020, "integrate_s_max": 0.022,
+       "integrate_cpu_s": 0.020, "integrate_cpu_s_min": 0.019, "integrate_cpu_s_max": 0.021,
+       "repeats": 3, "retimed": 0, "status": "ok", "warnings": "", "n_rhs": 500,
+       "n_jac": 0, "n_steps": 40, "n_rejected": 2, "n_lu": 0, "n_newton": 0}  # fmt: skip
+
+
+def test_the_own_back_to_back_samples_count_as_one_beside_the_new_ones() -> None:
+    cpu = [0.030, 0.018, 0.022, 0.050, 0.0185]
+    wall = [0.031, 0.019, 0.023, 0.051, 0.0195]
+    columns = retimed_columns(OWN, wall, cpu)
+    # median of the own median (one sample: they shared their moment) and the five
+    assert columns["integrate_cpu_s"] == pytest.approx(0.021)
+    assert columns["integrate_cpu_s_min"] == 0.018 and columns["integrate_cpu_s_max"] == 0.050
+    assert columns["integrate_s"] == pytest.approx(0.022)
+    assert columns["integrate_s_min"] == 0.019 and columns["integrate_s_max"] == 0.051
+    assert columns["repeats"] == 8 and columns["retimed"] == 5
+    # a row of an older schema without its interval: the new samples give it
+    older = retimed_columns(OWN | {"integrate_cpu_s_min": float("nan")}, wall, cpu)
+    assert older["integrate_cpu_s_min"] == 0.018
+
+
+def test_a_sample_of_other_work_warns_and_too_few_leave_the_row() -> None:
+    sample = lambda n_rhs, status="ok": ("r", status, 0.02, 0.02,  # noqa: E731
+                                         {k: OWN[k] for k in OWN if k.startswith("n_")}
+                                         | {"n_rhs": n_rhs})  # fmt: skip
+    warned = retimed_row(OWN, [sample(500), sample(512)])
+    assert "not reproducible: timed again" in warned["warnings"] and "n_rhs 500 then 512" in (
+        warned["warnings"]
+    )
+    assert warned["retimed"] == 0 and warned["integrate_cpu_s"] == OWN["integrate_cpu_s"]
+    assert retimed_row(OWN, [sample(500)]) is None  # one sample: no interval to trust
+    assert retimed_row(OWN, [sample(500), sample(500, "failed")]) is None
+    assert retimed_row(OWN, [sample(500), sample(500)])["retimed"] == 2
+
+
+def test_a_retimed_interval_runs_from_its_least_sample_to_its_median() -> None:
+    # a's greatest sample is a slow spell's: by [min, max] b would be tied with it
+    runs = costed([("a / x", 6.0, 0.020, 0.019, 0.030), ("b / y", 6.0, 0.022, 0.0205, 0.025)])
+    assert decide(runs, 4.0, "integrate_cpu_s").is_tie
+    runs["retimed"] = 5
+    decision = decide(runs, 4.0, "integrate_cpu_s")
+    assert not decision.is_tie and decision.high == 0.020
+    assert decision.verdict() == "1.100x ahead"
+    # b's least sample reaches a's median: tied
+    runs.loc[1, "integrate_cpu_s_min"] = 0.0199
+    assert decide(runs, 4.0, "integrate_cpu_s").is_tie
+
+
+def test_the_close_calls_are_the_pairs_near_a_cells_cheapest() -> None:
+    rows = costed([
+        ("a / x", 6.0, 1.0, 0.9, 1.1),
+        ("b / y", 6.0, 2.5, 2.4, 2.6),  # within 3x of a: a close call
+        ("c / z", 6.0, 4.0, 3.9, 4.1),  # not
+        ("d / w", 9.0, 9.0, 8.9, 9.1),  # alone at scd >= 8: nothing to decide there
+    ])  # fmt: skip
+    rows["warnings"] = ""
+    assert close_calls(rows) == ["r0", "r1"]
+    rows.loc[1, "warnings"] = "drift: lost its constraints"  # not trusted: not a candidate
+    assert close_calls(rows) == []
+    assert close_calls(rows.iloc[:0]) == []
+
+
+def test_the_rounds_are_checked_in_the_specification(tmp_path) -> None:
+    text = 'problems = ["simple-pendulum"]\nformalisms = ["minimal-ode"]\n'
+    text += 'integrators = ["scipy-dop853"]\ntolerances = [1e-6]\n'
+    assert parse_spec(text).retime == 5
+    assert parse_spec(text + "retime = 0\n").retime == 0
+    for bad in ("-1", "101", "2.5", "true"):
+        with pytest.raises(ConfigError, match="retime: must be an integer from 0 to 100"):
+            parse_spec(text + f"retime = {bad}\n")
+
+
+def test_a_sweep_times_its_close_calls_again_once(tmp_path) -> None:
+    out = tmp_path / "out"
+    spec = parse_spec(f"""
+out = "{out.as_posix()}"
+jobs = 2
+time_limit = 300.0  # only a hung run reaches it
+retime = 2
+problems = ["double-pendulum"]
+formalisms = ["minimal-ode", "recursive"]
+integrators = ["scipy-dop853"]
+tolerances = [1e-6]
+""")
+    said: list[str] = []
+    summary = run_sweep(spec, show_progress=False, say=said.append, close_calls=close_calls)
+    assert summary.counts["ok"] == 2
+    assert any("timing 2 close call(s) again: 2 rounds" in line for line in said)
+    rows = store.load_results(out)
+    assert rows.attrs["unreadable"] == []  # the rewritten rows pass the row check
+    assert list(rows["retimed"]) == [2, 2]
+    assert list(rows["repeats"]) == [5, 5]  # three of its own, two again
+    for _, row in rows.iterrows():
+        assert row["integrate_cpu_s_min"] <= row["integrate_cpu_s"] <= row["integrate_cpu_s_max"]
+    # the same work each time: the double pendulum's DOP853 counts are the row's
+    assert (rows["warnings"] == "").all()
+    results = pd.read_parquet(out / store.RESULTS_FILE)
+    assert list(results["retimed"]) == [2, 2]  # consolidated after the re-timing
+    record = json.loads((out / RETIMED_FILE).read_text())
+    assert sorted(record["runs"]) == sorted(rows["run_id"]) and record["rounds"] == 2
+    before = {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")}
+    said.clear()
+    run_sweep(spec, show_progress=False, say=said.append, close_calls=close_calls)
+    assert not any("close call" in line for line in said)  # a resume: nothing again
+    assert {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")} == before
+    with pytest.raises(ConfigError, match="--retime must be an integer"):
+        run_sweep(spec, show_progress=False, retime=-1, close_calls=close_calls)

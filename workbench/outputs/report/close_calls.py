@@ -1,0 +1,41 @@
+"""Which runs a sweep times again after its runs (:mod:`workbench.runs.retime`): those
+its decisions hinge on.
+
+For each problem and each accuracy target a report may show
+(:data:`~workbench.outputs.report.decision.FALLBACK_TARGETS`), the trusted pairs whose
+cost is within :data:`CLOSE` times the cheapest's: the run of each that the ranking
+prices (:func:`~workbench.outputs.report.ranking.pair_costs`). A run's back-to-back
+samples, taken in a slow spell of a shared machine, read up to about 1.7x its usual cost
+(5-95 % on a KVM Xeon: docs/performance.md), so a pair 3x behind cannot be a close call.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from workbench.outputs.report.analysis import prepare_results
+from workbench.outputs.report.decision import FALLBACK_TARGETS
+from workbench.outputs.report.ranking import pair_costs
+
+CLOSE = 3.0
+
+
+def close_calls(
+    rows: pd.DataFrame, cost: str = "integrate_cpu_s", close: float = CLOSE
+) -> list[str]:
+    """The run ids of ``rows`` (a results table) that some decision hinges on: each a
+    pair's priced run within ``close`` times a cell's cheapest, in a cell of two such
+    pairs at least."""
+    if rows.empty:
+        return []
+    runs = prepare_results(rows)
+    chosen: dict[str, None] = {}
+    for _problem, group in runs.groupby("problem", sort=False):
+        for target in FALLBACK_TARGETS:
+            ranked = pair_costs(group, target, cost)
+            if len(ranked) < 2:
+                continue
+            near = ranked[ranked[cost] <= close * ranked[cost].iloc[0]]
+            if len(near) > 1:
+                chosen.update(dict.fromkeys(near["run_id"]))
+    return list(chosen)

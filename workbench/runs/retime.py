@@ -1,0 +1,228 @@
+"""The close calls of a sweep timed again, at moments apart, once its runs are done.
+
+A run's own samples are taken back to back and share their moment: on a shared machine
+a slow second slows them all, so they agree with each other far better than with a
+second sweep (on a KVM Xeon the same integration's median moved 15.8-27 ms, 5-95 %, over
+four minutes while its own three samples agreed within 3 %; slow spells lasted 0.1-4 s:
+docs/performance.md). Two sweeps then named different cheapest pairs.
+
+So, after the runs, the runs a decision hinges on (``choose(rows)``: the layers above
+name them, e.g. the pairs within a few times of a cell's cheapest) are integrated again
+``rounds`` times in one process: a first round builds and warms them (untimed), then
+each round times each run once, in a shuffled order, a round beginning at least
+:data:`GAP_S` after the one before. A run's row then holds the median over these samples
+and its own (which count as one: :func:`workbench.execution.timing.retimed_columns`),
+and ``retimed``, how many were added. Only runs whose samples fit the sweep's repeat
+budget (CPU seconds a run) are timed again; a run already re-timed is not again, and a
+sample that did other work than the row (another count of steps or evaluations) leaves
+the row as it was, warned. The rows are rewritten whole; nothing else changes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import random
+import signal
+import sys
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from workbench import files
+from workbench.errors import one_line_text
+from workbench.execution.execute import RunSpec, equations_held, equations_key, execute_run
+from workbench.execution.row_schema import migrate_row
+from workbench.execution.timing import STAT_FIELDS, Timing, retimed_columns
+from workbench.execution.worker_env import pin_threads
+from workbench.plugin import registry
+from workbench.plugin.local_modules import import_plugin_modules
+from workbench.runs import store
+
+GAP_S = 2.0  # a round begins at least this long after the one before (slow spells: 0.1-4 s)
+HELD_MODELS = 32  # models the timing process keeps built (the pool's workers keep 2)
+RETIMED_FILE = "retimed.json"  # what the last re-timing did, its key beside it
+
+Sample = tuple[str, str, float, float, dict[str, Any]]  # run id, status, wall, CPU, counts
+
+
+def sample_rounds(
+    specs: list[RunSpec], rounds: int, send: Callable[[Sample | None], None], gap: float = GAP_S
+) -> None:
+    """Integrate ``specs`` ``rounds`` + 1 times, the first round untimed (builds, warms),
+    each timed sample given to ``send``; a round begins ``gap`` s after the last began.
+
+    A round takes the models in a shuffled order and each model's runs in a shuffled
+    order, one after another; the process keeps every model built (up to
+    :data:`HELD_MODELS`), so each is built once."""
+    timing = Timing(repeats=1, repeat_budget=0.0)
+    groups: dict[Any, list[RunSpec]] = defaultdict(list)
+    for spec in specs:
+        groups[equations_key(spec)].append(spec)
+    models = list(groups.values())
+    shuffle = random.Random(0).shuffle  # (the same order for the same runs)
+    with equations_held(min(len(models), HELD_MODELS)):
+        for round_ in range(rounds + 1):
+            began = time.monotonic()
+            shuffle(models)
+            for runs in models:
+                shuffle(runs)
+                for spec in runs:
+                    row = execute_run(spec, timing=timing, measure=False).row
+                    counts = {name: row.get(name) for name in STAT_FIELDS}
+                    if round_:
+                        send((spec.run_id, row["status"], row["integrate_s"],
+                              row["integrate_cpu_s"], counts))  # fmt: skip
+                    else:
+                        send(None)  # (alive: the parent waits a time limit a message)
+            if round_ < rounds:
+                time.sleep(max(0.0, gap - (time.monotonic() - began)))
+
+
+def _timer_main(conn: Any, plugins: list[str], sys_path: list[str], specs: list[dict],
+                rounds: int, gap: float) -> None:  # fmt: skip
+    """The timing process: set up as a pool worker, then :func:`sample_rounds`."""
+    pin_threads()  # the threads the runs had (workbench.execution.worker_env)
+    for entry in reversed(sys_path):
+        if entry not in sys.path:
+            sys.path.insert(0, entry)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    import warnings
+
+    warnings.filterwarnings("ignore")
+    with open(os.devnull, "w") as quiet:  # a plugin's prints: the runs' logs have them
+        os.dup2(quiet.fileno(), 1)
+        os.dup2(quiet.fileno(), 2)
+    import_plugin_modules(plugins)
+    registry.REGISTRY.discover()
+    runs = [RunSpec.from_dict(data) for data in specs]
+    sample_rounds(runs, rounds, lambda sample: conn.send(("sample", sample)), gap)
+    conn.send(("done", None))
+
+
+def retime_close_calls(
+    out: Path,
+    specs: Iterable[RunSpec],
+    choose: Callable[[pd.DataFrame], Iterable[str]],
+    rounds: int,
+    budget: float,
+    limit: float,
+    plugins: list[str],
+    say: Callable[[str], None],
+    context: Any = None,
+    gap: float = GAP_S,
+) -> list[str]:
+    """Time the close calls among ``specs``' done runs again (module docstring); return
+    the run ids whose rows were rewritten.
+
+    ``budget``: CPU seconds a run's samples may take (the sweep's repeat budget);
+    ``limit``: seconds a sample may take (the sweep's time limit): a slower one ends the
+    re-timing, the rows keeping what they had; ``context``: the multiprocessing context
+    of the timing process (None: sampled in this process)."""
+    by_id = {spec.run_id: spec for spec in specs}
+    rows = _rows(out, by_id)
+    if rounds < 1 or not rows:
+        return []
+    chosen = [
+        run_id
+        for run_id in dict.fromkeys(choose(store.frame_from_rows(rows.values())))
+        if run_id in rows and _fits(rows[run_id], rounds, budget)
+    ]
+    if not chosen:
+        return []
+    seconds = sum(rows[r]["integrate_cpu_s"] for r in chosen) * (rounds + 1)
+    say(
+        f"timing {len(chosen)} close call(s) again: {rounds} rounds at least {gap:g} s apart "
+        f"(about {max(seconds, gap * rounds):.0f} s; `--retime 0` skips it)"
+    )
+    samples: dict[str, list[Sample]] = defaultdict(list)
+
+    def take(sample: Sample | None) -> None:
+        if sample is not None:
+            samples[sample[0]].append(sample)
+
+    runs = [by_id[run_id] for run_id in chosen]
+    if context is None:
+        sample_rounds(runs, rounds, take, gap)
+    else:
+        _sample_in_child(context, runs, rounds, gap, plugins, limit, take)
+    rewritten = []
+    for run_id in chosen:
+        row = retimed_row(rows[run_id], samples[run_id])
+        if row is not None:
+            files.write_json_atomic(row, store.row_path(out, run_id), durable=False,
+                                    root=out, indent=None)  # fmt: skip
+            rewritten.append(run_id)
+    return rewritten
+
+
+def _rows(out: Path, specs: dict[str, RunSpec]) -> dict[str, dict[str, Any]]:
+    """The rows of ``specs`` in ``out`` that were run and not yet re-timed."""
+    rows = {}
+    for run_id in specs:
+        path = store.row_path(out, run_id)
+        row = store.read_row(path) if path.is_file() else None
+        if row is not None:
+            row = migrate_row(row, path)
+            if not row.get("retimed"):
+                rows[run_id] = row
+    return rows
+
+
+def _fits(row: dict[str, Any], rounds: int, budget: float) -> bool:
+    """An ok run whose samples (the warming one too) fit ``budget`` CPU seconds."""
+    cpu = row.get("integrate_cpu_s")
+    finite = isinstance(cpu, int | float) and math.isfinite(cpu)
+    return row.get("status") == "ok" and finite and cpu * (rounds + 1) <= budget
+
+
+def retimed_row(row: dict[str, Any], samples: list[Sample]) -> dict[str, Any] | None:
+    """``row`` with ``samples`` (two at least, all ok); warned instead if one did other
+    work; None when too few came (a slow sample ended the re-timing)."""
+    good = [s for s in samples if s[1] == "ok"]
+    other = [s for s in good if any(s[4][k] != row.get(k) for k in STAT_FIELDS)]
+    if other:
+        counts = ", ".join(
+            f"{k} {row.get(k)} then {other[0][4][k]}"
+            for k in STAT_FIELDS
+            if other[0][4][k] != row.get(k)
+        )
+        found = f"not reproducible: timed again, the integration did other work ({counts})"
+        return row | {"warnings": one_line_text("; ".join(filter(None, [row["warnings"], found])))}
+    if len(good) < 2 or len(good) < len(samples):
+        return None
+    return row | retimed_columns(row, [s[2] for s in good], [s[3] for s in good])
+
+
+def _sample_in_child(context: Any, runs: list[RunSpec], rounds: int, gap: float,
+                     plugins: list[str], limit: float,
+                     take: Callable[[Sample | None], None]) -> None:  # fmt: skip
+    """:func:`sample_rounds` in a process of ``context``, each message awaited at most
+    ``limit`` + ``gap`` seconds; the process killed on a slower one, or on the way out."""
+    parent_end, child_end = context.Pipe()
+    process = context.Process(
+        target=_timer_main,
+        args=(child_end, plugins, list(sys.path), [r.to_dict() for r in runs], rounds, gap),
+        daemon=True,
+    )
+    process.start()
+    child_end.close()
+    try:
+        while parent_end.poll(limit + gap):
+            kind, sample = parent_end.recv()
+            if kind == "done":
+                break
+            take(sample)
+    except (EOFError, OSError):
+        pass  # the process died: the rows keep what they had
+    finally:
+        if process.is_alive():
+            process.kill()
+        process.join(timeout=10)
+        with contextlib.suppress(OSError):
+            parent_end.close()
