@@ -86,7 +86,9 @@ from workbench.runs.progress import progress_bar
 SeriesLoader = Callable[[str], pd.DataFrame | None]
 SUMMARY_CAPTION = (
     "Cheapest pair (least {cost}) reaching each target scd, among the runs without "
-    "warnings; errors are pose errors over the samples (L2: root mean square); {statement}"
+    "warnings; tie: pairs where {tie}; runner-up: the cheapest pair not tied with it, and "
+    "the margin its cost over the cheapest; errors are pose errors over the samples (L2: "
+    "root mean square); {statement}"
 )
 DECISION_CAPTION = (
     "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
@@ -135,8 +137,11 @@ def write_report(
     problems = list(dict.fromkeys(runs["problem"]))
     summary = cheapest_pairs(runs, cost=measure.column)
     matrix, footnotes = status_matrix(runs)
-    caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
-    printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs", "runner-up")]
+    caption = SUMMARY_CAPTION.format(
+        cost=measure.name, tie=tie_rule(measure.column), statement=measure.statement()
+    )
+    # the runner-up is printed: a margin beside "tie" names whom it is over
+    printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs")]
     # a row is a problem at a target: both repeated when the LaTeX is split into parts
     keys = leading_keys(summary[printed], ("problem", "target scd"))
     write_table(summary, out / "tables", "summary", caption, latex=summary[printed], keys=keys)
