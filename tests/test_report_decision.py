@@ -89,6 +89,18 @@ def test_the_runner_up_beside_a_tie_is_never_one_of_the_tied_pairs(tmp_path: Pat
     assert "runner-up (cheapest pair not tied)" in page
 
 
+def test_a_cost_keeps_three_digits_so_a_column_has_one_format() -> None:
+    """The decision table printed '39 ms' beside '39.1 ms' (qa3c F13), and 0.9996 s as
+    '1e+03 ms'."""
+    from workbench.outputs.report.decision import cost_text
+
+    costs = [0.03896, 0.0391, 0.0232, 0.9996, 2.5e-5, 0.123]
+    assert [cost_text(c, "integrate_cpu_s") for c in costs] == [
+        "39.0 ms", "39.1 ms", "23.2 ms", "1.00 s", "25.0 \N{MICRO SIGN}s", "123 ms",
+    ]  # fmt: skip
+    assert cost_text(1234.0, "n_rhs") == "1,234 rhs"
+
+
 def test_without_intervals_a_tie_is_not_claimed_and_the_reader_is_told() -> None:
     runs = costed([("a / x", 6.0, 1.0, 0.9, 1.1), ("b / y", 6.0, 1.05, 0.9, 1.2)])
     runs["repeats"] = 1  # one sample each: no spread
