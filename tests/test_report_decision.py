@@ -51,6 +51,56 @@ def test_overlapping_intervals_are_a_tie_and_apart_ones_a_margin() -> None:
     assert decide(runs, 9.0, "integrate_cpu_s").verdict() == "none reached"
 
 
+def test_the_runner_up_beside_a_tie_is_never_one_of_the_tied_pairs(tmp_path: Path) -> None:
+    """The runner-up was the next cheapest pair: tied itself (its margin printed beside
+    'tie'), or apart while a dearer pair with a wider interval was tied (qa3c F9, the
+    four-bar at scd 2). It is the cheapest pair not tied, in every output."""
+    runs = costed([
+        ("a / x", 6.0, 1.00, 0.95, 1.05),
+        ("b / y", 6.0, 1.02, 0.97, 1.08),  # the next cheapest, tied
+        ("c / z", 6.0, 1.30, 1.25, 1.35),  # apart: the runner-up
+    ])  # fmt: skip
+    decision = decide(runs, 4.0, "integrate_cpu_s")
+    assert decision.tied == ["a / x", "b / y"] and decision.runner_up == "c / z"
+    assert decision.margin == pytest.approx(1.30)
+    runs = costed([
+        ("a / x", 6.0, 1.00, 0.95, 1.05),
+        ("b / y", 6.0, 1.08, 1.06, 1.10),  # apart, narrow
+        ("c / z", 6.0, 1.16, 0.96, 1.30),  # dearer, wide: tied
+    ])  # fmt: skip
+    decision = decide(runs, 4.0, "integrate_cpu_s")
+    assert decision.tied == ["a / x", "c / z"] and decision.runner_up == "b / y"
+    everyone = decide(runs[runs["pair"] != "b / y"], 4.0, "integrate_cpu_s")
+    assert everyone.is_tie and everyone.runner_up == "" and np.isnan(everyone.margin)
+    # the summary's CSV, Markdown, LaTeX (the paper's table) and page say it alike
+    runs = costed([("a / x", 6.0, 1.00, 0.95, 1.05), ("b / y", 6.0, 1.02, 0.97, 1.08),
+                   ("c / z", 6.0, 1.30, 1.25, 1.35)])  # fmt: skip
+    write_report(runs, None, tmp_path, "cmd", progress=False)
+    summary = pd.read_csv(tmp_path / "tables" / "summary.csv")
+    reached = summary[summary["verdict"] == "tie"]
+    assert len(reached) and (reached["runner-up"] == "c / z").all()
+    assert (reached["tied pairs"] == "a / x, b / y").all()
+    latex = (tmp_path / "tables" / "summary.tex").read_text(encoding="utf-8")
+    assert "& c / z \\\\" in latex  # the paper names the runner-up, as the CSV does
+    assert "runner-up: the cheapest pair not tied" in latex
+    markdown = (tmp_path / "tables" / "summary.md").read_text(encoding="utf-8")
+    assert "runner-up (cheapest pair not tied)" in markdown
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert "runner-up (cheapest pair not tied)" in page
+
+
+def test_a_cost_keeps_three_digits_so_a_column_has_one_format() -> None:
+    """The decision table printed '39 ms' beside '39.1 ms' (qa3c F13), and 0.9996 s as
+    '1e+03 ms'."""
+    from workbench.outputs.report.decision import cost_text
+
+    costs = [0.03896, 0.0391, 0.0232, 0.9996, 2.5e-5, 0.123]
+    assert [cost_text(c, "integrate_cpu_s") for c in costs] == [
+        "39.0 ms", "39.1 ms", "23.2 ms", "1.00 s", "25.0 \N{MICRO SIGN}s", "123 ms",
+    ]  # fmt: skip
+    assert cost_text(1234.0, "n_rhs") == "1,234 rhs"
+
+
 def test_without_intervals_a_tie_is_not_claimed_and_the_reader_is_told() -> None:
     runs = costed([("a / x", 6.0, 1.0, 0.9, 1.1), ("b / y", 6.0, 1.05, 0.9, 1.2)])
     runs["repeats"] = 1  # one sample each: no spread

@@ -86,14 +86,22 @@ def test_a_skipped_pair_is_drawn_and_named_apart_from_one_that_fell_short() -> N
     plt.close(figure)
 
 
-def test_the_cost_at_target_table_says_skipped_where_a_pair_did_not_run(tmp_path: Path) -> None:
+def test_the_cost_at_target_table_says_why_a_cell_has_no_ratio(tmp_path: Path) -> None:
+    """'skipped' and 'not run' were written, 'not reached' left an empty cell; the caption
+    began 'Integration cpu time' and named no best pair (qa3c F12)."""
     (tmp_path / "figures").mkdir(), (tmp_path / "tables").mkdir()
     overview_of(with_skipped_pair(), tmp_path, None)
     markdown = (tmp_path / "tables" / "cost-at-target.md").read_text(encoding="utf-8")
     (p2,) = [line for line in markdown.splitlines() if line.startswith("| p2 ")]
-    assert "skipped" in p2 and "not reached" not in p2
+    assert [cell.strip() for cell in p2.strip("| ").split("|")] == [
+        "p2", "1.000", "not reached", "skipped",
+    ]  # fmt: skip
+    (caption,) = [line for line in markdown.splitlines() if line.startswith("Table: ")]
+    assert "Cost at scd >= 6 as a ratio to the best pair's" in caption
+    assert "wall time" in caption and "cost measure: " in caption
+    assert "not reached: the pair ran but did not reach" in caption
     latex = (tmp_path / "tables" / "cost-at-target.tex").read_text(encoding="utf-8")
-    assert re.search(r"^p2 & .*skipped", latex, re.M)
+    assert re.search(r"^p2 & 1.000 & skipped & not reached", latex, re.M)  # ranking order
     assert "skipped: every run of the pair" in latex  # the caption says what it means
     csv = pd.read_csv(tmp_path / "tables" / "cost-at-target.csv", index_col=0)
     assert csv.loc["p2"].isna().sum() == 2  # the CSV stays numbers for pandas

@@ -288,3 +288,23 @@ def test_results_rank_in_the_measure_the_folders_report_was_made_in(results: Pat
     assert "integration CPU time" in chosen.stdout
     plain = results_table(pd.read_parquet(results), cost="n_rhs")
     assert plain.attrs["cost"].startswith("cheapest by")
+
+
+def test_results_of_part_of_the_planned_sweep_say_so_as_the_report_does(results: Path) -> None:
+    """With rows of the plan deleted, the report said 'Not the whole sweep' and `workbench
+    results` gave its verdicts without a word (qa3c F6)."""
+    from workbench.runs import store
+
+    folder = results.parent
+    ids = list(pd.read_parquet(results)["run_id"])
+    store.write_plan(folder, [*ids, "0000000000000001", "0000000000000002"], "sweep.toml")
+    for fmt in ("table", "csv"):
+        partial = runner.invoke(app, ["results", str(folder), "--format", fmt])
+        assert partial.exit_code == 0, partial.output
+        assert partial.stderr.startswith("Not the whole sweep: partial results: the sweep "
+                                         "(sweep.toml) planned 26 runs and 24")  # fmt: skip
+        assert "2 missing" in partial.stderr and "Not the whole" not in partial.stdout
+    assert len(pd.read_csv(io.StringIO(partial.stdout))) == 2  # the CSV stays a CSV
+    store.write_plan(folder, ids, "sweep.toml")  # the whole plan: nothing to say
+    whole = runner.invoke(app, ["results", str(folder)])
+    assert whole.exit_code == 0 and "Not the whole sweep" not in whole.output

@@ -610,8 +610,10 @@ def results(
     cost: CostOption = None,
 ) -> None:
     """Print a sweep's results: a line a problem (or --by pair, --by run), filtered and sorted."""
+    from pathlib import Path
+
     from workbench.errors import ConfigError
-    from workbench.outputs.report.analysis import prepare_results
+    from workbench.outputs.report.analysis import coverage_notice, prepare_results
     from workbench.outputs.report.cost import resolve_cost
     from workbench.outputs.report.tables import table_cells
     from workbench.outputs.results_table import (
@@ -622,21 +624,25 @@ def results(
         unmatched,
         with_option_columns,
     )
-    from workbench.runs.store import load_results
+    from workbench.runs.store import load_plan, load_results
 
     if fmt not in FORMATS:
         raise ConfigError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
     with warnings_on_stderr():
         frame = load_results(path)
     if cost is None:  # the measure of the folder's report, so that the two agree
-        from pathlib import Path
-
         from workbench.outputs.report import kept_cost
 
         cost = kept_cost(path) if Path(path).is_dir() else None
         if cost is not None:
             typer.echo(f"cost measure: {cost}, as the folder's report (--cost to choose)",
                        err=True)  # fmt: skip
+    # the report's red notice (templates/report.html.j2): a verdict on part of the
+    # planned sweep (rows deleted, the sweep interrupted) says so here too
+    folder = Path(path) if Path(path).is_dir() else Path(path).parent
+    notice = coverage_notice(frame, load_plan(folder))
+    if notice:
+        typer.secho(f"Not the whole sweep: {notice}.", fg="red", err=True)
 
     def split(text: str | None) -> list[str]:
         return [item.strip() for item in (text or "").split(",") if item.strip()]

@@ -38,15 +38,17 @@ def decision_targets(runs: pd.DataFrame, cost: str, columns: int = 3) -> list[fl
 
 
 def cost_text(value: float, cost: str) -> str:
-    """A cost with its unit: seconds in s / ms / us, counts as 'N rhs'."""
+    """A cost with its unit: seconds in s / ms / us / ns to three significant digits,
+    trailing zeros kept ('39.0 ms' beside '39.1 ms', not '39 ms': one format a column);
+    counts as 'N rhs'."""
     if not np.isfinite(value):
         return ""
     if not cost.endswith("_s"):
         return f"{value:,.0f} rhs"
-    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("\N{MICRO SIGN}s", 1e-6)):
-        if value >= scale:
-            return f"{value / scale:.3g} {unit}"
-    return f"{value * 1e9:.3g} ns"
+    value = float(f"{value:.3g}")  # rounded first: 0.9996 s is '1.00 s', not '1e+03 ms'
+    units = (("s", 1.0), ("ms", 1e-3), ("\N{MICRO SIGN}s", 1e-6))
+    unit, scale = next(((u, s) for u, s in units if value >= s), ("ns", 1e-9))
+    return f"{value / scale:#.3g}".rstrip(".") + f" {unit}"
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """The one ranking of pairs the report, ``workbench results`` and the LaTeX tables share:
-for a problem and a target accuracy, the cheapest trusted pair, how far ahead of the
-runner-up it is, and the pairs tied with it.
+for a problem and a target accuracy, the cheapest trusted pair, the pairs tied with it,
+and how far ahead it is of the runner-up, the cheapest pair not tied with it.
 
 A pair's cost at a target is that of its cheapest trusted run (status ``ok``, no audit
 warning, finite scd and cost) whose scd reaches the target. Each timed cost has an
@@ -97,10 +97,11 @@ class Decision:
     """The answer for one problem at one target accuracy.
 
     pair: the cheapest pair (None: no trusted run reached the target); cost, low, high:
-    its cost and interval; runner_up, runner_cost: the next cheapest pair; margin:
-    runner_cost / cost (NaN: no runner-up); tied: the pairs (the cheapest first)
-    indistinguishable from it by their intervals, itself included when any other is;
-    tie_known: the intervals needed to tell ties were there.
+    its cost and interval; tied: the pairs (the cheapest first) indistinguishable from
+    it by their intervals, itself included when any other is; runner_up, runner_cost:
+    the cheapest pair not tied with it (without a tie, the next cheapest; a pair named
+    beside "tie" is never one of the tied ones); margin: runner_cost / cost (NaN: no
+    runner-up); tie_known: the intervals needed to tell ties were there.
     """
 
     problem: str
@@ -155,9 +156,6 @@ def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
     )
     if len(ranked) < 2:
         return decision
-    runner = ranked.iloc[1]
-    decision.runner_up, decision.runner_cost = str(runner["pair"]), float(runner[cost])
-    decision.margin = decision.runner_cost / decision.cost if decision.cost > 0 else np.nan
     # A pair is tied when its interval reaches down into the winner's (costs are sorted).
     known = np.isfinite(ranked["low"]) & np.isfinite(ranked["high"])
     decision.tie_known = bool(known.iloc[0] and known.iloc[1])
@@ -165,6 +163,14 @@ def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
     overlapping |= ranked[cost] == decision.cost  # equal costs tie, interval or not
     tied = ranked[overlapping]
     decision.tied = [str(p) for p in tied["pair"]] if len(tied) > 1 else []
+    # The runner-up is the cheapest pair not tied: the next cheapest may be tied, or be
+    # apart (a narrow interval above the winner's) while a dearer, wider one is tied.
+    apart = ranked[~overlapping]
+    if apart.empty:  # every pair that reached the target is tied
+        return decision
+    runner = apart.iloc[0]
+    decision.runner_up, decision.runner_cost = str(runner["pair"]), float(runner[cost])
+    decision.margin = decision.runner_cost / decision.cost if decision.cost > 0 else np.nan
     return decision
 
 
@@ -179,7 +185,8 @@ def decisions(runs: pd.DataFrame, targets: Sequence[float], cost: str) -> list[D
 
 def cheapest_table(runs: pd.DataFrame, targets: Sequence[float], cost: str) -> pd.DataFrame:
     """One row a problem and target: the cheapest pair and its run, its cost, the
-    runner-up and margin, and the tie (the per-problem cheapest-pair table)."""
+    runner-up (the cheapest pair not tied) and margin, and the tie (the per-problem
+    cheapest-pair table)."""
     rows = []
     for d in decisions(runs, targets, cost):
         row = {"problem": d.problem, "target scd": d.target, "pair": d.pair or NOT_REACHED}

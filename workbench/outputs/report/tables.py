@@ -57,7 +57,7 @@ HEADERS: dict[str, str] = {
     "work_s_max": "greatest counted work [s]",
     "repeats": "timed samples",
     "margin": "margin over the runner-up [x]",
-    "runner-up": "runner-up",
+    "runner-up": "runner-up (cheapest pair not tied)",
     "tied pairs": "tied pairs",
     "verdict": "verdict",
     "length_scale": "length scale L [m]",

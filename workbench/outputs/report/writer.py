@@ -86,7 +86,9 @@ from workbench.runs.progress import progress_bar
 SeriesLoader = Callable[[str], pd.DataFrame | None]
 SUMMARY_CAPTION = (
     "Cheapest pair (least {cost}) reaching each target scd, among the runs without "
-    "warnings; errors are pose errors over the samples (L2: root mean square); {statement}"
+    "warnings; tie: pairs where {tie}; runner-up: the cheapest pair not tied with it, and "
+    "the margin its cost over the cheapest; errors are pose errors over the samples (L2: "
+    "root mean square); {statement}"
 )
 DECISION_CAPTION = (
     "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
@@ -135,8 +137,11 @@ def write_report(
     problems = list(dict.fromkeys(runs["problem"]))
     summary = cheapest_pairs(runs, cost=measure.column)
     matrix, footnotes = status_matrix(runs)
-    caption = SUMMARY_CAPTION.format(cost=measure.name, statement=measure.statement())
-    printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs", "runner-up")]
+    caption = SUMMARY_CAPTION.format(
+        cost=measure.name, tie=tie_rule(measure.column), statement=measure.statement()
+    )
+    # the runner-up is printed: a margin beside "tie" names whom it is over
+    printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs")]
     # a row is a problem at a target: both repeated when the LaTeX is split into parts
     keys = leading_keys(summary[printed], ("problem", "target scd"))
     write_table(summary, out / "tables", "summary", caption, latex=summary[printed], keys=keys)
@@ -394,29 +399,27 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
     ratio_table.attrs["one_format"] = True  # one quantity: one number format
-    # an empty cell says why when the pair did not fall short (Markdown and LaTeX)
-    told = reasons.where(reasons != NOT_REACHED, "")
+    # a cell without a value says why (Markdown and LaTeX; the CSV keeps numbers for
+    # pandas): an empty one read the same as 'not run' or 'skipped' left out
     ratio_table.attrs["missing"] = {
         problem: {pair: text for pair, text in row.items() if text}
-        for problem, row in told.iterrows()
+        for problem, row in reasons.iterrows()
         if (row != "").any()
     }
     shown = (
         f"{len(top)} of the {ratio.shape[1]} pairs, those reaching the target in the order of "
         "the ranking (most problems within reach of the best first)"
     )
-    written = [NOT_REACHED] + [r for r in (SKIPPED, NOT_RUN) if (told[top] == r).any().any()]
-    meanings = "; ".join(
-        f"{'empty' if reason == NOT_REACHED else reason}: {UNREACHED_MEANING[reason]}"
-        for reason in written
-    )
+    written = [r for r in (NOT_REACHED, SKIPPED, NOT_RUN) if (reasons == r).any().any()]
+    meanings = "".join(f"; {reason}: {UNREACHED_MEANING[reason]}" for reason in written)
     write_table(
         ratio_table,
         out / "tables",
         "cost-at-target",
-        f"{measure.name.capitalize()} of each pair at scd >= {target:g} divided by the least "
-        f"on the problem (1: the best; {meanings}); "
-        f"{measure.statement()}" + (f"; printed: {shown}" if len(top) < ratio.shape[1] else ""),
+        f"Cost at scd >= {target:g} as a ratio to the best pair's: the {measure.name} of each "
+        f"pair's cheapest run reaching the target divided by the least of any pair on the "
+        f"problem (1: the best pair{meanings}); {measure.statement()}"
+        + (f"; printed: {shown}" if len(top) < ratio.shape[1] else ""),
         latex=ratio_table[top],
     )
     fronts = []
