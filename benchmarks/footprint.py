@@ -273,7 +273,10 @@ def _sweep_child(spec: str, code: str = "", *extra: str) -> None:
     ]  # fmt: skip
     started = time.perf_counter()
     done = subprocess.run(
-        [*workbench, "sweep", spec, "-j", "2", "--repeats", "1", *extra],
+        # the close calls timed again after the runs (this code; not a checkout's before
+        # it) are a phase of their own, about 10 s of gaps whatever N: not a run's cost
+        [*workbench, "sweep", spec, "-j", "2", "--repeats", "1", *extra,
+         *([] if code else ["--retime", "0"])],
         capture_output=True, text=True, check=True, cwd=code or None,
     )  # fmt: skip
     used = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -27,7 +27,7 @@ def fresh_workers(monkeypatch):
 
     from workbench.runs import local_pool
 
-    monkeypatch.setattr(local_pool, "_context", lambda: multiprocessing.get_context("spawn"))
+    monkeypatch.setattr(local_pool, "worker_context", lambda: multiprocessing.get_context("spawn"))
 
 
 def sweep_lines(text: str, **options) -> tuple[object, list[str]]:

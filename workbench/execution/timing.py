@@ -61,8 +61,9 @@ TIMING_COLUMNS = (
     "integrate_cpu_s_max",
     "load_avg",
     "workers",
+    "retimed",  # (filled by retimed_columns, after the runs)
 )
-SAMPLE_COLUMNS = TIMING_COLUMNS[:7]  # the ones the samples give (not load_avg, workers)
+SAMPLE_COLUMNS = TIMING_COLUMNS[:7]  # the ones the samples give (not load_avg, workers...)
 STAT_FIELDS = ("n_rhs", "n_jac", "n_steps", "n_rejected", "n_lu", "n_newton")
 
 

@@ -33,10 +33,10 @@ from workbench.errors import ConfigError
 from workbench.execution.environment import sweep_environment
 from workbench.execution.timing import Timing, check_budget, check_repeats, retime_problem
 from workbench.files import make_dirs, sync_file_system
-from workbench.runs import output_keys, store
+from workbench.runs import local_pool, output_keys, store
 from workbench.runs.dask_pool import check_scheduler_address, run_dask
 from workbench.runs.estimate import estimate_lines, known_costs
-from workbench.runs.local_pool import merge_run_recordings, run_local, worker_context
+from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
 from workbench.runs.progress import progress_bar
 from workbench.runs.recording_batches import unwritten_runs
@@ -197,6 +197,11 @@ def run_sweep(
         key = output_keys.rows_key(out_dir)
         if close_calls is not None and rounds and not scheduler:
             key = _retime(sweep, out_dir, key, close_calls, rounds, timing, limit, say)
+        elif close_calls is not None and rounds and todo:
+            (say or _stderr)(
+                "close calls not timed again: the Dask workers timed the runs, on their "
+                "machines (the costs are their back-to-back samples)"
+            )
         sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
@@ -249,7 +254,7 @@ def _retime(
         return key
     done = retime_close_calls(
         out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit, sweep.plugins,
-        say or _stderr, worker_context(),
+        say or _stderr, local_pool.worker_context(),
     )  # fmt: skip
     files.write_json_atomic({"rounds": rounds, "gap_s": GAP_S, "runs": done}, marker,
                             root=out_dir)  # fmt: skip

@@ -82,7 +82,10 @@ def tie_rule(column: str) -> str:
         return "their right-hand-side counts are equal"
     if column == "work_s":
         return "their counted work's intervals (from the unit costs' timed batches) overlap"
-    return "their timed samples' ranges overlap"
+    return (
+        "their timed samples' ranges overlap (for a close call timed again after the runs, "
+        "at moments apart: from its least sample to its median)"
+    )
 
 
 def check_cost(key: str | None) -> str | None:

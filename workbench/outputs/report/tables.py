@@ -56,6 +56,7 @@ HEADERS: dict[str, str] = {
     "work_s_min": "least counted work [s]",
     "work_s_max": "greatest counted work [s]",
     "repeats": "timed samples",
+    "retimed": "samples timed again after the runs",
     "margin": "margin over the runner-up [x]",
     "runner-up": "runner-up (cheapest pair not tied)",
     "tied pairs": "tied pairs",
