@@ -10,11 +10,12 @@ import pytest
 
 from tests.test_report_decision import costed
 from workbench.errors import ConfigError
+from workbench.execution.execute import RunSpec
 from workbench.execution.timing import retimed_columns
 from workbench.outputs.report.close_calls import close_calls
 from workbench.outputs.report.ranking import decide
 from workbench.runs import store
-from workbench.runs.retime import RETIMED_FILE, retimed_row
+from workbench.runs.retime import RETIMED_FILE, balanced_bins, retimed_row
 from workbench.runs.sweep import parse_spec, run_sweep
 
 OWN = {"integrate_s": 0.021, "integrate_s_min": 0.020, "integrate_s_max": 0.022,
@@ -43,8 +44,9 @@ def test_a_sample_of_other_work_warns_and_too_few_leave_the_row() -> None:
                                          {k: OWN[k] for k in OWN if k.startswith("n_")}
                                          | {"n_rhs": n_rhs})  # fmt: skip
     warned = retimed_row(OWN, [sample(500), sample(512)])
-    assert "not reproducible: timed again" in warned["warnings"] and "n_rhs 500 then 512" in (
-        warned["warnings"]
+    assert (
+        "not reproducible: timed again" in warned["warnings"]
+        and "n_rhs 500 then 512" in (warned["warnings"])
     )
     assert warned["retimed"] == 0 and warned["integrate_cpu_s"] == OWN["integrate_cpu_s"]
     assert retimed_row(OWN, [sample(500)]) is None  # one sample: no interval to trust
@@ -79,6 +81,21 @@ def test_the_close_calls_are_the_pairs_near_a_cells_cheapest() -> None:
     assert close_calls(rows.iloc[:0]) == []
 
 
+def test_the_timing_processes_share_the_work_a_model_in_one() -> None:
+    runs = [RunSpec(problem, formalism, "scipy-dop853", rtol, rtol * 1e-3)
+            for problem in ("four-bar", "heavy-top") for formalism in ("minimal-ode", "recursive")
+            for rtol in (1e-4, 1e-7)]  # fmt: skip
+    cost = {spec.run_id: (3.0 if spec.problem == "heavy-top" else 1.0) for spec in runs}
+    bins = balanced_bins(runs, cost, 2)
+    assert sorted(spec.run_id for b in bins for spec in b) == sorted(cost)
+    for each in bins:  # a model's two tolerances in one bin: built by one process
+        models = {(spec.problem, spec.formalism) for spec in each}
+        assert len(each) == 2 * len(models)
+    loads = sorted(sum(cost[spec.run_id] for spec in b) for b in bins)
+    assert loads == [8.0, 8.0]  # one heavy-top model (6 s) and one four-bar (2 s) each
+    assert len(balanced_bins(runs[:2], cost, 2)) == 1  # one model: one process
+
+
 def test_the_rounds_are_checked_in_the_specification(tmp_path) -> None:
     text = 'problems = ["simple-pendulum"]\nformalisms = ["minimal-ode"]\n'
     text += 'integrators = ["scipy-dop853"]\ntolerances = [1e-6]\n'
@@ -104,6 +121,7 @@ tolerances = [1e-6]
     said: list[str] = []
     summary = run_sweep(spec, show_progress=False, say=said.append, close_calls=close_calls)
     assert summary.counts["ok"] == 2
+    assert any("then the close calls timed again: 2 rounds" in line for line in said)
     assert any("timing 2 close call(s) again: 2 rounds" in line for line in said)
     rows = store.load_results(out)
     assert rows.attrs["unreadable"] == []  # the rewritten rows pass the row check

@@ -8,20 +8,22 @@ docs/performance.md). Two sweeps then named different cheapest pairs.
 
 So, after the runs, the runs a decision hinges on (``choose(rows)``: the layers above
 name them, e.g. the pairs within a few times of a cell's cheapest) are integrated again
-``rounds`` times in one process: a first round builds and warms them (untimed), then
-each round times each run once, in a shuffled order, a round beginning at least
-:data:`GAP_S` after the one before. A run's row then holds the median over these samples
-and its own (which count as one: :func:`workbench.execution.timing.retimed_columns`),
-and ``retimed``, how many were added. Only runs whose samples fit the sweep's repeat
-budget (CPU seconds a run) are timed again; a run already re-timed is not again, and a
-sample that did other work than the row (another count of steps or evaluations) leaves
-the row as it was, warned. The rows are rewritten whole; nothing else changes.
+``rounds`` times in ``jobs`` processes (a model's runs in one): a first round builds and
+warms them (untimed), then each round times each run once, in a shuffled order, a round
+beginning at least :data:`GAP_S` after the one before. A run's row then holds the median
+over these samples and its own (which count as one:
+:func:`workbench.execution.timing.retimed_columns`), and ``retimed``, how many were
+added. Only runs whose samples fit the sweep's repeat budget (CPU seconds a run) are
+timed again; a run already re-timed is not again, and a sample that did other work than
+the row (another count of steps or evaluations) leaves the row as it was, warned. The
+rows are rewritten whole; nothing else changes.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import multiprocessing.connection
 import os
 import random
 import signal
@@ -116,6 +118,7 @@ def retime_close_calls(
     say: Callable[[str], None],
     context: Any = None,
     gap: float = GAP_S,
+    jobs: int = 1,
 ) -> list[str]:
     """Time the close calls among ``specs``' done runs again (module docstring); return
     the run ids whose rows were rewritten.
@@ -123,7 +126,9 @@ def retime_close_calls(
     ``budget``: CPU seconds a run's samples may take (the sweep's repeat budget);
     ``limit``: seconds a sample may take (the sweep's time limit): a slower one ends the
     re-timing, the rows keeping what they had; ``context``: the multiprocessing context
-    of the timing process (None: sampled in this process)."""
+    of the timing processes (None: sampled in this process), ``jobs`` of them at once,
+    each with its models' runs (:func:`balanced_bins`; a busy core beside a run did not
+    slow it: docs/performance.md)."""
     by_id = {spec.run_id: spec for spec in specs}
     rows = _rows(out, by_id)
     if rounds < 1 or not rows:
@@ -135,7 +140,7 @@ def retime_close_calls(
     ]
     if not chosen:
         return []
-    seconds = sum(rows[r]["integrate_cpu_s"] for r in chosen) * (rounds + 1)
+    seconds = sum(rows[r]["integrate_cpu_s"] for r in chosen) * (rounds + 1) / jobs
     say(
         f"timing {len(chosen)} close call(s) again: {rounds} rounds at least {gap:g} s apart "
         f"(about {max(seconds, gap * rounds):.0f} s; `--retime 0` skips it)"
@@ -150,7 +155,9 @@ def retime_close_calls(
     if context is None:
         sample_rounds(runs, rounds, take, gap)
     else:
-        _sample_in_child(context, runs, rounds, gap, plugins, limit, take)
+        cost = {run_id: rows[run_id]["integrate_cpu_s"] for run_id in chosen}
+        bins = balanced_bins(runs, cost, jobs)
+        _sample_in_children(context, bins, rounds, gap, plugins, limit, take)
     rewritten = []
     for run_id in chosen:
         row = retimed_row(rows[run_id], samples[run_id])
@@ -199,30 +206,59 @@ def retimed_row(row: dict[str, Any], samples: list[Sample]) -> dict[str, Any] | 
     return row | retimed_columns(row, [s[2] for s in good], [s[3] for s in good])
 
 
-def _sample_in_child(context: Any, runs: list[RunSpec], rounds: int, gap: float,
-                     plugins: list[str], limit: float,
-                     take: Callable[[Sample | None], None]) -> None:  # fmt: skip
-    """:func:`sample_rounds` in a process of ``context``, each message awaited at most
-    ``limit`` + ``gap`` seconds; the process killed on a slower one, or on the way out."""
-    parent_end, child_end = context.Pipe()
-    process = context.Process(
-        target=_timer_main,
-        args=(child_end, plugins, list(sys.path), [r.to_dict() for r in runs], rounds, gap),
-        daemon=True,
-    )
-    process.start()
-    child_end.close()
+def _sample_in_children(context: Any, bins: list[list[RunSpec]], rounds: int, gap: float,
+                        plugins: list[str], limit: float,
+                        take: Callable[[Sample | None], None]) -> None:  # fmt: skip
+    """:func:`sample_rounds` of each bin in a process of ``context``, all at once; each
+    message awaited at most ``limit`` + ``gap`` seconds, a process slower than that
+    killed (its runs keep what they had), and every process on the way out."""
+    children = []
+    for runs in bins:
+        parent_end, child_end = context.Pipe()
+        specs = [r.to_dict() for r in runs]
+        process = context.Process(
+            target=_timer_main,
+            args=(child_end, plugins, list(sys.path), specs, rounds, gap),
+            daemon=True,
+        )
+        process.start()
+        child_end.close()
+        children.append((process, parent_end))
+    waiting = {conn: process for process, conn in children}
     try:
-        while parent_end.poll(limit + gap):
-            kind, sample = parent_end.recv()
-            if kind == "done":
-                break
-            take(sample)
-    except (EOFError, OSError):
-        pass  # the process died: the rows keep what they had
+        while waiting:
+            ready = multiprocessing.connection.wait(list(waiting), limit + gap)
+            if not ready:
+                break  # a sample slower than a run may take: the rest keep their rows
+            for conn in ready:
+                try:
+                    kind, sample = conn.recv()
+                except (EOFError, OSError):  # the process died
+                    kind, sample = "done", None
+                if kind == "done":
+                    del waiting[conn]
+                else:
+                    take(sample)
     finally:
-        if process.is_alive():
-            process.kill()
-        process.join(timeout=10)
-        with contextlib.suppress(OSError):
-            parent_end.close()
+        for process, conn in children:
+            if process.is_alive():
+                process.kill()
+            process.join(timeout=10)
+            with contextlib.suppress(OSError):
+                conn.close()
+
+
+def balanced_bins(runs: list[RunSpec], cost: dict[str, float], count: int) -> list[list[RunSpec]]:
+    """``runs`` in at most ``count`` bins of about equal ``cost`` (run id -> seconds), the
+    runs of one model (:func:`equations_key`) in one bin, so each process builds it once."""
+    models: dict[Any, list[RunSpec]] = defaultdict(list)
+    for spec in runs:
+        models[equations_key(spec)].append(spec)
+    bins: list[list[RunSpec]] = [[] for _ in range(max(1, min(count, len(models))))]
+    loads = [0.0] * len(bins)
+    weight = lambda group: sum(cost[spec.run_id] for spec in group)  # noqa: E731
+    for group in sorted(models.values(), key=weight, reverse=True):
+        lightest = loads.index(min(loads))
+        bins[lightest] += group
+        loads[lightest] += weight(group)
+    return bins

@@ -146,6 +146,11 @@ def run_sweep(
         todo = plan.todo
         rebuild = _unwritten_recordings(sweep, todo, out_dir) if recorder and not scheduler else []
         lines = plan.lines() + _estimate(sweep, todo, out_dir, jobs, limit, scheduler)
+        if close_calls is not None and rounds and todo and not scheduler:
+            lines.append(
+                f"then the close calls timed again: {rounds} rounds at least {GAP_S:g} s apart, "
+                f"at least {rounds * GAP_S:g} s more (`--retime 0` skips it)"
+            )
         if rebuild:
             lines.append(
                 f"{len(rebuild)} done run(s) have no recording (their worker was killed "
@@ -254,7 +259,7 @@ def _retime(
         return key
     done = retime_close_calls(
         out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit, sweep.plugins,
-        say or _stderr, local_pool.worker_context(),
+        say or _stderr, local_pool.worker_context(), jobs=timing.workers,
     )  # fmt: skip
     files.write_json_atomic({"rounds": rounds, "gap_s": GAP_S, "runs": done}, marker,
                             root=out_dir)  # fmt: skip
