@@ -57,7 +57,8 @@ def sample_rounds(
     specs: list[RunSpec], rounds: int, send: Callable[[Sample | None], None], gap: float = GAP_S
 ) -> None:
     """Integrate ``specs`` ``rounds`` + 1 times, the first round untimed (builds, warms),
-    each timed sample given to ``send``; a round begins ``gap`` s after the last began.
+    each timed sample given to ``send``; a timed round begins ``gap`` s after the last
+    began.
 
     A round takes the models in a shuffled order and each model's runs in a shuffled
     order, one after another; the process keeps every model built (up to
@@ -82,7 +83,7 @@ def sample_rounds(
                               row["integrate_cpu_s"], counts))  # fmt: skip
                     else:
                         send(None)  # (alive: the parent waits a time limit a message)
-            if round_ < rounds:
+            if 0 < round_ < rounds:  # (the untimed round needs no distance)
                 time.sleep(max(0.0, gap - (time.monotonic() - began)))
 
 
@@ -143,7 +144,7 @@ def retime_close_calls(
     seconds = sum(rows[r]["integrate_cpu_s"] for r in chosen) * (rounds + 1) / jobs
     say(
         f"timing {len(chosen)} close call(s) again: {rounds} rounds at least {gap:g} s apart "
-        f"(about {max(seconds, gap * rounds):.0f} s; `--retime 0` skips it)"
+        f"(about {max(seconds, gap * (rounds - 1)):.0f} s; `--retime 0` skips it)"
     )
     samples: dict[str, list[Sample]] = defaultdict(list)
 

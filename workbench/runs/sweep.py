@@ -149,7 +149,7 @@ def run_sweep(
         if close_calls is not None and rounds and todo and not scheduler:
             lines.append(
                 f"then the close calls timed again: {rounds} rounds at least {GAP_S:g} s apart, "
-                f"at least {rounds * GAP_S:g} s more (`--retime 0` skips it)"
+                f"at least {(rounds - 1) * GAP_S:g} s more (`--retime 0` skips it)"
             )
         if rebuild:
             lines.append(
