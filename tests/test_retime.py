@@ -142,3 +142,19 @@ tolerances = [1e-6]
     assert {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")} == before
     with pytest.raises(ConfigError, match="--retime must be an integer"):
         run_sweep(spec, show_progress=False, retime=-1, close_calls=close_calls)
+    # a resume adding a formalism: the choice sees every row, only the new one is timed
+    seen: list[set[str]] = []
+
+    def choose_all(frame: pd.DataFrame) -> list[str]:
+        seen.append(set(frame["run_id"]))
+        return list(frame["run_id"])
+
+    index_1 = '{ name = "absolute-dae", options = { index = 1 } }'  # (an ODE for DOP853)
+    more = parse_spec(spec.text.replace('"recursive"]', f'"recursive", {index_1}]'))
+    run_sweep(more, show_progress=False, say=said.append, close_calls=choose_all)
+    assert seen == [{run.run_id for run in more.runs}]
+    rows = store.load_results(out).set_index("run_id")
+    new = next(run.run_id for run in more.runs if run.formalism == "absolute-dae")
+    assert rows.loc[new, "retimed"] == 2
+    assert {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")
+            if p.stem != new} == before  # fmt: skip

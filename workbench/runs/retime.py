@@ -134,11 +134,14 @@ def retime_close_calls(
     rows = _rows(out, by_id)
     if rounds < 1 or not rows:
         return []
+    # chosen among all the sweep's rows (a resume's new runs beside the earlier ones),
+    # then those already timed again left out
     chosen = [
         run_id
         for run_id in dict.fromkeys(choose(store.frame_from_rows(rows.values())))
-        if run_id in rows and _fits(rows[run_id], rounds, budget)
-    ]
+        if run_id in rows and not rows[run_id].get("retimed")
+        and _fits(rows[run_id], rounds, budget)
+    ]  # fmt: skip
     if not chosen:
         return []
     seconds = sum(rows[r]["integrate_cpu_s"] for r in chosen) * (rounds + 1) / jobs
@@ -170,15 +173,13 @@ def retime_close_calls(
 
 
 def _rows(out: Path, specs: dict[str, RunSpec]) -> dict[str, dict[str, Any]]:
-    """The rows of ``specs`` in ``out`` that were run and not yet re-timed."""
+    """The rows of ``specs`` in ``out`` (those run)."""
     rows = {}
     for run_id in specs:
         path = store.row_path(out, run_id)
         row = store.read_row(path) if path.is_file() else None
         if row is not None:
-            row = migrate_row(row, path)
-            if not row.get("retimed"):
-                rows[run_id] = row
+            rows[run_id] = migrate_row(row, path)
     return rows
 
 
