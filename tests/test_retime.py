@@ -49,6 +49,8 @@ def test_a_sample_of_other_work_warns_and_too_few_leave_the_row() -> None:
         and "n_rhs 500 then 512" in (warned["warnings"])
     )
     assert warned["retimed"] == 0 and warned["integrate_cpu_s"] == OWN["integrate_cpu_s"]
+    older = retimed_row(OWN | {"warnings": float("nan")}, [sample(500), sample(512)])
+    assert older["warnings"].startswith("not reproducible")  # (a row read back: NaN)
     assert retimed_row(OWN, [sample(500)]) is None  # one sample: no interval to trust
     assert retimed_row(OWN, [sample(500), sample(500, "failed")]) is None
     assert retimed_row(OWN, [sample(500), sample(500)])["retimed"] == 2

@@ -202,7 +202,8 @@ def retimed_row(row: dict[str, Any], samples: list[Sample]) -> dict[str, Any] | 
             if other[0][4][k] != row.get(k)
         )
         found = f"not reproducible: timed again, the integration did other work ({counts})"
-        return row | {"warnings": one_line_text("; ".join(filter(None, [row["warnings"], found])))}
+        had = row.get("warnings") if isinstance(row.get("warnings"), str) else ""
+        return row | {"warnings": one_line_text("; ".join(filter(None, [had, found])))}
     if len(good) < 2 or len(good) < len(samples):
         return None
     return row | retimed_columns(row, [s[2] for s in good], [s[3] for s in good])
