@@ -405,7 +405,8 @@ def _span(low: float, high: float) -> str:
 def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
     """A notice for the first screen when the rows are not the whole sweep that was
     planned (``plan``: :func:`workbench.runs.store.load_plan`): planned vs present runs,
-    and rows of other sweeps; '' when they are the plan exactly, or no plan is known."""
+    and rows of other sweeps (the first three named); '' when they are the plan exactly, or
+    no plan is known."""
     if not plan:
         return ""
     planned = set(map(str, plan.get("run_ids", [])))
@@ -422,8 +423,25 @@ def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
             "`workbench sweep` again to complete it"
         )
     if other:
-        parts.append(f"{other} row(s) come from other sweeps run in this directory")
+        extra = runs[~runs["run_id"].astype(str).isin(planned)].drop_duplicates("run_id")
+        extra = extra.sort_values("run_id")  # the same names, whatever the rows' order
+        named = "; ".join(_run_label(row) for _, row in extra.head(3).iterrows())
+        parts.append(
+            f"{other} row(s) come from other sweeps run in this directory, not from this "
+            f"sweep's plan ({named}{'; ...' if other > 3 else ''}), and count in the verdicts "
+            "like its own"
+        )
     return "; ".join(parts)
+
+
+def _run_label(row: pd.Series) -> str:
+    """'run 0123abcd: four-bar, recursive / scipy-dop853, rtol 1e-10', from the columns a
+    row has (prepared or as loaded)."""
+    pair = row.get("pair") or " / ".join(str(row.get(k, "?")) for k in ("formalism", "integrator"))
+    rtol = pd.to_numeric(row.get("rtol"), errors="coerce")
+    return f"run {row['run_id']}: {row.get('problem', '?')}, {pair}" + (
+        f", rtol {rtol:g}" if np.isfinite(rtol) else ""
+    )
 
 
 def status_by_problem(runs: pd.DataFrame, matrix: pd.DataFrame) -> pd.DataFrame:
