@@ -331,3 +331,21 @@ def test_results_name_the_rows_outside_the_plan_as_the_report_does(results: Path
         assert "and count in the verdicts like its own." in extra.stderr
         assert "other sweeps" not in extra.stdout
     assert len(pd.read_csv(io.StringIO(extra.stdout))) == 2  # the CSV stays a CSV
+
+
+def test_the_terminal_table_says_what_scd_its_scd_and_rtol_are(results: Path) -> None:
+    """The headers 'scd [digits]', 'its scd' and 'rtol' were not explained anywhere in
+    `workbench results` (qa3c F13): a line under the terminal's table says what each is;
+    a CSV or LaTeX table stays as it was."""
+    summary = " ".join(runner.invoke(app, ["results", str(results)]).stdout.split())
+    assert "scd: correct significant digits at the end, -log10(end error / length scale L)" \
+        in summary  # fmt: skip
+    assert "its scd: that of the run shown, the cheapest reaching the target" in summary
+    assert "rtol: the relative tolerance its integrator was given" in summary
+    runs = " ".join(runner.invoke(app, ["results", str(results), "--by", "run"]).stdout.split())
+    assert "scd: correct significant digits" in runs and "its scd:" not in runs  # no column
+    narrow = runner.invoke(app, ["results", str(results), "-c", "problem,runs"])
+    assert "significant digits" not in narrow.output  # neither scd nor rtol shown
+    for fmt in ("csv", "latex"):
+        other = runner.invoke(app, ["results", str(results), "-f", fmt])
+        assert "significant digits" not in other.output, fmt
