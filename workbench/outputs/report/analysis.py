@@ -279,9 +279,11 @@ def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
     return chosen[["pair", *columns]].reset_index(drop=True)
 
 
-def drift_table_contents(table: pd.DataFrame) -> str:
+def drift_table_contents(table: pd.DataFrame, units: Iterable[str] = ()) -> str:
     """What a :func:`drift_table` holds, for its caption: only the quantities it has a
-    column of (a caption named invariant errors where no run measured one)."""
+    column of (a caption named invariant errors where no run measured one), and the units
+    of its drift (``units`` of the model's residuals, traits.drift_units; the headers say
+    'm or rad' for every problem)."""
     # their headers without 'max' and the unit: 'max position drift [m or rad]'
     maxima = [HEADERS[c].removeprefix("max ").split(" [")[0] for c in DRIFT_TABLE_COLUMNS
               if c in table and c.endswith("_max") and not c.startswith("err_")]  # fmt: skip
@@ -293,6 +295,14 @@ def drift_table_contents(table: pd.DataFrame) -> str:
         parts.append("pose errors (end, L2 and maximum over the samples)")
     if "scd" in table:
         parts.append("scd")
+    drifts = [unit for c, unit in (("drift_pos_max", "m"), ("drift_vel_max", "m/s")) if c in table]
+    if drifts and set(units) == {"m"}:
+        parts.append(f"drift in {' and '.join(drifts)}: every position constraint of this "
+                     "model is a distance")  # fmt: skip
+    elif drifts and set(units) == {"m", "rad"}:
+        parts.append("drift in mixed units: the largest residual, a distance (m) or an axis "
+                     "misalignment (a rotation entry, about the angle in rad), per second "
+                     "for velocity")  # fmt: skip
     return "; ".join(parts) or "the pairs"
 
 

@@ -534,7 +534,8 @@ def problem_section(
     if rtol is not None:
         name = f"drift-{slug(problem)}-rtol-{rtol:g}"
         frame = drift_table(runs)
-        caption = f"{problem}, every pair at rtol = {rtol:g}: {drift_table_contents(frame)}"
+        contents = drift_table_contents(frame, traits.drift_units)
+        caption = f"{problem}, every pair at rtol = {rtol:g}: {contents}"
         write_table(frame, out / "tables", name, caption)
         table = PageTable.of(frame, name)
     return ProblemSection(
