@@ -445,7 +445,7 @@ def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
 
 
 def _run_label(row: pd.Series) -> str:
-    """'run 0123abcd: four-bar, recursive / scipy-dop853, rtol 1e-10', from the columns a
+    """'run 0123abcd: PROBLEM, FORMALISM / INTEGRATOR, rtol 1e-10', from the columns a
     row has (prepared or as loaded)."""
     pair = row.get("pair") or " / ".join(str(row.get(k, "?")) for k in ("formalism", "integrator"))
     rtol = pd.to_numeric(row.get("rtol"), errors="coerce")
