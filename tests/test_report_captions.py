@@ -31,6 +31,7 @@ def test_the_status_caption_points_to_notes_only_when_there_are_some(tmp_path: P
     drift = next((tmp_path / "ok" / "tables").glob("drift-*.tex")).read_text(encoding="utf-8")
     assert "position drift" in drift and "energy error" in drift
     assert "invariant" not in drift  # no column of it
+    assert "drift in m and m/s: every position constraint" in drift  # a planar revolute
     failing = synthetic_results(problems=("simple-pendulum", "heavy-top"))
     assert (failing["status"] != "ok").any()
     write_report(failing, synthetic_series, tmp_path / "failed", "cmd", progress=False)
@@ -53,3 +54,24 @@ def test_an_empty_drift_panel_says_why(tmp_path: Path) -> None:
         figure.caption
     )
     assert "absolute-dae's position" not in figure.caption  # drawn there
+
+
+def test_a_drift_caption_says_the_unit_of_its_problems_drift() -> None:
+    """The headers say 'm or rad' for every problem (qa3c F13): the caption says which,
+    from the model's constraints (a planar revolute keeps points together: m; a spatial
+    revolute also keeps axes aligned: both, the column holding the larger)."""
+    from workbench.outputs.report.analysis import drift_table_contents
+    from workbench.outputs.report.traits import drift_units, problem_model
+
+    expected = {"double-pendulum": {"m"}, "heavy-top": {"m"}, "slider-crank": {"m", "rad"},
+                "rsrrr": {"m", "rad"}}  # fmt: skip
+    for problem, units in expected.items():
+        assert drift_units(problem_model(problem)) == units, problem
+    table = pd.DataFrame(columns=["pair", "drift_pos_max", "drift_vel_max", "err_max"])
+    assert drift_table_contents(table, {"m"}).endswith(
+        "; drift in m and m/s: every position constraint of this model is a distance"
+    )
+    assert "drift in m: every" in drift_table_contents(table.drop(columns="drift_vel_max"), {"m"})
+    assert "a distance (m) or an axis misalignment" in drift_table_contents(table, {"m", "rad"})
+    assert "drift in" not in drift_table_contents(table)  # model unknown: nothing claimed
+    assert "drift in" not in drift_table_contents(table[["pair", "err_max"]], {"m"})

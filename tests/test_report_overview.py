@@ -92,8 +92,41 @@ def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_run
     assert found.sentence.startswith("a / x is within 2x of the best wall time on 2 of 3")
     assert "scd >= 6" in found.sentence
     # b scores the same: the sentence says so and what decided (it named a alone)
-    assert "; so is b / y: a / x is named for the lower geometric mean of its cost ratios " \
+    assert (
+        "; so is b / y: a / x is named for the lower geometric mean of its cost ratios "
         "to the best (1.59 against 1.65)." in found.sentence
+    )
+
+
+def test_pairs_scoring_the_same_are_named_with_whether_the_ranking_ties_their_costs() -> None:
+    """Two pairs within 2x on both problems: the sentence named the first by its geometric
+    mean although the table of cheapest pairs called their costs tied (qa3c F10); it says
+    on how many problems their timed ranges overlap, and when on all, that the order is
+    not a measured difference."""
+    points = [(p, pair, 7.0, wall) for p in ("p1", "p2")
+              for pair, wall in (("a / x", 1.0), ("b / y", 1.2))]  # fmt: skip
+    runs = rows(points)
+    runs["wall_s_min"], runs["wall_s_max"] = runs["wall_s"] * 0.95, runs["wall_s"] * 1.05
+    apart = recommend(runs, target=6.0)  # [0.95, 1.05] against [1.14, 1.26] on both
+    assert apart.pair == "a / x" and apart.costs_tied == (0, 2)
+    assert "so is b / y: a / x is named for the lower geometric mean" in apart.sentence
+    assert "their costs tie" not in apart.sentence
+    runs.loc[runs["problem"] == "p1", "wall_s_max"] *= 1.1  # p1: a's range reaches 1.155
+    once = recommend(runs, target=6.0)
+    assert once.costs_tied == (1, 2)
+    assert once.sentence.endswith(
+        "; their costs tie at scd >= 6 on 1 of the 2 problems they both reached (as in "
+        "the table of the cheapest pairs)."
+    )
+    runs["wall_s_max"] = runs["wall_s"] * 1.2  # overlapping on both problems
+    tied = recommend(runs, target=6.0)
+    assert tied.costs_tied == (2, 2)
+    assert tied.sentence.endswith("on 2 of the 2 problems they both reached (as in the table "
+                                  "of the cheapest pairs), so that order does not say which "
+                                  "is cheaper.")  # fmt: skip
+    # three pairs scoring the same: all named, in the plural
+    three = rows(points + [(p, "c / z", 7.0, 1.3) for p in ("p1", "p2")])
+    assert "; so are b / y, c / z: a / x is named" in recommend(three, target=6.0).sentence
 
 
 def test_target_is_the_highest_reached_on_two_thirds_of_the_problems() -> None:

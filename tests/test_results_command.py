@@ -308,3 +308,44 @@ def test_results_of_part_of_the_planned_sweep_say_so_as_the_report_does(results:
     store.write_plan(folder, ids, "sweep.toml")  # the whole plan: nothing to say
     whole = runner.invoke(app, ["results", str(folder)])
     assert whole.exit_code == 0 and "Not the whole sweep" not in whole.output
+
+
+def test_results_name_the_rows_outside_the_plan_as_the_report_does(results: Path) -> None:
+    """Rows of other sweeps in the folder (not in plan.json) were counted in the verdicts
+    with a count at most (qa3c F4): the notice names them and says they count."""
+    from workbench.runs import store
+
+    folder = results.parent
+    frame = pd.read_parquet(results)
+    store.write_plan(folder, list(frame["run_id"].iloc[2:]), "sweep.toml")
+    first = frame.iloc[0]  # named in the order of their run_ids ('-0.001' before '-1e-05')
+    for fmt in ("table", "csv"):
+        extra = runner.invoke(app, ["results", str(folder), "--format", fmt])
+        assert extra.exit_code == 0, extra.output
+        assert extra.stderr.startswith(
+            "Not the whole sweep: 2 row(s) come from other sweeps run in this directory, "
+            f"not from this sweep's plan (run {first['run_id']}: {first['problem']}, "
+            f"{first['formalism']} / {first['integrator']}, rtol {first['rtol']:g}; run "
+            f"{frame['run_id'].iloc[1]}: "
+        )
+        assert "and count in the verdicts like its own." in extra.stderr
+        assert "other sweeps" not in extra.stdout
+    assert len(pd.read_csv(io.StringIO(extra.stdout))) == 2  # the CSV stays a CSV
+
+
+def test_the_terminal_table_says_what_scd_its_scd_and_rtol_are(results: Path) -> None:
+    """The headers 'scd [digits]', 'its scd' and 'rtol' were not explained anywhere in
+    `workbench results` (qa3c F13): a line under the terminal's table says what each is;
+    a CSV or LaTeX table stays as it was."""
+    summary = " ".join(runner.invoke(app, ["results", str(results)]).stdout.split())
+    assert "scd: correct significant digits at the end, -log10(end error / length scale L)" \
+        in summary  # fmt: skip
+    assert "its scd: that of the run shown, the cheapest reaching the target" in summary
+    assert "rtol: the relative tolerance its integrator was given" in summary
+    runs = " ".join(runner.invoke(app, ["results", str(results), "--by", "run"]).stdout.split())
+    assert "scd: correct significant digits" in runs and "its scd:" not in runs  # no column
+    narrow = runner.invoke(app, ["results", str(results), "-c", "problem,runs"])
+    assert "significant digits" not in narrow.output  # neither scd nor rtol shown
+    for fmt in ("csv", "latex"):
+        other = runner.invoke(app, ["results", str(results), "-f", fmt])
+        assert "significant digits" not in other.output, fmt

@@ -619,6 +619,7 @@ def results(
     from workbench.outputs.results_table import (
         FORMATS,
         caption,
+        legend,
         render,
         results_table,
         unmatched,
@@ -666,7 +667,8 @@ def results(
         typer.echo(render(table, fmt, title), nl=False)
         return
     header, cells = table_cells(table)
-    shown = Table(title=title, title_justify="left")
+    shown = Table(title=title, title_justify="left", caption=legend(table) or None,
+                  caption_justify="left")  # fmt: skip
     for name in header:  # a problem's name whole: what a line is about (a narrow
         shown.add_column(name, overflow="fold", no_wrap=name == "problem")  # cell split it)
     for line in cells:

@@ -216,6 +216,15 @@ def implicit_constraints(
     return _rows(rows)
 
 
+def constraint_units(joint: Joint, planar: bool) -> set[str]:
+    """The units of the rows of :func:`implicit_constraints`: 'm' for a distance, 'rad'
+    for an entry of the relative rotation (the sine of a small angle); empty for none."""
+    kind = "fixed" if joint.drive is not None else joint.type
+    if kind == "free" or (planar and kind == "planar"):
+        return set()
+    return {"m"} if kind == "spherical" or (planar and kind == "revolute") else {"m", "rad"}
+
+
 def _lin(b: np.ndarray, d: Any) -> Any:
     return b[0] * d[0] + b[1] * d[1] + b[2] * d[2]
 

@@ -290,6 +290,20 @@ def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) 
     )
 
 
+LEGEND: dict[str, str] = {
+    "scd": "scd: correct significant digits at the end, -log10(end error / length scale L)",
+    RUN_SCD: "its scd: that of the run shown, the cheapest reaching the target",
+    "rtol": "rtol: the relative tolerance its integrator was given",
+}
+"""What the terse headers of the printed table mean (the report's page says it once)."""
+
+
+def legend(table: pd.DataFrame) -> str:
+    """One line saying what the columns of ``table`` in :data:`LEGEND` mean ('' if none),
+    under the table as printed on a terminal (a CSV or LaTeX stays as it was)."""
+    return "; ".join(text for column, text in LEGEND.items() if column in table)
+
+
 def results_table(
     frame: pd.DataFrame,
     *,

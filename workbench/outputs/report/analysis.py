@@ -279,9 +279,11 @@ def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
     return chosen[["pair", *columns]].reset_index(drop=True)
 
 
-def drift_table_contents(table: pd.DataFrame) -> str:
+def drift_table_contents(table: pd.DataFrame, units: Iterable[str] = ()) -> str:
     """What a :func:`drift_table` holds, for its caption: only the quantities it has a
-    column of (a caption named invariant errors where no run measured one)."""
+    column of (a caption named invariant errors where no run measured one), and the units
+    of its drift (``units`` of the model's residuals, traits.drift_units; the headers say
+    'm or rad' for every problem)."""
     # their headers without 'max' and the unit: 'max position drift [m or rad]'
     maxima = [HEADERS[c].removeprefix("max ").split(" [")[0] for c in DRIFT_TABLE_COLUMNS
               if c in table and c.endswith("_max") and not c.startswith("err_")]  # fmt: skip
@@ -293,6 +295,14 @@ def drift_table_contents(table: pd.DataFrame) -> str:
         parts.append("pose errors (end, L2 and maximum over the samples)")
     if "scd" in table:
         parts.append("scd")
+    drifts = [unit for c, unit in (("drift_pos_max", "m"), ("drift_vel_max", "m/s")) if c in table]
+    if drifts and set(units) == {"m"}:
+        parts.append(f"drift in {' and '.join(drifts)}: every position constraint of this "
+                     "model is a distance")  # fmt: skip
+    elif drifts and set(units) == {"m", "rad"}:
+        parts.append("drift in mixed units: the largest residual, a distance (m) or an axis "
+                     "misalignment (a rotation entry, about the angle in rad), per second "
+                     "for velocity")  # fmt: skip
     return "; ".join(parts) or "the pairs"
 
 
@@ -405,7 +415,8 @@ def _span(low: float, high: float) -> str:
 def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
     """A notice for the first screen when the rows are not the whole sweep that was
     planned (``plan``: :func:`workbench.runs.store.load_plan`): planned vs present runs,
-    and rows of other sweeps; '' when they are the plan exactly, or no plan is known."""
+    and rows of other sweeps (the first three named); '' when they are the plan exactly, or
+    no plan is known."""
     if not plan:
         return ""
     planned = set(map(str, plan.get("run_ids", [])))
@@ -422,8 +433,25 @@ def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
             "`workbench sweep` again to complete it"
         )
     if other:
-        parts.append(f"{other} row(s) come from other sweeps run in this directory")
+        extra = runs[~runs["run_id"].astype(str).isin(planned)].drop_duplicates("run_id")
+        extra = extra.sort_values("run_id")  # the same names, whatever the rows' order
+        named = "; ".join(_run_label(row) for _, row in extra.head(3).iterrows())
+        parts.append(
+            f"{other} row(s) come from other sweeps run in this directory, not from this "
+            f"sweep's plan ({named}{'; ...' if other > 3 else ''}), and count in the verdicts "
+            "like its own"
+        )
     return "; ".join(parts)
+
+
+def _run_label(row: pd.Series) -> str:
+    """'run 0123abcd: PROBLEM, FORMALISM / INTEGRATOR, rtol 1e-10', from the columns a
+    row has (prepared or as loaded)."""
+    pair = row.get("pair") or " / ".join(str(row.get(k, "?")) for k in ("formalism", "integrator"))
+    rtol = pd.to_numeric(row.get("rtol"), errors="coerce")
+    return f"run {row['run_id']}: {row.get('problem', '?')}, {pair}" + (
+        f", rtol {rtol:g}" if np.isfinite(rtol) else ""
+    )
 
 
 def status_by_problem(runs: pd.DataFrame, matrix: pd.DataFrame) -> pd.DataFrame:

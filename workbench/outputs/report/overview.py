@@ -26,6 +26,7 @@ import pandas as pd
 
 from workbench.outputs.report.analysis import ok_runs, warned
 from workbench.outputs.report.cost import COST_LABELS
+from workbench.outputs.report.ranking import decide
 
 OVERVIEW_TARGETS: tuple[float, ...] = (10.0, 8.0, 6.0, 4.0, 2.0)
 COST_COLUMNS: dict[str, str] = COST_LABELS  # cost column -> label (report.cost)
@@ -136,6 +137,9 @@ class Recommendation:
     reached: int  # problems where some pair reached the target
     problems: int  # problems in the sweep
     table: pd.DataFrame  # one row a pair: problems within, reached, geometric mean ratio
+    # of the problems every pair scoring as ``pair`` reached, those where the ranking of
+    # the cheapest pairs (ranking.decide) ties all their costs: (tied, all reached)
+    costs_tied: tuple[int, int] = (0, 0)
 
     @property
     def sentence(self) -> str:
@@ -154,18 +158,31 @@ class Recommendation:
             f"{self.pair} is within {self.factor:g}x of the best {measure} on {self.within} "
             f"of {self.reached} problems at scd >= {self.target:g}{tail}"
         )
-        top = self.table.iloc[0]
-        level = self.table[(self.table["within"] == top["within"])
-                           & (self.table["reached"] == top["reached"])]  # fmt: skip
+        level = same_score(self.table)
         if len(level) > 1:  # named first only by the geometric mean: say so, and who else
             others = [str(p) for p in level.index[1:4]] + ["..."] * (len(level) > 4)
             gm = level["geometric mean ratio"]
             sentence += (
-                f"; so is {', '.join(others)}: {self.pair} is named for the lower geometric "
-                f"mean of its cost ratios to the best ({gm.iloc[0]:.3g} against "
-                f"{gm.iloc[1]:.3g})"
+                f"; so {'is' if len(others) == 1 else 'are'} {', '.join(others)}: "
+                f"{self.pair} is named for the lower geometric mean of its cost ratios to "
+                f"the best ({gm.iloc[0]:.3g} against {gm.iloc[1]:.3g})"
             )
+            tied, shared = self.costs_tied
+            if tied:  # the geometric mean then orders costs the ranking cannot tell apart
+                sentence += (
+                    f"; their costs tie at scd >= {self.target:g} on {tied} of the {shared} "
+                    f"problems they {'both' if len(level) == 2 else 'all'} reached (as in the "
+                    "table of the cheapest pairs)"
+                    + (", so that order does not say which is cheaper" if tied == shared else "")
+                )
         return sentence + "."
+
+
+def same_score(table: pd.DataFrame) -> pd.DataFrame:
+    """The rows of a recommendation's ``table`` that score as its first: as many problems
+    within the factor and reached (the geometric mean alone orders them)."""
+    top = table.iloc[0]
+    return table[(table["within"] == top["within"]) & (table["reached"] == top["reached"])]
 
 
 def recommend(
@@ -193,6 +210,15 @@ def recommend(
     table.index.name = "pair"
     pair = None if reached == 0 or table.empty else str(table.index[0])
     within = int(table["within"].iloc[0]) if pair is not None else 0
+    costs_tied = (0, 0)
+    level = list(same_score(table).index) if pair is not None else []
+    if len(level) > 1:  # does the ranking of each problem tell their costs apart?
+        shared = ratio.index[ratio[level].notna().all(axis=1)]
+        tied = sum(
+            set(level) <= set(decide(runs[runs["problem"] == problem], target, cost).tied)
+            for problem in shared
+        )
+        costs_tied = (tied, len(shared))
     return Recommendation(
-        target, cost, factor, pair, within, reached, runs["problem"].nunique(), table
+        target, cost, factor, pair, within, reached, runs["problem"].nunique(), table, costs_tied
     )

@@ -42,6 +42,18 @@ class Traits:
     traits: list[str] = field(default_factory=list)
     stiffness: str = ""
     model: Any = None
+    drift_units: set[str] = field(default_factory=set)  # of its position residuals
+
+
+def drift_units(model: Any) -> set[str]:
+    """The units of ``model``'s position constraint residuals, whose largest is a run's
+    position drift: 'm' (distances: joints keep points together, contacts their height)
+    and 'rad' (rotation entries: joints keep axes aligned)."""
+    from workbench.mechanics.joints import constraint_units
+
+    planar = model.kind == "planar"
+    units = {"m"} if model.nonholonomic else set()
+    return units.union(*(constraint_units(j, planar) for j in model.joints.values()))
 
 
 def problem_model(problem: str, options: str = "") -> Any:
@@ -171,7 +183,8 @@ def problem_traits(runs: pd.DataFrame) -> Traits:
     name = str(first.get("problem_name", first["problem"]))  # a variant's plugin
     model = problem_model(name, "" if options == "nan" else options)
     family, traits = model_traits(model) if model is not None else ("other", [])
-    return Traits(family, traits, stiffness(runs), model)
+    units = drift_units(model) if model is not None else set()
+    return Traits(family, traits, stiffness(runs), model, units)
 
 
 def favoured(runs: pd.DataFrame, winners: list[str]) -> str:
