@@ -111,7 +111,10 @@ def slider_crank_state(
 @workbench.plugin.registry.problem
 class PointMassSliderCrank(Problem):
     name = "point-mass-slider-crank"
-    summary = "Planar slider-crank with point masses at pin and piston, light rod (1 DOF)"
+    summary = (
+        "Planar slider-crank with point masses at pin and piston, a light rod (0.01 kg) "
+        "standing in for the book's massless one (1 DOF)"
+    )
     source = "book 5.7.2"
     t_end = 2.0
     n_samples = 201

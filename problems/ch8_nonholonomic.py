@@ -50,6 +50,7 @@ import numpy as np
 import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, KnifeEdge, Model, RollingSphere, Shape
+from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Invariant, Problem, Reference
 
 GRAVITY = 9.81  # m/s^2
@@ -176,7 +177,7 @@ CART_YAW_RATE = 2.0  # rad/s, initial
 
 @dataclass(frozen=True)
 class KnifeEdgeOptions:
-    com_offset: float = 0.0  # m, centre of mass ahead of the axle along the heading
+    com_offset: float = with_unit(0.0, "m")  # centre of mass ahead of the axle along the heading
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.com_offset):

@@ -35,6 +35,7 @@ import numpy as np
 import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
+from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Invariant, Problem
 from workbench.problems._parts import angular_momentum, rotation_matrices
 
@@ -65,8 +66,8 @@ def spin(model: Model, t: float, poses: np.ndarray, twists: np.ndarray) -> np.nd
 
 @dataclass(frozen=True)
 class HeavyTopOptions:
-    initial_tilt: float = 0.3  # rad, symmetry axis from the vertical, about inertial x
-    spin: float = 50.0  # rad/s, about the symmetry axis
+    initial_tilt: float = with_unit(0.3, "rad")  # symmetry axis from the vertical, about x
+    spin: float = with_unit(50.0, "rad/s")  # about the symmetry axis
 
     def __post_init__(self) -> None:
         for name in ("initial_tilt", "spin"):
@@ -77,7 +78,10 @@ class HeavyTopOptions:
 @workbench.plugin.registry.problem
 class HeavyTop(Problem):
     name = "heavy-top"
-    summary = "Heavy symmetric top on a fixed point (spherical joint, 3 DOF), fast spin"
+    summary = (
+        "Heavy symmetric top on a fixed point (spherical joint, 3 DOF), spinning above the "
+        "sleeping limit, not in the fast-top limit"
+    )
     source = "book 4.8.2, 7.7.1"
     Options = HeavyTopOptions
     t_end = 2.0

@@ -88,6 +88,7 @@ from scipy.special import ellipj, ellipkinc
 import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape, SpringDamper
+from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Problem, Reference
 from workbench.problems.simple_pendulum import exact_solution
 
@@ -225,7 +226,7 @@ A01_DEFAULT_DURATION = 20.0  # s
 
 @dataclass(frozen=True)
 class A01Options:
-    duration: float = A01_DEFAULT_DURATION  # s; the benchmark's is 2000 (A01_DURATION)
+    duration: float = with_unit(A01_DEFAULT_DURATION, "s")  # the benchmark's: 2000 (A01_DURATION)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration) and 0 < self.duration <= A01_DURATION):

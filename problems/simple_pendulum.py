@@ -1,7 +1,8 @@
 """Simple pendulum: a point mass on a massless rod, swinging in a vertical plane.
 
-Book: 5.2 (point mass with a holonomic constraint) and 6.7 (planar systems); the
-small-angle limit is the linear oscillator theta'' = -(g / l) theta.
+Book: 5.2 (point mass with a holonomic constraint), modelled as a planar system (ch. 6;
+its examples in 6.7 are the double and the rolling pendulum); the small-angle limit is
+the linear oscillator theta'' = -(g / l) theta.
 
 Model (planar; x to the right, y up; SI units):
 
@@ -29,6 +30,7 @@ import scipy.special
 import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
+from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Problem
 
 MASS = 1.0  # kg
@@ -64,7 +66,7 @@ def period(theta0: float, l: float, g: float) -> float:
 
 @dataclass(frozen=True)
 class SimplePendulumOptions:
-    initial_angle: float = 0.5  # rad, released at rest
+    initial_angle: float = with_unit(0.5, "rad")  # released at rest
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.initial_angle) or abs(self.initial_angle) >= math.pi:
@@ -77,7 +79,7 @@ class SimplePendulumOptions:
 class SimplePendulum(Problem):
     name = "simple-pendulum"
     summary = "Point mass on a massless rod (planar, 1 DOF), released at rest"
-    source = "book 5.2, 6.7; linear limit: harmonic oscillator"
+    source = "book 5.2; linear limit: harmonic oscillator"
     Options = SimplePendulumOptions
     t_end = 10.0
     n_samples = 201

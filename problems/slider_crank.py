@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import workbench.plugin.registry
 from workbench.errors import ConfigError
 from workbench.model import Frame, Model, Shape
+from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Problem
 
 CRANK_LENGTH = 0.1  # m
@@ -63,8 +64,8 @@ def consistent_state(
 
 @dataclass(frozen=True)
 class SliderCrankOptions:
-    initial_crank_angle: float = 0.0  # rad
-    initial_crank_rate: float = 10.0  # rad/s
+    initial_crank_angle: float = with_unit(0.0, "rad")
+    initial_crank_rate: float = with_unit(10.0, "rad/s")
 
     def __post_init__(self) -> None:
         for name in ("initial_crank_angle", "initial_crank_rate"):

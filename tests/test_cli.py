@@ -81,7 +81,28 @@ def test_list_prints_one_table_per_kind(fake_registry, runner):
 def test_describe_prints_no_negative_zero(runner):
     result = runner.invoke(cli.app, ["describe", "slider-crank"])
     assert result.exit_code == 0, result.output
-    assert "crank_pin = 0," in result.stdout and "-0," not in result.stdout
+    assert "crank_pin = 0 rad," in result.stdout and "-0" not in result.stdout
+
+
+def test_describe_gives_units_the_quaternion_order_and_the_velocity_frame(runner):
+    """qa3d F4: options, initial coordinates and velocities had no units; what the four
+    numbers of a spherical joint and the three of its velocity are was not said."""
+    top = runner.invoke(cli.app, ["describe", "heavy-top"], env={"COLUMNS": "250"})
+    assert top.exit_code == 0, top.output
+    out = top.stdout
+    assert re.search(r"│ spin\s+│ float\s+│ 50\.0\s+│ rad/s\s+│", out)
+    assert re.search(r"│ initial_tilt\s+│ float\s+│ 0\.3\s+│ rad\s+│", out)
+    assert "tip = (0, 0, 50) rad/s" in out  # an angular velocity
+    assert "Euler parameters (p0, p1, p2, p3), scalar first" in out
+    assert "angular velocity (wx, wy, wz) of the child in the child frame" in out
+    ball = runner.invoke(cli.app, ["describe", "ball-on-rotating-plane"], env={"COLUMNS": "250"})
+    assert "float = (0.5, 0, 0.1) m, (1, 0, 0, 0)" in ball.stdout  # free: position, quaternion
+    assert "float = (0, 0.3, 0) m/s, (7, 0, 1) rad/s" in ball.stdout
+    rsrrr = runner.invoke(cli.app, ["describe", "rsrrr"], env={"COLUMNS": "250"}).stdout
+    assert "none given: neutral" in rsrrr and "neutral / at rest │" not in rsrrr
+    assert "projected onto the loop-closure" in rsrrr
+    pendulum = runner.invoke(cli.app, ["describe", "simple-pendulum"], env={"COLUMNS": "250"})
+    assert "pivot = 0.5 rad" in pendulum.stdout and "Euler parameters" not in pendulum.stdout
 
 
 def test_list_shows_a_broken_plugin_with_its_error(fake_registry, runner):
@@ -273,7 +294,6 @@ def test_dash_o_is_option_everywhere_and_the_old_output_directory_is_refused(
         assert "--out" in shown and not re.search(r"\s-o\s", shown), name
 
 
-
 def test_all_names_the_broken_plugin_it_leaves_out(runner, tmp_path, monkeypatch):
     from workbench.plugin.registry import REGISTRY, PluginInfo
     from workbench.runs.sweep_spec import parse_spec
@@ -290,7 +310,7 @@ def test_all_names_the_broken_plugin_it_leaves_out(runner, tmp_path, monkeypatch
     (tmp_path / "bad.toml").write_text(text + 'integrators = ["no-such-integrator"]\n')
     result = runner.invoke(cli.app, ["sweep", str(tmp_path / "bad.toml")])
     assert result.exit_code == 2, result.output
-    assert "warning: formalisms = \"all\" leaves out the broken formalism plugin " in result.stderr
+    assert 'warning: formalisms = "all" leaves out the broken formalism plugin ' in result.stderr
     assert "no-such-integrator" in result.stderr and "Traceback" not in result.output
 
 

@@ -37,3 +37,17 @@ def test_scipy_dae_radau_below_its_floor_is_warned_too() -> None:
     row = execute_run(spec).row
     assert row["status"] == "ok", row["message"]
     assert "not attempted: scipy-dae raises rtol 1e-16 to its least, 2.22e-14" in row["warnings"]
+
+
+def test_every_integrator_notes_an_rtol_below_100_machine_epsilons() -> None:
+    """CVODE takes rtol 1e-14 as asked, where float64 rounding keeps any integrator from
+    honouring it, and its row said nothing (qa3d F7); it now notes it, the same note as
+    any other integrator's, and the run stays unwarned (recommendable)."""
+    spec = RunSpec("simple-pendulum", "minimal-ode", "sundials-cvode-bdf", 1e-14, 1e-17)
+    cvode = execute_run(spec).row
+    assert cvode["status"] == "ok", cvode["message"]
+    assert "rtol 1e-14 is below 100 machine epsilons (2.2e-14)" in cvode["notes"]
+    assert "machine epsilons" not in cvode["warnings"]  # still recommendable
+    for row in (dop853(1e-15), dop853(1e-16)):
+        assert "is below 100 machine epsilons (2.2e-14)" in row["notes"]
+    assert "machine epsilons" not in dop853(2.3e-14)["notes"]

@@ -21,7 +21,7 @@ HEADLINE = [
     ("err_end", "pose error at the end (m)"),
     ("drift_pos_max", "max position drift"),
     ("drift_vel_max", "max velocity drift"),
-    ("energy_err_max", "max relative energy error"),
+    ("energy_err_max", "max energy error / energy in motion"),
     ("integrate_s", "integration wall time (s)"),
     ("integrate_cpu_s", "integration CPU time (s)"),
     ("n_rhs", "right-hand sides"),
@@ -69,7 +69,8 @@ class Result:
 
     @property
     def energy(self) -> pd.DataFrame:
-        """Relative energy error over time: ``t``, ``energy_err`` (NaN if not conservative)."""
+        """Energy error over time: ``t``, ``energy_err`` (NaN if not conservative), |E - E0|
+        / S (:data:`~workbench.execution.row_schema.ENERGY_ERROR`)."""
         return self.series[["t", "energy_err"]]
 
     @property
@@ -133,8 +134,8 @@ class Result:
         return _plot_series(self, ["drift_pos", "drift_vel", "drift_nh"], "constraint residual", ax)
 
     def plot_energy(self, ax: Any = None) -> Any:
-        """The relative energy error against time (log y)."""
-        return _plot_series(self, ["energy_err"], "relative energy error", ax)
+        """The energy error |E - E0| / S against time (log y; S as in ``energy``)."""
+        return _plot_series(self, ["energy_err"], "energy error / energy in motion", ax)
 
     def plot_error(self, ax: Any = None) -> Any:
         """The pose error against the reference over time (log y)."""

@@ -12,7 +12,7 @@ from workbench.cli.app import app, console, option_value
 from workbench.cli.plugin_flags import NoLocalPluginsOption, PluginsOption, plugins_from_flags
 from workbench.cli.robot_files import ALLOW_ROOT_OPTION, PACKAGE_PATH_OPTION
 from workbench.plugin import registry
-from workbench.plugin.options import option_fields, type_name
+from workbench.plugin.options import option_fields, option_units, type_name
 from workbench.plugin.registry import KINDS, Kind, PluginInfo, describe_kind
 
 
@@ -142,12 +142,16 @@ def _options_table(plugin: type) -> Table | str:
     rows = option_fields(options_class) if options_class is not None else []
     if not rows:
         return "options: none"
+    units = option_units(options_class)
     table = Table(title="options", title_justify="left")
     table.add_column("name", no_wrap=True)
     table.add_column("type")
     table.add_column("default")
+    if any(units.values()):
+        table.add_column("unit")
     for name, annotation, default in rows:
-        table.add_row(name, type_name(annotation), repr(default))
+        unit = [units.get(name, "")] if any(units.values()) else []
+        table.add_row(name, type_name(annotation), repr(default), *unit)
     return table
 
 
@@ -177,13 +181,15 @@ def _problem_table(problem: Any) -> Table:
 
 
 def _parameters_table(problem: Any) -> Table:
-    """The model's physical parameters (SI units) and the problem's initial condition."""
-    from workbench.model.parameters import model_parameters
+    """The model's physical parameters (SI units) and the problem's initial condition, each
+    joint's values with their units (how spherical and free joints order theirs, once)."""
+    from workbench.model.parameters import QUATERNION_STATE, joint_state, model_parameters
 
     table = Table(title="parameters (SI units)", title_justify="left")
     for column in ("element", "quantity", "value"):
         table.add_column(column)
-    rows = model_parameters(problem.model())
+    model = problem.model()
+    rows = model_parameters(model)
     elements = list(dict.fromkeys(element for element, _, _ in rows))
     shown = set(elements[:LISTED])
     for row in rows:
@@ -192,12 +198,22 @@ def _parameters_table(problem: Any) -> Table:
     if len(elements) > LISTED:  # a 10,000-link robot: 30,000 rows are not read, only printed
         more = len(elements) - LISTED
         table.add_row("...", f"{more} more elements", "not listed (the first ones are above)")
-    for label, values in (
-        ("initial joint coordinates", problem.initial_joint_coordinates()),
-        ("initial joint velocities", problem.initial_joint_velocities()),
+    types = {name: joint.type for name, joint in model.joints.items()}
+    for label, values, velocities, none in (
+        ("initial joint coordinates", problem.initial_joint_coordinates(), False, "neutral"),
+        ("initial joint velocities", problem.initial_joint_velocities(), True, "at rest"),
     ):
-        text = ", ".join(f"{joint} = {_values(value)}" for joint, value in values.items())
-        table.add_row("initial state", label, text or "neutral / at rest")
+        text = ", ".join(
+            f"{joint} = {joint_state(types.get(joint, ''), value, velocities)}"
+            for joint, value in values.items()
+        )
+        table.add_row("initial state", label, text or f"none given: {none}")
+    if model.cut_joints or model.nonholonomic:
+        table.add_row("initial state", "joints not listed",
+                      "start neutral / at rest; the whole state is then projected onto the "
+                      "loop-closure and nonholonomic constraints")  # fmt: skip
+    if {"spherical", "free"} & set(types.values()):
+        table.add_row("initial state", "spherical and free joints", QUATERNION_STATE)
     return table
 
 
@@ -209,14 +225,6 @@ def _first_names(names: Any) -> str:
     names = list(names)
     listed = ", ".join(names[:LISTED])
     return listed + (f", ... ({len(names) - LISTED} more)" if len(names) > LISTED else "")
-
-
-def _values(value: Any) -> str:
-    import numpy as np
-
-    array = np.atleast_1d(np.asarray(value, dtype=float))
-    text = ", ".join(f"{x + 0.0:.4g}" for x in array)  # + 0.0: -0 reads 0
-    return text if array.size == 1 else f"({text})"
 
 
 def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:

@@ -50,6 +50,7 @@ from workbench.execution.audit import (
     MEASURE,
     at_reference_accuracy,
     audit_warnings,
+    below_least_rtol,
     health_audit,
     motionless_warning,
 )
@@ -223,6 +224,9 @@ def metric_columns(
     at_accuracy = at_reference_accuracy(row, reference.accuracy)
     if at_accuracy:
         notes.append(at_accuracy)
+    below_least = below_least_rtol(rtol)
+    if below_least:
+        notes.append(below_least)
     row["notes"] = "; ".join(notes)
 
     audit = health_audit(equations, times, y[:n], sampled.rotations, rtol, charts)

@@ -25,6 +25,13 @@ import pandas as pd
 
 from workbench.errors import ConfigError
 
+ENERGY_ERROR = (
+    "|E - E0| / S with E = T + V and S = max(T0 + |V0|, max over t of T), the energy in "
+    "the motion (not |E0|, which is 0 when a body starts at rest at the zero of V)"
+)
+"""The energy error's definition (:mod:`workbench.execution.metrics` computes it), said
+where the columns and series are described."""
+
 # The stable schema of a result row: (column, meaning). Units: seconds, metres, radians.
 SCHEMA: list[tuple[str, str]] = [
     ("run_id", "16 hex digits of sha256 of the run's canonical JSON"),
@@ -69,8 +76,8 @@ SCHEMA: list[tuple[str, str]] = [
     ("drift_vel_final", "final velocity-level constraint residual"),
     ("drift_nh_max", "max nonholonomic constraint residual (NaN: none)"),
     ("drift_nh_final", "final nonholonomic constraint residual"),
-    ("energy_err_max", "max relative energy error (NaN: not conservative)"),
-    ("energy_err_final", "final relative energy error"),
+    ("energy_err_max", f"max over output times of {ENERGY_ERROR} (NaN: not conservative)"),
+    ("energy_err_final", "energy error at the end time, as energy_err_max"),
     ("invariant_err_max", "max relative error of the problem's invariants"),
     ("notes", "remarks on the metrics (e.g. what was not computed and why)"),
     ("version_python", "Python version"),

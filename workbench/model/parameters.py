@@ -8,8 +8,11 @@ nonholonomic constraints and contacts. Each row is ``(element, quantity, value w
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
 from workbench.model.elements import (
@@ -31,6 +34,25 @@ Row = tuple[str, str, str]
 AXIS_JOINTS = ("revolute", "prismatic", "cylindrical", "universal")
 # per joint type: the unit of its coordinate (for joint springs)
 ANGULAR = {"revolute": "rad", "spherical": "rad", "universal": "rad"}
+# per joint type: (count, unit) groups of its coordinates, then of its velocities, in the
+# order of workbench.mechanics.joints ("" for the Euler parameters, which have none)
+STATE_UNITS: dict[str, tuple[tuple[tuple[int, str], ...], tuple[tuple[int, str], ...]]] = {
+    "revolute": (((1, "rad"),), ((1, "rad/s"),)),
+    "prismatic": (((1, "m"),), ((1, "m/s"),)),
+    "cylindrical": (((1, "m"), (1, "rad")), ((1, "m/s"), (1, "rad/s"))),
+    "universal": (((2, "rad"),), ((2, "rad/s"),)),
+    "spherical": (((4, ""),), ((3, "rad/s"),)),
+    "planar": (((2, "m"), (1, "rad")), ((2, "m/s"), (1, "rad/s"))),
+    "free": (((3, "m"), (4, "")), ((3, "m/s"), (3, "rad/s"))),
+    "fixed": ((), ()),
+}
+QUATERNION_STATE = (
+    "q: Euler parameters (p0, p1, p2, p3), scalar first, of the child frame in the parent "
+    "frame (a free joint: after the position (x, y, z) of the child's origin in the parent "
+    "frame); v: angular velocity (wx, wy, wz) of the child in the child frame (a free joint: "
+    "after the velocity (vx, vy, vz) of its origin in the parent frame)"
+)
+"""How ``describe`` reads the state of spherical and free joints (workbench.mechanics.joints)."""
 
 
 def number(value: float) -> str:
@@ -45,6 +67,21 @@ def vector(values: Any, planar: bool = False) -> str:
     if planar and array.size == 3 and array[2] == 0.0:
         array = array[:2]
     return "(" + ", ".join(number(x) for x in array) + ")"
+
+
+def joint_state(joint_type: str, value: Any, velocities: bool) -> str:
+    """A joint's initial coordinates (or velocities) with their units (:data:`STATE_UNITS`):
+    ``0.5 rad``, ``(0.5, 0, 0.1) m, (1, 0, 0, 0)``; without units if the sizes differ."""
+    array = np.atleast_1d(np.asarray(value, dtype=float)) + 0.0  # + 0.0: -0 reads 0
+    groups = STATE_UNITS.get(joint_type, ((), ()))[velocities]
+    if sum(count for count, _ in groups) != array.size:
+        groups = ((array.size, ""),)
+    parts, start = [], 0
+    for count, unit in groups:
+        numbers = ", ".join(number(x) for x in array[start : start + count])
+        start += count
+        parts.append((numbers if count == 1 else f"({numbers})") + (f" {unit}" if unit else ""))
+    return ", ".join(parts)
 
 
 def model_parameters(model: Model) -> list[Row]:
@@ -101,8 +138,54 @@ def _joint_rows(joint: Joint, planar: bool) -> list[Row]:
     if joint.type == "universal":
         rows.append((joint.name, "second axis", vector(joint.axis2)))
     if joint.drive is not None:
-        rows.append((joint.name, "driven (rheonomic)", _function_name(joint.drive.position)))
+        rows.append((joint.name, "driven (rheonomic)", _drive_law(joint)))
     return rows
+
+
+def _drive_law(joint: Joint) -> str:
+    """The prescribed motion as the model computes it, ``q(t) = 5*t rad, q'(t) = 5 rad/s``
+    (the drive's functions on a symbol t), else the function's name."""
+    (coordinates, velocities) = STATE_UNITS.get(joint.type, ((), ()))
+    unit = f" {coordinates[0][1]}" if len(coordinates) == 1 else ""
+    rate_unit = f" {velocities[0][1]}" if len(velocities) == 1 else ""
+    position = _law(joint.drive.position, [])
+    if position is None:
+        return _function_name(joint.drive.position)
+    velocity = _law(joint.drive.velocity, []) if joint.drive.velocity is not None else None
+    text = f"q(t) = {position}{unit}"
+    return text + (f", q'(t) = {velocity}{rate_unit}" if velocity is not None else "")
+
+
+LAW_LENGTH = 200
+"""The longest law ``describe`` prints as a formula (longer ones: the function's name)."""
+
+
+def _law(function: Callable[..., Any], vectors: list[tuple[str, int]]) -> str | None:
+    """``function`` of a symbol t and of the named vectors (name, size), as text: the law
+    the formalisms integrate, ``5*t``. None when it does not take CasADi symbols or reads
+    longer than :data:`LAW_LENGTH`, with shared subexpressions or a NaN."""
+    symbols = [ca.SX.sym("t"), *(ca.SX.sym(name, size) for name, size in vectors)]
+    try:
+        value = function(*symbols)
+        text = str(ca.SX(ca.vertcat(*value) if isinstance(value, list | tuple) else value))
+    except Exception:  # noqa: BLE001 - a user function that takes no symbols: its name instead
+        return None
+    while text.startswith("(") and text.endswith(")") and _closes_at_end(text):
+        text = text[1:-1]
+    shared = "@" in text  # CasADi's shared subexpressions (@1=10, ...) read as code
+    # nan: a function that turned the symbol into a number (np.interp does) never read it
+    unread = re.search(r"\b(nan|inf)\b", text) is not None
+    return text if len(text) <= LAW_LENGTH and not shared and not unread else None
+
+
+def _closes_at_end(text: str) -> bool:
+    """True if the opening bracket of ``text`` closes at its last character."""
+    depth = 0
+    for i, char in enumerate(text):
+        depth += {"(": 1, ")": -1}.get(char, 0)
+        if depth == 0:
+            return i == len(text) - 1
+    return False
 
 
 def _force_rows(element: Any, model: Model, planar: bool) -> list[Row]:
@@ -124,7 +207,13 @@ def _force_rows(element: Any, model: Model, planar: bool) -> list[Row]:
                  f"{number(element.damping)} {'N m s/rad' if angular else 'N s/m'}, rest "
                  f"{', '.join(number(r) for r in rest)} {'rad' if angular else 'm'}")]  # fmt: skip
     if isinstance(element, JointForce):
-        return [(name, f"joint force on {element.joint}", _function_name(element.function))]
+        joint_type = model.joints[element.joint].type if element.joint in model.joints else ""
+        coordinates, velocities = STATE_UNITS.get(joint_type, ((), ()))
+        nq, nv = sum(n for n, _ in coordinates), sum(n for n, _ in velocities)
+        law = _law(element.function, [("q", nq), ("v", nv)]) if nv else None
+        unit = {"revolute": " N m", "prismatic": " N"}.get(joint_type, "")
+        text = f"Q(t, q, v) = {law}{unit}" if law else _function_name(element.function)
+        return [(name, f"joint force on {element.joint}", text)]
     if isinstance(element, AppliedForce):
         return [(name, f"applied force on {element.body} at {vector(element.point, planar)} m",
                  _function_name(element.function))]  # fmt: skip

@@ -25,6 +25,22 @@ class NoOptions:
     """For plugins without options."""
 
 
+UNIT = "unit"  # the metadata key of an option field's unit
+
+
+def with_unit(default: Any, unit: str) -> Any:
+    """An option field whose value is in ``unit`` (``"rad"``, ``"m/s"``): ``describe``
+    prints the unit beside it, so a number is never shown without one."""
+    return dataclasses.field(default=default, metadata={UNIT: unit})
+
+
+def option_units(options_class: type) -> dict[str, str]:
+    """The unit of every option declared :func:`with_unit` ("" for the others)."""
+    if not dataclasses.is_dataclass(options_class):
+        return {}
+    return {f.name: f.metadata.get(UNIT, "") for f in dataclasses.fields(options_class)}
+
+
 def option_fields(options_class: type) -> list[tuple[str, Any, Any]]:
     """(name, type, default) of every option, in declaration order (default None if required)."""
     if not dataclasses.is_dataclass(options_class):

@@ -28,7 +28,7 @@ DRIFT_QUANTITIES: tuple[tuple[str, str], ...] = (
     ("drift_pos", "position constraint drift [m or rad]"),
     ("drift_vel", "velocity constraint drift [m/s or rad/s]"),
     ("drift_nh", "nonholonomic constraint drift [m/s or rad/s]"),
-    ("energy_err", "relative energy error [-]"),
+    ("energy_err", "energy error / energy in motion [-]"),
 )
 """Series column and axis label (with units: residual components are lengths or angles,
 their rates, or a ratio) of the quantities of the drift figure."""

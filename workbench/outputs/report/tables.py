@@ -43,7 +43,7 @@ HEADERS: dict[str, str] = {
     "drift_pos_max": "max position drift [m or rad]",
     "drift_vel_max": "max velocity drift [m/s or rad/s]",
     "drift_nh_max": "max nonholonomic drift [m/s or rad/s]",
-    "energy_err_max": "max relative energy error",
+    "energy_err_max": "max energy error / energy in motion",
     "invariant_err_max": "max relative invariant error",
     "fixed_step_s": "fixed step [s]",
     "integrate_s": "integration wall time [s]",
