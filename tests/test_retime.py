@@ -160,3 +160,23 @@ tolerances = [1e-6]
     assert rows.loc[new, "retimed"] == 2
     assert {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")
             if p.stem != new} == before  # fmt: skip
+
+
+def test_the_first_screen_says_whether_the_close_calls_were_timed_again(tmp_path) -> None:
+    from tests.test_report import synthetic_results
+    from workbench.outputs.report import write_report
+
+    results = synthetic_results(problems=("simple-pendulum",))
+    page = write_report(results, None, tmp_path / "a", "cmd", progress=False).read_text()
+    decision = page[page.index('id="decision"') :]
+    assert "No run was timed again after the runs" in decision
+    results["retimed"] = [5, 5] + [0] * (len(results) - 2)
+    page = write_report(results, None, tmp_path / "b", "cmd", progress=False).read_text()
+    decision = page[page.index('id="decision"') :]
+    assert "2 close call(s), the runs of pairs within 3x of a cheapest, were timed again" in (
+        decision
+    )
+    assert "5 times at moments apart" in decision
+    # a counted cost has no timing to trust or doubt
+    page = write_report(results, None, tmp_path / "c", "cmd", progress=False, cost="n_rhs")
+    assert "timed again" not in page.read_text()

@@ -39,3 +39,26 @@ def close_calls(
             if len(near) > 1:
                 chosen.update(dict.fromkeys(near["run_id"]))
     return list(chosen)
+
+
+def retime_note(runs: pd.DataFrame, cost: str) -> str:
+    """What the first screen says of the close calls' timing ('' for a counted cost):
+    how many were timed again at moments apart, or that none were, so that a reader
+    knows how far a small margin can be trusted."""
+    if not cost.endswith("_s") or cost == "work_s":
+        return ""
+    retimed = pd.to_numeric(runs.get("retimed", pd.Series(dtype=float)), errors="coerce")
+    again = retimed[retimed > 0]
+    if len(again):
+        return (
+            f"{len(again)} close call(s), the runs of pairs within {CLOSE:g}x of a cheapest, "
+            f"were timed again after the runs, {int(again.max())} times at moments apart "
+            "(their cost is the median over these samples and their own)"
+        )
+    return (
+        "No run was timed again after the runs (`--retime 0`, a Dask sweep, or rows of an "
+        "older workbench): each interval is its run's back-to-back samples, which share "
+        "the machine's moment, so a margin of a few tens of per cent may not survive a "
+        "second sweep (docs/suites.md)"
+    )
+

@@ -20,6 +20,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescap
 
 from workbench.execution.environment import cpu_model, distribution_versions
 from workbench.outputs.report.analysis import run_environment
+from workbench.outputs.report.close_calls import retime_note
 from workbench.outputs.report.cost import Cost, resolve_cost, tie_rule
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.scorecards import Scorecard
@@ -174,6 +175,7 @@ def render_page(
             command=command,
             cost_name=cost.name,
             tie_rule=tie_rule(cost.column),
+            retime_note=retime_note(runs, cost.column),
             cost_statement=cost.statement(),
             timing_warning=timing_warning,
             stalled=list(stalled),
