@@ -121,7 +121,13 @@ integrators = ["scipy-dop853"]
 tolerances = [1e-6]
 """)
     said: list[str] = []
-    summary = run_sweep(spec, show_progress=False, say=said.append, close_calls=close_calls)
+    seen: list[set[str]] = []
+
+    def choose_all(frame: pd.DataFrame) -> list[str]:  # (close_calls' own test is above)
+        seen.append(set(frame["run_id"]))
+        return list(frame["run_id"])
+
+    summary = run_sweep(spec, show_progress=False, say=said.append, close_calls=choose_all)
     assert summary.counts["ok"] == 2
     assert any("then the close calls timed again: 2 rounds" in line for line in said)
     assert any("timing 2 close call(s) again: 2 rounds" in line for line in said)
@@ -139,18 +145,14 @@ tolerances = [1e-6]
     assert sorted(record["runs"]) == sorted(rows["run_id"]) and record["rounds"] == 2
     before = {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")}
     said.clear()
-    run_sweep(spec, show_progress=False, say=said.append, close_calls=close_calls)
+    run_sweep(spec, show_progress=False, say=said.append, close_calls=choose_all)
     assert not any("close call" in line for line in said)  # a resume: nothing again
+    assert len(seen) == 1  # (not even chosen: the rows are those the re-timing left)
     assert {p.name: p.read_bytes() for p in (out / store.RUNS_DIR).glob("*.json")} == before
     with pytest.raises(ConfigError, match="--retime must be an integer"):
         run_sweep(spec, show_progress=False, retime=-1, close_calls=close_calls)
     # a resume adding a formalism: the choice sees every row, only the new one is timed
-    seen: list[set[str]] = []
-
-    def choose_all(frame: pd.DataFrame) -> list[str]:
-        seen.append(set(frame["run_id"]))
-        return list(frame["run_id"])
-
+    seen.clear()
     index_1 = '{ name = "absolute-dae", options = { index = 1 } }'  # (an ODE for DOP853)
     more = parse_spec(spec.text.replace('"recursive"]', f'"recursive", {index_1}]'))
     run_sweep(more, show_progress=False, say=said.append, close_calls=choose_all)
