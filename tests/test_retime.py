@@ -138,7 +138,7 @@ tolerances = [1e-6]
     for _, row in rows.iterrows():
         assert row["integrate_cpu_s_min"] <= row["integrate_cpu_s"] <= row["integrate_cpu_s_max"]
     # the same work each time: the double pendulum's DOP853 counts are the row's
-    assert (rows["warnings"] == "").all()
+    assert not rows["warnings"].fillna("").str.contains("not reproducible").any()
     results = pd.read_parquet(out / store.RESULTS_FILE)
     assert list(results["retimed"]) == [2, 2]  # consolidated after the re-timing
     record = json.loads((out / RETIMED_FILE).read_text())

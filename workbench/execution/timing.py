@@ -94,24 +94,23 @@ class Timing:
         return cls(**(data or {}))
 
 
+def _whole_problem(value: Any, low: int, high: int, meaning: str) -> str | None:
+    """What is wrong with ``value`` as a whole number from ``low`` to ``high``, or None."""
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        return f"must be an integer from {low} to {high} ({meaning}), not {value!r}"
+    return None
+
+
 def repeats_problem(value: Any) -> str | None:
     """What is wrong with ``value`` as a count of timed samples, or None."""
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_REPEATS:
-        return (
-            f"must be an integer from 1 to {MAX_REPEATS} (timed samples of the integration; "
-            f"1: time it once), not {value!r}"
-        )
-    return None
+    meaning = "timed samples of the integration; 1: time it once"
+    return _whole_problem(value, 1, MAX_REPEATS, meaning)
 
 
 def retime_problem(value: Any) -> str | None:
     """What is wrong with ``value`` as the rounds of :mod:`workbench.runs.retime`, or None."""
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_RETIME:
-        return (
-            f"must be an integer from 0 to {MAX_RETIME} (times each close call is timed "
-            f"again after the runs, at moments apart; 0: not at all), not {value!r}"
-        )
-    return None
+    meaning = "times each close call is timed again after the runs, at moments apart; 0: not at all"
+    return _whole_problem(value, 0, MAX_RETIME, meaning)
 
 
 def budget_problem(value: Any) -> str | None:
