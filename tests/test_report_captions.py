@@ -75,3 +75,24 @@ def test_a_drift_caption_says_the_unit_of_its_problems_drift() -> None:
     assert "a distance (m) or an axis misalignment" in drift_table_contents(table, {"m", "rad"})
     assert "drift in" not in drift_table_contents(table)  # model unknown: nothing claimed
     assert "drift in" not in drift_table_contents(table[["pair", "err_max"]], {"m"})
+
+
+def test_the_drift_figure_axis_says_the_unit_of_its_problems_drift(tmp_path: Path) -> None:
+    """The drift figure's axis said "[m or rad]" for every problem (qa3c F13, left then):
+    a model whose position constraints are all distances is drawn in m and m/s; one that
+    also aligns axes keeps both; an unknown model claims nothing."""
+    runs = prepare_results(all_ok())
+    _rtol, chosen = drift_runs(runs)
+    series = {r: synthetic_series(r) for r in chosen["run_id"]}
+    (tmp_path / "figures").mkdir()
+
+    def labels(units: set[str]) -> list[str]:
+        figure, _ = drift_figure(runs, series, tmp_path, "p", units)
+        assert figure is not None
+        return [axis.label for axis in figure.axes]
+
+    distances = labels({"m"})
+    assert any("position constraint drift\n[m]" in label for label in distances), distances
+    assert not any("rad" in label for label in distances)
+    for units in ({"m", "rad"}, set()):
+        assert any("[m or rad]" in label for label in labels(units))

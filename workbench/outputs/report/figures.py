@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 import math
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -426,15 +426,32 @@ def measured_quantities(
     return drawn, absent
 
 
+def drift_label(label: str, units: Iterable[str] = ()) -> str:
+    """A :data:`DRIFT_QUANTITIES` axis label in the unit of this model's position
+    residuals (``units``: traits.drift_units), where they have one: a model whose joints
+    only keep points together drifts in m (and m/s), not "m or rad"."""
+    units = set(units)
+    if units == {"m"}:
+        return label.replace("[m or rad]", "[m]").replace("[m/s or rad/s]", "[m/s]")
+    if units == {"rad"}:
+        return label.replace("[m or rad]", "[rad]").replace("[m/s or rad/s]", "[rad/s]")
+    return label
+
+
 def drift_figure(
-    runs: pd.DataFrame, series: Mapping[str, pd.DataFrame | None] | None, out: Path, problem: str
+    runs: pd.DataFrame,
+    series: Mapping[str, pd.DataFrame | None] | None,
+    out: Path,
+    problem: str,
+    units: Iterable[str] = (),
 ) -> tuple[FigureFiles | None, float | None]:
     """Drift and energy error over time at the middle tolerance (log y), as small multiples:
     one row a measured quantity, one column a formalism, one curve an integrator (so no
     panel overlays more curves than there are integrators). Quantities not drawn are
     named in the caption, "not measured" apart from "exactly zero".
 
-    series: run_id -> that run's time series (None or missing: not drawn).
+    series: run_id -> that run's time series (None or missing: not drawn);
+    units: of the model's position residuals (:func:`drift_label`; none: "m or rad").
     """
     import matplotlib.pyplot as plt
 
@@ -477,7 +494,7 @@ def drift_figure(
             elif np.isfinite(values).any():
                 zero.add((k, formalisms.index(formalism)))
     empty = []  # an empty panel says why, and so does the caption
-    for k, (_column, label) in enumerate(drawn):
+    for k, (column, label) in enumerate(drawn):
         for j, formalism in enumerate(formalisms):
             ax = axes[k, j]
             if ax.lines:
@@ -490,6 +507,8 @@ def drift_figure(
                 empty.append(f"{formalism}'s {label.split(' [')[0]} {why}")
             if k == 0:
                 ax.set_title(formalism, fontsize="small")
+            if j == 0 and column in ("drift_pos", "drift_vel"):
+                label = drift_label(label, units)
             if j == 0:
                 ax.set_ylabel(label.replace(" [", "\n["), fontsize="small")
             if k == len(drawn) - 1:

@@ -528,7 +528,7 @@ def problem_section(
     with figure_formats(formats):
         work_precision = work_precision_figure(runs, out, problem, cost)
         picture = mechanism_picture(sketch, out, problem) if sketch is not None else None
-        drift, rtol = drift_figure(runs, series, out, problem)
+        drift, rtol = drift_figure(runs, series, out, problem, traits.drift_units)
         error = error_figure(runs, series, out, problem, cost)
     table = None
     if rtol is not None:
