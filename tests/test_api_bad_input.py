@@ -188,3 +188,15 @@ def test_a_row_written_by_run_has_the_log_column_the_schema_gives(fake_plugins, 
 
     result = workbench.run(*RUN, out=tmp_path / "out")
     assert store.load_results(tmp_path / "out").set_index("run_id").loc[result.run_id, "log"] == ""
+
+
+def test_describe_gives_each_option_its_unit() -> None:
+    """``workbench describe`` printed units and ``wb.describe`` did not (qa3d, left then):
+    the heavy top's spin of 50 is an angular velocity about its body axis, in rad/s."""
+    description = workbench.describe("heavy-top")
+    assert description.options.loc["spin", "unit"] == "rad/s"
+    assert description.options.loc["initial_tilt", "unit"] == "rad"
+    assert "option spin (float) = 50.0 rad/s" in repr(description)
+    assert "unit" in description._repr_html_()
+    integrator = workbench.describe("scipy-dop853").options
+    assert "unit" in integrator.columns  # the same table for every kind of plugin

@@ -11,7 +11,7 @@ import pandas as pd
 
 from workbench.errors import PluginError
 from workbench.plugin import registry
-from workbench.plugin.options import option_fields, type_name
+from workbench.plugin.options import option_fields, option_units, type_name
 
 
 def list_plugins(kind: str | None = None) -> pd.DataFrame:
@@ -67,7 +67,8 @@ class Description:
         for name, row in self.options.iterrows():
             value = row.get("value", row["default"])
             default = "" if _same(value, row["default"]) else f" (default {row['default']!r})"
-            lines.append(f"  option {name} ({row['type']}) = {value!r}{default}")
+            unit = f" {row['unit']}" if row.get("unit") else ""
+            lines.append(f"  option {name} ({row['type']}) = {value!r}{unit}{default}")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -114,11 +115,13 @@ def describe(name: str | type, **options: Any) -> Description:
         name = plugin.name
     else:
         kind, plugin = registry.any_plugin(name)
+    options_class = getattr(plugin, "Options", None) or _NoOptions
+    units = option_units(options_class)
     rows = [
-        {"name": n, "type": type_name(t), "default": d}
-        for n, t, d in option_fields(getattr(plugin, "Options", None) or _NoOptions)
+        {"name": n, "type": type_name(t), "unit": units.get(n, ""), "default": d}
+        for n, t, d in option_fields(options_class)
     ]
-    table = pd.DataFrame(rows, columns=["name", "type", "default"]).set_index("name")
+    table = pd.DataFrame(rows, columns=["name", "type", "unit", "default"]).set_index("name")
     description = Description(name, kind, plugin, table)
     if kind == "problem":
         problem = plugin(options)
