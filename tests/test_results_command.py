@@ -312,7 +312,8 @@ def test_results_of_part_of_the_planned_sweep_say_so_as_the_report_does(results:
 
 def test_results_name_the_rows_outside_the_plan_as_the_report_does(results: Path) -> None:
     """Rows of other sweeps in the folder (not in plan.json) were counted in the verdicts
-    with a count at most (qa3c F4): the notice names them and says they count."""
+    with a count at most (qa3c F4): the notice names them and says they count, under a
+    heading that says so ("Not the whole sweep" had headed it too)."""
     from workbench.runs import store
 
     folder = results.parent
@@ -323,7 +324,7 @@ def test_results_name_the_rows_outside_the_plan_as_the_report_does(results: Path
         extra = runner.invoke(app, ["results", str(folder), "--format", fmt])
         assert extra.exit_code == 0, extra.output
         assert extra.stderr.startswith(
-            "Not the whole sweep: 2 row(s) come from other sweeps run in this directory, "
+            "Not this sweep alone: 2 row(s) come from other sweeps run in this directory, "
             f"not from this sweep's plan (run {first['run_id']}: {first['problem']}, "
             f"{first['formalism']} / {first['integrator']}, rtol {first['rtol']:g}; run "
             f"{frame['run_id'].iloc[1]}: "
@@ -349,3 +350,25 @@ def test_the_terminal_table_says_what_scd_its_scd_and_rtol_are(results: Path) ->
     for fmt in ("csv", "latex"):
         other = runner.invoke(app, ["results", str(results), "-f", fmt])
         assert "significant digits" not in other.output, fmt
+
+
+def test_the_coverage_heading_says_which_way_the_rows_differ_from_the_plan(results: Path) -> None:
+    """Missing planned runs, rows of other sweeps, or both: each its own heading, on the
+    report's first screen and in `workbench results` alike."""
+    from workbench.outputs.report.analysis import coverage_heading
+    from workbench.runs import store
+
+    folder = results.parent
+    frame = pd.read_parquet(results)
+    ids = list(frame["run_id"])
+    both = {"run_ids": [*ids[2:], "0000000000000001"]}
+    assert coverage_heading(frame, {"run_ids": ids}) == ""
+    assert coverage_heading(frame, {"run_ids": [*ids, "0000000000000001"]}) == (
+        "Not the whole sweep")
+    assert coverage_heading(frame, {"run_ids": ids[2:]}) == "Not this sweep alone"
+    assert coverage_heading(frame, both) == "Not the whole sweep, and not it alone"
+    assert coverage_heading(frame, None) == ""
+    store.write_plan(folder, both["run_ids"], "sweep.toml")
+    mixed = runner.invoke(app, ["results", str(folder)])
+    assert mixed.stderr.startswith("Not the whole sweep, and not it alone: partial results")
+    assert "2 row(s) come from other sweeps" in mixed.stderr

@@ -613,7 +613,11 @@ def results(
     from pathlib import Path
 
     from workbench.errors import ConfigError
-    from workbench.outputs.report.analysis import coverage_notice, prepare_results
+    from workbench.outputs.report.analysis import (
+        coverage_heading,
+        coverage_notice,
+        prepare_results,
+    )
     from workbench.outputs.report.cost import resolve_cost
     from workbench.outputs.report.tables import table_cells
     from workbench.outputs.results_table import (
@@ -641,9 +645,10 @@ def results(
     # the report's red notice (templates/report.html.j2): a verdict on part of the
     # planned sweep (rows deleted, the sweep interrupted) says so here too
     folder = Path(path) if Path(path).is_dir() else Path(path).parent
-    notice = coverage_notice(frame, load_plan(folder))
+    plan = load_plan(folder)
+    notice = coverage_notice(frame, plan)
     if notice:
-        typer.secho(f"Not the whole sweep: {notice}.", fg="red", err=True)
+        typer.secho(f"{coverage_heading(frame, plan)}: {notice}.", fg="red", err=True)
 
     def split(text: str | None) -> list[str]:
         return [item.strip() for item in (text or "").split(",") if item.strip()]

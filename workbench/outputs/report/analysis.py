@@ -416,25 +416,18 @@ def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
     """A notice for the first screen when the rows are not the whole sweep that was
     planned (``plan``: :func:`workbench.runs.store.load_plan`): planned vs present runs,
     and rows of other sweeps (the first three named); '' when they are the plan exactly, or
-    no plan is known."""
-    if not plan:
-        return ""
-    planned = set(map(str, plan.get("run_ids", [])))
-    present = set(runs["run_id"].astype(str))
-    have = len(planned & present)
-    other = len(present - planned)
+    no plan is known. Its heading: :func:`coverage_heading`."""
+    planned, have, extra = _coverage(runs, plan)
     parts = []
-    if have < len(planned):
-        missing = len(planned) - have
+    if have < planned:
         parts.append(
             f"partial results: the sweep ({plan.get('source') or 'its specification'}) planned "
-            f"{len(planned)} runs and {have} of them have a row here, {missing} missing "
+            f"{planned} runs and {have} of them have a row here, {planned - have} missing "
             "(the sweep was interrupted, or the rows were filtered): run the same "
             "`workbench sweep` again to complete it"
         )
-    if other:
-        extra = runs[~runs["run_id"].astype(str).isin(planned)].drop_duplicates("run_id")
-        extra = extra.sort_values("run_id")  # the same names, whatever the rows' order
+    if len(extra):
+        other = len(extra)
         named = "; ".join(_run_label(row) for _, row in extra.head(3).iterrows())
         parts.append(
             f"{other} row(s) come from other sweeps run in this directory, not from this "
@@ -442,6 +435,27 @@ def coverage_notice(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
             "like its own"
         )
     return "; ".join(parts)
+
+
+def coverage_heading(runs: pd.DataFrame, plan: dict[str, Any] | None) -> str:
+    """The heading of :func:`coverage_notice`: "Not the whole sweep" when planned runs have
+    no row, "Not this sweep alone" when rows of other sweeps are counted, or both."""
+    planned, have, extra = _coverage(runs, plan)
+    missing, more = have < planned, len(extra) > 0
+    if missing and more:
+        return "Not the whole sweep, and not it alone"
+    return "Not the whole sweep" if missing else "Not this sweep alone" if more else ""
+
+
+def _coverage(runs: pd.DataFrame, plan: dict[str, Any] | None) -> tuple[int, int, pd.DataFrame]:
+    """Runs planned, how many of them have a row, and the rows of runs not planned (one a
+    run, by run_id); all zero and none without a plan."""
+    if not plan:
+        return 0, 0, runs.iloc[:0]
+    planned = set(map(str, plan.get("run_ids", [])))
+    ids = runs["run_id"].astype(str)
+    extra = runs[~ids.isin(planned)].drop_duplicates("run_id")
+    return len(planned), len(planned & set(ids)), extra.sort_values("run_id")
 
 
 def _run_label(row: pd.Series) -> str:

@@ -145,6 +145,7 @@ def render_page(
     decision: DecisionPage | None = None,
     coverage: str = "",
     stalled: Sequence[str] = (),
+    coverage_heading: str = "Not the whole sweep",
 ) -> str:
     """The page of a report whose tables are in ``tables/`` and figures in ``figures/``.
 
@@ -152,7 +153,8 @@ def render_page(
     footnotes: as :func:`workbench.outputs.report.analysis.status_matrix` gives them,
     ``"[n] text"``; the page numbers them itself. cost: the cost measure in force (stated
     on the page); timing_warning: shown at the top when not empty. decision: the first
-    screen's table (none: not shown); coverage: the partial-sweep notice ('' : none);
+    screen's table (none: not shown); coverage: the partial-sweep notice ('' : none)
+    under ``coverage_heading``;
     stalled: pairs whose error does not shrink with the tolerance
     (:func:`~workbench.outputs.report.analysis.stalled_pairs`), shown at the top.
     """
@@ -181,6 +183,7 @@ def render_page(
             stalled=list(stalled),
             decision=decision,
             coverage=coverage,
+            coverage_heading=coverage_heading,
             run_environment="; ".join(run_environment(runs)),
             versions=", ".join(f"{name} {version}" for name, version in library_versions().items()),
             machine=machine_description(),

@@ -26,6 +26,7 @@ from workbench.files import (
 from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
+    coverage_heading,
     coverage_notice,
     drift_runs,
     drift_table,
@@ -206,6 +207,7 @@ def write_report(
         decision=DecisionPage(decided, targets, measure.column),
         coverage=coverage_notice(runs, plan),
         stalled=stalled,
+        coverage_heading=coverage_heading(runs, plan),
     )
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
@@ -213,7 +215,8 @@ def write_report(
         intro = [
             f"{len(runs)} runs of {len(problems)} problem(s) and {runs['pair'].nunique()} "
             f"formalism / integrator pair(s); {measure.statement()}.",
-            *([coverage_notice(runs, plan) + "."] if plan and coverage_notice(runs, plan) else []),
+            *([f"{coverage_heading(runs, plan)}: {coverage_notice(runs, plan)}."]
+              if plan and coverage_notice(runs, plan) else []),  # fmt: skip
             *(f"Not converging: {line}." for line in stalled),
             overview.sentence,
         ]
