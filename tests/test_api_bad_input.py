@@ -200,3 +200,28 @@ def test_describe_gives_each_option_its_unit() -> None:
     assert "unit" in description._repr_html_()
     integrator = workbench.describe("scipy-dop853").options
     assert "unit" in integrator.columns  # the same table for every kind of plugin
+
+
+def test_every_built_in_option_of_a_physical_quantity_carries_its_unit() -> None:
+    """Step sizes, speeds, stiffnesses, end times and Baumgarte gains were printed as bare
+    numbers ('baumgarte_alpha (float) = 10.0'; their units only in source comments):
+    each now states its unit where `describe` shows it."""
+    import re
+
+    from workbench.plugin import registry
+    from workbench.plugin.options import option_units
+
+    registry.REGISTRY.discover()
+    physical = re.compile(r"(^|_)(step|speed|stiffness|t_end|baumgarte_alpha|baumgarte_beta)$")
+    bare = []
+    for kind in ("problem", "formalism", "integrator"):
+        for name in registry.REGISTRY.entries[kind]:
+            if name.startswith("test-"):
+                continue
+            options = getattr(registry.REGISTRY.get(kind, name), "Options", None)
+            for field, unit in option_units(options).items() if options else ():
+                if physical.search(field) and not unit:
+                    bare.append(f"{kind} {name}: {field}")
+    assert not bare, bare
+    assert workbench.describe("absolute-dae").options.loc["baumgarte_beta", "unit"] == "1/s"
+    assert workbench.describe("compliant-contact").options.loc["stiffness", "unit"] == "N/m"

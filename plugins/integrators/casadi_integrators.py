@@ -62,6 +62,7 @@ from workbench.plugin.integrator import (
     Trajectory,
     nonfinite_after,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 
@@ -231,7 +232,7 @@ class CasadiBase(Integrator):
 @dataclass(frozen=True)
 class SundialsOptions:
     max_num_steps: int = 10_000  # steps towards each output time
-    max_step: float = 0.0  # s; 0 = unbounded
+    max_step: float = with_unit(0.0, "s")  # 0 = unbounded
 
     def __post_init__(self) -> None:
         if self.max_num_steps < 1:

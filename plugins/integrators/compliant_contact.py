@@ -27,14 +27,15 @@ from scipy.integrate import solve_ivp
 from workbench.equations import Equations
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 from workbench.plugins.integrators._contact import constrained_solve, contact_state, refuse
 
 
 @dataclass(frozen=True)
 class CompliantOptions:
-    stiffness: float = 1e6  # N/m of every contact
-    slip_speed: float = 1e-4  # m/s: the regularization of Coulomb's law
+    stiffness: float = with_unit(1e6, "N/m")  # of every contact
+    slip_speed: float = with_unit(1e-4, "m/s")  # the regularization of Coulomb's law
 
     def __post_init__(self) -> None:
         if not (self.stiffness > 0 and math.isfinite(self.stiffness)):

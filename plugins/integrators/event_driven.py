@@ -47,6 +47,7 @@ from workbench.equations import Equations
 from workbench.errors import ConfigError
 from workbench.model import SphereContact
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 from workbench.plugins.integrators._contact import (
     contact_state,
@@ -61,7 +62,8 @@ OPEN, SLIP, STICK = 0, 1, 2
 @dataclass(frozen=True)
 class EventDrivenOptions:
     max_events: int = 1000  # events before the run stops (an accumulation of impacts)
-    rest_speed: float = 1e-6  # m/s; a contact leaving an impact slower than this stays closed
+    # a contact leaving an impact slower than this stays closed
+    rest_speed: float = with_unit(1e-6, "m/s")
 
     def __post_init__(self) -> None:
         if self.max_events < 1:

@@ -79,6 +79,7 @@ from workbench.plugin.integrator import (
     Trajectory,
     step_for_tolerance,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 
@@ -86,7 +87,7 @@ from workbench.plugin.registry import integrator
 class StepOptions:
     """The options every member of the generalized-alpha family shares."""
 
-    step: float | None = None  # s; None: from rtol (step_for_tolerance, order 2)
+    step: float | None = with_unit(None, "s")  # None: from rtol (step_for_tolerance, order 2)
     adaptive: bool = False
     newton_tol: float = 1e-10  # on the position increment, relative to 1 + |q|
     max_newton: int = 12

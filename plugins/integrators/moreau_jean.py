@@ -43,6 +43,7 @@ from workbench.plugin.integrator import (
     Trajectory,
     step_for_tolerance,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 from workbench.plugins.integrators._contact import (
     constrained_solve,
@@ -55,7 +56,7 @@ from workbench.plugins.integrators._contact import (
 
 @dataclass(frozen=True)
 class MoreauJeanOptions:
-    step: float = 0.0  # s; 0: from rtol (order 1)
+    step: float = with_unit(0.0, "s")  # 0: from rtol (order 1)
     theta: float = 0.5  # the theta-method's weight of v_k+1 in the position update
 
     def __post_init__(self) -> None:

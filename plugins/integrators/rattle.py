@@ -53,6 +53,7 @@ from workbench.plugin.integrator import (
     Trajectory,
     step_for_tolerance,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 ORDER = 2  # RATTLE is second order in positions and velocities (Hairer et al. VII.1)
@@ -60,7 +61,7 @@ ORDER = 2  # RATTLE is second order in positions and velocities (Hairer et al. V
 
 @dataclass(frozen=True)
 class RattleOptions:
-    step: float | None = None  # s; None: from rtol (step_for_tolerance, order 2)
+    step: float | None = with_unit(None, "s")  # None: from rtol (step_for_tolerance, order 2)
     newton_tol: float = 1e-13  # on the position constraint residual, relative to 1 + |q|
     max_newton: int = 20
 

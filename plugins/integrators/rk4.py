@@ -26,6 +26,7 @@ from workbench.plugin.integrator import (
     Trajectory,
     step_for_tolerance,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 ORDER = 4
@@ -33,7 +34,7 @@ ORDER = 4
 
 @dataclass(frozen=True)
 class Rk4Options:
-    step: float | None = None  # s; largest step; None: from rtol (step_for_tolerance)
+    step: float | None = with_unit(None, "s")  # largest step; None: from rtol (step_for_tolerance)
 
     def __post_init__(self) -> None:
         if self.step is not None and not (math.isfinite(self.step) and self.step > 0):

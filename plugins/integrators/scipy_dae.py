@@ -28,6 +28,7 @@ from scipy_dae.integrate import solve_dae
 
 from workbench.errors import ConfigError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 LEAST_RTOL = 100 * np.finfo(float).eps  # scipy_dae.integrate._dae.common's floor
@@ -36,7 +37,7 @@ ALGEBRAIC_ATOL = 1e10  # error weight 1 / (rtol |y| + atol) ~ 0: out of the erro
 
 @dataclass(frozen=True)
 class ScipyDaeOptions:
-    max_step: float = float("inf")  # s; upper bound on the step size
+    max_step: float = with_unit(float("inf"), "s")  # upper bound on the step size
     suppress_algebraic: bool = True  # multipliers out of the local error test
 
     def __post_init__(self) -> None:

@@ -24,6 +24,7 @@ from workbench.plugin.integrator import (
     LastEvaluation,
     Trajectory,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 LEAST_RTOL = 100 * np.finfo(float).eps  # scipy.integrate._ivp.common.validate_tol's floor
@@ -31,8 +32,8 @@ LEAST_RTOL = 100 * np.finfo(float).eps  # scipy.integrate._ivp.common.validate_t
 
 @dataclass(frozen=True)
 class ScipyOptions:
-    max_step: float = float("inf")  # s; upper bound on the step size
-    first_step: float | None = None  # s; None lets the method choose
+    max_step: float = with_unit(float("inf"), "s")  # upper bound on the step size
+    first_step: float | None = with_unit(None, "s")  # None lets the method choose
 
     def __post_init__(self) -> None:
         if not self.max_step > 0:

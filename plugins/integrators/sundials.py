@@ -41,6 +41,7 @@ from workbench.plugin.integrator import (
     LastEvaluation,
     Trajectory,
 )
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 
 ALGEBRAIC_ATOL = 1e10  # error weight 1 / (rtol |y| + atol) ~ 0: out of the error test
@@ -49,7 +50,7 @@ ALGEBRAIC_ATOL = 1e10  # error weight 1 / (rtol |y| + atol) ~ 0: out of the erro
 @dataclass(frozen=True)
 class SundialsOptions:
     max_steps: int = 100_000  # accepted steps in all before giving up
-    max_step: float = 0.0  # s; 0 = unbounded
+    max_step: float = with_unit(0.0, "s")  # 0 = unbounded
     max_order: int = 0  # 0 = the method's highest (BDF 5, Adams 12)
 
     def __post_init__(self) -> None:

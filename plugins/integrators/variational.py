@@ -49,6 +49,7 @@ from workbench.equations.evaluate import FastFunction
 from workbench.equations.initial import accelerations
 from workbench.errors import ConfigError, IntegrationError
 from workbench.plugin.integrator import IntegrationTask, Integrator, Trajectory
+from workbench.plugin.options import with_unit
 from workbench.plugin.registry import integrator
 from workbench.plugins.integrators.generalized_alpha import (
     default_step,
@@ -59,7 +60,7 @@ from workbench.plugins.integrators.generalized_alpha import (
 
 @dataclass(frozen=True)
 class VariationalOptions:
-    step: float | None = None  # s; None: from rtol (step_for_tolerance, order 2)
+    step: float | None = with_unit(None, "s")  # None: from rtol (step_for_tolerance, order 2)
     newton_tol: float = 1e-13  # on the position increment, relative to 1 + |q|
     max_newton: int = 30
 

@@ -53,7 +53,7 @@ from typing import Any, ClassVar, Literal
 
 from workbench.errors import ConfigError, PluginError
 from workbench.model import Model
-from workbench.plugin.options import NoOptions, parse_options
+from workbench.plugin.options import NoOptions, parse_options, with_unit
 
 FEATURES = {
     "planar": "planar model",
@@ -103,8 +103,8 @@ class ConstraintOptions(CompileOptions):
     ``dae`` form and the Baumgarte gains of index 1 (whose system is also the ``ode`` form)."""
 
     index: Literal[1, 2, 3] = 3
-    baumgarte_alpha: float = 10.0
-    baumgarte_beta: float = 10.0
+    baumgarte_alpha: float = with_unit(10.0, "1/s")  # g'' + 2 alpha g' + beta^2 g = 0
+    baumgarte_beta: float = with_unit(10.0, "1/s")
 
     def __post_init__(self) -> None:
         if self.baumgarte_alpha < 0 or self.baumgarte_beta < 0:

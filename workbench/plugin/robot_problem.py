@@ -28,6 +28,7 @@ from workbench.errors import ConfigError, ModelError
 from workbench.model import JointSpringDamper, Model
 from workbench.model.importers import ImportedRobot, load_robot, robot_format
 from workbench.model.importers.file_roots import DEFAULT_MAX_MB
+from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Problem
 from workbench.plugin.registry import problem
 
@@ -42,7 +43,7 @@ FILE_OPTIONS = ("file", "package_path", "allow_roots")
 @dataclass(frozen=True)
 class RobotOptions:
     file: str = ""
-    t_end: float = 1.0
+    t_end: float = with_unit(1.0, "s")
     n_samples: int = 101
     q0: Any = None
     v0: Any = None
@@ -51,7 +52,7 @@ class RobotOptions:
     keyframe: int = 0  # MJCF: the keyframe of the initial state, if the file has one
     package_path: tuple[str, ...] = ()  # folders holding the packages package:// names
     allow_roots: tuple[str, ...] = ()  # folders outside the file's own it may read
-    max_file_mb: float = DEFAULT_MAX_MB  # the largest file it may make the workbench read
+    max_file_mb: float = with_unit(DEFAULT_MAX_MB, "MB")  # the largest file it may read
     meshes: bool = True  # URDF: False imports without checking the visual mesh files
     drop: tuple[str, ...] = ()  # MJCF: terms the model cannot hold, left out (DROPPABLE)
 
