@@ -47,7 +47,6 @@ import numpy as np
 
 import workbench.plugin.registry
 from workbench.model import Model, Shape
-from workbench.plugin.options import with_unit
 from workbench.plugin.problem import Problem, Reference
 
 GRAVITY = 9.81  # m/s^2
@@ -138,7 +137,7 @@ class InclineBlock(Problem):
     n_samples = 201
     conservative = False
     friction: float = 0.3
-    speed: float = with_unit(0.0, "m/s")  # down the slope at t = 0
+    speed: float = 0.0  # m/s down the slope at t = 0 (a class attribute, not an option)
 
     def model(self) -> Model:
         model = Model(self.name, kind="planar", gravity=(0.0, -GRAVITY, 0.0))
