@@ -35,12 +35,13 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
+from workbench.errors import PluginError
 from workbench.model import Model
 from workbench.plugin.options import NoOptions, parse_options
 
@@ -161,8 +162,20 @@ def _with_initial_configuration(build: Callable[[Problem], Model]) -> Callable[[
     @functools.wraps(build)
     def model(self: Problem) -> Model:
         built = build(self)
-        if isinstance(built, Model) and not built.initial_configuration:
-            built.initial_configuration = dict(self.initial_joint_coordinates())
+        if not isinstance(built, Model):
+            raise PluginError(
+                f"problem {self.name!r}: model() returned {type(built).__name__}, not a "
+                "workbench.model.Model; end it with `return model`"
+            )
+        if not built.initial_configuration:
+            coordinates = self.initial_joint_coordinates()
+            if not isinstance(coordinates, Mapping):
+                raise PluginError(
+                    f"problem {self.name!r}: initial_joint_coordinates() returned "
+                    f"{type(coordinates).__name__}, not a mapping of joint name -> value(s); "
+                    "return e.g. {'pivot': 0.3}"
+                )
+            built.initial_configuration = dict(coordinates)
         return built
 
     return model
