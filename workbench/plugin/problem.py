@@ -16,8 +16,9 @@ A problem plugin subclasses :class:`Problem` and registers with
    their neutral value / at rest);
 5. optionally declare ``independent_coordinates`` (joint name, index) kept fixed when the
    initial state is projected onto the loop-closure and nonholonomic constraints;
-6. declare ``conservative`` (energy conserved) and :meth:`invariants` (other conserved
-   quantities);
+6. declare ``conservative`` (energy conserved: no drive, damping or applied force does
+   work; a property when it depends on the options) and :meth:`invariants` (other
+   conserved quantities);
 7. optionally give a :meth:`reference`: analytic body poses. Without one, a stored
    trajectory in ``references/`` beside the module (``workbench reference NAME``) is used,
    else a computed one: that choice is made by :mod:`workbench.runs.references`;
