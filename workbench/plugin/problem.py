@@ -81,8 +81,18 @@ class Invariant:
                     "it broadcast over the leading sample axis or set vectorized=False"
                 )
             return values
-        samples = zip(times, poses, twists, strict=True)
-        return np.array([float(self.function(model, t, p, w)) for t, p, w in samples])
+        values = []
+        for t, p, w in zip(times, poses, twists, strict=True):
+            value = np.asarray(self.function(model, t, p, w), dtype=float)
+            if value.size != 1:
+                raise ValueError(
+                    f"invariant {self.name!r} returned shape {value.shape} for one sample "
+                    f"(expected a number); it is called with one sample's poses "
+                    f"{np.shape(p)} and twists {np.shape(w)}, bodies on the first axis "
+                    "(e.g. twists[k, 5]), unless declared vectorized=True"
+                )
+            values.append(value.item())
+        return np.array(values)
 
 
 @dataclass(frozen=True)
