@@ -67,8 +67,32 @@ def _independent_columns(kinematics: TreeKinematics, problem: Any, velocities: b
                 "tree joint"
             )
         q_slice, v_slice = kinematics.joint_slices[joint_name]
+        for where, part in (("coordinates", q_slice), ("velocities", v_slice)):
+            size = part.stop - part.start
+            if not 0 <= index < size:  # else it names the next joint's coordinate
+                raise IntegrationError(
+                    f"problem {problem.name!r}: independent coordinate ({joint_name!r}, "
+                    f"{index}) is out of range: joint {joint_name!r} has {size} {where}; "
+                    f"give an index from 0 to {size - 1}"
+                )
         columns.append((v_slice if velocities else q_slice).start + index)
     return columns
+
+
+def _held_too_much(kinematics: TreeKinematics, problem: Any, jacobian: np.ndarray,
+                   fixed: list[int]) -> str:  # fmt: skip
+    """Why the closure cannot be met with the independent coordinates held ("" when they
+    are not the reason): without them the closure Jacobian loses rank."""
+    free = [c for c in range(jacobian.shape[1]) if c not in fixed]
+    rank, left = np.linalg.matrix_rank(jacobian), np.linalg.matrix_rank(jacobian[:, free])
+    if not fixed or left >= rank:
+        return ""
+    chosen = ", ".join(f"{name}[{index}]" for name, index in problem.independent_coordinates)
+    return (
+        f"; the independent coordinates ({chosen}) are held fixed, and the others can meet "
+        f"only {left} of the {rank} independent closure conditions: declare fewer, or ones "
+        "the loop does not fix"
+    )
 
 
 def _dependent_columns(jacobian: np.ndarray, fixed: list[int]) -> np.ndarray:
@@ -122,10 +146,13 @@ def project_joint_state(
         if not solution.converged:
             g = solution.residual
             worst = int(np.argmax(np.abs(g)))
+            held = _held_too_much(kinematics, problem, np.asarray(g_function(t0, solution.x)[1]),
+                                  fixed)  # fmt: skip
             raise IntegrationError(
                 f"initial state: the loop-closure constraints could not be satisfied; the largest "
-                f"residual is {kinematics.closure_names[worst]} = {g[worst]:.3g}; give initial "
-                "joint coordinates closer to an assembled configuration"
+                f"residual is {kinematics.closure_names[worst]} = {g[worst]:.3g}"
+                + (held or "; give initial joint coordinates closer to an assembled "
+                   "configuration")
             )
         q = solution.x
     v = v.copy()

@@ -14,8 +14,9 @@ A problem plugin subclasses :class:`Problem` and registers with
 4. implement :meth:`initial_joint_coordinates` / :meth:`initial_joint_velocities`:
    values for the spanning-tree joints that are not driven (joints left out start at
    their neutral value / at rest);
-5. optionally declare ``independent_coordinates`` (joint name, index) kept fixed when the
-   initial state is projected onto the loop-closure and nonholonomic constraints;
+5. optionally declare ``independent_coordinates`` (joint name, index within that joint's
+   coordinates) kept fixed when the initial state is projected onto the loop-closure and
+   nonholonomic constraints: at most as many as the degrees of freedom;
 6. declare ``conservative`` (energy conserved: no drive, damping or applied force does
    work; a property when it depends on the options) and :meth:`invariants` (other
    conserved quantities);
