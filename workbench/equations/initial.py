@@ -189,7 +189,42 @@ def consistent_initial_state(
     q, v = equations.joint_space_map(t0, q_joint, v_joint)
     q, v = np.ravel(q), np.ravel(v)
     acceleration, multipliers, qdot, method = accelerations_and_method(equations, t0, q, v)
+    if method.startswith("least squares") or not np.all(np.isfinite(acceleration)):
+        _refuse_undetermined_motion(equations, problem, t0, q)
     return InitialState(t0, q, v, qdot, acceleration, multipliers, q_joint, v_joint, method)
+
+
+def _refuse_undetermined_motion(equations: Equations, problem: Any, t0: float,
+                                q: np.ndarray) -> None:  # fmt: skip
+    """Raise when M is singular on the velocities the constraints allow (a massless body
+    free to move, two slides along one axis with nothing between them): the accelerations
+    are then not determined, and every formalism failed later with a NaN right-hand side or
+    a LAPACK message, or gave one of the infinitely many answers. Redundant constraint
+    rows alone (a rank-deficient W) pass: those are the least-squares solve's purpose."""
+    mech = equations.forms.get("mechanical")
+    if mech is None:
+        return
+    mass = np.atleast_2d(np.asarray(mech.mass(t0, q)[0], dtype=float))
+    nv, nc = mass.shape[0], mech.n_constraints
+    w_matrix = np.zeros((0, nv))
+    if nc:
+        w_matrix = np.reshape(np.asarray(mech.velocity_matrix(t0, q)[0], dtype=float), (nc, nv))
+    rows = independent_rows(w_matrix) if nc else []
+    w_matrix = w_matrix[rows]
+    kkt = np.block([[mass, w_matrix.T], [w_matrix, np.zeros((len(rows), len(rows)))]])
+    singular = np.linalg.svd(kkt)
+    tolerance = 1e-12 * max(singular.S[0], 1e-300) * kkt.shape[0]
+    if singular.S[-1] > tolerance:
+        return
+    free = singular.Vh[-1, :nv]  # a velocity the constraints allow and M gives no inertia
+    names = [equations.v_names[k] for k in np.argsort(-np.abs(free))
+             if abs(free[k]) > 1e-6 * np.abs(free).max()]
+    raise IntegrationError(
+        f"problem {problem.name!r}: the mass matrix is singular on the motions the "
+        f"constraints allow at t = {t0:g} s: a motion of {', '.join(names[:6])} has no "
+        "inertia, so the accelerations are not determined; give the bodies it moves mass "
+        "(and rotational inertia), or remove the joint that adds no motion"
+    )
 
 
 def accelerations(
