@@ -422,6 +422,19 @@ def test_drive_acceleration_not_the_derivative_of_its_velocity() -> None:
         model.validate()
 
 
+def test_drive_written_with_the_math_module() -> None:
+    """math.sin of a CasADi symbol is nan without a word: minimal-ode then ran 'ok' with no
+    error measured, recursive failed with 'array must not contain infs or NaNs'."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: 0.1 * math.sin(3 * t), lambda t: 0.3 * math.cos(3 * t),
+                  lambda t: -0.9 * math.sin(3 * t))
+    model.add_joint("shake", "prismatic", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'shake'.*position gives \[nan\] at t = 0 when "
+                       r"t is a CasADi symbol.*casadi.sin"):
+        model.validate()
+
+
 def test_consistent_drives_pass() -> None:
     """Exact derivatives pass, on a prismatic and a spherical joint (the quaternion's
     rate is not compared with the angular velocity)."""

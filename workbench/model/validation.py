@@ -396,6 +396,16 @@ def _check_drive_derivatives(model: Model, what: str, drive: Any, rates_are_v: b
             f"({type(error).__name__}: {error}); write them with casadi functions "
             "(casadi.sin ...), which accept floats and symbols alike"
         ) from None
+    functions = {"position": q, "velocity": v, "acceleration": a}
+    for name, expression in functions.items():
+        on_symbol = ca.Function("drive_" + name, [t], [expression])
+        at_zero = np.asarray(on_symbol(0.0), dtype=float).reshape(-1)
+        if not np.all(np.isfinite(at_zero)):  # finite on the float 0.0 (checked before)
+            raise ModelError(
+                f"{_where(model, what)}: the drive's {name} gives {at_zero.tolist()} at t = 0 "
+                "when t is a CasADi symbol (the math module turns a symbol into nan); write "
+                "it with casadi functions (casadi.sin ...), which accept floats and symbols"
+            )
     pairs = {("velocity", "position"): (ca.jacobian(q, t), v)} if rates_are_v else {}
     pairs[("acceleration", "velocity")] = (ca.jacobian(v, t), a)
     for (name, of), (exact, given) in pairs.items():
