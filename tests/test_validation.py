@@ -435,6 +435,27 @@ def test_drive_written_with_the_math_module() -> None:
         model.validate()
 
 
+def test_forces_written_with_the_math_module() -> None:
+    """A motor torque 0.5 sin 2t written with math.sin: nan on the symbols every formalism
+    builds with, and runs failed with 'array must not contain infs or NaNs'. Written with
+    casadi.sin, and an applied force that is finite, they pass."""
+    model = pendulum()
+    model.add_force(JointForce("motor", "hinge", lambda t, q, v: 0.5 * math.sin(2 * t)))
+    with pytest.raises(ModelError, match=r"force 'motor': the function gives \[nan\] when its "
+                       r"arguments are CasADi symbols but \[0.0\] on the same numbers"):
+        model.validate()
+    model = pendulum()
+    model.add_force(AppliedForce("push", "link", np.zeros(3), lambda t, r, rot, v, w: (
+        (math.cos(t), 0, 0), (0, 0, 0))))  # fmt: skip
+    with pytest.raises(ModelError, match=r"force 'push': the function gives \[nan, 0.0"):
+        model.validate()
+    model = pendulum()
+    model.add_force(JointForce("motor", "hinge", lambda t, q, v: 0.5 * ca.sin(2 * t) - q))
+    model.add_force(AppliedForce("push", "link", np.zeros(3), lambda t, r, rot, v, w: (
+        ca.vertcat(ca.cos(t), 0, 0) - v, ca.DM.zeros(3))))  # fmt: skip
+    model.validate()
+
+
 def test_consistent_drives_pass() -> None:
     """Exact derivatives pass, on a prismatic and a spherical joint (the quaternion's
     rate is not compared with the angular velocity)."""

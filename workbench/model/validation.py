@@ -11,7 +11,8 @@ this order, so the first message is the most local one:
    values as the joint has coordinates and velocities, its velocity and acceleration the
    exact time derivatives of its position and velocity);
 4. every force element, nonholonomic constraint and contact: names they refer to, finite
-   parameters, signs of stiffness, damping and radii, restitution in [0, 1];
+   parameters, signs of stiffness, damping and radii, restitution in [0, 1], force
+   functions that are not nan on CasADi symbols where they are finite on numbers;
 5. the topology: every body is the child of exactly one tree joint and reaches the
    ground through tree joints;
 6. point masses whose joint would let them spin with no rotational inertia.
@@ -483,12 +484,19 @@ def _check_force(model: Model, element: Any) -> None:
                     "quaternion, scalar first" + (", after the position)" if size == 7 else ")")
                 )
     elif isinstance(element, JointForce):
-        _known_joint(model, what, element.joint)
+        joint = _known_joint(model, what, element.joint)
         _check_callable(model, what, element.function)
+        nq, nv = JOINT_DIMENSIONS[joint.type]
+        q = np.zeros(nq)  # the neutral coordinates: a unit quaternion where there is one
+        if joint.type in ("spherical", "free"):
+            q[nq - 4] = 1.0
+        _check_symbolic(model, what, element.function, [0.0, q, np.zeros(nv)])
     elif isinstance(element, AppliedForce):
         _known_body(model, what, "body", element.body, allow_ground=False)
         _finite_vector(model, what, "point", element.point)
         _check_callable(model, what, element.function)
+        _check_symbolic(model, what, element.function,
+                        [0.0, np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3)])
     else:
         raise ModelError(
             f"{_where(model, what)}: {type(element).__name__} is not a force element; use "
@@ -508,6 +516,41 @@ def _known_joint(model: Model, what: str, name: Any) -> Joint:
 def _check_callable(model: Model, what: str, function: Any) -> None:
     if not callable(function):
         raise ModelError(f"{_where(model, what)}: function must be callable, not {function!r}")
+
+
+def _check_symbolic(model: Model, what: str, function: Any, values: list[Any]) -> None:
+    """A force function is evaluated on CasADi symbols: one that is nan there but finite on
+    the same numbers (written with the math module, which turns a symbol into nan without a
+    word) is refused. Failures of the function itself are left to the build, which names
+    them; ``values``: a state to compare at (t, then the arguments' numbers)."""
+    symbols = [ca.SX.sym(f"x{k}", *np.shape(v)) if np.ndim(v) else ca.SX.sym(f"x{k}")
+               for k, v in enumerate(values)]
+    try:
+        on_symbols = _flattened(function(*symbols))
+        on_numbers = np.concatenate([np.asarray(x, dtype=float).reshape(-1)
+                                     for x in _as_parts(function(*values))])
+    except Exception:  # noqa: BLE001 - the build reports the function's own failure
+        return
+    evaluate = ca.Function("force_on_symbols", symbols, [on_symbols])
+    at_values = np.asarray(evaluate(*values), dtype=float).reshape(-1)
+    if np.all(np.isfinite(on_numbers)) and not np.all(np.isfinite(at_values)):
+        raise ModelError(
+            f"{_where(model, what)}: the function gives {at_values.tolist()} when its arguments "
+            f"are CasADi symbols but {on_numbers.tolist()} on the same numbers (the math "
+            "module turns a symbol into nan); write it with casadi functions (casadi.sin ...)"
+        )
+
+
+def _as_parts(value: Any) -> list[Any]:
+    """A force function's value as a list of its parts ((force, torque) or one vector)."""
+    return list(value) if isinstance(value, tuple) else [value]
+
+
+def _flattened(value: Any) -> ca.SX:
+    """A force function's value on symbols as one SX column."""
+    parts = [_symbolic_column(list(p) if isinstance(p, np.ndarray) and p.dtype == object else p)
+             for p in _as_parts(value)]
+    return ca.vertcat(*parts)
 
 
 def _check_nonholonomic(model: Model, constraint: Any) -> None:
