@@ -14,8 +14,14 @@ import math
 import numpy as np
 import pytest
 
-from workbench.equations.initial import accelerations_and_method, solve_accelerations
+from workbench.equations.initial import (
+    accelerations_and_method,
+    consistent_initial_state,
+    solve_accelerations,
+)
+from workbench.errors import IntegrationError
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
+from workbench.model import Model
 from workbench.plugin.registry import get_formalism, get_problem
 from workbench.problems.iftomm import a02_coefficient
 
@@ -75,3 +81,54 @@ def test_least_squares_only_for_a_rank_deficient_system_and_said() -> None:
     )
     assert indefinite[2] == "LU of the KKT matrix"
     np.testing.assert_array_equal(indefinite[0], [1.0, 0.0])
+
+
+class Slides:
+    """A massless carriage on a slide along x carrying a 1 kg block: on a second slide
+    along x (``parallel``: M singular, the carriage's x is not determined) or on a
+    revolute joint 0.5 m from the block's centre (a pendulum on a massless cart: M is
+    singular in absolute coordinates, regular where the joints tie the carriage)."""
+
+    name, t_start = "slides", 0.0
+    independent_coordinates = None
+
+    def __init__(self, parallel: bool) -> None:
+        self.parallel = parallel
+
+    def model(self) -> Model:
+        model = Model(self.name, kind="planar")
+        model.add_point_mass("carriage", 0.0)
+        model.add_body("block", 1.0, com=(0.0, -0.5, 0.0), inertia=0.1)
+        model.add_joint("rail", "prismatic", "ground", "carriage", axis=(1, 0, 0))
+        kind, axis = ("prismatic", (1, 0, 0)) if self.parallel else ("revolute", (0, 0, 1))
+        model.add_joint("second", kind, "carriage", "block", axis=axis)
+        return model.validate()
+
+    def initial_joint_coordinates(self) -> dict:
+        return {}
+
+    def initial_joint_velocities(self) -> dict:
+        return {"rail": 1.0}
+
+
+@pytest.mark.parametrize("formalism, options", [("minimal-ode", {"index": 1}),
+                                                ("recursive", {}),
+                                                ("absolute-dae", {"index": 1})])  # fmt: skip
+def test_a_mass_matrix_singular_where_the_joints_allow_motion_is_refused(
+    formalism: str, options: dict
+) -> None:
+    """Two slides along x with a massless carriage between them: the initial state named
+    no culprit (minimal-ode and lagrange-ad then failed at once with a NaN right-hand
+    side, absolute-dae with LAPACK's 'row is exactly zero', recursive ran 'ok' on one of
+    infinitely many motions). A massless cart under a pendulum is not refused."""
+    for parallel in (True, False):
+        problem = Slides(parallel)
+        equations = get_formalism(formalism)().build(problem.model(), options)
+        if not parallel:
+            state = consistent_initial_state(equations, problem)
+            assert np.all(np.isfinite(state.acceleration))
+            continue
+        with pytest.raises(IntegrationError, match=r"problem 'slides': the mass matrix is "
+                           r"singular on the motions the constraints allow at t = 0 s: a "
+                           r"motion of .* has no inertia"):
+            consistent_initial_state(equations, problem)

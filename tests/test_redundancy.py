@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from workbench.equations.initial import project_joint_state
-from workbench.errors import ModelError
+from workbench.errors import IntegrationError, ModelError
 from workbench.mechanics.kinematics import TreeKinematics, quaternion_slices
 from workbench.mechanics.topology import analyze, assemble
 from workbench.model import Frame, Model
@@ -94,6 +94,29 @@ def test_describe_assembles_a_four_bar_from_an_open_configuration() -> None:
     topology = analyze(model, q=q0)
     assert topology.assembled
     assert np.abs(closure_residual(kinematics, topology.configuration)).max() <= 1e-12
+
+
+def test_an_independent_coordinate_out_of_its_joint_is_refused() -> None:
+    """("crank-joint", 1) of a revolute joint was column 1 of q: the coupler's angle was
+    held instead of the crank's, and the run said ok."""
+    kinematics = TreeKinematics(four_bar("planar").validate())
+    problem = SimpleNamespace(name="four-bar", independent_coordinates=[("crank-joint", 1)])
+    q0 = np.array([0.3, -0.3, 0.3])
+    with pytest.raises(IntegrationError, match=r"\('crank-joint', 1\) is out of range: joint "
+                       r"'crank-joint' has 1 coordinates; give an index from 0 to 0"):
+        project_joint_state(kinematics, problem, 0.0, q0, np.zeros(3))
+
+
+def test_holding_every_joint_of_a_loop_is_named_as_the_reason_it_cannot_close() -> None:
+    """Three coordinates held in a one-DOF four-bar: not a matter of a better start."""
+    kinematics = TreeKinematics(four_bar("planar").validate())
+    every = [("crank-joint", 0), ("coupler-joint", 0), ("rocker-joint", 0)]
+    q0 = np.array([0.3, 0.1, 0.0])  # the rocker should be at 0.3: the loop is open
+    with pytest.raises(IntegrationError, match=r"the independent coordinates \(crank-joint\[0\], "
+                       r"coupler-joint\[0\], rocker-joint\[0\]\) are held fixed, and the "
+                       r"others can meet only 0 of the 2"):
+        project_joint_state(kinematics, SimpleNamespace(name="four-bar",
+                            independent_coordinates=every), 0.0, q0, np.zeros(3))  # fmt: skip
 
 
 def test_initial_state_projection_keeps_the_independent_coordinate() -> None:

@@ -15,7 +15,8 @@ from tests.test_report import synthetic_results
 from workbench.outputs.report import cheapest_pairs, prepare_results, write_report
 from workbench.outputs.report.decision import decision_rows, decision_targets
 from workbench.outputs.report.ranking import decide
-from workbench.outputs.report.traits import stiffness
+from workbench.outputs.report.traits import model_traits, stiffness
+from workbench.plugin.registry import get_problem
 from workbench.runs import store
 
 
@@ -146,6 +147,15 @@ def test_stiffness_is_read_from_the_integrators_statistics() -> None:
     assert stiffness(rows(2000)).startswith("stiff: explicit integrators took 42x")  # 50x, 33x
     assert stiffness(rows(60)).startswith("not stiff: explicit integrators took 1.2x")
     assert stiffness(rows(60)[2:]) == ""  # implicit ones only: the runs cannot tell
+
+
+def test_a_driven_joint_is_a_trait_of_its_problem() -> None:
+    """The rotating ring's spin is prescribed: its equations depend on time, which the
+    "why" said nothing of (it read "spatial, 2 bodies, 2 joints")."""
+    family, traits = model_traits(get_problem("rotating-ring")().model())
+    assert family == "open trees and chains"
+    assert "rheonomic (1 driven joint: spin; equations that depend on time)" in traits
+    assert not any("rheonomic" in t for t in model_traits(get_problem("slider-crank")().model())[1])
 
 
 def test_the_page_opens_with_the_decision_table_grouped_by_family(tmp_path: Path) -> None:

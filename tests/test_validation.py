@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -384,6 +385,90 @@ def test_drive_returning_nan() -> None:
     model.add_joint("motor", "revolute", "link", "b", drive=drive)
     with pytest.raises(ModelError, match=r"joint 'motor'.*velocity at t = 0.*not finite"):
         model.validate()
+
+
+def test_drive_with_too_many_values() -> None:
+    """A prismatic joint has one coordinate: a drive giving two was run as if it gave one."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: (t, t), lambda t: (1.0, 1.0), lambda t: (0.0, 0.0))
+    model.add_joint("shake", "prismatic", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'shake'.*position gives 2 value.*has 1 coord"):
+        model.validate()
+
+
+def test_drive_velocity_not_the_derivative_of_its_position() -> None:
+    """x = 0.1 sin 3t with x' = 0: every formalism integrated that incoherent motion."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: 0.1 * ca.sin(3 * t), lambda t: 0 * t, lambda t: 0 * t)
+    model.add_joint("shake", "prismatic", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'shake'.*velocity is not the time derivative "
+                       r"of its position: at t = 0 s, d\(position\)/dt = \[0.3\]"):
+        model.validate()
+
+
+def test_drive_acceleration_not_the_derivative_of_its_velocity() -> None:
+    """Checked on a spherical joint too, whose velocity is not the quaternion's rate."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(
+        lambda t: (ca.cos(t / 2), 0, 0, ca.sin(t / 2)),  # about z at 1 rad/s
+        lambda t: (0, 0, 1 + 0 * t),
+        lambda t: (0, 0, 1 + 0 * t),  # should be 0
+    )
+    model.add_joint("ball", "spherical", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'ball'.*acceleration is not the time deriv"):
+        model.validate()
+
+
+def test_drive_written_with_the_math_module() -> None:
+    """math.sin of a CasADi symbol is nan without a word: minimal-ode then ran 'ok' with no
+    error measured, recursive failed with 'array must not contain infs or NaNs'."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: 0.1 * math.sin(3 * t), lambda t: 0.3 * math.cos(3 * t),
+                  lambda t: -0.9 * math.sin(3 * t))
+    model.add_joint("shake", "prismatic", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'shake'.*position gives \[nan\] at t = 0 when "
+                       r"t is a CasADi symbol.*casadi.sin"):
+        model.validate()
+
+
+def test_forces_written_with_the_math_module() -> None:
+    """A motor torque 0.5 sin 2t written with math.sin: nan on the symbols every formalism
+    builds with, and runs failed with 'array must not contain infs or NaNs'. Written with
+    casadi.sin, and an applied force that is finite, they pass."""
+    model = pendulum()
+    model.add_force(JointForce("motor", "hinge", lambda t, q, v: 0.5 * math.sin(2 * t)))
+    with pytest.raises(ModelError, match=r"force 'motor': the function gives \[nan\] when its "
+                       r"arguments are CasADi symbols but \[0.0\] on the same numbers"):
+        model.validate()
+    model = pendulum()
+    model.add_force(AppliedForce("push", "link", np.zeros(3), lambda t, r, rot, v, w: (
+        (math.cos(t), 0, 0), (0, 0, 0))))  # fmt: skip
+    with pytest.raises(ModelError, match=r"force 'push': the function gives \[nan, 0.0"):
+        model.validate()
+    model = pendulum()
+    model.add_force(JointForce("motor", "hinge", lambda t, q, v: 0.5 * ca.sin(2 * t) - q))
+    model.add_force(AppliedForce("push", "link", np.zeros(3), lambda t, r, rot, v, w: (
+        ca.vertcat(ca.cos(t), 0, 0) - v, ca.DM.zeros(3))))  # fmt: skip
+    model.validate()
+
+
+def test_consistent_drives_pass() -> None:
+    """Exact derivatives pass, on a prismatic and a spherical joint (the quaternion's
+    rate is not compared with the angular velocity)."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    model.add_body("c", 1.0, inertia=CUBE)
+    shake = Drive(lambda t: 0.1 * ca.sin(3 * t), lambda t: 0.3 * ca.cos(3 * t),
+                  lambda t: -0.9 * ca.sin(3 * t))
+    spin = Drive(lambda t: (ca.cos(t / 2), 0, 0, ca.sin(t / 2)), lambda t: (0, 0, 1 + 0 * t),
+                 lambda t: (0, 0, 0 * t))
+    model.add_joint("shake", "prismatic", "link", "b", drive=shake)
+    model.add_joint("ball", "spherical", "b", "c", drive=spin)
+    model.validate()
 
 
 def test_driven_cut_joint_passes() -> None:

@@ -67,8 +67,32 @@ def _independent_columns(kinematics: TreeKinematics, problem: Any, velocities: b
                 "tree joint"
             )
         q_slice, v_slice = kinematics.joint_slices[joint_name]
+        for where, part in (("coordinates", q_slice), ("velocities", v_slice)):
+            size = part.stop - part.start
+            if not 0 <= index < size:  # else it names the next joint's coordinate
+                raise IntegrationError(
+                    f"problem {problem.name!r}: independent coordinate ({joint_name!r}, "
+                    f"{index}) is out of range: joint {joint_name!r} has {size} {where}; "
+                    f"give an index from 0 to {size - 1}"
+                )
         columns.append((v_slice if velocities else q_slice).start + index)
     return columns
+
+
+def _held_too_much(kinematics: TreeKinematics, problem: Any, jacobian: np.ndarray,
+                   fixed: list[int]) -> str:  # fmt: skip
+    """Why the closure cannot be met with the independent coordinates held ("" when they
+    are not the reason): without them the closure Jacobian loses rank."""
+    free = [c for c in range(jacobian.shape[1]) if c not in fixed]
+    rank, left = np.linalg.matrix_rank(jacobian), np.linalg.matrix_rank(jacobian[:, free])
+    if not fixed or left >= rank:
+        return ""
+    chosen = ", ".join(f"{name}[{index}]" for name, index in problem.independent_coordinates)
+    return (
+        f"; the independent coordinates ({chosen}) are held fixed, and the others can meet "
+        f"only {left} of the {rank} independent closure conditions: declare fewer, or ones "
+        "the loop does not fix"
+    )
 
 
 def _dependent_columns(jacobian: np.ndarray, fixed: list[int]) -> np.ndarray:
@@ -122,10 +146,13 @@ def project_joint_state(
         if not solution.converged:
             g = solution.residual
             worst = int(np.argmax(np.abs(g)))
+            held = _held_too_much(kinematics, problem, np.asarray(g_function(t0, solution.x)[1]),
+                                  fixed)  # fmt: skip
             raise IntegrationError(
                 f"initial state: the loop-closure constraints could not be satisfied; the largest "
-                f"residual is {kinematics.closure_names[worst]} = {g[worst]:.3g}; give initial "
-                "joint coordinates closer to an assembled configuration"
+                f"residual is {kinematics.closure_names[worst]} = {g[worst]:.3g}"
+                + (held or "; give initial joint coordinates closer to an assembled "
+                   "configuration")
             )
         q = solution.x
     v = v.copy()
@@ -162,7 +189,42 @@ def consistent_initial_state(
     q, v = equations.joint_space_map(t0, q_joint, v_joint)
     q, v = np.ravel(q), np.ravel(v)
     acceleration, multipliers, qdot, method = accelerations_and_method(equations, t0, q, v)
+    if method.startswith("least squares") or not np.all(np.isfinite(acceleration)):
+        _refuse_undetermined_motion(equations, problem, t0, q)
     return InitialState(t0, q, v, qdot, acceleration, multipliers, q_joint, v_joint, method)
+
+
+def _refuse_undetermined_motion(equations: Equations, problem: Any, t0: float,
+                                q: np.ndarray) -> None:  # fmt: skip
+    """Raise when M is singular on the velocities the constraints allow (a massless body
+    free to move, two slides along one axis with nothing between them): the accelerations
+    are then not determined, and every formalism failed later with a NaN right-hand side or
+    a LAPACK message, or gave one of the infinitely many answers. Redundant constraint
+    rows alone (a rank-deficient W) pass: those are the least-squares solve's purpose."""
+    mech = equations.forms.get("mechanical")
+    if mech is None:
+        return
+    mass = np.atleast_2d(np.asarray(mech.mass(t0, q)[0], dtype=float))
+    nv, nc = mass.shape[0], mech.n_constraints
+    w_matrix = np.zeros((0, nv))
+    if nc:
+        w_matrix = np.reshape(np.asarray(mech.velocity_matrix(t0, q)[0], dtype=float), (nc, nv))
+    rows = independent_rows(w_matrix) if nc else []
+    w_matrix = w_matrix[rows]
+    kkt = np.block([[mass, w_matrix.T], [w_matrix, np.zeros((len(rows), len(rows)))]])
+    singular = np.linalg.svd(kkt)
+    tolerance = 1e-12 * max(singular.S[0], 1e-300) * kkt.shape[0]
+    if singular.S[-1] > tolerance:
+        return
+    free = singular.Vh[-1, :nv]  # a velocity the constraints allow and M gives no inertia
+    names = [equations.v_names[k] for k in np.argsort(-np.abs(free))
+             if abs(free[k]) > 1e-6 * np.abs(free).max()]
+    raise IntegrationError(
+        f"problem {problem.name!r}: the mass matrix is singular on the motions the "
+        f"constraints allow at t = {t0:g} s: a motion of {', '.join(names[:6])} has no "
+        "inertia, so the accelerations are not determined; give the bodies it moves mass "
+        "(and rotational inertia), or remove the joint that adds no motion"
+    )
 
 
 def accelerations(

@@ -186,9 +186,11 @@ def health_audit(
 
 
 def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
-                   conservative: bool) -> list[str]:  # fmt: skip
+                   conservative: bool, energy_cause: str = "") -> list[str]:  # fmt: skip
     """The warnings of a row from its audit columns and metrics (see the module); rtol
-    below :data:`LEAST_RTOL` is judged as that."""
+    below :data:`LEAST_RTOL` is judged as that. ``energy_cause``: what in the model may
+    change the energy of a problem declared conservative, said after "energy not
+    conserved"."""
     found = []
     floor = f", rtol {rtol:g} taken as {LEAST_RTOL:.2g}" if rtol < LEAST_RTOL else ""
     rtol = max(rtol, LEAST_RTOL)
@@ -229,7 +231,8 @@ def audit_warnings(audit: dict[str, Any], metrics: dict[str, Any], rtol: float,
     energy = metrics.get("energy_err_max", math.nan)
     if conservative and energy > ENERGY_FACTOR * rtol:
         found.append(f"energy not conserved: relative error {energy:.2g} "
-                     f"(> {ENERGY_FACTOR:g} rtol{floor})")  # fmt: skip
+                     f"(> {ENERGY_FACTOR:g} rtol{floor})"
+                     + (f": {energy_cause}" if energy_cause else ""))  # fmt: skip
     accuracy = audit.get("reference_accuracy", math.nan)
     relative_end = metrics.get("err_end", math.nan) / metrics.get("length_scale", math.nan)
     if relative_end < accuracy and metrics.get("reference_kind") != "analytic":

@@ -57,6 +57,7 @@ from workbench.execution.audit import (
 from workbench.execution.contact_metrics import contact_metrics, penetration_series
 from workbench.execution.references import ReferencePoses
 from workbench.execution.row_schema import SERIES_COLUMNS
+from workbench.mechanics.forces import is_conservative_model
 from workbench.numerics.geometry import length_scale, pose_error
 
 # ---- the metrics ---------------------------------------------------------------------
@@ -97,6 +98,16 @@ def mixed_scd(poses: np.ndarray, reference: np.ndarray) -> float:
         return math.nan
     worst = float(np.max(known))
     return math.inf if worst == 0.0 else -math.log10(worst)
+
+
+def nonconservative_elements(problem: Any, model: Any) -> str:
+    """Why T + V may change in a problem declared conservative ("" when nothing does): its
+    model's drives, damping or applied forces, which an "energy not conserved" warning
+    names, so that it does not blame the methods for the declaration."""
+    if not problem.conservative or is_conservative_model(model):
+        return ""
+    return (f"the model of {problem.name!r}, declared conservative, has a drive, damping or "
+            "applied forces: if they change T + V, declare conservative = False")
 
 
 def trajectory_metrics(
@@ -231,7 +242,8 @@ def metric_columns(
 
     audit = health_audit(equations, times, y[:n], sampled.rotations, rtol, charts)
     audit["reference_accuracy"] = reference.accuracy
-    found = audit_warnings(audit, row, rtol, problem.conservative)
+    found = audit_warnings(audit, row, rtol, problem.conservative,
+                           energy_cause=nonconservative_elements(problem, equations.model))
     still = motionless_warning(np.asarray(y[:n], dtype=float))
     found += [still] if still else []
     audit.pop(MEASURE, None)

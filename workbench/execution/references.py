@@ -705,6 +705,12 @@ def problem_reference(
         if given is not None:
             try:
                 poses = np.asarray(given.poses(times), dtype=float)
+                shape = (times.size, len(problem.model().bodies), 7)
+                if poses.shape != shape:
+                    raise ValueError(
+                        f"the {given.kind} reference's poses(times) has shape {poses.shape}, "
+                        f"expected {shape} (times, bodies, position and unit quaternion)"
+                    )
                 accuracy = given.accuracy
                 if math.isnan(accuracy) and given.kind == "analytic":
                     accuracy = ANALYTIC_ACCURACY

@@ -29,19 +29,11 @@ import casadi as ca
 import numpy as np
 
 from workbench.model import Joint
+from workbench.model.elements import JOINT_DIMENSIONS
 from workbench.numerics import rotations as rot
 from workbench.numerics.backend import is_symbolic, matmul, ops, vector
 
-DIMENSIONS: dict[str, tuple[int, int]] = {
-    "revolute": (1, 1),
-    "prismatic": (1, 1),
-    "cylindrical": (2, 2),
-    "universal": (2, 2),
-    "spherical": (4, 3),
-    "planar": (3, 3),
-    "free": (7, 6),
-    "fixed": (0, 0),
-}
+DIMENSIONS: dict[str, tuple[int, int]] = JOINT_DIMENSIONS
 # Number of implicit constraint rows of a loop-closing joint.
 CONSTRAINT_ROWS: dict[str, dict[str, int]] = {
     "spatial": {t: 6 - nv for t, (_, nv) in DIMENSIONS.items()},

@@ -31,6 +31,18 @@ JOINT_TYPES: tuple[str, ...] = (
     "fixed",
 )
 PLANAR_JOINT_TYPES: tuple[str, ...] = ("revolute", "prismatic", "planar", "fixed")
+JOINT_DIMENSIONS: dict[str, tuple[int, int]] = {
+    "revolute": (1, 1),
+    "prismatic": (1, 1),
+    "cylindrical": (2, 2),
+    "universal": (2, 2),
+    "spherical": (4, 3),
+    "planar": (3, 3),
+    "free": (7, 6),
+    "fixed": (0, 0),
+}
+"""(nq, nv) of each joint type: its coordinates and velocities (the table of
+:mod:`workbench.mechanics.joints`); a drive gives nq positions and nv velocities."""
 
 
 def real_array(
@@ -136,9 +148,12 @@ class Body:
 class Drive:
     """A prescribed joint motion q(t) with its first and second time derivatives.
 
-    Each callable takes t (a float or a CasADi symbol) and returns the joint coordinates
-    (a float for a one-coordinate joint, else a sequence). Write them with ``casadi``
-    functions (``casadi.sin`` ...), which accept floats and symbols alike.
+    Each callable takes t (a float or a CasADi symbol) and returns the joint's nq
+    coordinates (position) or nv velocities (velocity, acceleration; ``JOINT_DIMENSIONS``),
+    a float for a one-coordinate joint, else a sequence. Write them with ``casadi``
+    functions (``casadi.sin`` ...), which accept floats and symbols alike. Validation
+    checks the sizes and that velocity and acceleration are the exact time derivatives
+    (a quaternion's rate is not compared with an angular velocity).
     """
 
     position: Callable[[Any], Any]

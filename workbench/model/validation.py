@@ -7,9 +7,12 @@ this order, so the first message is the most local one:
 2. every body: mass, centre of mass, inertia tensor (symmetric positive definite,
    triangle inequality of the principal moments), visual shapes;
 3. every joint: type (and its fit to a planar model), parent and child names, frames
-   (finite, orthonormal rotations, planar frames in the x-y plane), axes, drive;
+   (finite, orthonormal rotations, planar frames in the x-y plane), axes, drive (as many
+   values as the joint has coordinates and velocities, its velocity and acceleration the
+   exact time derivatives of its position and velocity);
 4. every force element, nonholonomic constraint and contact: names they refer to, finite
-   parameters, signs of stiffness, damping and radii, restitution in [0, 1];
+   parameters, signs of stiffness, damping and radii, restitution in [0, 1], force
+   functions that are not nan on CasADi symbols where they are finite on numbers;
 5. the topology: every body is the child of exactly one tree joint and reaches the
    ground through tree joints;
 6. point masses whose joint would let them spin with no rotational inertia.
@@ -22,11 +25,13 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
+import casadi as ca
 import numpy as np
 
 from workbench.errors import ModelError
 from workbench.model.elements import (
     GROUND,
+    JOINT_DIMENSIONS,
     JOINT_TYPES,
     PLANAR_JOINT_TYPES,
     AppliedForce,
@@ -345,7 +350,10 @@ def _check_drive(model: Model, what: str, joint: Joint) -> None:
             f"{'s' if len(missing) > 1 else ''}; give position, velocity and acceleration "
             "as functions of t (the exact first and second time derivatives)"
         )
-    for name in ("position", "velocity", "acceleration"):
+    nq, nv = JOINT_DIMENSIONS[joint.type]
+    sizes = {"position": (nq, "coordinates"), "velocity": (nv, "velocities"),
+             "acceleration": (nv, "velocities")}
+    for name, (size, counted) in sizes.items():
         try:
             value = np.asarray(getattr(drive, name)(0.0), dtype=float)
         except Exception as error:  # noqa: BLE001 - any failure of user code is reported
@@ -358,6 +366,73 @@ def _check_drive(model: Model, what: str, joint: Joint) -> None:
                 f"{_where(model, what)}: the drive's {name} at t = 0 is {value.tolist()}, "
                 "not finite; fix the function"
             )
+        if value.size != size:
+            raise ModelError(
+                f"{_where(model, what)}: the drive's {name} gives {value.size} value(s), but "
+                f"a {joint.type} joint has {size} {counted}; return {size} value(s)"
+            )
+    _check_drive_derivatives(model, what, drive, nq == nv)
+
+
+DRIVE_CHECK_TIMES: tuple[float, ...] = (0.0, 0.3183, 0.7071, 1.4142)
+"""Times (s) at which a drive's velocity and acceleration are compared with the exact
+derivatives of its position and velocity: t = 0 and three that are not round, so a
+piecewise drive's switching time is rarely hit."""
+
+DRIVE_DERIVATIVE_TOLERANCE = 1e-6
+"""Relative difference allowed between a drive's given and exact derivatives."""
+
+
+def _check_drive_derivatives(model: Model, what: str, drive: Any, rates_are_v: bool) -> None:
+    """The drive's velocity is d(position)/dt (where q' = v: not for a quaternion) and its
+    acceleration d(velocity)/dt, by CasADi's exact derivatives: an inconsistent drive
+    gives every formalism incoherent physics that no run would notice."""
+    t = ca.SX.sym("t")
+    try:
+        q, v, a = (_symbolic_column(f(t)) for f in (drive.position, drive.velocity,
+                                                    drive.acceleration))
+    except Exception as error:  # noqa: BLE001 - any failure of user code is reported
+        raise ModelError(
+            f"{_where(model, what)}: the drive's functions fail on a CasADi symbol t "
+            f"({type(error).__name__}: {error}); write them with casadi functions "
+            "(casadi.sin ...), which accept floats and symbols alike"
+        ) from None
+    functions = {"position": q, "velocity": v, "acceleration": a}
+    for name, expression in functions.items():
+        on_symbol = ca.Function("drive_" + name, [t], [expression])
+        at_zero = np.asarray(on_symbol(0.0), dtype=float).reshape(-1)
+        if not np.all(np.isfinite(at_zero)):  # finite on the float 0.0 (checked before)
+            raise ModelError(
+                f"{_where(model, what)}: the drive's {name} gives {at_zero.tolist()} at t = 0 "
+                "when t is a CasADi symbol (the math module turns a symbol into nan); write "
+                "it with casadi functions (casadi.sin ...), which accept floats and symbols"
+            )
+    pairs = {("velocity", "position"): (ca.jacobian(q, t), v)} if rates_are_v else {}
+    pairs[("acceleration", "velocity")] = (ca.jacobian(v, t), a)
+    for (name, of), (exact, given) in pairs.items():
+        difference = ca.Function("drive_derivative", [t], [exact, given])
+        for time in DRIVE_CHECK_TIMES:
+            derivative, value = (np.asarray(x, dtype=float).reshape(-1)
+                                 for x in difference(time))
+            if not (np.all(np.isfinite(derivative)) and np.all(np.isfinite(value))):
+                continue  # a singular instant (sqrt(t) at 0): nothing to compare
+            scale = 1.0 + max(np.abs(derivative).max(initial=0), np.abs(value).max(initial=0))
+            if np.abs(derivative - value).max(initial=0) > DRIVE_DERIVATIVE_TOLERANCE * scale:
+                raise ModelError(
+                    f"{_where(model, what)}: the drive's {name} is not the time derivative "
+                    f"of its {of}: at t = {time:g} s, d({of})/dt = "
+                    f"{np.round(derivative, 6).tolist()} but {name} = "
+                    f"{np.round(value, 6).tolist()}; give the exact derivative"
+                )
+
+
+def _symbolic_column(value: Any) -> ca.SX:
+    """A drive function's value on a symbol t as an SX column (floats become constants)."""
+    if isinstance(value, ca.SX | ca.DM):
+        return ca.vec(ca.SX(value))
+    if isinstance(value, list | tuple):
+        return ca.vertcat(*[ca.SX(item) for item in value])
+    return ca.vec(ca.SX(np.asarray(value, dtype=float)))
 
 
 # ---- force elements and nonholonomic constraints -------------------------------------
@@ -409,12 +484,19 @@ def _check_force(model: Model, element: Any) -> None:
                     "quaternion, scalar first" + (", after the position)" if size == 7 else ")")
                 )
     elif isinstance(element, JointForce):
-        _known_joint(model, what, element.joint)
+        joint = _known_joint(model, what, element.joint)
         _check_callable(model, what, element.function)
+        nq, nv = JOINT_DIMENSIONS[joint.type]
+        q = np.zeros(nq)  # the neutral coordinates: a unit quaternion where there is one
+        if joint.type in ("spherical", "free"):
+            q[nq - 4] = 1.0
+        _check_symbolic(model, what, element.function, [0.0, q, np.zeros(nv)])
     elif isinstance(element, AppliedForce):
         _known_body(model, what, "body", element.body, allow_ground=False)
         _finite_vector(model, what, "point", element.point)
         _check_callable(model, what, element.function)
+        _check_symbolic(model, what, element.function,
+                        [0.0, np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3)])
     else:
         raise ModelError(
             f"{_where(model, what)}: {type(element).__name__} is not a force element; use "
@@ -434,6 +516,41 @@ def _known_joint(model: Model, what: str, name: Any) -> Joint:
 def _check_callable(model: Model, what: str, function: Any) -> None:
     if not callable(function):
         raise ModelError(f"{_where(model, what)}: function must be callable, not {function!r}")
+
+
+def _check_symbolic(model: Model, what: str, function: Any, values: list[Any]) -> None:
+    """A force function is evaluated on CasADi symbols: one that is nan there but finite on
+    the same numbers (written with the math module, which turns a symbol into nan without a
+    word) is refused. Failures of the function itself are left to the build, which names
+    them; ``values``: a state to compare at (t, then the arguments' numbers)."""
+    symbols = [ca.SX.sym(f"x{k}", *np.shape(v)) if np.ndim(v) else ca.SX.sym(f"x{k}")
+               for k, v in enumerate(values)]
+    try:
+        on_symbols = _flattened(function(*symbols))
+        on_numbers = np.concatenate([np.asarray(x, dtype=float).reshape(-1)
+                                     for x in _as_parts(function(*values))])
+    except Exception:  # noqa: BLE001 - the build reports the function's own failure
+        return
+    evaluate = ca.Function("force_on_symbols", symbols, [on_symbols])
+    at_values = np.asarray(evaluate(*values), dtype=float).reshape(-1)
+    if np.all(np.isfinite(on_numbers)) and not np.all(np.isfinite(at_values)):
+        raise ModelError(
+            f"{_where(model, what)}: the function gives {at_values.tolist()} when its arguments "
+            f"are CasADi symbols but {on_numbers.tolist()} on the same numbers (the math "
+            "module turns a symbol into nan); write it with casadi functions (casadi.sin ...)"
+        )
+
+
+def _as_parts(value: Any) -> list[Any]:
+    """A force function's value as a list of its parts ((force, torque) or one vector)."""
+    return list(value) if isinstance(value, tuple) else [value]
+
+
+def _flattened(value: Any) -> ca.SX:
+    """A force function's value on symbols as one SX column."""
+    parts = [_symbolic_column(list(p) if isinstance(p, np.ndarray) and p.dtype == object else p)
+             for p in _as_parts(value)]
+    return ca.vertcat(*parts)
 
 
 def _check_nonholonomic(model: Model, constraint: Any) -> None:

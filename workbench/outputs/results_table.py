@@ -190,6 +190,10 @@ def unmatched(frame: pd.DataFrame, conditions: Sequence[str]) -> list[str]:
             known = sorted(set(values))
             listed = ", ".join(known[:20]) + (", ..." if len(known) > 20 else "")
             said.append(f"no run has {column}={value} (its values: {listed})")
+            names = frame.get("problem_name")
+            if column == "problem" and names is not None and names.astype(str).eq(value).any():
+                said.append(f"its runs are named with their problem options: "
+                            f"problem_name={value} keeps them all")  # fmt: skip
     return said
 
 

@@ -14,10 +14,12 @@ A problem plugin subclasses :class:`Problem` and registers with
 4. implement :meth:`initial_joint_coordinates` / :meth:`initial_joint_velocities`:
    values for the spanning-tree joints that are not driven (joints left out start at
    their neutral value / at rest);
-5. optionally declare ``independent_coordinates`` (joint name, index) kept fixed when the
-   initial state is projected onto the loop-closure and nonholonomic constraints;
-6. declare ``conservative`` (energy conserved) and :meth:`invariants` (other conserved
-   quantities);
+5. optionally declare ``independent_coordinates`` (joint name, index within that joint's
+   coordinates) kept fixed when the initial state is projected onto the loop-closure and
+   nonholonomic constraints: at most as many as the degrees of freedom;
+6. declare ``conservative`` (energy conserved: no drive, damping or applied force does
+   work; a property when it depends on the options) and :meth:`invariants` (other
+   conserved quantities);
 7. optionally give a :meth:`reference`: analytic body poses. Without one, a stored
    trajectory in ``references/`` beside the module (``workbench reference NAME``) is used,
    else a computed one: that choice is made by :mod:`workbench.runs.references`;
@@ -35,12 +37,13 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
+from workbench.errors import PluginError
 from workbench.model import Model
 from workbench.plugin.options import NoOptions, parse_options
 
@@ -79,8 +82,18 @@ class Invariant:
                     "it broadcast over the leading sample axis or set vectorized=False"
                 )
             return values
-        samples = zip(times, poses, twists, strict=True)
-        return np.array([float(self.function(model, t, p, w)) for t, p, w in samples])
+        values = []
+        for t, p, w in zip(times, poses, twists, strict=True):
+            value = np.asarray(self.function(model, t, p, w), dtype=float)
+            if value.size != 1:
+                raise ValueError(
+                    f"invariant {self.name!r} returned shape {value.shape} for one sample "
+                    f"(expected a number); it is called with one sample's poses "
+                    f"{np.shape(p)} and twists {np.shape(w)}, bodies on the first axis "
+                    "(e.g. twists[k, 5]), unless declared vectorized=True"
+                )
+            values.append(value.item())
+        return np.array(values)
 
 
 @dataclass(frozen=True)
@@ -161,8 +174,20 @@ def _with_initial_configuration(build: Callable[[Problem], Model]) -> Callable[[
     @functools.wraps(build)
     def model(self: Problem) -> Model:
         built = build(self)
-        if isinstance(built, Model) and not built.initial_configuration:
-            built.initial_configuration = dict(self.initial_joint_coordinates())
+        if not isinstance(built, Model):
+            raise PluginError(
+                f"problem {self.name!r}: model() returned {type(built).__name__}, not a "
+                "workbench.model.Model; end it with `return model`"
+            )
+        if not built.initial_configuration:
+            coordinates = self.initial_joint_coordinates()
+            if not isinstance(coordinates, Mapping):
+                raise PluginError(
+                    f"problem {self.name!r}: initial_joint_coordinates() returned "
+                    f"{type(coordinates).__name__}, not a mapping of joint name -> value(s); "
+                    "return e.g. {'pivot': 0.3}"
+                )
+            built.initial_configuration = dict(coordinates)
         return built
 
     return model

@@ -1,6 +1,7 @@
 """What a problem is like, for the report's "why": its family and traits from its model
-(closed loops, nonholonomic rows, rotations that need quaternions, robot geometry) and
-its stiffness from the integrators' own statistics, and which families of pairs won.
+(closed loops, nonholonomic rows, driven joints, rotations that need quaternions, robot
+geometry) and its stiffness from the integrators' own statistics, and which families of
+pairs won.
 
 The model comes from the problem's plugin (the registry) and the problem options of its
 rows; a problem whose plugin is not installed has only the traits its rows show.
@@ -89,6 +90,12 @@ def model_traits(model: Any) -> tuple[str, list[str]]:
             "rolling or knife-edge constraints",
         )
         traits.append(f"nonholonomic ({rows}: velocity constraints)")
+    driven = [j.name for j in joints if j.drive is not None]
+    if driven:
+        traits.append(
+            f"rheonomic ({_count(len(driven), 'driven joint', 'driven joints')}: "
+            f"{', '.join(driven)}; equations that depend on time)"
+        )
     if rotations:
         kinds = sorted({j.type for j in rotations})
         traits.append(f"3D rotations ({', '.join(kinds)} joints: Euler parameters)")
