@@ -349,3 +349,16 @@ def test_the_terminal_table_says_what_scd_its_scd_and_rtol_are(results: Path) ->
     for fmt in ("csv", "latex"):
         other = runner.invoke(app, ["results", str(results), "-f", fmt])
         assert "significant digits" not in other.output, fmt
+
+
+def test_a_warned_run_is_not_shown_as_plain_ok(results: Path) -> None:
+    """--by run printed 'ok' beside a warned run's scd (e.g. capped at the reference's
+    accuracy): the status says 'ok with warnings', as the report's status table counts it;
+    --where still selects by the stored status."""
+    frame = pd.read_parquet(results)
+    table = results_table(frame, by="run", columns=["run_id", "status", "scd"])
+    shown = table.set_index("run_id")["status"]
+    assert shown[frame.loc[0, "run_id"]] == "ok with warnings"
+    assert (shown.drop(frame.loc[0, "run_id"]) != "ok with warnings").all()
+    kept = results_table(frame, by="run", where=["status=ok"], columns=["run_id", "status"])
+    assert frame.loc[0, "run_id"] in set(kept["run_id"])
