@@ -82,7 +82,7 @@ def test_one_number_format_a_column() -> None:
     assert column_formatter("n_rhs", pd.Series([120.0, 4000.0]))(120.0) == "120"
     assert column_formatter("rtol", pd.Series([1e-4, 1e-6]))(1e-4) == "1.00e-04"
     lines = latex_table(pd.DataFrame({"scd": [5.25, 12.5]})).splitlines()
-    assert lines[4:6] == ["5.25 \\tabularnewline", "12.50 \\tabularnewline"]  # one format
+    assert lines[4:6] == ["5.25 \\\\", "12.50 \\\\"]  # one format: 2 decimals
 
 
 def test_a_table_compiles_with_booktabs(report: Path, tmp_path: Path) -> None:

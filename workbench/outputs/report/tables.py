@@ -263,9 +263,6 @@ MIN_WRAP_CHARS = 12  # a text column is never wrapped narrower
 HEADER_CHARS = 12  # a header longer than its column and this breaks into lines
 LONG_ROWS = 40  # more lines of rows: a longtable (breaks across pages; \usepackage{longtable})
 TABLE_FONT = r"\footnotesize\setlength{\tabcolsep}{3pt}"
-ROW_END = r" \tabularnewline"
-"""How a body row ends: a wrapped cell's \\raggedright makes ``\\\\`` a line break within
-it, where the row's last cell is one; LaTeX's ``\\tabularnewline`` always ends the row."""
 
 
 def _words_lines(text: str, width: int) -> list[str]:
@@ -368,13 +365,15 @@ def _text_lines(rows: list[list[str]], columns: list[_Column]) -> int:
     )
 
 
-def _cell(text: str, column: _Column) -> str:
-    """A body cell; in a wrapped column ragged right (no stretched spaces). Not closed
-    by ``\\par`` in a group: that left a blank line under every row with a wrapped cell
-    (the quick suite's summary took twice its pages); \\raggedright's own ``\\\\`` is
-    why body rows end with ``\\tabularnewline`` (:data:`ROW_END`)."""
+def _cell(text: str, column: _Column, last: bool = False) -> str:
+    """A body cell; in a wrapped column ragged right (no stretched spaces), and when it
+    is the row's ``last`` cell ``\\\\`` made the row's end again (as array's
+    \\arraybackslash does: \\raggedright makes it a line break). Not
+    ``{\\raggedright text\\par}``: that left a blank line under every row with a wrapped
+    cell (the quick suite's summary took twice its pages)."""
     if column.wrapped and text:
-        return r"\raggedright " + latex_escape(text)
+        end = r"\let\\\tabularnewline" if last else ""
+        return r"\raggedright " + latex_escape(text) + end
     return latex_escape(text)
 
 
@@ -421,7 +420,10 @@ def latex_table(
     for number, part in enumerate(parts):
         align = "".join(columns[k].spec for k in part)
         header = " & ".join(_header_cell(columns[k]) for k in part) + r" \\"
-        body = [" & ".join(_cell(row[k], columns[k]) for k in part) + ROW_END for row in rows]
+        body = [
+            " & ".join(_cell(row[k], columns[k], k == part[-1]) for k in part) + r" \\"
+            for row in rows
+        ]
         if long:
             title = (
                 [
