@@ -340,7 +340,7 @@ def test_pairs_cut_short_by_the_tolerance_grid_are_named_in_the_why() -> None:
     assert "Not measured" not in decision_rows(tried, [4.0, 6.0], "integrate_cpu_s")[0].why
 
 
-def test_a_close_margin_on_a_run_not_timed_again_says_so() -> None:
+def test_a_close_margin_on_a_run_not_timed_again_says_so(tmp_path: Path) -> None:
     """The quick suite named iftomm-a05's winner at scd 6 '1.093x ahead' on two runs too
     long for the repeat budget, so never timed again at moments apart, while the page said
     the close calls were: back-to-back samples share the machine's moment. The verdict
@@ -360,3 +360,10 @@ def test_a_close_margin_on_a_run_not_timed_again_says_so() -> None:
     assert decide(far.assign(retimed=0), 4.0, "integrate_cpu_s").verdict() == "3.23x ahead"
     # a count is no timing: its margin needs no second sweep
     assert decide(runs.assign(retimed=0), 4.0, "n_rhs").timed_apart
+    # the paper's tables say what the words mean, in their captions
+    write_report(runs.assign(retimed=0), None, tmp_path, "cmd", progress=False)
+    for name in ("decision", "summary"):
+        latex = (tmp_path / "tables" / f"{name}.tex").read_text(encoding="utf-8")
+        caption = latex.split(r"\caption{", 1)[1].split(r"\label", 1)[0]
+        assert "(not timed again: may not hold)" in latex
+        assert "may not survive a second sweep" in " ".join(caption.split())

@@ -15,7 +15,7 @@ import pandas as pd
 
 from workbench.outputs.report.cost import tie_rule
 from workbench.outputs.report.overview import trusted
-from workbench.outputs.report.ranking import Decision, decide
+from workbench.outputs.report.ranking import NOT_TIMED, NOT_TIMED_NOTE, Decision, decide
 from workbench.outputs.report.traits import FAMILIES, Traits, favoured, problem_traits
 
 DECISION_TARGETS: tuple[float, ...] = (4.0, 8.0, 10.0)
@@ -79,12 +79,8 @@ def why(traits: Traits, cells: list[Decision], runs: pd.DataFrame, cost: str = "
         text += f". Tied pairs: {tie_rule(cost)}"
     if any(d.pair and not d.tie_known for d in cells):
         text += ". Some costs have one timed sample (or no interval): ties cannot be told there"
-    if any(d.pair and d.tie_known and not d.timed_apart for d in cells):
-        text += (
-            ". 'Not timed again': a margin under 3x whose runs were not timed again after "
-            "the runs (over the repeat budget, or --retime 0); their samples were taken "
-            "back to back, in one moment of the machine, so it may not survive a second sweep"
-        )
+    if any(NOT_TIMED in d.verdict() for d in cells):
+        text += f". {NOT_TIMED_NOTE[0].upper()}{NOT_TIMED_NOTE[1:]}"
     reached = [d.target for d in cells if d.pair]
     short = short_of(runs, max(reached), cost) if reached and cost else {}
     if short:

@@ -26,6 +26,13 @@ import pandas as pd
 from workbench.outputs.report.trust import ok_runs, warned
 
 NOT_REACHED = "none reached"
+NOT_TIMED = "not timed again: may not hold"
+NOT_TIMED_NOTE = (
+    f"'{NOT_TIMED}': a margin under 3x whose runs were not timed again after the runs "
+    "(over the repeat budget, or --retime 0); their samples were taken back to back, in "
+    "one moment of the machine, so it may not survive a second sweep"
+)
+"""What a caption or the "why" says of a verdict that carries :data:`NOT_TIMED`."""
 CLOSE = 3.0
 """A pair within this many times a cheapest's cost is a close call: a run's back-to-back
 samples, taken in a slow spell of a shared machine, read up to about 1.7x its usual cost
@@ -145,7 +152,7 @@ class Decision:
         ahead = f"{ratio_text(self.margin)}x ahead"
         if not self.tie_known:
             return f"{ahead} (one sample: tie unknown)"
-        return ahead if self.timed_apart else f"{ahead} (not timed again: may not hold)"
+        return ahead if self.timed_apart else f"{ahead} ({NOT_TIMED})"
 
 
 def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
