@@ -367,3 +367,6 @@ def test_a_close_margin_on_a_run_not_timed_again_says_so(tmp_path: Path) -> None
         caption = latex.split(r"\caption{", 1)[1].split(r"\label", 1)[0]
         assert "(not timed again: may not hold)" in latex
         assert "may not survive a second sweep" in " ".join(caption.split())
+    # the LaTeX summary prints no error column: its caption says where the errors are
+    summary = (tmp_path / "tables" / "summary.tex").read_text(encoding="utf-8")
+    assert "errors (in the CSV and Markdown) are pose errors" in " ".join(summary.split())
