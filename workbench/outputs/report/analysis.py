@@ -228,8 +228,10 @@ def reason_key(status: str, row: Any) -> tuple[str, str]:
 def _reason_text(status: str, row: Any) -> str:
     """The reason of :func:`reason_key` with its numbers still in."""
     if status == OK_WARNED:
-        kinds = {_NUMBER.sub("#", kind): kind for kind in reversed(warning_kinds(row.warnings))}
-        return ", ".join(reversed(kinds.values()))  # the first of each kind, in order
+        kinds: dict[str, str] = {}
+        for kind in warning_kinds(row.warnings):
+            kinds.setdefault(_NUMBER.sub("#", kind), kind)  # the first of each kind
+        return ", ".join(kinds.values())
     text = _one_line(row.message) or "no reason recorded"
     text = _MODEL_NAME.sub("", text)
     return _QUOTED_NAME.sub(lambda m: f"the {m.group(1)}", text)
