@@ -297,6 +297,19 @@ def drift_runs(runs: pd.DataFrame) -> tuple[float | None, pd.DataFrame]:
     return rtol, chosen.drop_duplicates("pair").sort_values("pair")
 
 
+def drift_left_out(runs: pd.DataFrame, rtol: float) -> list[str]:
+    """The pairs run at ``rtol`` that no ok run of :func:`drift_runs` stands for, each with
+    its status there ('f / i (timeout)'): a drift table's caption said 'every pair' over
+    the pairs that finished."""
+    at = runs[np.isclose(runs["rtol"], rtol, rtol=1e-9, atol=0)]
+    shown = set(ok_runs(at)["pair"])
+    return [
+        f"{pair} ({', '.join(statuses(group['status']))})"
+        for pair, group in at.groupby("pair", sort=True)
+        if pair not in shown
+    ]
+
+
 def drift_table(runs: pd.DataFrame) -> pd.DataFrame:
     """One row per pair at the middle tolerance: the maxima over time of the drifts and
     errors (columns left out when no run measured them)."""

@@ -27,6 +27,7 @@ from workbench.outputs.report.analysis import (
     LABEL_COLUMNS,
     cheapest_pairs,
     coverage_notice,
+    drift_left_out,
     drift_runs,
     drift_table,
     drift_table_contents,
@@ -542,6 +543,9 @@ def problem_section(
         frame = drift_table(runs)
         contents = drift_table_contents(frame, traits.drift_units)
         caption = f"{problem}, every pair at rtol = {rtol:g}: {contents}"
+        left_out = drift_left_out(runs, rtol)
+        if left_out:
+            caption += f"; not in it, no ok run there: {', '.join(left_out)}"
         write_table(frame, out / "tables", name, caption)
         table = PageTable.of(frame, name)
     return ProblemSection(
