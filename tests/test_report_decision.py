@@ -350,6 +350,12 @@ def test_a_close_margin_on_a_run_not_timed_again_says_so(tmp_path: Path) -> None
     decision = decide(runs, 4.0, "integrate_cpu_s")
     assert decision.runner_up == "b / y" and not decision.timed_apart
     assert decision.verdict() == "1.094x ahead (not timed again: may not hold)"
+    # the runner-up named before the caveat, which is not the runner-up's
+    from workbench.outputs.report.decision import cell_summary
+
+    assert cell_summary(decision, "integrate_cpu_s") == (
+        "a / x, 620 ms, 1.094x ahead of b / y (not timed again: may not hold)"
+    )
     table = cheapest_pairs(runs, targets=(4.0,), cost="integrate_cpu_s")
     assert table.loc[0, "verdict"] == decision.verdict()
     runs["retimed"] = [5, 0]  # the runner-up's samples still back to back

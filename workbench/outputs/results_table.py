@@ -272,7 +272,7 @@ def _verdict(decision: Decision | None) -> str:
     at = f"at scd {decision.target:.3g}, "
     if decision.is_tie:
         return at + "tie: " + "; ".join(decision.tied)
-    return at + decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
+    return at + decision.ahead_of()
 
 
 def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) -> str:

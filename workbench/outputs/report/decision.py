@@ -159,4 +159,4 @@ def cell_summary(d: Decision, cost: str) -> str:
         return f"tie: {'; '.join(d.tied)}, {price}"
     if not d.runner_up:
         return f"{d.pair}, {price}, only pair"
-    return f"{d.pair}, {price}, {d.verdict()} of {d.runner_up}"
+    return f"{d.pair}, {price}, {d.ahead_of()}"

@@ -154,6 +154,16 @@ class Decision:
             return f"{ahead} (one sample: tie unknown)"
         return ahead if self.timed_apart else f"{ahead} ({NOT_TIMED})"
 
+    def ahead_of(self) -> str:
+        """:meth:`verdict` naming the runner-up before its caveat: '1.8x ahead of B (one
+        sample: tie unknown)' ('1.093x ahead (not timed again: may not hold) of B' read as
+        if the caveat were B's); the verdict alone without a runner-up, or in a tie."""
+        verdict = self.verdict()
+        if not self.runner_up or self.is_tie:
+            return verdict
+        head, caveat, rest = verdict.partition(" (")
+        return f"{head} of {self.runner_up}" + (f" ({rest}" if caveat else "")
+
 
 def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
     """The :class:`Decision` for ``runs`` (one problem's, prepared) at ``target``."""
