@@ -127,3 +127,48 @@ def test_workbench_paper_of_a_small_sweep_compiles(tmp_path: Path) -> None:
     for name in ("decision", "summary", "status"):
         assert (tmp_path / "out" / "paper" / "tables" / f"{name}.tex").is_file()
     assert list((tmp_path / "out" / "paper" / "figures").glob("*work-precision.pdf"))
+
+
+def test_a_split_longtable_is_compiled_until_its_columns_line_up(tmp_path: Path) -> None:
+    """One pdflatex pass left every longtable's columns out of line with its rules (it
+    sets them from widths the pass before wrote to main.aux: 'Table widths have changed.
+    Rerun LaTeX.'); the summary of the quick suite's paper was unreadable."""
+    needs_pdflatex()
+    table = pd.DataFrame(
+        {"problem": [f"problem-{k}" for k in range(45)], "scd": [k / 7 for k in range(45)]}
+    )
+    (tmp_path / "t.tex").write_text(latex_table(table, caption="long"), encoding="utf-8")
+    main = tmp_path / MAIN
+    main.write_text(PREAMBLE + "\\begin{document}\n\\input{t}\n\\end{document}\n", encoding="utf-8")
+    compiled = compile_paper(main)
+    assert compiled.pdf is not None, compiled.log_tail
+    log = (tmp_path / "main.log").read_text(encoding="utf-8", errors="replace")
+    assert r"\begin{longtable}" in (tmp_path / "t.tex").read_text(encoding="utf-8")
+    assert "Rerun LaTeX" not in log and "widths have changed" not in log
+
+
+def _table_height_pt(tmp_path: Path, table: pd.DataFrame) -> float:
+    """The height pdflatex gives ``latex_table(table)`` (a plain tabular), in pt."""
+    (tmp_path / "t.tex").write_text(latex_table(table), encoding="utf-8")
+    main = tmp_path / MAIN
+    main.write_text(
+        PREAMBLE + "\\begin{document}\n\\setbox0=\\vbox{\\input{t}}\n"
+        "\\typeout{HEIGHT=\\the\\dimexpr\\ht0+\\dp0\\relax}\n\\end{document}\n",
+        encoding="utf-8",
+    )
+    compiled = compile_paper(main)
+    assert compiled.pdf is None or compiled.pdf.is_file()
+    log = (tmp_path / "main.log").read_text(encoding="utf-8", errors="replace")
+    return float(re.search(r"HEIGHT=([\d.]+)pt", log).group(1))
+
+
+def test_a_row_with_a_wrapped_cell_is_one_line_high_not_two(tmp_path: Path) -> None:
+    """A wrapped (p{}) cell ended '{\\raggedright text\\par}': pdflatex left a blank line
+    under every such row, so the quick suite's summary and tied-pairs tables took twice
+    their pages. Ten rows of one-line wrapped cells are as high as ten plain rows."""
+    needs_pdflatex()
+    narrow = "iiii iiii iiii iiii iiii iiii"  # over WRAP_CHARS characters, one line wide
+    wrapped = pd.DataFrame({"a": ["x"] * 10, "b": [narrow] * 10, "c": [narrow] * 10})
+    plain = pd.DataFrame({"a": ["x"] * 10, "b": ["i"] * 10, "c": ["i"] * 10})
+    assert r"p{" in latex_table(wrapped) and r"p{" not in latex_table(plain)
+    assert _table_height_pt(tmp_path, wrapped) < 1.1 * _table_height_pt(tmp_path, plain)

@@ -215,7 +215,8 @@ def test_status_matrix_counts_and_footnotes() -> None:
     assert not_ok.groupby(["status", "message"]).ngroups > not_ok["status"].nunique()
     assert len(footnotes) == not_ok["status"].nunique() > 0
     failure = next(note for note in footnotes if "] failed:" in note)
-    assert "Newton iteration diverged at t = #" in failure
+    # (the times reached as their least and greatest, not '#')
+    assert re.search(r"Newton iteration diverged at t = [\d.]+ to 7\.25 \(", failure)
 
 
 def test_labels_include_options_only_when_they_vary() -> None:
@@ -406,3 +407,21 @@ def test_a_report_of_skipped_runs_only_raises_no_pandas_warning(tmp_path: Path) 
         warnings.simplefilter("error")
         index = write_report(results, lambda run_id: None, tmp_path, "cmd")
     assert "No successful run" in index.read_text(encoding="utf-8")
+
+
+def test_a_status_reason_prints_the_numbers_its_runs_measured() -> None:
+    """The quick suite's paper read 'time limit of # s exceeded; ... after # s, at t = # s
+    of # s': a reason shared by runs differing in their numbers printed none. It prints
+    the one value they share, or their least and greatest."""
+    results = synthetic_results(problems=("p",), rtols=(1e-3, 1e-5))
+    ok = results.index[results["status"] == "ok"]
+    results.loc[ok[:2], "status"] = "timeout"
+    results.loc[ok[:2], "message"] = [
+        "time limit of 10 s exceeded; killed after 9.9 s, at t = 6.83767 s of 10 s",
+        "time limit of 10 s exceeded; killed after 9.77 s, at t = 5.63206 s of 10 s",
+    ]
+    _cells, footnotes = status_matrix(prepare_results(results))
+    (note,) = [note for note in footnotes if "time limit" in note]
+    assert "time limit of 10 s exceeded; killed after 9.77 to 9.9 s, at t = 5.63206 to " \
+           "6.83767 s of 10 s (2 run(s)" in note  # fmt: skip
+    assert "#" not in note

@@ -96,3 +96,17 @@ def test_the_drift_figure_axis_says_the_unit_of_its_problems_drift(tmp_path: Pat
     assert not any("rad" in label for label in distances)
     for units in ({"m", "rad"}, set()):
         assert any("[m or rad]" in label for label in labels(units))
+
+
+def test_a_drift_table_names_the_pairs_it_leaves_out(tmp_path: Path) -> None:
+    """iftomm-a05's drift table said 'every pair at rtol = 0.0001' over the 8 pairs that
+    finished there; the ninth had timed out, and no word said so."""
+    runs = all_ok()
+    middle = np.isclose(runs["rtol"], 1e-5) & (runs["formalism"] == "absolute-dae")
+    middle &= runs["integrator"] == "bdf"
+    runs.loc[middle, ["status", "message"]] = ["timeout", "time limit of 60 s exceeded"]
+    write_report(runs, synthetic_series, tmp_path, "cmd", progress=False)
+    drift = next((tmp_path / "tables").glob("drift-*-rtol-1e-05.tex")).read_text(encoding="utf-8")
+    caption = " ".join(drift.split(r"\caption{", 1)[1].split(r"\label", 1)[0].split())
+    assert "not in it, no ok run there: absolute-dae / bdf (timeout)" in caption
+    assert "absolute-dae / bdf" not in drift.split(r"\midrule", 1)[1]  # no row of it

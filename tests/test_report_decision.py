@@ -348,3 +348,41 @@ def test_pairs_cut_short_by_the_tolerance_grid_are_named_in_the_why() -> None:
     tried = pd.concat([runs, runs[runs["pair"] == "b / y"].tail(1).assign(
         rtol=1e-10, status="failed", scd=float("nan"), run_id="tried")])  # fmt: skip
     assert "Not measured" not in decision_rows(tried, [4.0, 6.0], "integrate_cpu_s")[0].why
+
+
+def test_a_close_margin_on_a_run_not_timed_again_says_so(tmp_path: Path) -> None:
+    """The quick suite named iftomm-a05's winner at scd 6 '1.093x ahead' on two runs too
+    long for the repeat budget, so never timed again at moments apart, while the page said
+    the close calls were: back-to-back samples share the machine's moment. The verdict
+    says 'not timed again', in every output; a wide margin, or runs timed again, do not."""
+    runs = costed([("a / x", 6.0, 0.62, 0.613, 0.621), ("b / y", 6.0, 0.678, 0.669, 0.70)])
+    runs["retimed"] = [0, 0]
+    decision = decide(runs, 4.0, "integrate_cpu_s")
+    assert decision.runner_up == "b / y" and not decision.timed_apart
+    assert decision.verdict() == "1.094x ahead (not timed again: may not hold)"
+    # the runner-up named before the caveat, which is not the runner-up's
+    from workbench.outputs.report.decision import cell_summary
+
+    assert cell_summary(decision, "integrate_cpu_s") == (
+        "a / x, 620 ms, 1.094x ahead of b / y (not timed again: may not hold)"
+    )
+    table = cheapest_pairs(runs, targets=(4.0,), cost="integrate_cpu_s")
+    assert table.loc[0, "verdict"] == decision.verdict()
+    runs["retimed"] = [5, 0]  # the runner-up's samples still back to back
+    assert not decide(runs, 4.0, "integrate_cpu_s").timed_apart
+    runs["retimed"] = [5, 5]
+    assert decide(runs, 4.0, "integrate_cpu_s").verdict() == "1.094x ahead"
+    far = costed([("a / x", 6.0, 0.62, 0.613, 0.621), ("b / y", 6.0, 2.0, 1.9, 2.1)])
+    assert decide(far.assign(retimed=0), 4.0, "integrate_cpu_s").verdict() == "3.23x ahead"
+    # a count is no timing: its margin needs no second sweep
+    assert decide(runs.assign(retimed=0), 4.0, "n_rhs").timed_apart
+    # the paper's tables say what the words mean, in their captions
+    write_report(runs.assign(retimed=0), None, tmp_path, "cmd", progress=False)
+    for name in ("decision", "summary"):
+        latex = (tmp_path / "tables" / f"{name}.tex").read_text(encoding="utf-8")
+        caption = latex.split(r"\caption{", 1)[1].split(r"\label", 1)[0]
+        assert "(not timed again: may not hold)" in latex
+        assert "may not survive a second sweep" in " ".join(caption.split())
+    # the LaTeX summary prints no error column: its caption says where the errors are
+    summary = (tmp_path / "tables" / "summary.tex").read_text(encoding="utf-8")
+    assert "errors (in the CSV and Markdown) are pose errors" in " ".join(summary.split())

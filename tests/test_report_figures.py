@@ -5,6 +5,7 @@ with the renderer that draws them)."""
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from tests.test_report_overview import rows
@@ -121,3 +122,18 @@ def test_under_rhs_evaluations_the_time_panel_is_the_default_time_measure() -> N
     assert "integration CPU time" in figure.axes[0].get_xlabel()
     _figure, caption = work_precision_drawing(runs, "p", "integrate_cpu_s")
     assert "time panel" not in caption
+
+
+def test_a_quantity_not_measured_says_why_for_its_own_kind() -> None:
+    """The flyball governor's drift caption read 'energy error / energy in motion: not
+    measured (no such constraint, or not conservative)': an energy has no constraint."""
+    from workbench.outputs.report.figures import measured_quantities
+
+    chosen = pd.DataFrame({"run_id": ["a"]})
+    series = {"a": pd.DataFrame({"t": [0.0, 1.0], "drift_pos": [0.0, 1e-9],
+                                 "drift_vel": [0.0, 1e-8], "drift_nh": [np.nan] * 2,
+                                 "energy_err": [np.nan] * 2})}  # fmt: skip
+    drawn, absent = measured_quantities(chosen, series)
+    assert [column for column, _ in drawn] == ["drift_pos", "drift_vel"]
+    assert absent["drift_nh"].endswith("not measured (no such constraint)")
+    assert absent["energy_err"].endswith("not measured (not conservative)")

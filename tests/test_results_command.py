@@ -219,7 +219,7 @@ def test_a_problems_line_ranks_the_pairs_reaching_its_highest_target_not_the_las
     (row,) = results_table(runs).itertuples()
     assert (row.scd, row.pair, row.integrate_cpu_s) == (6.3, "b / y", 0.1)
     # the line says the target it names the pair at: b / y did not reach the 6.3 shown
-    assert row.verdict.startswith("at scd 6, 2.00x ahead") and row.verdict.endswith("of a / x")
+    assert row.verdict.startswith("at scd 6, 2.00x ahead of a / x")  # its caveat after it
     runs["scd"] = [1.5, 1.2, 0.5]  # below every target: ranked at the best scd reached
     (row,) = results_table(runs).itertuples()
     assert row.pair == "a / x" and row.verdict == "at scd 1.5, only pair"
@@ -372,3 +372,16 @@ def test_the_coverage_heading_says_which_way_the_rows_differ_from_the_plan(resul
     mixed = runner.invoke(app, ["results", str(folder)])
     assert mixed.stderr.startswith("Not the whole sweep, and not it alone: partial results")
     assert "2 row(s) come from other sweeps" in mixed.stderr
+
+
+def test_a_warned_run_is_not_shown_as_plain_ok(results: Path) -> None:
+    """--by run printed 'ok' beside a warned run's scd (e.g. capped at the reference's
+    accuracy): the status says 'ok with warnings', as the report's status table counts it;
+    --where still selects by the stored status."""
+    frame = pd.read_parquet(results)
+    table = results_table(frame, by="run", columns=["run_id", "status", "scd"])
+    shown = table.set_index("run_id")["status"]
+    assert shown[frame.loc[0, "run_id"]] == "ok with warnings"
+    assert (shown.drop(frame.loc[0, "run_id"]) != "ok with warnings").all()
+    kept = results_table(frame, by="run", where=["status=ok"], columns=["run_id", "status"])
+    assert frame.loc[0, "run_id"] in set(kept["run_id"])

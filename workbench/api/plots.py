@@ -19,7 +19,9 @@ def plot_work_precision(
 ) -> Any:
     """scd (correct digits at the end) against ``cost`` (log x), one curve per ``by``
     group (a column or a tuple of columns), one point per tolerance, of the ok runs of
-    ``problem`` (default: the only problem in ``results``). ``results`` as
+    ``problem`` (default: the only problem in ``results``); a red ring marks a run with
+    warnings (its scd may be capped by the reference's accuracy: not a measurement), as
+    the report's diagrams do. ``results`` as
     ``workbench.load_results`` returns it; ``cost``: a cost measure as ``workbench.report``
     takes it (``integrate_cpu``, ``integrate_wall``, ``n_rhs``, ``work``) or any cost
     column (``integrate_cpu_s``, ``n_steps``...). Returns the Axes; ConfigError for a
@@ -30,9 +32,10 @@ def plot_work_precision(
             f"workbench.sweep(...)), not {type(results).__name__}"
         )
     by = (by,) if isinstance(by, str) else tuple(by)
-    from workbench.outputs.report.cost import COST_MEASURES
+    from workbench.outputs.report.cost import COST_LABELS, COST_MEASURES
 
     cost, cost_label = COST_MEASURES.get(cost, (cost, cost))  # a measure by its name too
+    cost_label = COST_LABELS.get(cost, cost_label)  # a column too: its label with its unit
     for column in ("problem", "status", "scd", "rtol", cost, *by):
         if column not in results.columns:
             numeric = [c for c in results.columns if c.startswith(("n_", "integrate_", "work_"))]
@@ -42,6 +45,7 @@ def plot_work_precision(
                    f"{', '.join(numeric)}" if column == cost else "")  # fmt: skip
             )
     from workbench.outputs.report.analysis import problem_labels
+    from workbench.outputs.report.trust import warned
 
     results = results.assign(problem=problem_labels(results))  # one label a mechanism
     names = sorted(results["problem"].unique())
@@ -63,6 +67,10 @@ def plot_work_precision(
         curve = curve.sort_values("rtol", ascending=False)
         name = " / ".join(map(str, label if isinstance(label, tuple) else (label,)))
         ax.plot(curve[cost], curve["scd"], marker="o", markersize=4, label=name)
+    flagged = runs[warned(runs)]
+    if len(flagged):
+        ax.scatter(flagged[cost], flagged["scd"], s=70, facecolors="none", edgecolors="red",
+                   linewidths=1.2, zorder=3, label="warnings (see status)")  # fmt: skip
     ax.set_xscale("log")
     ax.set_xlabel(cost_label)
     ax.set_ylabel("scd = -log10(relative end error)")

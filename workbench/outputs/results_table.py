@@ -3,7 +3,9 @@
 The default is one line a problem (runs by status, the best scd reached without warnings,
 the pair that reached it at least cost, in the report's cost measure and with the
 report's ranking, ties included), not every row of a sweep; ``by="pair"``
-gives one line a problem x pair, ``by="run"`` every run. Options are readable columns
+gives one line a problem x pair, ``by="run"`` every run (an ``ok`` run whose health audit
+warned shows as ``ok with warnings``, as in the report's status table: its scd may be
+capped by the reference's accuracy, not measured). Options are readable columns
 (``formalism.index``, ``integrator.step``), not JSON strings; a table of runs says those
 the same in all its rows once, in its caption, and a run's others that are not its
 plugins' defaults in one column, ``options`` (``index=3, rho_inf=0.9``). Rows are filtered by
@@ -28,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import ConfigError
-from workbench.outputs.report.analysis import prepare_results, warned
+from workbench.outputs.report.analysis import OK_WARNED, prepare_results, warned
 from workbench.outputs.report.cost import resolve_cost
 from workbench.outputs.report.decision import FALLBACK_TARGETS
 from workbench.outputs.report.ranking import Decision, decide
@@ -274,7 +276,7 @@ def _verdict(decision: Decision | None) -> str:
     at = f"at scd {decision.target:.3g}, "
     if decision.is_tie:
         return at + "tie: " + "; ".join(decision.tied)
-    return at + decision.verdict() + (f" of {decision.runner_up}" if decision.runner_up else "")
+    return at + decision.ahead_of()
 
 
 def caption(table: pd.DataFrame, runs: int, by: str, path: str, statement: str) -> str:
@@ -342,6 +344,9 @@ def results_table(
         chosen = list(columns) or shown
         _check_columns(runs, chosen, "--columns")
         table = runs[chosen].copy()
+        if "status" in table:  # the status table's word: a warned run's scd may be capped
+            flagged = (table["status"] == "ok") & warned(runs)
+            table["status"] = table["status"].mask(flagged, OK_WARNED)
         for column in [c for c in table.columns if c in UNREPORTED_COUNTS]:
             table[column] = table[column].where(table[column] != -1)  # shown empty
         if not columns:  # said once: the options not at their plugins' defaults

@@ -175,15 +175,18 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     their status and the kind of their message agree (:func:`reason_key`: the message with
     the model's and plugins' names and the numbers left out), so "formalism 'A' does not
     support loop-closing joints (model 'B')" and the same of another formalism and model
-    are one reason, listed once with the problems it concerns.
+    are one reason, listed once with the problems it concerns, its numbers as its runs
+    measured them (one value, or their least and greatest).
     """
     reason_ids: dict[tuple[str, str], int] = {}
     reason_runs: dict[tuple[str, str], list[str]] = {}
+    reason_texts: dict[tuple[str, str], list[str]] = {}
     runs = runs.assign(status=runs["status"].where(~warned(runs), OK_WARNED))
     for row in runs[runs["status"] != "ok"].itertuples():
         key = reason_key(row.status, row)
         reason_ids.setdefault(key, len(reason_ids) + 1)
         reason_runs.setdefault(key, []).append(row.problem)
+        reason_texts.setdefault(key, []).append(_reason_text(row.status, row))
     problems = list(dict.fromkeys(runs["problem"]))
     pairs = sorted(runs["pair"].unique())
     cells = pd.DataFrame("", index=pd.Index(problems, name="problem"), columns=pairs)
@@ -203,7 +206,8 @@ def status_matrix(runs: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         where = list(dict.fromkeys(reason_runs[key]))
         shown = ", ".join(where[:6]) + (f" and {len(where) - 6} more" if len(where) > 6 else "")
         count = len(reason_runs[key])
-        reasons.append(f"[{number}] {key[0]}: {key[1]} ({count} run(s); problems: {shown})")
+        said = _with_numbers(key[1], reason_texts[key])
+        reasons.append(f"[{number}] {key[0]}: {said} ({count} run(s); problems: {shown})")
     return cells, reasons
 
 
@@ -218,13 +222,35 @@ def reason_key(status: str, row: Any) -> tuple[str, str]:
     """The status and the kind of reason of a not-ok row: for a warned run the kinds of its
     warnings; otherwise its message without the model's name, plugin names and numbers
     (times reached, step sizes), which differ from run to run for one and the same reason."""
+    return status, _NUMBER.sub("#", _reason_text(status, row))
+
+
+def _reason_text(status: str, row: Any) -> str:
+    """The reason of :func:`reason_key` with its numbers still in."""
     if status == OK_WARNED:
-        kinds = [_NUMBER.sub("#", kind) for kind in warning_kinds(row.warnings)]
-        return status, ", ".join(dict.fromkeys(kinds))
+        kinds: dict[str, str] = {}
+        for kind in warning_kinds(row.warnings):
+            kinds.setdefault(_NUMBER.sub("#", kind), kind)  # the first of each kind
+        return ", ".join(kinds.values())
     text = _one_line(row.message) or "no reason recorded"
     text = _MODEL_NAME.sub("", text)
-    text = _QUOTED_NAME.sub(lambda m: f"the {m.group(1)}", text)
-    return status, _NUMBER.sub("#", text)
+    return _QUOTED_NAME.sub(lambda m: f"the {m.group(1)}", text)
+
+
+def _with_numbers(reason: str, texts: list[str]) -> str:
+    """``reason`` (a :func:`reason_key` text) with each '#' back as the number its runs'
+    ``texts`` hold there: the one number when they all agree, else their least and greatest
+    ('9.77 to 9.9'); a reason printed '# s' in a paper's table, no number measured."""
+    found = [_NUMBER.findall(text) for text in texts]
+    holes = reason.count("#")
+    if not found or any(len(numbers) != holes for numbers in found):
+        return reason  # (a '#' of the message's own)
+    pieces = reason.split("#")
+    out = [pieces[0]]
+    for k, piece in enumerate(pieces[1:]):
+        values = sorted({numbers[k] for numbers in found}, key=float)
+        out.append((values[0] if len(values) == 1 else f"{values[0]} to {values[-1]}") + piece)
+    return "".join(out)
 
 
 def statuses(values: Iterable[str]) -> list[str]:
@@ -269,6 +295,19 @@ def drift_runs(runs: pd.DataFrame) -> tuple[float | None, pd.DataFrame]:
         return None, ok.iloc[:0]
     chosen = ok[np.isclose(ok["rtol"], rtol, rtol=1e-9, atol=0)]
     return rtol, chosen.drop_duplicates("pair").sort_values("pair")
+
+
+def drift_left_out(runs: pd.DataFrame, rtol: float) -> list[str]:
+    """The pairs run at ``rtol`` that no ok run of :func:`drift_runs` stands for, each with
+    its status there ('f / i (timeout)'): a drift table's caption said 'every pair' over
+    the pairs that finished."""
+    at = runs[np.isclose(runs["rtol"], rtol, rtol=1e-9, atol=0)]
+    shown = set(ok_runs(at)["pair"])
+    return [
+        f"{pair} ({', '.join(statuses(group['status']))})"
+        for pair, group in at.groupby("pair", sort=True)
+        if pair not in shown
+    ]
 
 
 def drift_table(runs: pd.DataFrame) -> pd.DataFrame:

@@ -4,9 +4,8 @@ its decisions hinge on.
 For each problem and each accuracy target a report may show
 (:data:`~workbench.outputs.report.decision.FALLBACK_TARGETS`), the trusted pairs whose
 cost is within :data:`CLOSE` times the cheapest's: the run of each that the ranking
-prices (:func:`~workbench.outputs.report.ranking.pair_costs`). A run's back-to-back
-samples, taken in a slow spell of a shared machine, read up to about 1.7x its usual cost
-(5-95 % on a KVM Xeon: docs/performance.md), so a pair 3x behind cannot be a close call.
+prices (:func:`~workbench.outputs.report.ranking.pair_costs`;
+:data:`~workbench.outputs.report.ranking.CLOSE` says why 3x).
 """
 
 from __future__ import annotations
@@ -15,9 +14,9 @@ import pandas as pd
 
 from workbench.outputs.report.analysis import prepare_results
 from workbench.outputs.report.decision import FALLBACK_TARGETS
-from workbench.outputs.report.ranking import pair_costs
+from workbench.outputs.report.ranking import CLOSE, pair_costs
 
-CLOSE = 3.0
+__all__ = ["CLOSE", "close_calls", "retime_note"]
 
 
 def close_calls(
@@ -53,7 +52,9 @@ def retime_note(runs: pd.DataFrame, cost: str) -> str:
         return (
             f"{len(again)} close call(s), the runs of pairs within {CLOSE:g}x of a cheapest, "
             f"were timed again after the runs, {int(again.max())} times at moments apart "
-            "(their cost is the median over these samples and their own)"
+            "(their cost is the median over these samples and their own); those whose "
+            "samples exceed the repeat budget were not, and a margin resting on one says "
+            "'not timed again'"
         )
     return (
         "No run was timed again after the runs (`--retime 0`, a Dask sweep, or rows of an "

@@ -15,7 +15,7 @@ import pandas as pd
 
 from workbench.outputs.report.cost import tie_rule
 from workbench.outputs.report.overview import trusted
-from workbench.outputs.report.ranking import Decision, decide
+from workbench.outputs.report.ranking import NOT_TIMED, NOT_TIMED_NOTE, Decision, decide
 from workbench.outputs.report.traits import FAMILIES, Traits, favoured, problem_traits
 
 DECISION_TARGETS: tuple[float, ...] = (4.0, 8.0, 10.0)
@@ -79,6 +79,8 @@ def why(traits: Traits, cells: list[Decision], runs: pd.DataFrame, cost: str = "
         text += f". Tied pairs: {tie_rule(cost)}"
     if any(d.pair and not d.tie_known for d in cells):
         text += ". Some costs have one timed sample (or no interval): ties cannot be told there"
+    if any(NOT_TIMED in d.verdict() for d in cells):
+        text += f". {NOT_TIMED_NOTE[0].upper()}{NOT_TIMED_NOTE[1:]}"
     reached = [d.target for d in cells if d.pair]
     short = short_of(runs, max(reached), cost) if reached and cost else {}
     if short:
@@ -157,4 +159,4 @@ def cell_summary(d: Decision, cost: str) -> str:
         return f"tie: {'; '.join(d.tied)}, {price}"
     if not d.runner_up:
         return f"{d.pair}, {price}, only pair"
-    return f"{d.pair}, {price}, {d.verdict()} of {d.runner_up}"
+    return f"{d.pair}, {price}, {d.ahead_of()}"

@@ -406,8 +406,9 @@ def measured_quantities(
     chosen: pd.DataFrame, series: Mapping[str, pd.DataFrame | None]
 ) -> tuple[list[tuple[str, str]], dict[str, str]]:
     """The drift quantities with a nonzero value somewhere, and why each other one is not
-    drawn: "not measured" (NaN throughout: no such constraint, or not conservative) is a
-    different thing from "exactly zero" (measured, and zero at every sample)."""
+    drawn: "not measured" (NaN throughout: for a drift no such constraint, for the
+    energy error not conservative) is a different thing from "exactly zero" (measured,
+    and zero at every sample)."""
     drawn, absent = [], {}
     for column, label in DRIFT_QUANTITIES:
         values = [
@@ -418,7 +419,8 @@ def measured_quantities(
         finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.array([])
         name = label.split(" [")[0]
         if finite.size == 0:
-            absent[column] = f"{name}: not measured (no such constraint, or not conservative)"
+            why = "not conservative" if column == "energy_err" else "no such constraint"
+            absent[column] = f"{name}: not measured ({why})"
         elif not np.any(finite > 0):
             absent[column] = f"{name}: exactly zero at every sample"
         else:

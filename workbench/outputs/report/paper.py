@@ -3,8 +3,9 @@ and includes its figures as PDF, beside ``tables/*.tex`` and ``figures/*.pdf`` a
 ``\\input`` and include in their own document.
 
 The document is plain ``article`` with booktabs, longtable and graphicx (all in TeX
-Live's latex-base / latex-recommended), and compiles with ``pdflatex main.tex``;
-:func:`compile_paper` does so where pdflatex is installed and reads the log for overfull
+Live's latex-base / latex-recommended), and compiles with ``pdflatex main.tex`` (run
+twice: a longtable's columns line up from the second pass); :func:`compile_paper` does
+so where pdflatex is installed, as often as the log asks, and reads it for overfull
 boxes. Written by ``workbench paper`` (:func:`write_paper`).
 """
 
@@ -28,6 +29,11 @@ PREAMBLE = r"""\documentclass{article}
 \usepackage{graphicx}
 """
 OVERFULL = re.compile(r"Overfull \\hbox \((\d+(?:\.\d+)?)pt too wide\)")
+RERUN = re.compile(r"Rerun (?:LaTeX|to get)")
+"""What pdflatex's log says when the document needs another pass: longtable sets a part's
+columns from the widths the previous pass wrote to main.aux (one pass left every split
+table's columns out of line with its rules)."""
+PASSES = 3  # pdflatex passes at most (longtable settles in two, labels in one more)
 
 
 @dataclass
@@ -105,23 +111,27 @@ def pdflatex() -> str | None:
 
 
 def compile_paper(main: Path, timeout: float = 600.0) -> Compiled:
-    """Run pdflatex on ``main`` in its folder (ConfigError when pdflatex is missing)."""
+    """Run pdflatex on ``main`` in its folder (ConfigError when pdflatex is missing), again
+    while its log asks for another pass (:data:`RERUN`), :data:`PASSES` times at most."""
     engine = pdflatex()
     if engine is None:
         raise ConfigError(
             "pdflatex is not installed: apt-get install texlive-latex-base "
             "texlive-latex-recommended, or compile main.tex elsewhere"
         )
-    run = subprocess.run(
-        [engine, "-interaction=nonstopmode", "-halt-on-error", main.name],
-        cwd=main.parent,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-    )
     log = main.with_suffix(".log")
-    text = log.read_text(encoding="utf-8", errors="replace") if log.is_file() else run.stdout
+    for _ in range(PASSES):
+        run = subprocess.run(
+            [engine, "-interaction=nonstopmode", "-halt-on-error", main.name],
+            cwd=main.parent,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            stdin=subprocess.DEVNULL,
+        )
+        text = log.read_text(encoding="utf-8", errors="replace") if log.is_file() else run.stdout
+        if run.returncode != 0 or not RERUN.search(text):
+            break
     widths = [float(width) for width in OVERFULL.findall(text)]
     pdf = main.with_suffix(".pdf")
     made = run.returncode == 0 and pdf.is_file()

@@ -9,7 +9,10 @@ a run timed again at moments apart, the least and the median);
 pairs whose intervals overlap the winner's are **tied** with it: the timings cannot tell
 them apart, so the report names them all rather than one winner by noise. Rows without
 an interval (one sample, or written before intervals were recorded) cannot be told tied;
-the decision then says so (``tie_known`` False).
+the decision then says so (``tie_known`` False). A margin under :data:`CLOSE` resting on
+a run the sweep did not time again at moments apart (``retimed`` 0: over the repeat
+budget, or ``--retime 0``) says so too (``timed_apart`` False): back-to-back samples share
+the machine's moment, so such a margin may not survive a second sweep.
 """
 
 from __future__ import annotations
@@ -23,6 +26,17 @@ import pandas as pd
 from workbench.outputs.report.trust import ok_runs, warned
 
 NOT_REACHED = "none reached"
+NOT_TIMED = "not timed again: may not hold"
+NOT_TIMED_NOTE = (
+    f"'{NOT_TIMED}': a margin under 3x whose runs were not timed again after the runs "
+    "(over the repeat budget, or --retime 0); their samples were taken back to back, in "
+    "one moment of the machine, so it may not survive a second sweep"
+)
+"""What a caption or the "why" says of a verdict that carries :data:`NOT_TIMED`."""
+CLOSE = 3.0
+"""A pair within this many times a cheapest's cost is a close call: a run's back-to-back
+samples, taken in a slow spell of a shared machine, read up to about 1.7x its usual cost
+(5-95 % on a KVM Xeon: docs/performance.md), so a pair 3x behind cannot be one."""
 
 
 def ratio_text(value: float) -> str:
@@ -101,7 +115,9 @@ class Decision:
     it by their intervals, itself included when any other is; runner_up, runner_cost:
     the cheapest pair not tied with it (without a tie, the next cheapest; a pair named
     beside "tie" is never one of the tied ones); margin: runner_cost / cost (NaN: no
-    runner-up); tie_known: the intervals needed to tell ties were there.
+    runner-up); tie_known: the intervals needed to tell ties were there; timed_apart:
+    False when the margin is under :data:`CLOSE` and the winner's or runner-up's run was
+    not timed again at moments apart (``retimed`` 0).
     """
 
     problem: str
@@ -117,6 +133,7 @@ class Decision:
     margin: float = np.nan
     tied: list[str] = field(default_factory=list)
     tie_known: bool = True
+    timed_apart: bool = True
     run: pd.Series | None = None
 
     @property
@@ -124,8 +141,8 @@ class Decision:
         return len(self.tied) > 1
 
     def verdict(self) -> str:
-        """'tie', 'only pair', '1.8x ahead', '1.8x ahead (one sample: tie unknown)' or
-        'none reached'."""
+        """'tie', 'only pair', '1.8x ahead', '1.8x ahead (one sample: tie unknown)',
+        '1.8x ahead (not timed again: may not hold)' or 'none reached'."""
         if self.pair is None:
             return NOT_REACHED
         if self.is_tie:
@@ -133,7 +150,19 @@ class Decision:
         if not self.runner_up:
             return "only pair"
         ahead = f"{ratio_text(self.margin)}x ahead"
-        return ahead if self.tie_known else f"{ahead} (one sample: tie unknown)"
+        if not self.tie_known:
+            return f"{ahead} (one sample: tie unknown)"
+        return ahead if self.timed_apart else f"{ahead} ({NOT_TIMED})"
+
+    def ahead_of(self) -> str:
+        """:meth:`verdict` naming the runner-up before its caveat: '1.8x ahead of B (one
+        sample: tie unknown)' ('1.093x ahead (not timed again: may not hold) of B' read as
+        if the caveat were B's); the verdict alone without a runner-up, or in a tie."""
+        verdict = self.verdict()
+        if not self.runner_up or self.is_tie:
+            return verdict
+        head, caveat, rest = verdict.partition(" (")
+        return f"{head} of {self.runner_up}" + (f" ({rest}" if caveat else "")
 
 
 def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
@@ -171,6 +200,10 @@ def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
     runner = apart.iloc[0]
     decision.runner_up, decision.runner_cost = str(runner["pair"]), float(runner[cost])
     decision.margin = decision.runner_cost / decision.cost if decision.cost > 0 else np.nan
+    if cost.endswith("_s") and cost != "work_s" and decision.margin < CLOSE:
+        # a close call priced from back-to-back samples alone (workbench.runs.retime)
+        retimed = _column(ranked.loc[[0, runner.name]], "retimed")
+        decision.timed_apart = not bool((retimed == 0).any())
     return decision
 
 

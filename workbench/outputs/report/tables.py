@@ -365,11 +365,15 @@ def _text_lines(rows: list[list[str]], columns: list[_Column]) -> int:
     )
 
 
-def _cell(text: str, column: _Column) -> str:
-    """A body cell; in a wrapped column ragged right (no stretched spaces), grouped so
-    the row's ending \\\\ keeps its meaning."""
+def _cell(text: str, column: _Column, last: bool = False) -> str:
+    """A body cell; in a wrapped column ragged right (no stretched spaces), and when it
+    is the row's ``last`` cell ``\\\\`` made the row's end again (as array's
+    \\arraybackslash does: \\raggedright makes it a line break). Not
+    ``{\\raggedright text\\par}``: that left a blank line under every row with a wrapped
+    cell (the quick suite's summary took twice its pages)."""
     if column.wrapped and text:
-        return r"{\raggedright " + latex_escape(text) + r"\par}"
+        end = r"\let\\\tabularnewline" if last else ""
+        return r"\raggedright " + latex_escape(text) + end
     return latex_escape(text)
 
 
@@ -416,7 +420,10 @@ def latex_table(
     for number, part in enumerate(parts):
         align = "".join(columns[k].spec for k in part)
         header = " & ".join(_header_cell(columns[k]) for k in part) + r" \\"
-        body = [" & ".join(_cell(row[k], columns[k]) for k in part) + r" \\" for row in rows]
+        body = [
+            " & ".join(_cell(row[k], columns[k], k == part[-1]) for k in part) + r" \\"
+            for row in rows
+        ]
         if long:
             title = (
                 [

@@ -28,6 +28,7 @@ from workbench.outputs.report.analysis import (
     cheapest_pairs,
     coverage_heading,
     coverage_notice,
+    drift_left_out,
     drift_runs,
     drift_table,
     drift_table_contents,
@@ -78,6 +79,7 @@ from workbench.outputs.report.pool import (
     results_or_redone,
     submit_or_none,
 )
+from workbench.outputs.report.ranking import NOT_TIMED, NOT_TIMED_NOTE
 from workbench.outputs.report.scorecards import scorecards
 from workbench.outputs.report.tables import leading_keys, write_table
 from workbench.outputs.report.traits import Traits, problem_traits
@@ -88,8 +90,8 @@ SeriesLoader = Callable[[str], pd.DataFrame | None]
 SUMMARY_CAPTION = (
     "Cheapest pair (least {cost}) reaching each target scd, among the runs without "
     "warnings; tie: pairs where {tie}; runner-up: the cheapest pair not tied with it, and "
-    "the margin its cost over the cheapest; errors are pose errors over the samples (L2: "
-    "root mean square); {statement}"
+    "the margin its cost over the cheapest; errors (in the CSV and Markdown) are pose "
+    "errors over the samples (L2: root mean square); {statement}"
 )
 DECISION_CAPTION = (
     "Cheapest trusted pair (formalism / integrator) per problem and accuracy target, with "
@@ -145,6 +147,8 @@ def write_report(
     printed = [c for c in summary.columns if c not in ("err_l2", "err_max", "n_rhs")]
     # a row is a problem at a target: both repeated when the LaTeX is split into parts
     keys = leading_keys(summary[printed], ("problem", "target scd"))
+    if summary["verdict"].str.contains(NOT_TIMED, regex=False).any():
+        caption += f"; {NOT_TIMED_NOTE}"
     write_table(summary, out / "tables", "summary", caption, latex=summary[printed], keys=keys)
     status_caption = STATUS_CAPTION + (STATUS_NOTES if footnotes else "")  # none: no notes
     write_table(
@@ -184,11 +188,14 @@ def write_report(
     targets = decision_targets(runs, measure.column)
     decided = decision_rows(runs, targets, measure.column, sections)
     decision_table = decision_frame(decided, targets, measure.column)
+    caption = DECISION_CAPTION.format(tie=tie_rule(measure.column), statement=measure.statement())
+    if any(NOT_TIMED in d.verdict() for row in decided for d in row.cells):
+        caption += f"; {NOT_TIMED_NOTE}"
     write_table(
         decision_table,
         out / "tables",
         "decision",
-        DECISION_CAPTION.format(tie=tie_rule(measure.column), statement=measure.statement()),
+        caption,
         latex=decision_table.drop(columns="family"),  # rows stay in family order
     )
     stalled = stalled_pairs(runs)
@@ -539,6 +546,9 @@ def problem_section(
         frame = drift_table(runs)
         contents = drift_table_contents(frame, traits.drift_units)
         caption = f"{problem}, every pair at rtol = {rtol:g}: {contents}"
+        left_out = drift_left_out(runs, rtol)
+        if left_out:
+            caption += f"; not in it, no ok run there: {', '.join(left_out)}"
         write_table(frame, out / "tables", name, caption)
         table = PageTable.of(frame, name)
     return ProblemSection(
