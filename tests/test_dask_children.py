@@ -122,6 +122,29 @@ def test_a_child_killed_from_outside_is_no_row_and_the_next_run_works(
     assert row["status"] == "ok"
 
 
+def test_a_later_sweeps_child_replaces_an_earlier_sweeps_idle_one(
+    fake_plugins,
+    cluster,
+    tmp_path,
+) -> None:
+    """A task of another setting (here another OUT's references) starts a child of its own;
+    the earlier one, idle, is closed (one idle child a worker thread), not kept until the
+    worker stops: a campaign of sweeps on one cluster grew by a child (300 MB) a sweep."""
+    _, client = cluster
+    worker = sorted(workers(client))[0]
+    ok, _ = runs_of(tmp_path, '["test-rk45"]')
+    (tmp_path / "references").mkdir()
+    for reference_dir in ("", str(tmp_path / "references")):  # two sweeps' settings
+        paths = [os.getcwd(), *sys.path]
+        future = client.submit(
+            run_on_worker_child, ok.to_dict(), HUNG, ["tests.fake_plugins"], reference_dir,
+            paths, workers=[worker], pure=False,
+        )  # fmt: skip
+        row, _ = future.result(timeout=HUNG)
+        assert row["status"] == "ok"
+    assert len(children(client, worker)) == 1
+
+
 def test_a_small_sweep_gives_the_local_pools_rows(
     fake_plugins,
     cluster,

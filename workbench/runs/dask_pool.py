@@ -327,6 +327,29 @@ def _import_plugins(plugins: tuple, sys_path: tuple) -> None:
         _PLUGINS_IMPORTED.add((plugins, sys_path))
 
 
+def _keep_idle(child: _Child) -> None:
+    """Keep ``child`` for the next task, and close the idle children beyond one a worker
+    thread, least recently used first: a child made for another setting (an earlier
+    sweep's OUT or plugins) would otherwise stay, with its memory, until the worker stops."""
+    with _IDLE_LOCK:
+        _IDLE.append(child)
+        surplus = _IDLE[: max(0, len(_IDLE) - _worker_threads())]
+        del _IDLE[: len(surplus)]
+    for old in surplus:
+        with contextlib.suppress(Exception):
+            old.close()
+
+
+def _worker_threads() -> int:
+    """The threads of this Dask worker (1 outside one)."""
+    try:
+        from distributed import get_worker
+
+        return max(1, int(get_worker().state.nthreads))
+    except (ImportError, ValueError, AttributeError):
+        return 1
+
+
 def _close_idle() -> None:
     with _IDLE_LOCK:
         while _IDLE:
@@ -381,8 +404,7 @@ def run_on_worker_child(
         child.close()
         raise
     if child.alive:
-        with _IDLE_LOCK:
-            _IDLE.append(child)
+        _keep_idle(child)
     if shipped:
         computed = new_references(folder, str(spec_data.get("problem", "")), references or {})
         if computed:
