@@ -57,6 +57,7 @@ from workbench.runs.local_pool import Keyed, _take_next
 from workbench.runs.recording_batches import RECORDINGS_DIR
 from workbench.runs.shipping import (
     REFERENCE_FILES,
+    ReferenceGate,
     keep_references,
     new_references,
     pack_modules,
@@ -541,6 +542,7 @@ def _run_dask(
     shipped: dict[str | None, tuple[list[str], Any]] = {}  # problem -> files, their future
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
+    gate = ReferenceGate(queue, Path(reference_dir))  # a reference computed once, not a worker
     futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}
     pairs: dict[str | None, tuple[str, ...] | None] = {}  # worker -> equations of its last run
     executors: dict[str | None, Any] = {}
@@ -550,6 +552,7 @@ def _run_dask(
     def give_up(spec: RunSpec, reason: str) -> None:
         unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
         record("unfinished")
+        gate.returned(spec, None)
 
     def submit(spec: RunSpec, worker: str | None) -> None:
         if worker not in executors:  # a preference: a lost worker's tasks go to the others
@@ -606,7 +609,7 @@ def _run_dask(
         """The scheduler is gone: every run not done is left without a row (a resume redoes
         them), instead of waiting for futures that never resolve once the client closed."""
         pending = [spec for spec, _worker in futures.values()]
-        pending += [spec for _key, spec in queue]
+        pending += [spec for _key, spec in [*queue, *gate.take_all()]]
         futures.clear()
         queue.clear()
         for spec in pending:
@@ -651,6 +654,7 @@ def _run_dask(
                 store_log(out, row)
                 store.write_run(out, row, series, states)
                 record(row.get("status", "failed"))
+                gate.returned(spec, row)
             fill()
     finally:
         with contextlib.suppress(Exception):  # (a lost scheduler: nothing to say goodbye to)
