@@ -177,6 +177,25 @@ def test_a_small_sweep_gives_the_local_pools_rows(
     assert different == [], rows[0][different].compare(rows[1][different]).to_string()
 
 
+def test_the_python_api_sweeps_on_the_cluster(cluster, tmp_path) -> None:
+    """``workbench.sweep(..., scheduler=ADDRESS)`` runs on the cluster as ``workbench sweep
+    --scheduler`` does: before, the keyword was refused as an unknown specification key."""
+    import workbench as wb
+    from workbench.errors import ConfigError
+
+    local, _ = cluster
+    keys = {"problems": ["simple-pendulum"], "formalisms": ["minimal-ode"],
+            "integrators": ["rk4"], "tolerances": [1e-4]}  # fmt: skip
+    here = wb.sweep(out=tmp_path / "local", **keys)
+    there = wb.sweep(out=tmp_path / "dask", scheduler=local.scheduler_address, **keys)
+    assert list(there["status"]) == ["ok"]
+    assert (tmp_path / "dask" / "logs" / "dask-client.log").exists()  # it went to Dask
+    assert there["scd"].tolist() == here["scd"].tolist()
+    assert there["run_id"].tolist() == here["run_id"].tolist()
+    with pytest.raises(ConfigError, match="in_process=True"):
+        wb.sweep(out=tmp_path / "both", scheduler=local.scheduler_address, in_process=True, **keys)
+
+
 PARENT = """
 import json, sys, time
 from workbench.runs.dask_pool import _Child
