@@ -196,6 +196,40 @@ def test_the_python_api_sweeps_on_the_cluster(cluster, tmp_path) -> None:
         wb.sweep(out=tmp_path / "both", scheduler=local.scheduler_address, in_process=True, **keys)
 
 
+def test_a_worker_missing_a_plugins_dependency_says_to_install_it(
+    cluster, tmp_path, monkeypatch
+) -> None:
+    """A local plugin module importing a module the client has and the workers have not:
+    its runs are left unfinished with a reason that names the module and says to install
+    it on the workers, not only that the task failed."""
+    import types
+
+    from tests.test_local_plugins import HELPER
+    from tests.test_local_plugins import spec_text as local_spec
+    from workbench.plugin import local_modules
+    from workbench.plugin.registry import REGISTRY
+    from workbench.runs.sweep import load_spec
+
+    local, _ = cluster
+    monkeypatch.setitem(sys.modules, "labutil", types.ModuleType("labutil"))  # client only
+    monkeypatch.delenv(local_modules.NO_LOCAL_PLUGINS_VARIABLE, raising=False)
+    REGISTRY.discover()
+    for kind, entries in REGISTRY.entries.items():
+        monkeypatch.setitem(REGISTRY.entries, kind, dict(entries))
+    (tmp_path / "lab.py").write_text("import labutil\n" + HELPER)
+    (tmp_path / "sweep.toml").write_text(local_spec(tmp_path / "out", plugins='["lab"]'))
+    try:
+        summary = run_sweep(
+            load_spec(tmp_path / "sweep.toml"), scheduler=local.scheduler_address,
+            show_progress=False,
+        )  # fmt: skip
+    finally:
+        sys.modules.pop("lab", None)
+        local_modules._FROM_FILES.pop("lab", None)
+    (why,) = summary.unfinished.values()
+    assert "No module named 'labutil'" in why and "install what it needs on every worker" in why
+
+
 PARENT = """
 import json, sys, time
 from workbench.runs.dask_pool import _Child

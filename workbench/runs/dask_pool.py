@@ -36,7 +36,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from workbench.errors import ConfigError, one_line
+from workbench.errors import ConfigError, WorkbenchError, one_line
 from workbench.execution.execute import RunSpec, equations_key, execute_run, status_row
 from workbench.execution.run_log import (
     LOG_TEXT,
@@ -710,7 +710,15 @@ class _ClientWatch:
 
 
 def _lost_message(error: BaseException) -> str:
-    """Why a Dask task gave no result, in one line (a lost scheduler raises with no text)."""
+    """Why a Dask task gave no result, in one line (a lost scheduler raises with no text).
+    A workbench error the worker raised (not InfrastructureError) is its set-up's, e.g. a
+    plugin module importing a package not installed there: said so, with the remedy."""
+    if isinstance(error, WorkbenchError) and not isinstance(error, InfrastructureError):
+        return (
+            f"a Dask worker could not set up the run: {one_line(error)}; install what it "
+            "needs on every worker (the specification's local modules are sent with the "
+            "work; installed packages and the client's other folders are not)"
+        )
     if not str(error).strip():
         return f"dask task lost ({type(error).__name__}: its worker or the scheduler was lost)"
     return f"dask task failed: {one_line(error)}"
