@@ -230,6 +230,42 @@ def test_a_worker_missing_a_plugins_dependency_says_to_install_it(
     assert "No module named 'labutil'" in why and "install what it needs on every worker" in why
 
 
+@pytest.mark.slow  # a cluster started empty, then a worker: about 15 s
+def test_a_scheduler_without_workers_is_said_and_the_runs_wait_for_one(
+    fake_plugins, tmp_path
+) -> None:
+    """Before, a sweep on a scheduler with no worker printed its plan and then nothing at
+    all; it now says that it waits for a worker and how to start one, and the runs go
+    when one connects."""
+    import threading
+
+    lines: list[str] = []
+    with distributed.LocalCluster(
+        n_workers=0, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as empty:  # fmt: skip
+
+        def add_a_worker() -> None:  # once the sweep said it waits (or too late: it failed)
+            deadline = time.monotonic() + 60
+            while not any("waiting for a Dask worker" in line for line in lines):
+                if time.monotonic() > deadline:
+                    break
+                time.sleep(0.2)
+            empty.scale(1)
+
+        helper = threading.Thread(target=add_a_worker)
+        helper.start()
+        text = spec_text(tmp_path / "dask", '["test-rk45"]')
+        summary = run_sweep(
+            parse_spec(text), scheduler=empty.scheduler_address, show_progress=False,
+            say=lines.append,
+        )  # fmt: skip
+        helper.join()
+    said = [line for line in lines if "waiting for a Dask worker" in line]
+    assert len(said) == 1 and f"dask worker {empty.scheduler_address}" in said[0]
+    assert not summary.unfinished and summary.counts["ok"] == 2
+
+
 PARENT = """
 import json, sys, time
 from workbench.runs.dask_pool import _Child

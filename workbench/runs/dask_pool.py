@@ -468,11 +468,13 @@ def run_dask(
     timing: Timing | None = None,
     states: bool = True,
     recorder: Any = None,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, str]:
     """Run ``todo`` on the cluster (timed as ``timing`` says; its ``workers`` become the
     cluster's worker threads, over all its machines; ``states``: store the trajectories,
     :func:`~workbench.runs.store.write_run`; ``recorder``: record each run as the local
-    pool does, a file a run written into ``OUT/recordings`` by the client); return the
+    pool does, a file a run written into ``OUT/recordings`` by the client; ``say``: where
+    a line for the user goes, e.g. that the scheduler has no worker); return the
     runs left without a row (run id -> why): those whose task was lost twice
     (:mod:`workbench.runs.unfinished`)."""
     try:
@@ -480,7 +482,9 @@ def run_dask(
     except ImportError as error:
         raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
     with dask_log_in(out):
-        return _run_dask(todo, out, limit, plugins, scheduler, record, timing, states, recorder)
+        return _run_dask(
+            todo, out, limit, plugins, scheduler, record, timing, states, recorder, say
+        )  # fmt: skip
 
 
 CLIENT_LOG = "dask-client.log"  # under OUT/logs: what distributed says in the client
@@ -525,6 +529,7 @@ def _run_dask(
     timing: Timing | None,
     states: bool,
     recorder: Any = None,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, str]:
     import concurrent.futures
 
@@ -617,12 +622,14 @@ def _run_dask(
             give_up(spec, reason)
 
     watch = _ClientWatch(client, scheduler)
+    idle = _IdleWatch(client, scheduler, say or (lambda line: None))
     try:
         try:
             threads = sum(client.nthreads().values()) or 1
         except Exception:  # noqa: BLE001 - lost already: the watch below says so
             threads = 1
         timed = replace(timing or Timing(), workers=threads).to_dict()  # read by submit
+        idle.check(now=True)  # (the first runs' data waits for a worker to take it)
         fill()
         while futures:
             finished, _ = concurrent.futures.wait(
@@ -632,7 +639,10 @@ def _run_dask(
                 lost = watch.lost()  # the client, not only the futures: they may never end
                 if lost:
                     abandon(lost)
+                else:
+                    idle.check()
                 continue
+            idle.finished()
             for future in finished:
                 spec, _worker = futures.pop(future)
                 try:
@@ -707,6 +717,40 @@ class _ClientWatch:
                 "start it again (or drop --scheduler) and resume"
             )
         return None
+
+
+NO_WORKER_S = 5.0  # s without a finished run before a scheduler without workers is said
+
+
+class _IdleWatch:
+    """Says once (again after runs finished meanwhile) that the scheduler has no worker
+    while no run finishes for :data:`NO_WORKER_S` seconds: the runs wait for one (an
+    adaptive cluster starts them on demand), and the sweep showed nothing at all."""
+
+    def __init__(self, client: Any, address: str, say: Callable[[str], None]) -> None:
+        self.client, self.address, self.say = client, address, say
+        self.since, self.said = time.monotonic(), False
+
+    def finished(self) -> None:
+        self.since, self.said = time.monotonic(), False
+
+    def check(self, now: bool = False) -> None:
+        """Say it if there is no worker and no run finished lately (``now``: at once)."""
+        if self.said or (not now and time.monotonic() - self.since < NO_WORKER_S):
+            return
+        if str(getattr(self.client, "status", "")) != "running":  # lost: _ClientWatch says it
+            return
+        try:
+            workers = self.client.nthreads()
+        except Exception:  # noqa: BLE001 - a lost scheduler: _ClientWatch says it
+            return
+        if not workers:
+            self.said = True
+            self.say(
+                f"waiting for a Dask worker: the scheduler {self.address} has none; the runs "
+                f"start when one connects (`dask worker {self.address}`), or stop with "
+                "Ctrl-C and resume later"
+            )
 
 
 def _lost_message(error: BaseException) -> str:
