@@ -230,14 +230,20 @@ def test_a_worker_missing_a_plugins_dependency_says_to_install_it(
     assert "No module named 'labutil'" in why and "install what it needs on every worker" in why
 
 
-@pytest.mark.slow  # a cluster started empty, then a worker: about 15 s
+@pytest.mark.slow  # a cluster started empty, then a worker: about 20 s
 def test_a_scheduler_without_workers_is_said_and_the_runs_wait_for_one(
-    fake_plugins, tmp_path
+    fake_plugins, tmp_path, monkeypatch
 ) -> None:
     """Before, a sweep on a scheduler with no worker printed its plan and then nothing at
-    all; it now says that it waits for a worker and how to start one, and the runs go
-    when one connects."""
+    all, and gave a run up each time scattering its data found no worker (70 s); it now
+    says that it waits for a worker and how to start one, and the runs go when one
+    connects, however late (here after the scatter's time, shortened to 3 s)."""
     import threading
+
+    from workbench.runs import dask_pool
+
+    monkeypatch.setattr(dask_pool, "SCATTER_S", 1.0)
+    monkeypatch.setattr(dask_pool, "LOST_AFTER_S", 2.0)
 
     lines: list[str] = []
     with distributed.LocalCluster(
@@ -251,6 +257,7 @@ def test_a_scheduler_without_workers_is_said_and_the_runs_wait_for_one(
                 if time.monotonic() > deadline:
                     break
                 time.sleep(0.2)
+            time.sleep(8)  # longer than a scatter may wait
             empty.scale(1)
 
         helper = threading.Thread(target=add_a_worker)

@@ -585,6 +585,8 @@ def _run_dask(
             packed = pack_modules(plugins) if problem is None else pack_references(
                 Path(reference_dir), problem
             )  # fmt: skip
+            if not _has_workers(client):  # nothing to scatter to: scatter waited 70 s and
+                return packed  # failed, the run given up; sent with a task, it waits
             try:
                 future = client.scatter([packed], hash=False, broadcast=True, timeout=SCATTER_S)[0]
             except Exception:  # noqa: BLE001 - e.g. a lost worker still restarting: one copy
@@ -717,6 +719,14 @@ class _ClientWatch:
                 "start it again (or drop --scheduler) and resume"
             )
         return None
+
+
+def _has_workers(client: Any) -> bool:
+    """Whether the scheduler has a worker (True when it cannot say: scatter tells then)."""
+    try:
+        return bool(client.nthreads())
+    except Exception:  # noqa: BLE001 - a lost scheduler: the submit says it
+        return True
 
 
 NO_WORKER_S = 5.0  # s without a finished run before a scheduler without workers is said
