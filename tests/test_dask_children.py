@@ -122,6 +122,29 @@ def test_a_child_killed_from_outside_is_no_row_and_the_next_run_works(
     assert row["status"] == "ok"
 
 
+def test_a_later_sweeps_child_replaces_an_earlier_sweeps_idle_one(
+    fake_plugins,
+    cluster,
+    tmp_path,
+) -> None:
+    """A task of another setting (here another OUT's references) starts a child of its own;
+    the earlier one, idle, is closed (one idle child a worker thread), not kept until the
+    worker stops: a campaign of sweeps on one cluster grew by a child (300 MB) a sweep."""
+    _, client = cluster
+    worker = sorted(workers(client))[0]
+    ok, _ = runs_of(tmp_path, '["test-rk45"]')
+    (tmp_path / "references").mkdir()
+    for reference_dir in ("", str(tmp_path / "references")):  # two sweeps' settings
+        paths = [os.getcwd(), *sys.path]
+        future = client.submit(
+            run_on_worker_child, ok.to_dict(), HUNG, ["tests.fake_plugins"], reference_dir,
+            paths, workers=[worker], pure=False,
+        )  # fmt: skip
+        row, _ = future.result(timeout=HUNG)
+        assert row["status"] == "ok"
+    assert len(children(client, worker)) == 1
+
+
 def test_a_small_sweep_gives_the_local_pools_rows(
     fake_plugins,
     cluster,
@@ -152,6 +175,102 @@ def test_a_small_sweep_gives_the_local_pools_rows(
         if not ((rows[0][c] == rows[1][c]) | (rows[0][c].isna() & rows[1][c].isna())).all()
     ]
     assert different == [], rows[0][different].compare(rows[1][different]).to_string()
+
+
+def test_the_python_api_sweeps_on_the_cluster(cluster, tmp_path) -> None:
+    """``workbench.sweep(..., scheduler=ADDRESS)`` runs on the cluster as ``workbench sweep
+    --scheduler`` does: before, the keyword was refused as an unknown specification key."""
+    import workbench as wb
+    from workbench.errors import ConfigError
+
+    local, _ = cluster
+    keys = {"problems": ["simple-pendulum"], "formalisms": ["minimal-ode"],
+            "integrators": ["rk4"], "tolerances": [1e-4]}  # fmt: skip
+    here = wb.sweep(out=tmp_path / "local", **keys)
+    there = wb.sweep(out=tmp_path / "dask", scheduler=local.scheduler_address, **keys)
+    assert list(there["status"]) == ["ok"]
+    assert (tmp_path / "dask" / "logs" / "dask-client.log").exists()  # it went to Dask
+    assert there["scd"].tolist() == here["scd"].tolist()
+    assert there["run_id"].tolist() == here["run_id"].tolist()
+    with pytest.raises(ConfigError, match="in_process=True"):
+        wb.sweep(out=tmp_path / "both", scheduler=local.scheduler_address, in_process=True, **keys)
+
+
+def test_a_worker_missing_a_plugins_dependency_says_to_install_it(
+    cluster, tmp_path, monkeypatch
+) -> None:
+    """A local plugin module importing a module the client has and the workers have not:
+    its runs are left unfinished with a reason that names the module and says to install
+    it on the workers, not only that the task failed."""
+    import types
+
+    from tests.test_local_plugins import HELPER
+    from tests.test_local_plugins import spec_text as local_spec
+    from workbench.plugin import local_modules
+    from workbench.plugin.registry import REGISTRY
+    from workbench.runs.sweep import load_spec
+
+    local, _ = cluster
+    monkeypatch.setitem(sys.modules, "labutil", types.ModuleType("labutil"))  # client only
+    monkeypatch.delenv(local_modules.NO_LOCAL_PLUGINS_VARIABLE, raising=False)
+    REGISTRY.discover()
+    for kind, entries in REGISTRY.entries.items():
+        monkeypatch.setitem(REGISTRY.entries, kind, dict(entries))
+    (tmp_path / "lab.py").write_text("import labutil\n" + HELPER)
+    (tmp_path / "sweep.toml").write_text(local_spec(tmp_path / "out", plugins='["lab"]'))
+    try:
+        summary = run_sweep(
+            load_spec(tmp_path / "sweep.toml"), scheduler=local.scheduler_address,
+            show_progress=False,
+        )  # fmt: skip
+    finally:
+        sys.modules.pop("lab", None)
+        local_modules._FROM_FILES.pop("lab", None)
+    (why,) = summary.unfinished.values()
+    assert "No module named 'labutil'" in why and "install what it needs on every worker" in why
+
+
+@pytest.mark.slow  # a cluster started empty, then a worker: about 20 s
+def test_a_scheduler_without_workers_is_said_and_the_runs_wait_for_one(
+    fake_plugins, tmp_path, monkeypatch
+) -> None:
+    """Before, a sweep on a scheduler with no worker printed its plan and then nothing at
+    all, and gave a run up each time scattering its data found no worker (70 s); it now
+    says that it waits for a worker and how to start one, and the runs go when one
+    connects, however late (here after the scatter's time, shortened to 3 s)."""
+    import threading
+
+    from workbench.runs import dask_pool
+
+    monkeypatch.setattr(dask_pool, "SCATTER_S", 1.0)
+    monkeypatch.setattr(dask_pool, "LOST_AFTER_S", 2.0)
+
+    lines: list[str] = []
+    with distributed.LocalCluster(
+        n_workers=0, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+    ) as empty:  # fmt: skip
+
+        def add_a_worker() -> None:  # once the sweep said it waits (or too late: it failed)
+            deadline = time.monotonic() + 60
+            while not any("waiting for a Dask worker" in line for line in lines):
+                if time.monotonic() > deadline:
+                    break
+                time.sleep(0.2)
+            time.sleep(8)  # longer than a scatter may wait
+            empty.scale(1)
+
+        helper = threading.Thread(target=add_a_worker)
+        helper.start()
+        text = spec_text(tmp_path / "dask", '["test-rk45"]')
+        summary = run_sweep(
+            parse_spec(text), scheduler=empty.scheduler_address, show_progress=False,
+            say=lines.append,
+        )  # fmt: skip
+        helper.join()
+    said = [line for line in lines if "waiting for a Dask worker" in line]
+    assert len(said) == 1 and f"dask worker {empty.scheduler_address}" in said[0]
+    assert not summary.unfinished and summary.counts["ok"] == 2
 
 
 PARENT = """

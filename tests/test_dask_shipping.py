@@ -72,6 +72,14 @@ def comparable(out: Path):
     return frame[[c for c in frame.columns if not c.endswith("_s") and c not in timings]]
 
 
+def computations(out: Path) -> int:
+    """How many runs computed their reference: not read from a file, not taken from the
+    worker's memory (``reference_s`` 0)."""
+    frame = store.load_results(out)
+    read = frame["reference"].str.contains(r"\(read from ")
+    return int((~read & (frame["reference_s"] > 0)).sum())
+
+
 def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeypatch) -> None:
     folder, log = isolated
     sweep(folder, tmp_path / "local")  # the local pool's rows, as before
@@ -103,6 +111,9 @@ def test_workers_that_cannot_see_the_clients_folders(isolated, tmp_path, monkeyp
         monkeypatch.setattr(shipping, "pack_modules", pack_then_hide)
         monkeypatch.setattr("workbench.runs.dask_pool.pack_modules", pack_then_hide)
         sweep(folder, tmp_path / "dask", cluster.scheduler_address)
+        # computed by one worker (its first run went alone), read by the other; both
+        # computed it before
+        assert computations(tmp_path / "dask") == 1
         # the reference a worker computed came back to the client
         returned = sorted(p.name for p in (tmp_path / "dask" / "references").iterdir())
         assert [Path(name).suffix for name in returned] == [".json", ".parquet"]
@@ -173,3 +184,41 @@ def test_a_local_package_and_its_stored_reference_are_shipped(tmp_path, monkeypa
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["my_pkg.plugins", "True"]
+
+
+def test_a_problems_first_run_goes_alone_while_its_reference_is_computed(isolated, tmp_path):
+    """The client holds back the other runs of a problem whose reference it has not (the
+    helper's computes one), not those of a problem with its own (simple-pendulum's is
+    stored); a skipped first run hands its place on, a row or a run given up lets them go."""
+    from collections import deque
+
+    from workbench.execution.execute import RunSpec
+
+    def runs(problem: str) -> list[RunSpec]:
+        return [
+            RunSpec(problem, "minimal-ode", integrator, rtol, rtol)
+            for integrator in ("rk4", "scipy-rk45")
+            for rtol in (1e-6, 1e-4)
+        ]
+
+    local_modules.import_plugin_modules([f"helper={isolated[0] / 'helper.py'}"])
+    mine, stored = runs("downloaded-pendulum"), runs("simple-pendulum")
+    queue = deque((None, spec) for spec in mine + stored)
+    gate = shipping.ReferenceGate(queue, tmp_path / "references")
+    assert [spec for _key, spec in queue] == [mine[1], *stored]  # the loosest goes first
+    gate.returned(mine[1], {"status": "skipped"})  # said at once: the next goes alone
+    assert [spec for _key, spec in queue] == [mine[0], mine[1], *stored]
+    queue.clear()
+    gate.returned(mine[0], {"status": "ok", "reference": "computed: ..."})
+    assert [spec for _key, spec in queue] == [mine[2], mine[3]]
+    queue = deque((None, spec) for spec in mine)
+    gate = shipping.ReferenceGate(queue, tmp_path / "references")
+    gate.returned(mine[1], None)  # given up: the others try themselves
+    assert sorted(spec.run_id for _key, spec in queue) == sorted(s.run_id for s in mine)
+    # a reference already in OUT/references (a resume): nothing held
+    (tmp_path / "references").mkdir()
+    for suffix in (".parquet", ".json"):
+        (tmp_path / "references" / f"downloaded-pendulum-{'0' * 16}{suffix}").write_text("")
+    queue = deque((None, spec) for spec in mine)
+    shipping.ReferenceGate(queue, tmp_path / "references")
+    assert len(queue) == 4

@@ -45,6 +45,7 @@ def sweep(
     in_process: bool | None = None,
     fresh: bool = False,
     wait: bool = False,
+    scheduler: str | None = None,
     **keys: Any,
 ) -> pd.DataFrame:
     """Run a sweep and return its runs' rows (the frame ``workbench.load_results`` gives).
@@ -61,6 +62,9 @@ def sweep(
     (an object with ``update``: its ``total`` is set and it advances one a run).
     ``in_process``: run here instead of in worker processes (default: only when a
     plugin cannot be imported by a worker, e.g. a class defined in a notebook).
+    ``scheduler``: a Dask scheduler's address (``tcp://host:port``): the runs go to its
+    cluster, as with ``workbench sweep --scheduler`` (the user guide's Dask section);
+    ConfigError for a plugin a worker cannot import.
 
     It writes the results store (rows, series, trajectories), not the HTML report or the
     Rerun recording that ``workbench sweep`` adds: ``workbench report OUT`` makes the
@@ -92,6 +96,13 @@ def sweep(
     results_directory(parsed.out, make=True)  # ConfigError for a file or a folder not made
     local = local_plugins(parsed)
     here = bool(local) if in_process is None else in_process
+    if scheduler is not None and (here or local):
+        raise ConfigError(
+            "scheduler: the runs cannot go to a Dask cluster "
+            + (f"with plugins its workers cannot import ({', '.join(local)}): define them in "
+               "a module file named in the specification's plugins" if local else
+               "and run in this process (in_process=True): leave one of them out")
+        )  # fmt: skip
     callback = _progress(progress)
     rows = None
     if here:
@@ -99,7 +110,8 @@ def sweep(
             run_here(parsed, callback, fresh)
     else:
         summary = run_sweep(parsed, show_progress=False, fresh=fresh, progress=callback,
-                            say=lambda line: None, wait=wait, close_calls=close_calls)  # fmt: skip
+                            say=lambda line: None, wait=wait, close_calls=close_calls,
+                            scheduler=scheduler)  # fmt: skip
         rows = summary.rows  # what the consolidation read: not read again
     if rows is None:
         rows = store.load_results(parsed.out)

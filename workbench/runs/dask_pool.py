@@ -36,7 +36,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from workbench.errors import ConfigError, one_line
+from workbench.errors import ConfigError, WorkbenchError, one_line
 from workbench.execution.execute import RunSpec, equations_key, execute_run, status_row
 from workbench.execution.run_log import (
     LOG_TEXT,
@@ -57,6 +57,7 @@ from workbench.runs.local_pool import Keyed, _take_next
 from workbench.runs.recording_batches import RECORDINGS_DIR
 from workbench.runs.shipping import (
     REFERENCE_FILES,
+    ReferenceGate,
     keep_references,
     new_references,
     pack_modules,
@@ -327,6 +328,29 @@ def _import_plugins(plugins: tuple, sys_path: tuple) -> None:
         _PLUGINS_IMPORTED.add((plugins, sys_path))
 
 
+def _keep_idle(child: _Child) -> None:
+    """Keep ``child`` for the next task, and close the idle children beyond one a worker
+    thread, least recently used first: a child made for another setting (an earlier
+    sweep's OUT or plugins) would otherwise stay, with its memory, until the worker stops."""
+    with _IDLE_LOCK:
+        _IDLE.append(child)
+        surplus = _IDLE[: max(0, len(_IDLE) - _worker_threads())]
+        del _IDLE[: len(surplus)]
+    for old in surplus:
+        with contextlib.suppress(Exception):
+            old.close()
+
+
+def _worker_threads() -> int:
+    """The threads of this Dask worker (1 outside one)."""
+    try:
+        from distributed import get_worker
+
+        return max(1, int(get_worker().state.nthreads))
+    except (ImportError, ValueError, AttributeError):
+        return 1
+
+
 def _close_idle() -> None:
     with _IDLE_LOCK:
         while _IDLE:
@@ -381,8 +405,7 @@ def run_on_worker_child(
         child.close()
         raise
     if child.alive:
-        with _IDLE_LOCK:
-            _IDLE.append(child)
+        _keep_idle(child)
     if shipped:
         computed = new_references(folder, str(spec_data.get("problem", "")), references or {})
         if computed:
@@ -445,11 +468,13 @@ def run_dask(
     timing: Timing | None = None,
     states: bool = True,
     recorder: Any = None,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, str]:
     """Run ``todo`` on the cluster (timed as ``timing`` says; its ``workers`` become the
     cluster's worker threads, over all its machines; ``states``: store the trajectories,
     :func:`~workbench.runs.store.write_run`; ``recorder``: record each run as the local
-    pool does, a file a run written into ``OUT/recordings`` by the client); return the
+    pool does, a file a run written into ``OUT/recordings`` by the client; ``say``: where
+    a line for the user goes, e.g. that the scheduler has no worker); return the
     runs left without a row (run id -> why): those whose task was lost twice
     (:mod:`workbench.runs.unfinished`)."""
     try:
@@ -457,7 +482,9 @@ def run_dask(
     except ImportError as error:
         raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
     with dask_log_in(out):
-        return _run_dask(todo, out, limit, plugins, scheduler, record, timing, states, recorder)
+        return _run_dask(
+            todo, out, limit, plugins, scheduler, record, timing, states, recorder, say
+        )  # fmt: skip
 
 
 CLIENT_LOG = "dask-client.log"  # under OUT/logs: what distributed says in the client
@@ -502,6 +529,7 @@ def _run_dask(
     timing: Timing | None,
     states: bool,
     recorder: Any = None,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, str]:
     import concurrent.futures
 
@@ -519,6 +547,7 @@ def _run_dask(
     shipped: dict[str | None, tuple[list[str], Any]] = {}  # problem -> files, their future
     paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
+    gate = ReferenceGate(queue, Path(reference_dir))  # a reference computed once, not a worker
     futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}
     pairs: dict[str | None, tuple[str, ...] | None] = {}  # worker -> equations of its last run
     executors: dict[str | None, Any] = {}
@@ -528,6 +557,7 @@ def _run_dask(
     def give_up(spec: RunSpec, reason: str) -> None:
         unfinished[spec.run_id] = f"{reason} ({failures[spec.run_id]} attempts)"
         record("unfinished")
+        gate.returned(spec, None)
 
     def submit(spec: RunSpec, worker: str | None) -> None:
         if worker not in executors:  # a preference: a lost worker's tasks go to the others
@@ -555,6 +585,8 @@ def _run_dask(
             packed = pack_modules(plugins) if problem is None else pack_references(
                 Path(reference_dir), problem
             )  # fmt: skip
+            if not _has_workers(client):  # nothing to scatter to: scatter waited 70 s and
+                return packed  # failed, the run given up; sent with a task, it waits
             try:
                 future = client.scatter([packed], hash=False, broadcast=True, timeout=SCATTER_S)[0]
             except Exception:  # noqa: BLE001 - e.g. a lost worker still restarting: one copy
@@ -584,7 +616,7 @@ def _run_dask(
         """The scheduler is gone: every run not done is left without a row (a resume redoes
         them), instead of waiting for futures that never resolve once the client closed."""
         pending = [spec for spec, _worker in futures.values()]
-        pending += [spec for _key, spec in queue]
+        pending += [spec for _key, spec in [*queue, *gate.take_all()]]
         futures.clear()
         queue.clear()
         for spec in pending:
@@ -592,12 +624,14 @@ def _run_dask(
             give_up(spec, reason)
 
     watch = _ClientWatch(client, scheduler)
+    idle = _IdleWatch(client, scheduler, say or (lambda line: None))
     try:
         try:
             threads = sum(client.nthreads().values()) or 1
         except Exception:  # noqa: BLE001 - lost already: the watch below says so
             threads = 1
         timed = replace(timing or Timing(), workers=threads).to_dict()  # read by submit
+        idle.check(now=True)  # (the first runs' data waits for a worker to take it)
         fill()
         while futures:
             finished, _ = concurrent.futures.wait(
@@ -607,7 +641,10 @@ def _run_dask(
                 lost = watch.lost()  # the client, not only the futures: they may never end
                 if lost:
                     abandon(lost)
+                else:
+                    idle.check()
                 continue
+            idle.finished()
             for future in finished:
                 spec, _worker = futures.pop(future)
                 try:
@@ -629,6 +666,7 @@ def _run_dask(
                 store_log(out, row)
                 store.write_run(out, row, series, states)
                 record(row.get("status", "failed"))
+                gate.returned(spec, row)
             fill()
     finally:
         with contextlib.suppress(Exception):  # (a lost scheduler: nothing to say goodbye to)
@@ -683,8 +721,58 @@ class _ClientWatch:
         return None
 
 
+def _has_workers(client: Any) -> bool:
+    """Whether the scheduler has a worker (True when it cannot say: scatter tells then)."""
+    try:
+        return bool(client.nthreads())
+    except Exception:  # noqa: BLE001 - a lost scheduler: the submit says it
+        return True
+
+
+NO_WORKER_S = 5.0  # s without a finished run before a scheduler without workers is said
+
+
+class _IdleWatch:
+    """Says once (again after runs finished meanwhile) that the scheduler has no worker
+    while no run finishes for :data:`NO_WORKER_S` seconds: the runs wait for one (an
+    adaptive cluster starts them on demand), and the sweep showed nothing at all."""
+
+    def __init__(self, client: Any, address: str, say: Callable[[str], None]) -> None:
+        self.client, self.address, self.say = client, address, say
+        self.since, self.said = time.monotonic(), False
+
+    def finished(self) -> None:
+        self.since, self.said = time.monotonic(), False
+
+    def check(self, now: bool = False) -> None:
+        """Say it if there is no worker and no run finished lately (``now``: at once)."""
+        if self.said or (not now and time.monotonic() - self.since < NO_WORKER_S):
+            return
+        if str(getattr(self.client, "status", "")) != "running":  # lost: _ClientWatch says it
+            return
+        try:
+            workers = self.client.nthreads()
+        except Exception:  # noqa: BLE001 - a lost scheduler: _ClientWatch says it
+            return
+        if not workers:
+            self.said = True
+            self.say(
+                f"waiting for a Dask worker: the scheduler {self.address} has none; the runs "
+                f"start when one connects (`dask worker {self.address}`), or stop with "
+                "Ctrl-C and resume later"
+            )
+
+
 def _lost_message(error: BaseException) -> str:
-    """Why a Dask task gave no result, in one line (a lost scheduler raises with no text)."""
+    """Why a Dask task gave no result, in one line (a lost scheduler raises with no text).
+    A workbench error the worker raised (not InfrastructureError) is its set-up's, e.g. a
+    plugin module importing a package not installed there: said so, with the remedy."""
+    if isinstance(error, WorkbenchError) and not isinstance(error, InfrastructureError):
+        return (
+            f"a Dask worker could not set up the run: {one_line(error)}; install what it "
+            "needs on every worker (the specification's local modules are sent with the "
+            "work; installed packages and the client's other folders are not)"
+        )
     if not str(error).strip():
         return f"dask task lost ({type(error).__name__}: its worker or the scheduler was lost)"
     return f"dask task failed: {one_line(error)}"

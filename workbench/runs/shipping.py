@@ -16,7 +16,10 @@ host cannot see. So the client reads them and sends their bytes:
   client with the row (:func:`new_references`), which keeps it in ``OUT/references`` and
   ships it with the later runs.
 
-A worker never reads the client's ``OUT``, shared file system or not.
+A worker never reads the client's ``OUT``, shared file system or not. Workers have no
+common folder to lock, so the client sends a problem's first run alone while its computed
+reference is not in ``OUT/references`` (:class:`ReferenceGate`): the others follow with the
+reference, which one worker computed.
 """
 
 from __future__ import annotations
@@ -25,10 +28,14 @@ import hashlib
 import os
 import re
 import tempfile
+from collections import deque
 from pathlib import Path
+from typing import Any
 
-from workbench.execution.references import reference_prefix
+from workbench.execution.execute import RunSpec, canonical_json
+from workbench.execution.references import given_reference, reference_prefix
 from workbench.files import atomic_write
+from workbench.plugin import registry
 from workbench.plugin.local_modules import PluginModule
 
 REFERENCE_FILES = "reference_files"  # a row's key carrying references a worker computed
@@ -189,3 +196,70 @@ def keep_references(reference_dir: Path, returned: dict[str, bytes]) -> None:
     """Write the references a worker returned into the client's ``OUT/references``."""
     reference_dir.mkdir(parents=True, exist_ok=True)
     _write_missing(reference_dir, returned)
+
+
+def _computes_reference(spec: RunSpec) -> bool:
+    """Whether ``spec``'s problem has no reference of its own (analytic, stored), so its
+    runs compute one; False if the client cannot tell (the runs say why)."""
+    try:
+        problem = registry.get_problem(spec.problem)(spec.problem_options)
+        return given_reference(problem) is None and not getattr(problem, "no_reference", "")
+    except Exception:  # noqa: BLE001 - a problem that fails here fails in its runs
+        return False
+
+
+class ReferenceGate:
+    """Holds back the runs of a problem (and its options) whose computed reference the
+    client does not have, while its first run (the pilot: the loosest tolerance, the
+    quickest) is out; they are let go once a row of it comes back having looked for the
+    reference, which then comes with them. Without it, every worker starting a run of
+    the problem computed the reference itself (seconds, with heyoka tens of seconds)."""
+
+    def __init__(self, queue: deque, reference_dir: Path) -> None:
+        """Take from ``queue`` (of (key, spec)) the runs to hold back."""
+        self.queue, self.reference_dir = queue, reference_dir
+        self.held: dict[tuple[str, str], deque] = {}
+        self.pilots: dict[tuple[str, str], str] = {}  # group -> its pilot's run id
+        groups: dict[tuple[str, str], list] = {}
+        for item in queue:
+            groups.setdefault(self._group(item[1]), []).append(item)
+        for group, items in groups.items():
+            if len(items) < 2 or reference_names(reference_dir, group[0]):
+                continue
+            if not _computes_reference(items[0][1]):
+                continue
+            pilot = max(items, key=lambda item: item[1].rtol)
+            self.pilots[group] = pilot[1].run_id
+            self.held[group] = deque(item for item in items if item is not pilot)
+        held_ids = {spec.run_id for items in self.held.values() for _key, spec in items}
+        kept = [item for item in queue if item[1].run_id not in held_ids]
+        queue.clear()
+        queue.extend(kept)
+
+    @staticmethod
+    def _group(spec: RunSpec) -> tuple[str, str]:
+        return spec.problem, canonical_json(spec.problem_options)
+
+    def returned(self, spec: RunSpec, row: dict[str, Any] | None) -> None:
+        """A run ended: its ``row``, or None when it was given up (no row). The pilot lets
+        its group go, unless it was skipped (a pairing that cannot run, said at once):
+        then the next run takes its place."""
+        group = self._group(spec)
+        if self.pilots.get(group) != spec.run_id:
+            return
+        if row is None or row.get("status") != "skipped":
+            self.queue.extend(self.held.pop(group))
+            del self.pilots[group]
+            return
+        nxt = self.held[group].popleft()
+        self.queue.appendleft(nxt)
+        self.pilots[group] = nxt[1].run_id
+        if not self.held[group]:
+            del self.held[group], self.pilots[group]
+
+    def take_all(self) -> list:
+        """Every run held back (the scheduler is lost: they are left unfinished)."""
+        items = [item for items in self.held.values() for item in items]
+        self.held.clear()
+        self.pilots.clear()
+        return items

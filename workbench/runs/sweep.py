@@ -182,7 +182,7 @@ def run_sweep(
             if scheduler:
                 unfinished = run_dask(
                     todo, out_dir, limit, sweep.plugins, scheduler, record, timing, states,
-                    recorder,
+                    recorder, say or _stderr,
                 )  # fmt: skip
             else:
                 tick = lambda: advance(None)  # noqa: E731
