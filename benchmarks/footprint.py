@@ -53,6 +53,9 @@ minutes after: say where OUT was, and compare runs made in the same place.)
    --summary`` reads for the reader's lines of issue 35.
 7. The worker loop in one process (:func:`loop_parts`): a tiny run's CPU outside its
    integration and in each part (recording, metrics, series and row files), no profiler.
+8. ``--chunk-cost``: what Rerun charges a chunk (:func:`chunk_cost_rows`): CPU a
+   ``send_columns`` of n rows of 7 floats to a binary stream, encoding included, for n
+   from 10 to 3,200 (a tiny run's recording is 6 chunks of about 200 rows).
 
 Prints the table and the load average; writes ``benchmarks/results/footprint.csv``
 (``footprint-tiny.csv`` for 3).
@@ -690,7 +693,42 @@ def targets_table(counts: list[int], dask_counts: list[int] | None = None) -> pd
     return table
 
 
+def chunk_cost_rows(rows: tuple[int, ...] = (10, 50, 200, 800, 3200), chunks: int = 300,
+                    repeats: int = 3) -> list[dict[str, float]]:  # fmt: skip
+    """CPU ms a chunk (``time.process_time``: Rerun's encoding threads counted in) and bytes
+    a chunk of ``chunks`` ``send_columns`` calls of n rows x 7 float64 (a scalar series'
+    shape) into a binary stream read at the end, each n the least of ``repeats``."""
+    import rerun as rr
+
+    table = []
+    for n in rows:
+        times, values = np.linspace(0.0, 10.0, n), np.random.default_rng(0).random((n, 7))
+        best, size = np.inf, 0.0
+        for _ in range(repeats):
+            recording = rr.RecordingStream("chunk-cost")
+            stream = recording.binary_stream()
+            started = time.process_time()
+            for k in range(chunks):
+                recording.send_columns(
+                    f"runs/p/run{k}/series", indexes=[rr.TimeColumn("t", duration=times)],
+                    columns=rr.Scalars.columns(scalars=values),
+                )  # fmt: skip
+            data = stream.read() or b""
+            best = min(best, (time.process_time() - started) / chunks * 1e3)
+            size = len(data) / chunks
+            recording.disconnect()
+        table.append({"rows": n, "cpu_ms_a_chunk": best, "bytes_a_chunk": size})
+    return table
+
+
 def main(argv: list[str]) -> pd.DataFrame:
+    if argv[:1] == ["--chunk-cost"]:
+        print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+        table = pd.DataFrame(chunk_cost_rows())
+        RESULTS.mkdir(exist_ok=True)
+        table.to_csv(RESULTS / "footprint-chunks.csv", index=False)
+        print(table.round(3).to_string(index=False))
+        return table
     if argv[:1] == ["--sweep-child"]:
         _sweep_child(*argv[1:])
         return pd.DataFrame()
