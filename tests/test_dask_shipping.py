@@ -16,6 +16,7 @@ import pytest
 
 from tests.test_local_plugins import HELPER, spec_text
 from workbench.execution.counted_work import COLUMNS as WORK_COLUMNS
+from workbench.execution.references import computed_reference_file
 from workbench.execution.timing import TIMING_COLUMNS
 from workbench.outputs.recording import RECORDING_FILE, SweepRecorder
 from workbench.plugin import local_modules
@@ -217,8 +218,33 @@ def test_a_problems_first_run_goes_alone_while_its_reference_is_computed(isolate
     assert sorted(spec.run_id for _key, spec in queue) == sorted(s.run_id for s in mine)
     # a reference already in OUT/references (a resume): nothing held
     (tmp_path / "references").mkdir()
+    problem = REGISTRY.get("problem", "downloaded-pendulum")({})
+    name = computed_reference_file(problem, "downloaded-pendulum", {}, problem.sample_times())
     for suffix in (".parquet", ".json"):
-        (tmp_path / "references" / f"downloaded-pendulum-{'0' * 16}{suffix}").write_text("")
+        (tmp_path / "references" / name).with_suffix(suffix).write_text("")
     queue = deque((None, spec) for spec in mine)
     shipping.ReferenceGate(queue, tmp_path / "references")
     assert len(queue) == 4
+
+
+def test_another_option_sets_reference_holds_nothing_back_of_this_one(tmp_path) -> None:
+    """The gate asked for any reference of the problem's name: once one option set's
+    reference was in OUT/references, another set's runs were not held, and every worker
+    starting one computed that set's reference again."""
+    from collections import deque
+
+    from workbench.execution.execute import RunSpec
+
+    def runs(n_links: int) -> list[RunSpec]:
+        return [RunSpec("planar-chain", "minimal-ode", "scipy-rk45", rtol, rtol,
+                        problem_options={"n_links": n_links}) for rtol in (1e-6, 1e-4)]  # fmt: skip
+
+    three, four = runs(3), runs(4)
+    folder = tmp_path / "references"
+    folder.mkdir()
+    problem = REGISTRY.get("problem", "planar-chain")({"n_links": 3})
+    name = computed_reference_file(problem, "planar-chain", {"n_links": 3}, problem.sample_times())
+    (folder / name).write_text("")
+    queue = deque((None, spec) for spec in three + four)
+    shipping.ReferenceGate(queue, folder)
+    assert [spec for _key, spec in queue] == [*three, four[1]]  # n_links 4: its pilot alone

@@ -587,6 +587,31 @@ def _problem_key(problem_name: str, problem_options: dict[str, Any], times: np.n
     }
 
 
+def computed_reference_file(
+    problem: Any, problem_name: str, problem_options: dict[str, Any], times: np.ndarray
+) -> str:
+    """The file name :func:`computed_reference` keeps ``problem``'s reference under in a
+    reference folder (its description beside it, ``.json``)."""
+    candidates = configured_pipelines("computed", problem.model())
+    key = _computed_key(problem, problem_name, problem_options, times, candidates)
+    return f"{reference_prefix(problem_name)}-{reference_hash(key)}.parquet"
+
+
+def _computed_key(
+    problem: Any, problem_name: str, problem_options: dict[str, Any], times: np.ndarray,
+    candidates: list[Any],
+) -> dict[str, Any]:  # fmt: skip
+    """What a computed reference is made from: the problem's name, options and output
+    times, the configured pipelines (``candidates``), tolerances and fingerprint."""
+    key = _problem_key(problem_name, problem_options, times)
+    key["pipelines"] = [dataclasses.asdict(p) for p in candidates]
+    key["tolerances"] = [REFERENCE_RTOL, REFERENCE_ATOL]
+    # the model and initial condition too: a cached reference of an edited problem (same
+    # name, options and times) was served as its reference before
+    key["fingerprint"] = problem_fingerprint(problem)
+    return key
+
+
 def reference_hash(key: dict[str, Any]) -> str:
     text = json.dumps(key, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -628,12 +653,7 @@ def computed_reference(
     and a lock file keeps concurrent workers from computing it twice)."""
     model = problem.model()
     candidates = configured_pipelines("computed", model)
-    key = _problem_key(problem_name, problem_options, times)
-    key["pipelines"] = [dataclasses.asdict(p) for p in candidates]
-    key["tolerances"] = [REFERENCE_RTOL, REFERENCE_ATOL]
-    # the model and initial condition too: a cached reference of an edited problem (same
-    # name, options and times) was served as its reference before
-    key["fingerprint"] = problem_fingerprint(problem)
+    key = _computed_key(problem, problem_name, problem_options, times, candidates)
     digest = reference_hash(key)
     if digest in _REFERENCE_MEMORY:
         poses, description, accuracy, formalism = _REFERENCE_MEMORY[digest]

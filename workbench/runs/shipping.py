@@ -33,7 +33,11 @@ from pathlib import Path
 from typing import Any
 
 from workbench.execution.execute import RunSpec, canonical_json
-from workbench.execution.references import given_reference, reference_prefix
+from workbench.execution.references import (
+    computed_reference_file,
+    given_reference,
+    reference_prefix,
+)
 from workbench.files import atomic_write
 from workbench.plugin import registry
 from workbench.plugin.local_modules import PluginModule
@@ -198,12 +202,17 @@ def keep_references(reference_dir: Path, returned: dict[str, bytes]) -> None:
     _write_missing(reference_dir, returned)
 
 
-def _computes_reference(spec: RunSpec) -> bool:
-    """Whether ``spec``'s problem has no reference of its own (analytic, stored), so its
-    runs compute one; False if the client cannot tell (the runs say why)."""
+def _computes_reference(spec: RunSpec, reference_dir: Path) -> bool:
+    """Whether ``spec``'s runs will compute a reference: its problem has none of its own
+    (analytic, stored) and ``reference_dir`` has none of these options (another option
+    set's reference is another file); False if the client cannot tell (the runs say why)."""
     try:
         problem = registry.get_problem(spec.problem)(spec.problem_options)
-        return given_reference(problem) is None and not getattr(problem, "no_reference", "")
+        if given_reference(problem) is not None or getattr(problem, "no_reference", ""):
+            return False
+        name = computed_reference_file(problem, spec.problem, spec.problem_options,
+                                       problem.sample_times())  # fmt: skip
+        return not (reference_dir / name).is_file()
     except Exception:  # noqa: BLE001 - a problem that fails here fails in its runs
         return False
 
@@ -224,9 +233,7 @@ class ReferenceGate:
         for item in queue:
             groups.setdefault(self._group(item[1]), []).append(item)
         for group, items in groups.items():
-            if len(items) < 2 or reference_names(reference_dir, group[0]):
-                continue
-            if not _computes_reference(items[0][1]):
+            if len(items) < 2 or not _computes_reference(items[0][1], reference_dir):
                 continue
             pilot = max(items, key=lambda item: item[1].rtol)
             self.pilots[group] = pilot[1].run_id
