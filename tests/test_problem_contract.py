@@ -19,6 +19,14 @@ from workbench.plugin.problem import Invariant, Problem, Reference
 from workbench.plugin.registry import REGISTRY
 
 
+def rod(name: str) -> Model:
+    """A rod on a revolute joint from the ground."""
+    model = Model(name, kind="planar")
+    model.add_body("rod", 1.0, com=(0.5, 0.0, 0.0), inertia=0.1)
+    model.add_joint("pivot", "revolute", "ground", "rod")
+    return model
+
+
 class ForgetsToReturn(Problem):
     """model() builds a pendulum and forgets its return."""
 
@@ -27,9 +35,7 @@ class ForgetsToReturn(Problem):
     source = "tests"
 
     def model(self):
-        model = Model(self.name, kind="planar")
-        model.add_body("rod", 1.0, com=(0.5, 0.0, 0.0), inertia=0.1)
-        model.add_joint("pivot", "revolute", "ground", "rod")
+        rod(self.name)
 
 
 class ListOfCoordinates(Problem):
@@ -40,10 +46,7 @@ class ListOfCoordinates(Problem):
     source = "tests"
 
     def model(self):
-        model = Model(self.name, kind="planar")
-        model.add_body("rod", 1.0, com=(0.5, 0.0, 0.0), inertia=0.1)
-        model.add_joint("pivot", "revolute", "ground", "rod")
-        return model
+        return rod(self.name)
 
     def initial_joint_coordinates(self):
         return [0.3]
