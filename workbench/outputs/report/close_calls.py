@@ -14,7 +14,7 @@ import pandas as pd
 
 from workbench.outputs.report.analysis import prepare_results
 from workbench.outputs.report.decision import FALLBACK_TARGETS
-from workbench.outputs.report.ranking import CLOSE, pair_costs
+from workbench.outputs.report.ranking import CLOSE, pair_costs, sampled_cost
 
 __all__ = ["CLOSE", "close_calls", "retime_note"]
 
@@ -44,7 +44,7 @@ def retime_note(runs: pd.DataFrame, cost: str) -> str:
     """What the first screen says of the close calls' timing ('' for a counted cost):
     how many were timed again at moments apart, or that none were, so that a reader
     knows how far a small margin can be trusted."""
-    if not cost.endswith("_s") or cost == "work_s":
+    if not sampled_cost(cost):
         return ""
     retimed = pd.to_numeric(runs.get("retimed", pd.Series(dtype=float)), errors="coerce")
     again = retimed[retimed > 0]

@@ -27,16 +27,22 @@ from workbench.outputs.report.trust import ok_runs, warned
 
 NOT_REACHED = "none reached"
 NOT_TIMED = "not timed again: may not hold"
-NOT_TIMED_NOTE = (
-    f"'{NOT_TIMED}': a margin under 3x whose runs were not timed again after the runs "
-    "(over the repeat budget, or --retime 0); their samples were taken back to back, in "
-    "one moment of the machine, so it may not survive a second sweep"
-)
-"""What a caption or the "why" says of a verdict that carries :data:`NOT_TIMED`."""
 CLOSE = 3.0
 """A pair within this many times a cheapest's cost is a close call: a run's back-to-back
 samples, taken in a slow spell of a shared machine, read up to about 1.7x its usual cost
 (5-95 % on a KVM Xeon: docs/performance.md), so a pair 3x behind cannot be one."""
+NOT_TIMED_NOTE = (
+    f"'{NOT_TIMED}': a margin under {CLOSE:g}x whose runs were not timed again after the "
+    "runs (over the repeat budget, or --retime 0); their samples were taken back to back, "
+    "in one moment of the machine, so it may not survive a second sweep"
+)
+"""What a caption or the "why" says of a verdict that carries :data:`NOT_TIMED`."""
+
+
+def sampled_cost(cost: str) -> bool:
+    """Whether ``cost`` is read from timed samples (CPU or wall seconds), which a second
+    sweep may not reproduce and the sweep times again; not counted work or counts."""
+    return cost.endswith("_s") and cost != "work_s"
 
 
 def ratio_text(value: float) -> str:
@@ -200,7 +206,7 @@ def decide(runs: pd.DataFrame, target: float, cost: str) -> Decision:
     runner = apart.iloc[0]
     decision.runner_up, decision.runner_cost = str(runner["pair"]), float(runner[cost])
     decision.margin = decision.runner_cost / decision.cost if decision.cost > 0 else np.nan
-    if cost.endswith("_s") and cost != "work_s" and decision.margin < CLOSE:
+    if sampled_cost(cost) and decision.margin < CLOSE:
         # a close call priced from back-to-back samples alone (workbench.runs.retime)
         retimed = _column(ranked.loc[[0, runner.name]], "retimed")
         decision.timed_apart = not bool((retimed == 0).any())
