@@ -8,6 +8,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
@@ -181,3 +183,49 @@ def test_writers_refuse_a_linked_folder_or_file_below_out(tmp_path) -> None:
     with pytest.raises(files.LinkRefusedError):
         files.remove_file(link, out)
     assert link.is_symlink() and victim.read_text() == "precious\n"
+
+
+def test_a_runs_files_written_in_place_never_write_through_a_link(tmp_path) -> None:
+    """A run's row and series are written in place, not renamed into place (a tiny run's
+    cost): a hard link planted at either is replaced by a new file, its target untouched,
+    and a symbolic link there is refused as by every other writer."""
+    victim, _folder = victims(tmp_path)
+    out = tmp_path / "out"
+    row = {"run_id": "abc", "status": "ok"}
+    series = {"run_id": "abc", "t": np.linspace(0.0, 1.0, 5), "drift_pos": np.zeros(5)}
+    for where in ("runs/abc.json", "series/abc.parquet"):
+        planted = out / where
+        planted.parent.mkdir(parents=True, exist_ok=True)
+        planted.unlink(missing_ok=True)  # (written by the last turn)
+        os.link(victim, planted)  # the same inode as the file outside OUT
+        before = state(victim)
+        store.write_run(out, row, series)
+        assert state(victim) == before
+        assert planted.stat().st_ino != victim.stat().st_ino
+    assert store.read_row(store.row_path(out, "abc")) == row
+    assert list(pd.read_parquet(store.series_path(out, "abc"))["t"]) == list(series["t"])
+    for where in ("runs/abc.json", "series/abc.parquet"):
+        (out / where).unlink()
+        link = plant(out, where, victim)
+        with pytest.raises(files.LinkRefusedError):
+            store.write_run(out, row, series)
+        assert link.is_symlink() and state(victim) == before
+        link.unlink()
+
+
+def test_a_file_written_in_place_is_removed_when_its_write_fails(tmp_path, monkeypatch) -> None:
+    """:func:`files.write_new_file` on an error leaves no part of the file, and names it."""
+    out = tmp_path / "out"
+    target = out / "runs" / "abc.json"
+    written = []
+
+    def full_disk(descriptor, data):  # a disk that fills after the first bytes
+        if written:
+            raise OSError(28, "No space left on device")
+        written.append(data[:1])
+        return 1
+
+    monkeypatch.setattr(os, "write", full_disk)
+    with pytest.raises(OSError, match="abc.json"):
+        files.write_new_file(target, b'{"run_id": "abc"}', out)
+    assert written and target.parent.is_dir() and not target.exists()

@@ -88,10 +88,13 @@ def write_run(
     ``states``: keep the trajectory's state columns in the series (False: drift, energy
     and error only, as before trajectories were stored).
 
-    Neither is synced to disk here: after a machine crash a row lost or left corrupt reads
-    as not done (:func:`read_row`), and so does a row whose series is not whole (its
-    footer and sample count: :func:`workbench.execution.row_check.series_defect`), so the run is
-    simply run again; the sweep syncs the output folder's file system once at its end
+    Both are written in place (:func:`workbench.files.write_new_file`), not renamed into
+    place: a worker killed mid-write leaves a row that does not parse or a series without
+    its footer, which read as not done, as a lost file does. Neither is synced to disk
+    here: after a machine crash a row lost or left corrupt reads as not done
+    (:func:`read_row`), and so does a row whose series is not whole (its footer and sample
+    count: :func:`workbench.execution.row_check.series_defect`), so the run is simply run
+    again; the sweep syncs the output folder's file system once at its end
     (:func:`workbench.files.sync_file_system`). A sync a run cost 2-5 ms, more than a tiny
     run's integration, and made the workers wait on each other's journal commits.
     """
@@ -102,8 +105,12 @@ def write_run(
         elif not states:
             series = {k: v for k, v in series.items() if not k.startswith(STATE_PREFIX)}
         path = series_path(out, run_id)
-        write_parquet_atomic(series, path, root=Path(out), durable=False, lean=True)
-    write_json_atomic(row, row_path(out, run_id), durable=False, root=Path(out), indent=None)
+        write_parquet_atomic(
+            series, path, root=Path(out), durable=False, lean=True, renamed=False
+        )
+    write_json_atomic(
+        row, row_path(out, run_id), durable=False, root=Path(out), indent=None, renamed=False
+    )
 
 
 def read_row(path: Path) -> dict[str, Any] | None:
