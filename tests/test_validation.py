@@ -458,7 +458,8 @@ def test_forces_written_with_the_math_module() -> None:
 
 def test_consistent_drives_pass() -> None:
     """Exact derivatives pass, on a prismatic and a spherical joint (the quaternion's
-    rate is not compared with the angular velocity)."""
+    rate gives the angular velocity), and on a free joint tumbling about a tilted axis
+    while it moves (its rotation's rate about no body axis alone)."""
     model = pendulum()
     model.add_body("b", 1.0, inertia=CUBE)
     model.add_body("c", 1.0, inertia=CUBE)
@@ -469,6 +470,48 @@ def test_consistent_drives_pass() -> None:
     model.add_joint("shake", "prismatic", "link", "b", drive=shake)
     model.add_joint("ball", "spherical", "b", "c", drive=spin)
     model.validate()
+    model = pendulum()
+    model.add_body("d", 1.0, inertia=CUBE)
+    model.add_joint("flight", "free", "link", "d", drive=tumbling())
+    model.validate()
+
+
+def tumbling(rate: float = 1.0) -> Drive:
+    """A free joint's drive: x = t^2 / 2 along x, turning about (0, 0.6, 0.8) fixed in both
+    frames at 1 rad/s, so its angular velocity in the child frame is that axis; ``rate``:
+    the angular velocity said (1: the true one)."""
+    axis = (0.0, 0.6, 0.8)
+
+    def position(t):
+        half = t / 2
+        return (t * t / 2, 0, 0, ca.cos(half), *(ca.sin(half) * a for a in axis))
+
+    return Drive(position, lambda t: (t, 0, 0, *(rate * a + 0 * t for a in axis)),
+                 lambda t: (1 + 0 * t, 0, 0, 0, 0, 0))  # fmt: skip
+
+
+def test_drive_angular_velocity_not_the_rate_of_its_euler_parameters() -> None:
+    """A free joint's drive saying twice the rotation's rate: the parameters' rate gives
+    the angular velocity (2 G(p) p'), and it was never compared."""
+    model = pendulum()
+    model.add_body("d", 1.0, inertia=CUBE)
+    model.add_joint("flight", "free", "link", "d", drive=tumbling(rate=2.0))
+    with pytest.raises(ModelError, match=r"joint 'flight'.*velocity is not the time derivative "
+                       r"of its position: at t = 0 s, d\(position\)/dt = \[0.0, 0.0, 0.0, 0.0, "
+                       r"0.6, 0.8\] but velocity = \[0.0, 0.0, 0.0, 0.0, 1.2, 1.6\]"):
+        model.validate()
+
+
+def test_drive_euler_parameters_not_of_unit_norm() -> None:
+    """A spherical drive of norm 2: its rotations came out orthonormal, and the run 'ok'."""
+    model = pendulum()
+    model.add_body("b", 1.0, inertia=CUBE)
+    drive = Drive(lambda t: (2 * ca.cos(t / 2), 0, 0, 2 * ca.sin(t / 2)),
+                  lambda t: (0, 0, 1 + 0 * t), lambda t: (0, 0, 0 * t))
+    model.add_joint("ball", "spherical", "link", "b", drive=drive)
+    with pytest.raises(ModelError, match=r"joint 'ball'.*Euler parameters at t = 0 s are "
+                       r"\[2.0, 0.0, 0.0, 0.0\], of norm 2; give a unit quaternion"):
+        model.validate()
 
 
 def test_driven_cut_joint_passes() -> None:

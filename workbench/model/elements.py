@@ -152,8 +152,9 @@ class Drive:
     coordinates (position) or nv velocities (velocity, acceleration; ``JOINT_DIMENSIONS``),
     a float for a one-coordinate joint, else a sequence. Write them with ``casadi``
     functions (``casadi.sin`` ...), which accept floats and symbols alike. Validation
-    checks the sizes and that velocity and acceleration are the exact time derivatives
-    (a quaternion's rate is not compared with an angular velocity).
+    checks the sizes, that velocity and acceleration are the exact time derivatives (of
+    Euler parameters p, the angular velocity 2 G(p) p' of the child in its own frame) and
+    that Euler parameters are of unit norm.
     """
 
     position: Callable[[Any], Any]

@@ -371,7 +371,7 @@ def _check_drive(model: Model, what: str, joint: Joint) -> None:
                 f"{_where(model, what)}: the drive's {name} gives {value.size} value(s), but "
                 f"a {joint.type} joint has {size} {counted}; return {size} value(s)"
             )
-    _check_drive_derivatives(model, what, drive, nq == nv)
+    _check_drive_derivatives(model, what, drive, joint.type)
 
 
 DRIVE_CHECK_TIMES: tuple[float, ...] = (0.0, 0.3183, 0.7071, 1.4142)
@@ -383,10 +383,18 @@ DRIVE_DERIVATIVE_TOLERANCE = 1e-6
 """Relative difference allowed between a drive's given and exact derivatives."""
 
 
-def _check_drive_derivatives(model: Model, what: str, drive: Any, rates_are_v: bool) -> None:
-    """The drive's velocity is d(position)/dt (where q' = v: not for a quaternion) and its
-    acceleration d(velocity)/dt, by CasADi's exact derivatives: an inconsistent drive
-    gives every formalism incoherent physics that no run would notice."""
+ROTATION_DRIVES: dict[str, slice] = {"spherical": slice(0, 4), "free": slice(3, 7)}
+"""Where the Euler parameters are in the coordinates of a joint type that has them."""
+
+
+def _check_drive_derivatives(model: Model, what: str, drive: Any, joint_type: str) -> None:
+    """The drive's velocity is the rate of its position (d(position)/dt where q' = v; for
+    Euler parameters p the angular velocity of C in C, 2 G(p) p') and its acceleration
+    d(velocity)/dt, by CasADi's exact derivatives; Euler parameters are of unit norm. An
+    inconsistent drive gives every formalism incoherent physics that no run would
+    notice."""
+    from workbench.numerics.rotations import quaternion_angular_velocity
+
     t = ca.SX.sym("t")
     try:
         q, v, a = (_symbolic_column(f(t)) for f in (drive.position, drive.velocity,
@@ -407,8 +415,16 @@ def _check_drive_derivatives(model: Model, what: str, drive: Any, rates_are_v: b
                 "when t is a CasADi symbol (the math module turns a symbol into nan); write "
                 "it with casadi functions (casadi.sin ...), which accept floats and symbols"
             )
-    pairs = {("velocity", "position"): (ca.jacobian(q, t), v)} if rates_are_v else {}
-    pairs[("acceleration", "velocity")] = (ca.jacobian(v, t), a)
+    rate = ca.jacobian(q, t)
+    euler = ROTATION_DRIVES.get(joint_type)
+    if euler is not None:  # the angular velocity the parameters' rate gives, the norm
+        omega = quaternion_angular_velocity(q[euler], rate[euler])
+        rate = ca.vertcat(rate[: euler.start], omega)
+        _check_unit_parameters(model, what, ca.Function("drive_euler", [t], [q[euler]]))
+    pairs = {
+        ("velocity", "position"): (rate, v),
+        ("acceleration", "velocity"): (ca.jacobian(v, t), a),
+    }
     for (name, of), (exact, given) in pairs.items():
         difference = ca.Function("drive_derivative", [t], [exact, given])
         for time in DRIVE_CHECK_TIMES:
@@ -424,6 +440,21 @@ def _check_drive_derivatives(model: Model, what: str, drive: Any, rates_are_v: b
                     f"{np.round(derivative, 6).tolist()} but {name} = "
                     f"{np.round(value, 6).tolist()}; give the exact derivative"
                 )
+
+
+def _check_unit_parameters(model: Model, what: str, euler: ca.Function) -> None:
+    """A drive's Euler parameters are of unit norm at :data:`DRIVE_CHECK_TIMES`: the
+    formalisms take them as a rotation, and one of norm 2 gave orthonormal rotations with
+    a velocity check that holds for it (the rate's part along p does not count)."""
+    for time in DRIVE_CHECK_TIMES:
+        parameters = np.asarray(euler(time), dtype=float).reshape(-1)
+        norm = float(np.linalg.norm(parameters))
+        if np.isfinite(norm) and abs(norm - 1.0) > TOLERANCE:
+            raise ModelError(
+                f"{_where(model, what)}: the drive's Euler parameters at t = {time:g} s are "
+                f"{np.round(parameters, 6).tolist()}, of norm {norm:.6g}; give a unit "
+                "quaternion (scalar first) at every t"
+            )
 
 
 def _symbolic_column(value: Any) -> ca.SX:
