@@ -182,3 +182,59 @@ def test_the_first_screen_says_whether_the_close_calls_were_timed_again(tmp_path
     # a counted cost has no timing to trust or doubt
     page = write_report(results, None, tmp_path / "c", "cmd", progress=False, cost="n_rhs")
     assert "timed again" not in page.read_text()
+
+
+@pytest.mark.slow
+def test_a_dask_sweep_times_its_close_calls_again_on_the_workers(tmp_path) -> None:
+    """With a scheduler the close calls are timed again on the cluster's workers (the
+    machines that timed the runs), not skipped as before: each row gains the rounds'
+    samples, and the plan and the progress lines say so."""
+    distributed = pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    spec = parse_spec(f"""
+out = "{out.as_posix()}"
+time_limit = 300.0  # only a hung run reaches it
+retime = 2
+problems = ["double-pendulum"]
+formalisms = ["minimal-ode", "recursive"]
+integrators = ["scipy-dop853"]
+tolerances = [1e-6]
+""")
+    said: list[str] = []
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        summary = run_sweep(spec, show_progress=False, say=said.append,
+                            scheduler=cluster.scheduler_address,
+                            close_calls=lambda frame: list(frame["run_id"]))  # fmt: skip
+    assert summary.counts["ok"] == 2
+    assert any("close calls timed again on the cluster's workers: 2 rounds" in line
+               for line in said)  # fmt: skip
+    assert any("timing 2 close call(s) again: 2 rounds" in line for line in said)
+    rows = store.load_results(out)
+    assert rows.attrs["unreadable"] == []
+    assert list(rows["retimed"]) == [2, 2] and list(rows["repeats"]) == [5, 5]
+    for _, row in rows.iterrows():
+        assert row["integrate_cpu_s_min"] <= row["integrate_cpu_s"] <= row["integrate_cpu_s_max"]
+    assert not rows["warnings"].fillna("").str.contains("not reproducible").any()
+    record = json.loads((out / RETIMED_FILE).read_text())
+    assert sorted(record["runs"]) == sorted(rows["run_id"])
+
+
+def test_a_workers_timing_child_returns_its_samples_and_is_killed_past_the_limit() -> None:
+    """The Dask task's child (workbench.runs.dask_retime): every timed round's sample of
+    each run, the same work as the run's; a sample slower than the time limit ends it,
+    the samples before it kept."""
+    from workbench.runs.dask_retime import time_on_worker
+
+    runs = [RunSpec("simple-pendulum", "minimal-ode", integrator, 1e-8, 1e-11)
+            for integrator in ("scipy-dop853", "scipy-rk45")]  # fmt: skip
+    specs = [run.to_dict() for run in runs]
+    samples = time_on_worker(specs, 2, 0.0, 60.0, [], [], {})
+    assert sorted(s[0] for s in samples) == sorted(2 * [run.run_id for run in runs])
+    for _run_id, status, wall, cpu, counts in samples:
+        assert status == "ok" and wall > 0 and cpu > 0 and counts["n_rhs"] > 0
+    by_run = {}
+    for run_id, _status, _wall, _cpu, counts in samples:  # each round did the same work
+        assert by_run.setdefault(run_id, counts) == counts
+    assert len(time_on_worker(specs, 2, 0.0, 1e-6, [], [], {})) < len(samples)

@@ -96,9 +96,10 @@ def sample_rounds(
                     time.sleep(max(0.0, gap - (time.monotonic() - began)))
 
 
-def _timer_main(conn: Any, plugins: list[str], sys_path: list[str], specs: list[dict],
+def timer_main(conn: Any, plugins: list[str], sys_path: list[str], specs: list[dict],
                 rounds: int, gap: float) -> None:  # fmt: skip
-    """The timing process: set up as a pool worker, then :func:`sample_rounds`."""
+    """The timing process: set up as a pool worker, then :func:`sample_rounds` (also a
+    Dask worker's timing child: :mod:`workbench.runs.dask_retime`)."""
     pin_threads()  # the threads the runs had (workbench.execution.worker_env)
     for entry in reversed(sys_path):
         if entry not in sys.path:
@@ -129,6 +130,7 @@ def retime_close_calls(
     context: Any = None,
     gap: float = GAP_S,
     jobs: int = 1,
+    sampler: Callable[..., None] | None = None,
 ) -> list[str]:
     """Time the close calls among ``specs``' done runs again (module docstring); return
     the run ids whose rows were rewritten.
@@ -138,7 +140,9 @@ def retime_close_calls(
     re-timing, the rows keeping what they had; ``context``: the multiprocessing context
     of the timing processes (None: sampled in this process), ``jobs`` of them at once,
     each with its models' runs (:func:`balanced_bins`; a busy core beside a run did not
-    slow it: docs/performance.md)."""
+    slow it: docs/performance.md); ``sampler``: takes the samples instead, called as
+    ``sampler(runs, cost, rounds, gap, limit, plugins, take)`` (a Dask cluster's:
+    :mod:`workbench.runs.dask_retime`)."""
     by_id = {spec.run_id: spec for spec in specs}
     rows = _rows(out, by_id)
     if rounds < 1 or not rows:
@@ -166,10 +170,12 @@ def retime_close_calls(
             samples[sample[0]].append(sample)
 
     runs = [by_id[run_id] for run_id in chosen]
-    if context is None:
+    cost = {run_id: rows[run_id]["integrate_cpu_s"] for run_id in chosen}
+    if sampler is not None:
+        sampler(runs, cost, rounds, gap, limit, plugins, take)
+    elif context is None:
         sample_rounds(runs, rounds, take, gap)
     else:
-        cost = {run_id: rows[run_id]["integrate_cpu_s"] for run_id in chosen}
         bins = balanced_bins(runs, cost, jobs)
         _sample_in_children(context, bins, rounds, gap, plugins, limit, take)
     rewritten = []
@@ -230,7 +236,7 @@ def _sample_in_children(context: Any, bins: list[list[RunSpec]], rounds: int, ga
         parent_end, child_end = context.Pipe()
         specs = [r.to_dict() for r in runs]
         process = context.Process(
-            target=_timer_main,
+            target=timer_main,
             args=(child_end, plugins, list(sys.path), specs, rounds, gap),
             daemon=True,
         )

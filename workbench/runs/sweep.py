@@ -29,12 +29,13 @@ from pathlib import Path
 from typing import Any
 
 from workbench import files
-from workbench.errors import ConfigError
+from workbench.errors import ConfigError, one_line
 from workbench.execution.environment import sweep_environment
 from workbench.execution.timing import Timing, check_budget, check_repeats, retime_problem
 from workbench.files import make_dirs, sync_file_system
 from workbench.runs import local_pool, output_keys, store
 from workbench.runs.dask_pool import check_scheduler_address, run_dask
+from workbench.runs.dask_retime import ClusterSampler
 from workbench.runs.estimate import estimate_lines, known_costs
 from workbench.runs.local_pool import merge_run_recordings, run_local
 from workbench.runs.out_lock import out_lock
@@ -114,9 +115,10 @@ def run_sweep(
 
     ``close_calls(rows)``: the run ids the sweep's decisions hinge on (a DataFrame of its
     done rows); they are timed again ``retime`` times (default the specification's) at
-    moments apart once the runs are done (:mod:`workbench.runs.retime`; not with a Dask
-    scheduler, whose workers' machines timed them). Passed in, as ``recorder`` is: the
-    runs layer knows no report."""
+    moments apart once the runs are done (:mod:`workbench.runs.retime`; with a Dask
+    scheduler on its workers, whose machines timed the runs:
+    :mod:`workbench.runs.dask_retime`). Passed in, as ``recorder`` is: the runs layer
+    knows no report."""
 
     started = time.perf_counter()
     out_dir = Path(out) if out is not None else sweep.out
@@ -146,9 +148,11 @@ def run_sweep(
         todo = plan.todo
         rebuild = _unwritten_recordings(sweep, todo, out_dir) if recorder and not scheduler else []
         lines = plan.lines() + _estimate(sweep, todo, out_dir, jobs, limit, scheduler)
-        if close_calls is not None and rounds and todo and not scheduler:
+        if close_calls is not None and rounds and todo:
+            where = " on the cluster's workers" if scheduler else ""
             lines.append(
-                f"then the close calls timed again: {rounds} rounds at least {GAP_S:g} s apart, "
+                f"then the close calls timed again{where}: {rounds} rounds at least "
+                f"{GAP_S:g} s apart, "
                 f"at least {(rounds - 1) * GAP_S:g} s more (`--retime 0` skips it)"
             )
         if rebuild:
@@ -200,13 +204,8 @@ def run_sweep(
                     rebuild,
                 )
         key = output_keys.rows_key(out_dir)
-        if close_calls is not None and rounds and not scheduler:
-            key = _retime(sweep, out_dir, key, close_calls, rounds, timing, limit, say)
-        elif close_calls is not None and rounds and todo:
-            (say or _stderr)(
-                "close calls not timed again: the Dask workers timed the runs, on their "
-                "machines (the costs are their back-to-back samples)"
-            )
+        if close_calls is not None and rounds:
+            key = _retime(sweep, out_dir, key, close_calls, rounds, timing, limit, say, scheduler)
         sync_file_system(out_dir)  # the runs' rows and series, written without a sync each
         # remade only if their inputs changed (workbench.runs.output_keys): a resume with
         # nothing to do returns in seconds
@@ -251,16 +250,31 @@ def _retime(
     timing: Timing,
     limit: float,
     say: Callable[[str], None] | None,
+    scheduler: str | None = None,
 ) -> str:
-    """The close calls timed again (:mod:`workbench.runs.retime`) unless the rows are those
-    the last re-timing left; the rows' key after it."""
+    """The close calls timed again (:mod:`workbench.runs.retime`; with a Dask
+    ``scheduler`` on its workers, :mod:`workbench.runs.dask_retime`) unless the rows are
+    those the last re-timing left; the rows' key after it."""
     marker = out_dir / RETIMED_FILE
     if output_keys.is_current(marker, key):
         return key
-    done = retime_close_calls(
-        out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit, sweep.plugins,
-        say or _stderr, local_pool.worker_context(), jobs=timing.workers,
-    )  # fmt: skip
+    sampler, jobs = None, timing.workers
+    if scheduler:
+        try:
+            sampler = ClusterSampler(scheduler)
+        except Exception as error:  # noqa: BLE001 - the scheduler gone since the runs
+            (say or _stderr)(f"close calls not timed again: {one_line(error)[:200]}")
+            return key
+        jobs = sampler.jobs
+    try:
+        done = retime_close_calls(
+            out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit,
+            sweep.plugins, say or _stderr,
+            None if sampler else local_pool.worker_context(), jobs=jobs, sampler=sampler,
+        )  # fmt: skip
+    finally:
+        if sampler is not None:
+            sampler.close()
     files.write_json_atomic({"rounds": rounds, "gap_s": GAP_S, "runs": done}, marker,
                             root=out_dir)  # fmt: skip
     key = output_keys.rows_key(out_dir) if done else key
