@@ -431,15 +431,18 @@ def _serve_main(fd: int) -> None:
         shutil.rmtree(setting["out"], ignore_errors=True)
 
 
-def check_scheduler_address(scheduler: str) -> None:
+def check_scheduler_address(scheduler: str, option: str = "--scheduler") -> None:
     """ConfigError for an address Dask cannot read (a host without its port): said before
     a sweep writes its plan and logs into OUT, not after (an address that reads well but
-    answers nothing is found when the sweep connects)."""
+    answers nothing is found when the sweep connects). ``option``: what the user gave it
+    as, named in the message: the CLI's ``--scheduler``, the Python API's ``scheduler=``."""
     from distributed.comm.addressing import parse_address, parse_host_port
 
+    given = f"{option}{scheduler!r}" if option.endswith("=") else f"{option} {scheduler!r}"
     try:
         if not scheduler.strip():
-            raise ValueError("an empty address (the local pool is used without --scheduler)")
+            unset = "without --scheduler" if option == "--scheduler" else "with scheduler=None"
+            raise ValueError(f"an empty address (the local pool is used {unset})")
         scheme, location = parse_address(scheduler)
         if scheme in ("tcp", "tls"):
             _host, port = parse_host_port(location)
@@ -447,8 +450,7 @@ def check_scheduler_address(scheduler: str) -> None:
                 raise ValueError(f"port {port} is not a TCP port (1-65535)")
     except (ValueError, TypeError) as error:
         raise ConfigError(
-            f"--scheduler {scheduler!r}: {error}; give the address a `dask scheduler` prints "
-            "(tcp://host:port)"
+            f"{given}: {error}; give the address a `dask scheduler` prints (tcp://host:port)"
         ) from None
 
 
