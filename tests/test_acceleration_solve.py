@@ -10,6 +10,7 @@ different accelerations (1e-14 apart); Cholesky of M and of W M^-1 W^T keeps bot
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from workbench.equations.initial import (
 from workbench.errors import IntegrationError
 from workbench.mechanics.kinematics import TreeKinematics, initial_joint_values
 from workbench.model import Model
+from workbench.plugin.problem import Problem
 from workbench.plugin.registry import get_formalism, get_problem
 from workbench.problems.iftomm import a02_coefficient
 
@@ -132,3 +134,54 @@ def test_a_mass_matrix_singular_where_the_joints_allow_motion_is_refused(
                            r"singular on the motions the constraints allow at t = 0 s: a "
                            r"motion of .* has no inertia"):
             consistent_initial_state(equations, problem)
+
+
+def slides_problem(parallel: bool) -> type[Problem]:
+    """:class:`Slides` as a registrable problem (``describe`` takes a Problem class)."""
+
+    class SlidesProblem(Problem):
+        """Slides (test)."""
+
+        name = "test-parallel-slides" if parallel else "test-massless-cart"
+        summary = "a massless carriage between two slides (test)"
+        source = "test suite"
+        t_end = 1.0
+
+        def model(self) -> Model:
+            return Slides(parallel).model()
+
+        def initial_joint_velocities(self) -> dict:
+            return {"rail": 1.0}
+
+    return SlidesProblem
+
+
+def test_describe_says_the_mass_matrix_is_singular_as_the_run_does(monkeypatch) -> None:
+    """``describe`` of the two slides said "DOF 2" like any model; it now adds the finding
+    the run's initial state raises, word for word, in the API and the CLI. The massless
+    cart under a pendulum (regular) stays a plain DOF 2."""
+    from typer.testing import CliRunner
+
+    import workbench
+    from workbench import cli
+    from workbench.plugin.registry import REGISTRY, PluginInfo
+
+    parallel, cart = slides_problem(True), slides_problem(False)
+    dof = workbench.describe(parallel).facts["DOF"]
+    assert re.fullmatch(r"2; the mass matrix is singular on the motions the constraints "
+                        r"allow at t = 0 s: a motion of .*rail.* has no inertia, so the "
+                        r"accelerations are not determined", dof)  # fmt: skip
+    equations = get_formalism("minimal-ode")().build(parallel().model(), {"index": 1})
+    with pytest.raises(IntegrationError) as raised:
+        consistent_initial_state(equations, parallel())
+    assert dof.removeprefix("2; ") in str(raised.value)
+    assert workbench.describe(cart).facts["DOF"] == "2"
+    REGISTRY.discover()
+    for plugin in (parallel, cart):
+        info = PluginInfo("problem", plugin.name, plugin, plugin.__module__)
+        monkeypatch.setitem(REGISTRY.entries["problem"], plugin.name, info)
+    monkeypatch.setenv("COLUMNS", "400")
+    out = CliRunner().invoke(cli.app, ["describe", parallel.name]).stdout
+    assert "the mass matrix is singular on the motions the constraints allow" in out
+    out = CliRunner().invoke(cli.app, ["describe", cart.name]).stdout
+    assert "DOF" in out and "singular" not in out

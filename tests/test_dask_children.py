@@ -273,6 +273,46 @@ def test_a_scheduler_without_workers_is_said_and_the_runs_wait_for_one(
     assert not summary.unfinished and summary.counts["ok"] == 2
 
 
+IMPORTED = """
+import os
+with open(os.environ["WORKBENCH_TEST_IMPORTS"], "a") as log:
+    log.write("{folder} " + __name__ + "\\n")
+"""
+
+
+@pytest.mark.parametrize("child", ["worker child", "run-one"])
+def test_the_workers_own_packages_go_before_the_clients_paths(
+    fake_plugins, tmp_path, monkeypatch, child
+) -> None:
+    """A client's sys.path entry that also exists on the worker (another Python's
+    site-packages, an old checkout) came first in the child (on its PYTHONPATH, and put in
+    front by the worker loop), so it shadowed the worker's installed packages: a module both
+    have now resolves to the worker's, and one only the client's path has still imports."""
+    from workbench.runs.dask_pool import _Child, run_in_subprocess
+
+    client, worker = tmp_path / "client", tmp_path / "worker"
+    for folder in (client, worker):
+        folder.mkdir()
+        (folder / "shadowed_module.py").write_text(IMPORTED.format(folder=folder.name))
+    (client / "client_only_module.py").write_text(IMPORTED.format(folder="client"))
+    log = tmp_path / "imports.log"
+    monkeypatch.setenv("WORKBENCH_TEST_IMPORTS", str(log))
+    own = [str(worker), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(own))  # the worker's own packages
+    plugins = ("shadowed_module", "client_only_module", "tests.fake_plugins")
+    paths = (str(client), os.getcwd(), *sys.path)  # as run_dask sends them
+    if child == "worker child":
+        _Child((plugins, paths, None, (), None)).close()  # ready: its plugins imported
+    else:
+        (spec, _) = runs_of(tmp_path, '["test-rk45"]')
+        row, _ = run_in_subprocess(spec.to_dict(), HUNG, list(plugins), "", list(paths))
+        assert row["status"] == "ok"
+    assert log.read_text().splitlines() == [
+        "worker shadowed_module",
+        "client client_only_module",
+    ]
+
+
 PARENT = """
 import json, sys, time
 from workbench.runs.dask_pool import _Child

@@ -373,3 +373,29 @@ def test_a_scheduler_address_dask_cannot_read_is_one_line_before_out_is_made(
     line = one_error_line(result.stderr)
     assert f"--scheduler {address!r}: {said}" in line and "tcp://host:port" in line
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("address", "said"),
+    [
+        ("tcp://host-without-port", "missing port number"),
+        ("tcp://127.0.0.1:99999", "port 99999 is not a TCP port"),
+        ("", "an empty address (the local pool is used with scheduler=None)"),  # ran locally
+    ],
+)
+def test_the_python_api_names_its_scheduler_argument_not_the_clis_option(
+    tmp_path, address, said
+) -> None:
+    """``workbench.sweep(..., scheduler=ADDRESS)`` said "--scheduler", an option its caller
+    never gave; as the CLI, it says so before ``out`` is made."""
+    import workbench as wb
+    from workbench.errors import ConfigError
+
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(SPEC)
+    with pytest.raises(ConfigError) as raised:
+        wb.sweep(spec, out=tmp_path / "out", scheduler=address)
+    message = str(raised.value)
+    assert message.startswith(f"scheduler={address!r}: {said}") and "tcp://host:port" in message
+    assert "--scheduler" not in message
+    assert not (tmp_path / "out").exists()

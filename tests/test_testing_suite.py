@@ -236,6 +236,36 @@ def test_a_wrong_analytic_reference_is_caught_with_its_error(register):
     assert 1e-5 < wrong.error < 1.0
 
 
+def test_a_failed_tight_run_is_a_fail_row_and_the_other_checks_go_on(register, capsys):
+    from workbench.model.elements import JointForce
+    from workbench.problems.ch4_gyros import TorqueFreeSymmetricGyro
+
+    def late_nan(t, q, v):  # the kit's run (0.5 s) cannot finish
+        return ca.if_else(t > 0.1, math.nan, 0.0) * ca.DM.ones(3)
+
+    class LateNanGyro(TorqueFreeSymmetricGyro):
+        """The symmetric gyro with a pivot torque that is NaN after 0.1 s (a test's bug)."""
+
+        name = "test-late-nan-gyro"
+        conservative = False
+
+        def model(self):
+            model = super().model()
+            model.add_force(JointForce("late-nan", "pivot", late_nan))
+            return model
+
+    register("problem", LateNanGyro)
+    report = check_problem(LateNanGyro)
+    run = failure(report, "tight-run", "test-late-nan-gyro")
+    assert "tight run failed" in run.message and "DOP853" in run.message
+    # the reference was still called and checked for shape, only not compared
+    (reference,) = [r for r in report.results if r.check == "reference"]
+    assert reference.status == "skip" and "well shaped" in reference.message
+    assert [r.status for r in report.results if r.check == "invariants"] == ["skip"]
+    assert main(["problem", "test-late-nan-gyro"]) == 1  # a failure, not bad input (2)
+    assert "FAIL  tight-run" in capsys.readouterr().out
+
+
 def test_command_line_prints_the_report_and_exits_1_on_failure(register, capsys):
     register("formalism", ScaledForces)
     assert (

@@ -160,17 +160,23 @@ class _NoOptions:
 
 
 def model_facts(problem: Any, model: Any) -> dict[str, str]:
-    """A problem's model in a few lines: kind, bodies, joints, loops, DOF, time span."""
+    """A problem's model in a few lines: kind, bodies, joints, loops, DOF (and whether the
+    mass matrix is singular on the motions it allows, as a run would find), time span."""
+    from workbench.equations.initial import model_motion_without_inertia, singular_mass_finding
     from workbench.mechanics.topology import analyze
 
     topology = analyze(model)
-    dof = topology.dof if topology.dof is not None else topology.dof_gruebler
+    dof = str(topology.dof if topology.dof is not None else topology.dof_gruebler)
+    t0 = float(problem.t_start)
+    names = model_motion_without_inertia(model, t0, topology.configuration)
+    if names:
+        dof += f"; {singular_mass_finding(names, t0)}"
     facts = {
         "kind": model.kind,
         "bodies": f"{len(model.bodies)}: {', '.join(model.bodies)}",
         "joints": f"{len(model.joints)}: {', '.join(model.joints)}",
         "loops": str(topology.n_loops),
-        "DOF": str(dof),
+        "DOF": dof,
         "nonholonomic rows": str(topology.n_nonholonomic),
         "conservative": "yes" if problem.conservative else "no",
         "time span": f"{problem.t_start:g} .. {problem.t_end:g} s",

@@ -28,6 +28,7 @@ from workbench.files import sync_file_system
 from workbench.outputs.report.close_calls import close_calls
 from workbench.plugin import registry
 from workbench.runs import store
+from workbench.runs.dask_pool import check_scheduler_address
 from workbench.runs.out_lock import out_lock
 from workbench.runs.resume import plan_resume
 from workbench.runs.retime import retime_close_calls
@@ -64,7 +65,7 @@ def sweep(
     plugin cannot be imported by a worker, e.g. a class defined in a notebook).
     ``scheduler``: a Dask scheduler's address (``tcp://host:port``): the runs go to its
     cluster, as with ``workbench sweep --scheduler`` (the user guide's Dask section);
-    ConfigError for a plugin a worker cannot import.
+    ConfigError for an address Dask cannot read or a plugin a worker cannot import.
 
     It writes the results store (rows, series, trajectories), not the HTML report or the
     Rerun recording that ``workbench sweep`` adds: ``workbench report OUT`` makes the
@@ -79,6 +80,8 @@ def sweep(
             f"progress: expected a function progress(done, total) or a tqdm-like bar, "
             f"not {progress!r}"
         )
+    if scheduler is not None:  # named as given here, not as the CLI's --scheduler
+        check_scheduler_address(scheduler, "scheduler=")  # before out is made
     data = _spec_data(spec)
     for key, value in keys.items():
         data[key] = value

@@ -249,6 +249,13 @@ def _topology_rows(problem: Any, model: Any) -> list[tuple[str, str]]:
         dof_text = f"{dof} (Gruebler count {topology.dof_gruebler})"
     else:
         dof_text = str(dof)
+    if dof is not None:  # the finding a run's initial state would raise
+        from workbench.equations.initial import model_motion_without_inertia, singular_mass_finding
+
+        t0 = float(problem.t_start)
+        names = model_motion_without_inertia(model, t0, topology.configuration)
+        if names:
+            dof_text += f"; {singular_mass_finding(names, t0)}"
     return [
         ("tree / cut joints", f"{_count(topology.tree_joints)} / {_count(topology.cut_joints)}"),
         ("loops", str(topology.n_loops)),

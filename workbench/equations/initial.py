@@ -22,6 +22,7 @@ from workbench.mechanics.kinematics import (
     initial_joint_values,
     normalize_quaternions,
 )
+from workbench.mechanics.newton_euler import mass_and_bias
 from workbench.numerics.linalg import gauss_newton, independent_columns, independent_rows
 
 
@@ -209,21 +210,71 @@ def _refuse_undetermined_motion(equations: Equations, problem: Any, t0: float,
     w_matrix = np.zeros((0, nv))
     if nc:
         w_matrix = np.reshape(np.asarray(mech.velocity_matrix(t0, q)[0], dtype=float), (nc, nv))
-    rows = independent_rows(w_matrix) if nc else []
+    names = motion_without_inertia(mass, w_matrix, equations.v_names)
+    if names:
+        raise IntegrationError(
+            f"problem {problem.name!r}: {singular_mass_finding(names, t0)}; give the bodies "
+            "it moves mass (and rotational inertia), or remove the joint that adds no motion"
+        )
+
+
+def motion_without_inertia(mass: np.ndarray, w_matrix: np.ndarray, v_names: list[str]) -> list[str]:
+    """The velocities (largest share first, at most six) of a motion that W v = 0 allows
+    and M gives no inertia; [] when M is regular on every allowed motion.
+
+    ``mass`` M (nv, nv), ``w_matrix`` W (n_rows, nv) (dependent rows are left out here),
+    ``v_names`` (nv). Decided by the smallest singular value of [M W^T; W 0].
+    """
+    nv = mass.shape[0]
+    rows = independent_rows(w_matrix) if w_matrix.shape[0] else []
     w_matrix = w_matrix[rows]
     kkt = np.block([[mass, w_matrix.T], [w_matrix, np.zeros((len(rows), len(rows)))]])
+    if kkt.size == 0:  # every joint driven: no motion to determine
+        return []
     singular = np.linalg.svd(kkt)
     tolerance = 1e-12 * max(singular.S[0], 1e-300) * kkt.shape[0]
     if singular.S[-1] > tolerance:
-        return
+        return []
     free = singular.Vh[-1, :nv]  # a velocity the constraints allow and M gives no inertia
-    names = [equations.v_names[k] for k in np.argsort(-np.abs(free))
-             if abs(free[k]) > 1e-6 * np.abs(free).max()]
-    raise IntegrationError(
-        f"problem {problem.name!r}: the mass matrix is singular on the motions the "
-        f"constraints allow at t = {t0:g} s: a motion of {', '.join(names[:6])} has no "
-        "inertia, so the accelerations are not determined; give the bodies it moves mass "
-        "(and rotational inertia), or remove the joint that adds no motion"
+    names = [v_names[k] for k in np.argsort(-np.abs(free))
+             if abs(free[k]) > 1e-6 * np.abs(free).max()]  # fmt: skip
+    return names[:6]
+
+
+def singular_mass_finding(names: list[str], t0: float) -> str:
+    """What a run's error and ``describe`` say of a motion without inertia (``names``)."""
+    return (
+        f"the mass matrix is singular on the motions the constraints allow at t = {t0:g} s: "
+        f"a motion of {', '.join(names)} has no inertia, so the accelerations are not "
+        "determined"
+    )
+
+
+def model_motion_without_inertia(model: Any, t: float, q: np.ndarray) -> list[str]:
+    """:func:`motion_without_inertia` of ``model`` in its tree's joint coordinates at time
+    ``t`` (s) and tree configuration ``q`` (nq), for ``describe``. Only a body without mass
+    or with a singular inertia can leave such a motion: other models are not built
+    symbolically (that costs minutes on a 10,000-link chain)."""
+
+    def inert(body: Any) -> bool:
+        inertia = np.asarray(body.inertia, dtype=float)
+        return bool(
+            body.mass > 0
+            and not body.point_mass
+            and np.all(np.isfinite(inertia))
+            and np.linalg.eigvalsh(inertia).min() > 0
+        )
+
+    if all(inert(body) for body in model.bodies.values()):
+        return []
+    k = TreeKinematics(model)
+    if k.nv == 0:
+        return []
+    mass, _ = mass_and_bias(model, k.bodies, k.t, k.q, k.v, k.qdot)
+    function = k.function("M_W", [mass, k.velocity_constraint_matrix], with_v=False)
+    mass_value, w_value = (np.asarray(x, dtype=float) for x in function(t, q))
+    return motion_without_inertia(
+        np.atleast_2d(mass_value), w_value.reshape(-1, k.nv), list(k.v_names)
     )
 
 

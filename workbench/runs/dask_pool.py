@@ -53,7 +53,7 @@ from workbench.execution.worker_env import pin_threads, thread_environment
 from workbench.files import atomic_write, make_dirs, open_no_follow
 from workbench.plugin.local_modules import import_plugin_modules
 from workbench.runs import store
-from workbench.runs.local_pool import Keyed, _take_next
+from workbench.runs.local_pool import Keyed, _take_next, append_client_paths
 from workbench.runs.recording_batches import RECORDINGS_DIR
 from workbench.runs.shipping import (
     REFERENCE_FILES,
@@ -103,10 +103,9 @@ def run_in_subprocess(
             "out": directory,
             "timing": timing or {},
         }
+        # the client's paths are not put on PYTHONPATH, ahead of this host's packages: the
+        # child adds them after its own (append_client_paths)
         env = dict(os.environ) | thread_environment()  # read by BLAS/OpenMP as they load
-        env["PYTHONPATH"] = os.pathsep.join(
-            [p for p in sys_path if p] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])
-        )
         try:
             completed = subprocess.run(
                 [sys.executable, "-m", "workbench.runs.dask_pool", "--run-one"],
@@ -143,9 +142,7 @@ def _run_one_main() -> None:
     warnings.filterwarnings("ignore")
     pin_threads()
     request = json.loads(sys.stdin.read())
-    for entry in reversed(request.get("sys_path", [])):
-        if entry not in sys.path:
-            sys.path.append(entry)
+    append_client_paths(request.get("sys_path", []))
     import_plugin_modules(request.get("plugins", []))
     spec = RunSpec.from_dict(request["spec"])
     out = Path(request["out"])
@@ -176,10 +173,9 @@ class _Child:
         self.setting = setting
         self.out = Path(tempfile.mkdtemp(prefix="workbench-dask-"))
         ours, theirs = socket.socketpair()
+        # the client's paths are not put on PYTHONPATH, ahead of this host's packages: the
+        # child adds them after its own (append_client_paths)
         env = dict(os.environ) | thread_environment()  # read by BLAS/OpenMP as they load
-        env["PYTHONPATH"] = os.pathsep.join(
-            [p for p in sys_path if p] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])
-        )
         with open(self.out / "child.stderr", "wb") as stderr:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "workbench.runs.dask_pool", "--serve", str(theirs.fileno())],
@@ -321,9 +317,7 @@ def _import_plugins(plugins: tuple, sys_path: tuple) -> None:
     with _IDLE_LOCK:
         if (plugins, sys_path) in _PLUGINS_IMPORTED:
             return
-        for entry in sys_path:
-            if entry and entry not in sys.path:
-                sys.path.append(entry)
+        append_client_paths(list(sys_path))
         import_plugin_modules(list(plugins))
         _PLUGINS_IMPORTED.add((plugins, sys_path))
 
@@ -437,15 +431,18 @@ def _serve_main(fd: int) -> None:
         shutil.rmtree(setting["out"], ignore_errors=True)
 
 
-def check_scheduler_address(scheduler: str) -> None:
+def check_scheduler_address(scheduler: str, option: str = "--scheduler") -> None:
     """ConfigError for an address Dask cannot read (a host without its port): said before
     a sweep writes its plan and logs into OUT, not after (an address that reads well but
-    answers nothing is found when the sweep connects)."""
+    answers nothing is found when the sweep connects). ``option``: what the user gave it
+    as, named in the message: the CLI's ``--scheduler``, the Python API's ``scheduler=``."""
     from distributed.comm.addressing import parse_address, parse_host_port
 
+    given = f"{option}{scheduler!r}" if option.endswith("=") else f"{option} {scheduler!r}"
     try:
         if not scheduler.strip():
-            raise ValueError("an empty address (the local pool is used without --scheduler)")
+            unset = "without --scheduler" if option == "--scheduler" else "with scheduler=None"
+            raise ValueError(f"an empty address (the local pool is used {unset})")
         scheme, location = parse_address(scheduler)
         if scheme in ("tcp", "tls"):
             _host, port = parse_host_port(location)
@@ -453,8 +450,7 @@ def check_scheduler_address(scheduler: str) -> None:
                 raise ValueError(f"port {port} is not a TCP port (1-65535)")
     except (ValueError, TypeError) as error:
         raise ConfigError(
-            f"--scheduler {scheduler!r}: {error}; give the address a `dask scheduler` prints "
-            "(tcp://host:port)"
+            f"{given}: {error}; give the address a `dask scheduler` prints (tcp://host:port)"
         ) from None
 
 

@@ -71,6 +71,16 @@ from workbench.runs.unfinished import (
 )
 
 
+def append_client_paths(entries: list[str]) -> None:
+    """Add the client's ``sys.path`` entries this process lacks, in their order, after its
+    own: they are there for the spec's local plugin modules only; ahead of this process's
+    own, a client path that also exists here (another Python's site-packages, an old
+    checkout) would shadow the packages installed here."""
+    for entry in entries:
+        if entry and entry not in sys.path:
+            sys.path.append(entry)
+
+
 def _worker_main(
     conn: Any,
     plugins: list[str],
@@ -97,9 +107,7 @@ def _worker_main(
     ``batch_runs`` the runs of a recording file at most. Also the worker loop of a Dask
     worker's child (:mod:`workbench.runs.dask_pool`: a file a run)."""
     pin_threads()  # the same BLAS/OpenMP threads wherever a sweep runs (worker_env)
-    for entry in reversed(sys_path):
-        if entry not in sys.path:
-            sys.path.insert(0, entry)
+    append_client_paths(sys_path)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
     exit_with_parent(parent, Path(out) if scratch else None)
     import warnings
