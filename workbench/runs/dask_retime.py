@@ -108,9 +108,7 @@ def _time_main(fd: int) -> None:
     request received on the socket ``FD`` (see :func:`time_on_worker`)."""
     conn = multiprocessing.connection.Connection(fd)
     plugins, sys_path, specs, rounds, gap = conn.recv()
-    own = list(sys.path)  # the worker's own packages first; the client's paths after them
-    sys.path[:] = own + [entry for entry in sys_path if entry not in own]
-    timer_main(conn, plugins, [], specs, rounds, gap)
+    timer_main(conn, plugins, sys_path, specs, rounds, gap)
 
 
 if __name__ == "__main__":

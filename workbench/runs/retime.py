@@ -45,6 +45,7 @@ from workbench.execution.worker_env import pin_threads
 from workbench.plugin import registry
 from workbench.plugin.local_modules import import_plugin_modules
 from workbench.runs import store
+from workbench.runs.local_pool import append_client_paths
 
 GAP_S = 2.0  # a round begins at least this long after the one before (slow spells: 0.1-4 s)
 SAMPLE_OVERHEAD_S = 0.015
@@ -101,9 +102,7 @@ def timer_main(conn: Any, plugins: list[str], sys_path: list[str], specs: list[d
     """The timing process: set up as a pool worker, then :func:`sample_rounds` (also a
     Dask worker's timing child: :mod:`workbench.runs.dask_retime`)."""
     pin_threads()  # the threads the runs had (workbench.execution.worker_env)
-    for entry in reversed(sys_path):
-        if entry not in sys.path:
-            sys.path.insert(0, entry)
+    append_client_paths(sys_path)  # after this process's own, as a pool worker does
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
     import warnings
 
