@@ -94,7 +94,7 @@ def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_run
     # b scores the same: the sentence says so and what decided (it named a alone)
     assert (
         "; so is b / y: a / x is named for the lower geometric mean of its cost ratios "
-        "to the best (1.59 against 1.65)." in found.sentence
+        "to the best (1.59x against 1.65x)." in found.sentence
     )
 
 

@@ -57,7 +57,7 @@ HEADERS: dict[str, str] = {
     "work_s_max": "greatest counted work [s]",
     "repeats": "timed samples",
     "retimed": "samples timed again after the runs",
-    "margin": "margin over the runner-up [x]",
+    "margin": "margin over the runner-up",
     "runner-up": "runner-up (cheapest pair not tied)",
     "tied pairs": "tied pairs",
     "verdict": "verdict",
@@ -69,6 +69,10 @@ HEADERS: dict[str, str] = {
 
 SCIENTIFIC = ("rtol", "atol", "fixed_step_s", "reference_accuracy")
 """Columns always in scientific notation (tolerances and steps are powers of ten)."""
+
+RATIOS = ("margin", "geometric mean ratio")
+"""Columns of cost ratios, printed as the decision table's margins are (:func:`times_text`);
+a table's ``attrs["ratios"]`` names others (True: all its columns)."""
 
 
 def header(column: Any) -> str:
@@ -135,6 +139,35 @@ def cell_text(value: Any) -> str:
     return str(value)
 
 
+def ratio_text(value: float) -> str:
+    """A cost ratio (a margin, a heat map's cell) with the digits that tell it from 1:
+    '1' (exactly), '1.003', '1.40', '12.3', '140' ('.3g' printed 1.003 as '1', the
+    winner's own value, and 1.4 beside 1.19)."""
+    if value == 1.0:
+        return "1"
+    if value < 1.1:
+        return f"{value:.3f}"
+    if value < 10:
+        return f"{value:.2f}"
+    return f"{value:.1f}" if value < 100 else f"{value:.0f}"
+
+
+def times_text(value: Any) -> str:
+    """A ratio of costs as the report prints it wherever a reader sees one (a margin in
+    the decision table, the summary, the ranking, ``workbench results``): '1.70x',
+    '1.003x'; '' when missing. One format, so the summary's '2.103' and the decision's
+    '2.10x' cannot both name one margin."""
+    return "" if _missing(value) else f"{ratio_text(float(value))}x"
+
+
+def ratio_columns(table: pd.DataFrame) -> set[str]:
+    """The columns of ``table`` holding cost ratios (:data:`RATIOS`, ``attrs["ratios"]``)."""
+    named = table.attrs.get("ratios", ())
+    if named is True:
+        return {str(c) for c in table.columns}
+    return {str(c) for c in table.columns if str(c) in RATIOS or c in named}
+
+
 def column_formatter(column: Any, values: pd.Series) -> Callable[[Any], str]:
     """One number format for a whole column: integers when every value is whole;
     scientific (3 significant digits) for :data:`SCIENTIFIC` columns and for values
@@ -163,18 +196,15 @@ def _missing(value: Any) -> bool:
 
 def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], list[list[str]]]:
     """The readable header and the rows of ``table`` as text, one format a column
-    (:func:`column_formatter`), the index first when ``index``. A table whose
-    ``attrs["one_format"]`` is true (a matrix of one quantity, e.g. cost ratios) has one
-    format for all its columns, so no column shows '1' beside another's '1.000'. A missing
-    value is an empty cell, or the text ``attrs["missing"][row label][column]`` says why it
-    is missing (the CSV, for pandas, keeps it empty)."""
+    (:func:`column_formatter`), the index first when ``index``; cost ratios
+    (:func:`ratio_columns`) as the decision table prints margins (:func:`times_text`). A
+    missing value is an empty cell, or the text ``attrs["missing"][row label][column]``
+    says why it is missing (the CSV, for pandas, keeps it empty)."""
     head = ([header(table.index.name or "")] if index else []) + [header(c) for c in table.columns]
     missing = table.attrs.get("missing") or {}
-    if table.attrs.get("one_format") and len(table.columns):
-        stacked = pd.Series(table.to_numpy(dtype=float).ravel())
-        formats = [column_formatter("", stacked)] * len(table.columns)
-    else:
-        formats = [column_formatter(c, table[c]) for c in table.columns]
+    ratios = ratio_columns(table)
+    formats = [times_text if str(c) in ratios else column_formatter(c, table[c])
+               for c in table.columns]  # fmt: skip
     rows = []
     for label, row in zip(table.index, table.itertuples(index=False), strict=True):
         cells = [fmt(value) for fmt, value in zip(formats, row, strict=True)]

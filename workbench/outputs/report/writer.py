@@ -408,7 +408,7 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     )
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
-    ratio_table.attrs["one_format"] = True  # one quantity: one number format
+    ratio_table.attrs["ratios"] = True  # every cell a cost ratio, printed as margins are
     # a cell without a value says why (Markdown and LaTeX; the CSV keeps numbers for
     # pandas): an empty one read the same as 'not run' or 'skipped' left out
     ratio_table.attrs["missing"] = {
@@ -449,14 +449,16 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     )
     factor = f"{recommendation.factor:g}x"
     ranked = len(recommendation.table)
+    mean = "geometric mean of cost / best over the problems reached"
     ranking = recommendation.table.reset_index().rename(
         columns={
             "within": f"problems within {factor} of the best",
             "reached": f"problems reaching scd >= {target:g}",
             # of the problems a pair reached: one problem's 1.3 beside two problems' 1.16
-            "geometric mean ratio": "geometric mean of cost / best over the problems reached",
+            "geometric mean ratio": mean,
         }
     )
+    ranking.attrs["ratios"] = [mean]
     # the page, CSV and Markdown list every pair; the LaTeX, on a page of a paper, the
     # first RANKED_SHOWN, and says so and where the others are
     write_table(
