@@ -190,6 +190,24 @@ def column_formatter(column: Any, values: pd.Series) -> Callable[[Any], str]:
     return lambda value: "" if _missing(value) else f"{float(value):.{decimals}f}"
 
 
+def distinct_formatter(column: Any, values: pd.Series) -> Callable[[Any], str]:
+    """:func:`column_formatter`'s fixed decimals, more where two different values would
+    print alike (up to 12): a Pareto front held two runs of scd '2.992', the dearer one
+    on it by 3e-6 digits, and read as a duplicated row."""
+    base = column_formatter(column, values)
+    numbers = pd.to_numeric(values, errors="coerce") if values.dtype != object else None
+    if numbers is None or numbers.isna().all():
+        return base
+    unique = np.unique(numbers[np.isfinite(numbers)].to_numpy(dtype=float))
+    sample = base(unique[0]) if unique.size else "e"
+    if "e" in sample or "." not in sample:  # scientific or whole numbers: as they are
+        return base
+    decimals = len(sample.partition(".")[2])
+    while decimals < 12 and len({f"{v:.{decimals}f}" for v in unique}) < unique.size:
+        decimals += 1
+    return lambda value: "" if _missing(value) else f"{float(value):.{decimals}f}"
+
+
 def _missing(value: Any) -> bool:
     return value is None or (isinstance(value, float | np.floating) and math.isnan(value))
 
@@ -197,14 +215,20 @@ def _missing(value: Any) -> bool:
 def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], list[list[str]]]:
     """The readable header and the rows of ``table`` as text, one format a column
     (:func:`column_formatter`), the index first when ``index``; cost ratios
-    (:func:`ratio_columns`) as the decision table prints margins (:func:`times_text`). A
-    missing value is an empty cell, or the text ``attrs["missing"][row label][column]``
-    says why it is missing (the CSV, for pandas, keeps it empty)."""
+    (:func:`ratio_columns`) as the decision table prints margins (:func:`times_text`);
+    the columns ``attrs["distinct"]`` names with the digits that tell their values apart
+    (:func:`distinct_formatter`). A missing value is an empty cell, or the text
+    ``attrs["missing"][row label][column]`` says why it is missing (the CSV, for pandas,
+    keeps it empty)."""
     head = ([header(table.index.name or "")] if index else []) + [header(c) for c in table.columns]
     missing = table.attrs.get("missing") or {}
-    ratios = ratio_columns(table)
-    formats = [times_text if str(c) in ratios else column_formatter(c, table[c])
-               for c in table.columns]  # fmt: skip
+    ratios, distinct = ratio_columns(table), set(table.attrs.get("distinct", ()))
+    formats = [
+        times_text if str(c) in ratios
+        else distinct_formatter(c, table[c]) if c in distinct
+        else column_formatter(c, table[c])
+        for c in table.columns
+    ]  # fmt: skip
     rows = []
     for label, row in zip(table.index, table.itertuples(index=False), strict=True):
         cells = [fmt(value) for fmt, value in zip(formats, row, strict=True)]
