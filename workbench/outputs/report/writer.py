@@ -69,6 +69,7 @@ from workbench.outputs.report.page import (
     Overview,
     PageTable,
     ProblemSection,
+    decision_note,
     render_page,
 )
 from workbench.outputs.report.paper import PaperSection, write_paper
@@ -226,6 +227,7 @@ def write_report(
               if plan and coverage_notice(runs, plan) else []),  # fmt: skip
             *(f"Not converging: {line}." for line in stalled),
             overview.sentence,
+            decision_note(runs, measure),  # the page's words above the decision table
         ]
         write_paper(
             out,
