@@ -24,7 +24,7 @@ from workbench.outputs.report.close_calls import retime_note
 from workbench.outputs.report.cost import Cost, resolve_cost, tie_rule
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.scorecards import Scorecard
-from workbench.outputs.report.tables import shows_index, table_cells
+from workbench.outputs.report.tables import shows_index, table_cells, unbroken_units
 
 TEMPLATE = "report.html.j2"
 LIBRARIES: tuple[str, ...] = (
@@ -51,7 +51,7 @@ class PageTable:
     @classmethod
     def of(cls, table: pd.DataFrame, name: str) -> PageTable:
         header, rows = table_cells(table, index=shows_index(table))
-        return cls(name, header, rows)
+        return cls(name, [unbroken_units(cell) for cell in header], rows)
 
 
 @dataclass

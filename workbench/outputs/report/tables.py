@@ -319,11 +319,29 @@ LONG_ROWS = 40  # more lines of rows: a longtable (breaks across pages; \usepack
 TABLE_FONT = r"\footnotesize\setlength{\tabcolsep}{3pt}"
 
 
-def _words_lines(text: str, width: int) -> list[str]:
-    """``text`` broken at spaces into lines of at most ``width`` characters (a longer
-    word stays whole)."""
-    lines: list[str] = []
+def header_words(text: str) -> list[str]:
+    """The pieces a header may break between: its words, a unit in brackets one piece
+    ('[m or rad]'), so no line ends inside a unit ('drift [m or' over 'rad]')."""
+    words: list[str] = []
     for word in text.split():
+        if words and words[-1].count("[") > words[-1].count("]"):  # inside a unit
+            words[-1] += " " + word
+        else:
+            words.append(word)
+    return words
+
+
+def unbroken_units(text: str) -> str:
+    """``text`` with the spaces inside its units made no-break spaces: a browser breaks
+    a header only where :func:`header_words` allows."""
+    return " ".join(word.replace(" ", "\N{NO-BREAK SPACE}") for word in header_words(text))
+
+
+def _words_lines(text: str, width: int) -> list[str]:
+    """``text`` broken between :func:`header_words` into lines of at most ``width``
+    characters (a longer piece stays whole)."""
+    lines: list[str] = []
+    for word in header_words(text):
         if lines and len(lines[-1]) + 1 + len(word) <= width:
             lines[-1] += " " + word
         else:
@@ -359,7 +377,7 @@ def _columns(
         word = max((len(w) for c in cells for w in c.split()), default=0)
         wrapped = not numeric and longest > WRAP_CHARS
         chars = max(WRAP_CHARS, word) if wrapped else longest
-        width = max(chars, HEADER_CHARS, max(len(w) for w in name.split() or [""]) + 2)
+        width = max(chars, HEADER_CHARS, max(len(w) for w in header_words(name) or [""]) + 2)
         lines = _words_lines(name, width) if break_headers and len(name) > width else [name]
         chars = max(chars, *(len(line) for line in lines))
         columns.append(_Column(lines, numeric, chars, wrapped))
@@ -383,7 +401,7 @@ def _laid_out(head: list[str], rows: list[list[str]], kinds: list[bool]) -> list
             column = columns[k]
             cells = [row[k] for row in rows]
             word = max((len(w) for c in cells for w in c.split()), default=0)
-            header = max(len(w) for line in column.header for w in line.split())
+            header = max(len(w) for line in column.header for w in header_words(line))
             chars = max(share, word, header, MIN_WRAP_CHARS)
             if chars < column.chars:
                 lines = _words_lines(" ".join(column.header), chars)
