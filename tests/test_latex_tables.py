@@ -130,3 +130,23 @@ def test_a_table_taller_than_a_page_breaks_across_pages(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stdout[-2000:]
     log = (tmp_path / "t.log").read_text(encoding="utf-8", errors="replace")
     assert "Float too large" not in log and "Overfull \\hbox" not in log
+
+
+def test_a_header_never_breaks_inside_its_unit(report: Path) -> None:
+    """A drift table's header broke as 'max position drift [m or' over 'rad]' (the page)
+    and 'drift [m or' over 'rad]' (the LaTeX): each line of a broken LaTeX header holds
+    whole units, and the page's units hold no-break spaces only, so the browser breaks
+    before '[m or rad]', not inside it; the header still says all it said."""
+    from workbench.outputs.report.page import PageTable
+
+    drift = next(report.glob("drift-*.tex")).read_text(encoding="utf-8")
+    broken = re.findall(r"\\begin\{tabular\}\[b\]\{@\{\}[lr]@\{\}\}(.*?)\\end\{tabular\}", drift)
+    assert any("[m or rad]" in header for header in broken), broken  # broken, unit whole
+    for header in broken:
+        for line in header.split(r"\\{}"):
+            assert line.count("[") == line.count("]"), header
+    table = pd.read_csv(next(report.glob("drift-*.csv")))
+    header = PageTable.of(table, "drift").header
+    assert "max position drift [m\N{NO-BREAK SPACE}or\N{NO-BREAK SPACE}rad]" in header
+    assert "max velocity drift [m/s\N{NO-BREAK SPACE}or\N{NO-BREAK SPACE}rad/s]" in header
+    assert "max energy error / energy in motion" in header  # breaks between words as before

@@ -129,6 +129,34 @@ def test_workbench_paper_of_a_small_sweep_compiles(tmp_path: Path) -> None:
     assert list((tmp_path / "out" / "paper" / "figures").glob("*work-precision.pdf"))
 
 
+def test_the_paper_says_whether_close_calls_were_timed_again(tmp_path: Path) -> None:
+    """The page's paragraph above the decision table (the tie rule, the close calls timed
+    again after the runs) was not in the paper: main.tex carries the same words, from
+    the same source, whether or not the sweep re-timed."""
+    results = synthetic_results(problems=("simple-pendulum",))
+    results["retimed"] = [5, 5] + [0] * (len(results) - 2)
+    retimed = " ".join(
+        "2 close call(s), the runs of pairs within 3x of a cheapest, were timed again "
+        "after the runs, 5 times at moments apart".split()
+    )
+    for name, rows in (("again", results), ("once", results.assign(retimed=0))):
+        out = tmp_path / name
+        page = write_report(rows, None, out / "report", "cmd", progress=False,
+                            paper=out / "paper").read_text(encoding="utf-8")  # fmt: skip
+        tex = " ".join((out / "paper" / MAIN).read_text(encoding="utf-8").split())
+        said = re.search(r'<p id="decision-note">(.*?)</p>', page, re.S).group(1)
+        assert latex_escape(said.replace("&#39;", "'")) in tex  # the page's paragraph
+        assert "'tie' where their timed samples' ranges overlap" in tex  # the tie rule
+        if name == "again":
+            assert retimed in tex and "No run was timed again" not in tex
+        else:
+            assert "No run was timed again after the runs" in tex and retimed not in tex
+    out = tmp_path / "counted"  # a counted cost: no timing to trust or doubt
+    write_report(results, None, out / "report", "cmd", progress=False, cost="n_rhs",
+                 paper=out / "paper")  # fmt: skip
+    assert "timed again" not in (out / "paper" / MAIN).read_text(encoding="utf-8")
+
+
 def test_a_split_longtable_is_compiled_until_its_columns_line_up(tmp_path: Path) -> None:
     """One pdflatex pass left every longtable's columns out of line with its rules (it
     sets them from widths the pass before wrote to main.aux: 'Table widths have changed.

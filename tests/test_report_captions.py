@@ -56,6 +56,32 @@ def test_an_empty_drift_panel_says_why(tmp_path: Path) -> None:
     assert "absolute-dae's position" not in figure.caption  # drawn there
 
 
+def test_the_drift_legend_lists_only_what_is_drawn_and_the_caption_says_why(
+    tmp_path: Path,
+) -> None:
+    """Every run of one integrator at the middle rtol without a stored series (or all of
+    its runs failed there): its legend entry stood beside no curve, and no word said why.
+    The legend (read from the SVG's text) names only integrators with a curve; the caption
+    names the pairs without one, and those left out, as the drift table's does."""
+    import re
+
+    runs = all_ok()
+    middle = np.isclose(runs["rtol"], 1e-5) & (runs["integrator"] == "bdf")
+    failed = middle & (runs["formalism"] == "absolute-dae")
+    runs.loc[failed, ["status", "message"]] = ["timeout", "time limit of 60 s exceeded"]
+    runs = prepare_results(runs)
+    _rtol, chosen = drift_runs(runs)
+    series = {r: None if "bdf" in r else synthetic_series(r) for r in chosen["run_id"]}
+    (tmp_path / "figures").mkdir()
+    figure, _ = drift_figure(runs, series, tmp_path, "p")
+    assert figure is not None
+    svg = (tmp_path / "figures" / f"{figure.stem}.svg").read_text(encoding="utf-8")
+    legend = re.findall(r"<!-- ((?:integrator|formalism) [^ ]+) -->", svg)
+    assert "integrator radau" in legend and "integrator bdf" not in legend, legend
+    assert "no curve: minimal-ode / bdf (no stored time series)" in figure.caption
+    assert "not in it, no ok run there: absolute-dae / bdf (timeout)" in figure.caption
+
+
 def test_a_drift_caption_says_the_unit_of_its_problems_drift() -> None:
     """The headers say 'm or rad' for every problem (qa3c F13): the caption says which,
     from the model's constraints (a planar revolute keeps points together: m; a spatial

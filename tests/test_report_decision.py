@@ -319,13 +319,44 @@ def test_the_ranking_table_says_when_it_lists_only_the_first_pairs(tmp_path: Pat
 def test_a_margin_is_printed_with_the_digits_that_tell_it_from_one() -> None:
     """'.3g' printed a 1.003 margin as '1x ahead' and the heat map's 1.017 as '1', the
     winner's own value; and 1.4 beside 1.19."""
-    from workbench.outputs.report.ranking import ratio_text
+    from workbench.outputs.report.tables import ratio_text
 
     assert [ratio_text(v) for v in (1.0, 1.003, 1.017, 1.4, 1.19, 7.3, 12.34, 140.2)] == [
         "1", "1.003", "1.017", "1.40", "1.19", "7.30", "12.3", "140",
     ]  # fmt: skip
     runs = costed([("a / x", 6.0, 1.000, 0.999, 1.001), ("b / y", 6.0, 1.003, 1.002, 1.004)])
     assert decide(runs, 4.0, "integrate_cpu_s").verdict() == "1.003x ahead"
+
+
+def test_a_cost_ratio_prints_one_way_wherever_a_reader_sees_it(tmp_path: Path) -> None:
+    """The summary printed a margin to 4 significant digits ('2.103') where the decision
+    table said '2.10x': every table a reader sees (Markdown, LaTeX, the page, ``workbench
+    results``) prints a cost ratio as the verdicts do; the CSV keeps every digit."""
+    from workbench.outputs.report.tables import times_text
+    from workbench.outputs.results_table import results_table
+
+    results = synthetic_results()
+    write_report(results, None, tmp_path, "cmd", progress=False)
+    tables = tmp_path / "tables"
+    summary = pd.read_csv(tables / "summary.csv")
+    margins = summary["margin"].dropna()
+    assert len(margins) and (margins.round(3) != margins).all()  # the CSV: every digit
+    markdown = (tables / "summary.md").read_text()
+    latex = (tables / "summary.tex").read_text()
+    page = (tmp_path / "index.html").read_text()
+    for margin in margins:
+        shown = times_text(margin)  # '1.70x', as the verdict's '1.70x ahead'
+        assert re.fullmatch(r"\d+(\.\d+)?x", shown)
+        assert f"| {shown} |" in markdown and f"& {shown} " in latex
+        assert f"<td>{shown}</td>" in page
+        assert f"{margin:.4g} " not in markdown.replace("|", " ")  # the old '2.103'
+    for name in ("cost-at-target", "ranking"):  # the heat map's and the ranking's ratios
+        text = (tables / f"{name}.md").read_text().split("\nTable:")[0]
+        assert re.search(r"\| \d+(\.\d+)?x \|", text), name
+        assert not re.search(r"\| \d\.\d{4} \|", text), name
+    printed = results_table(results)
+    verdicts = printed["verdict"][printed["verdict"].str.contains("x ahead")]
+    assert len(verdicts) and all(re.search(r" \d+(\.\d+)?x ahead", v) for v in verdicts)
 
 
 def test_pairs_cut_short_by_the_tolerance_grid_are_named_in_the_why() -> None:

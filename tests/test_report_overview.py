@@ -94,7 +94,7 @@ def test_recommendation_counts_problems_within_the_factor_and_ignores_warned_run
     # b scores the same: the sentence says so and what decided (it named a alone)
     assert (
         "; so is b / y: a / x is named for the lower geometric mean of its cost ratios "
-        "to the best (1.59 against 1.65)." in found.sentence
+        "to the best (1.59x against 1.65x)." in found.sentence
     )
 
 
@@ -191,6 +191,30 @@ def test_overview_opens_the_page(tmp_path: Path) -> None:
     assert "within 2x of the best wall time" in page
     assert (tmp_path / "tables" / "cost-at-target.tex").is_file()
     assert (tmp_path / "tables" / "pareto.csv").is_file()
+
+
+def test_two_front_runs_a_hair_apart_in_scd_print_apart(tmp_path: Path) -> None:
+    """A sweep's Pareto table showed scd '2.992' on two rows: two runs (recursive and
+    minimal-ode under DOP853 integrate the same ODE), the dearer on the front by 3e-6
+    digits. Not a duplicate: the table prints the digits that tell them apart."""
+    from workbench.outputs.report.writer import overview_of
+
+    runs = rows([("p", "recursive / dop853", 2.9923241519, 0.0133),
+                 ("p", "minimal-ode / dop853", 2.9923271470, 0.0160),
+                 ("p", "recursive / bdf", 1.3320510260, 0.0112),
+                 ("p", "minimal-ode / bdf", 1.2, 0.02)])  # fmt: skip
+    (tmp_path / "figures").mkdir(), (tmp_path / "tables").mkdir()
+    overview_of(runs, tmp_path)
+    front = pd.read_csv(tmp_path / "tables" / "pareto.csv")
+    assert list(front["pair"]) == ["recursive / bdf", "recursive / dop853",
+                                   "minimal-ode / dop853"]  # three runs, none twice
+    assert front["scd"].iloc[1] == 2.9923241519  # the CSV: every digit
+    markdown = (tmp_path / "tables" / "pareto.md").read_text(encoding="utf-8")
+    printed = [line.split(" | ")[3] for line in markdown.splitlines()[2:] if line.startswith("| p")]
+    assert len(set(printed)) == 3, printed  # '2.99232' and '2.99233', not '2.992' twice
+    assert printed[0] == "1.33205"  # one format a column
+    page = write_report(runs, None, tmp_path / "report", "cmd", progress=False)
+    assert page.read_text(encoding="utf-8").count("<td>2.9923") == 2
 
 
 def test_convergence_plot_of_fixed_step_runs_fits_the_order(tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from workbench.outputs.report.analysis import drift_runs, ok_runs, warned
+from workbench.outputs.report.analysis import drift_left_out, drift_runs, ok_runs, warned
 
 DRIFT_QUANTITIES: tuple[tuple[str, str], ...] = (
     ("drift_pos", "position constraint drift [m or rad]"),
@@ -250,12 +250,22 @@ class PairStyles:
             style["marker"] = marker
         return style
 
-    def legend(self, figure: Any, markers: bool = True, left: float = 0.71) -> None:
+    def legend(
+        self,
+        figure: Any,
+        markers: bool = True,
+        left: float = 0.71,
+        drawn: Iterable[str] | None = None,
+    ) -> None:
         """Integrators (colours) and formalisms (line styles) right of the axes, from
-        ``left`` (a fraction of the figure's width)."""
+        ``left`` (a fraction of the figure's width); ``drawn``: the pairs with a curve,
+        whose integrators and formalisms alone are listed (None: every pair's)."""
         from matplotlib.lines import Line2D
 
-        handles = [Line2D([], [], color=self.colors[name]) for name in self.integrators]
+        parts = [self.parts[pair] for pair in (self.parts if drawn is None else drawn)]
+        integrators = [name for name in self.integrators if any(i == name for _, i in parts)]
+        formalisms = [name for name in self.formalisms if any(f == name for f, _ in parts)]
+        handles = [Line2D([], [], color=self.colors[name]) for name in integrators]
         handles += [
             Line2D(
                 [],
@@ -264,10 +274,10 @@ class PairStyles:
                 linestyle=self.marks[name][1],
                 marker=self.marks[name][0] if markers else None,
             )
-            for name in self.formalisms
+            for name in formalisms
         ]
-        labels = [f"integrator {name}" for name in self.integrators]
-        labels += [f"formalism {name}" for name in self.formalisms]
+        labels = [f"integrator {name}" for name in integrators]
+        labels += [f"formalism {name}" for name in formalisms]
         figure.legend(
             handles,
             labels,
@@ -478,8 +488,11 @@ def drift_figure(
     figure.subplots_adjust(left=0.07, right=0.98 - legend_room, bottom=0.1, top=0.86,
                            wspace=0.08, hspace=0.25)  # fmt: skip
     zero, seen = set(), set()  # panels (row, column) of a run all 0; of a run with data
+    curves: dict[str, str] = {}  # pair -> '' (a curve drawn) or why it has none
     for row in chosen.itertuples():
         run_series = _run_series(series, row.run_id)
+        curves.setdefault(row.pair, "no stored time series" if run_series is None else
+                          "no value above zero")  # fmt: skip
         if run_series is None:
             continue
         formalism, _integrator = styles.parts[row.pair]
@@ -493,6 +506,7 @@ def drift_figure(
             if keep.any():
                 ax = axes[k, formalisms.index(formalism)]
                 ax.plot(t[keep], values[keep], linewidth=1, **styles(row.pair, markers=False))
+                curves[row.pair] = ""
             elif np.isfinite(values).any():
                 zero.add((k, formalisms.index(formalism)))
     empty = []  # an empty panel says why, and so does the caption
@@ -520,12 +534,20 @@ def drift_figure(
         f"{problem}: drift and energy error at rtol = {rtol:g} (columns: formalisms)",
         x=0.5 - legend_room / 2,
     )
-    styles.legend(figure, markers=False, left=1.0 - legend_room)
+    # the legend lists what is drawn; the caption says which pairs are not, and why
+    styles.legend(figure, markers=False, left=1.0 - legend_room,
+                  drawn=[pair for pair, why in curves.items() if not why])  # fmt: skip
     caption = f"{problem}: constraint drift and energy error over time at rtol = {rtol:g}"
     if absent:
         caption += "; not drawn: " + "; ".join(absent.values())
     if empty:
         caption += "; empty panels: " + "; ".join(empty)
+    no_curve = [f"{pair} ({why})" for pair, why in sorted(curves.items()) if why]
+    if no_curve:
+        caption += "; no curve: " + ", ".join(no_curve)
+    left_out = drift_left_out(runs, rtol)
+    if left_out:
+        caption += f"; not in it, no ok run there: {', '.join(left_out)}"
     return save_figure(figure, out, f"{slug(problem)}-drift", caption), rtol
 
 

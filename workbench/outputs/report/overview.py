@@ -27,6 +27,7 @@ import pandas as pd
 from workbench.outputs.report.analysis import ok_runs, warned
 from workbench.outputs.report.cost import COST_LABELS
 from workbench.outputs.report.ranking import decide
+from workbench.outputs.report.tables import times_text
 
 OVERVIEW_TARGETS: tuple[float, ...] = (10.0, 8.0, 6.0, 4.0, 2.0)
 COST_COLUMNS: dict[str, str] = COST_LABELS  # cost column -> label (report.cost)
@@ -165,7 +166,7 @@ class Recommendation:
             sentence += (
                 f"; so {'is' if len(others) == 1 else 'are'} {', '.join(others)}: "
                 f"{self.pair} is named for the lower geometric mean of its cost ratios to "
-                f"the best ({gm.iloc[0]:.3g} against {gm.iloc[1]:.3g})"
+                f"the best ({times_text(gm.iloc[0])} against {times_text(gm.iloc[1])})"
             )
             tied, shared = self.costs_tied
             if tied:  # the geometric mean then orders costs the ranking cannot tell apart

@@ -21,7 +21,7 @@ from workbench.outputs.report.overview import (
     UNREACHED_MEANING,
     trusted,
 )
-from workbench.outputs.report.ranking import ratio_text
+from workbench.outputs.report.tables import times_text
 
 
 def heat_map_figure(
@@ -89,7 +89,7 @@ def heat_map_drawing(
                 _empty_cell(ax, Rectangle, i, j, reason)
                 continue
             color = "white" if value > 3 else "black"
-            ax.text(j, i, ratio_text(value), ha="center", va="center", fontsize=9, color=color)
+            ax.text(j, i, times_text(value), ha="center", va="center", fontsize=9, color=color)
     labels = [str(c).replace(" / ", "\n/ ") for c in ratio.columns]
     ax.set_xticks(range(columns), labels, rotation=30, ha="right", rotation_mode="anchor",
                   fontsize=9)  # fmt: skip

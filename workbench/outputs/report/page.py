@@ -24,7 +24,7 @@ from workbench.outputs.report.close_calls import retime_note
 from workbench.outputs.report.cost import Cost, resolve_cost, tie_rule
 from workbench.outputs.report.figures import FigureFiles, slug
 from workbench.outputs.report.scorecards import Scorecard
-from workbench.outputs.report.tables import shows_index, table_cells
+from workbench.outputs.report.tables import shows_index, table_cells, unbroken_units
 
 TEMPLATE = "report.html.j2"
 LIBRARIES: tuple[str, ...] = (
@@ -51,7 +51,7 @@ class PageTable:
     @classmethod
     def of(cls, table: pd.DataFrame, name: str) -> PageTable:
         header, rows = table_cells(table, index=shows_index(table))
-        return cls(name, header, rows)
+        return cls(name, [unbroken_units(cell) for cell in header], rows)
 
 
 @dataclass
@@ -117,6 +117,20 @@ class DecisionPage:
         return list(grouped.items())
 
 
+def decision_note(runs: pd.DataFrame, cost: Cost) -> str:
+    """The paragraph above the decision table, on the page and in the paper: what a cell
+    shows, when pairs tie (:func:`~workbench.outputs.report.cost.tie_rule`) and whether the
+    close calls were timed again after the runs (:func:`retime_note`)."""
+    note = (
+        "For each problem and accuracy target (scd: correct digits at the end), the cheapest "
+        f"pair among the runs that finished without warnings, its cost ({cost.name}) and how "
+        f"far ahead of the next pair it is; 'tie' where {tie_rule(cost.column)}, so the cost "
+        "cannot tell them apart."
+    )
+    retimed = retime_note(runs, cost.column)
+    return f"{note} {retimed}." if retimed else note
+
+
 def environment() -> Environment:
     """The Jinja environment of the report's templates: HTML escaped, undefined names an
     error (so a misspelt name in an edited template fails loudly)."""
@@ -177,7 +191,7 @@ def render_page(
             command=command,
             cost_name=cost.name,
             tie_rule=tie_rule(cost.column),
-            retime_note=retime_note(runs, cost.column),
+            decision_note=decision_note(runs, cost),
             cost_statement=cost.statement(),
             timing_warning=timing_warning,
             stalled=list(stalled),

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from workbench.outputs.report.tables import times_text
 from workbench.outputs.report.trust import ok_runs, warned
 
 NOT_REACHED = "none reached"
@@ -43,19 +44,6 @@ def sampled_cost(cost: str) -> bool:
     """Whether ``cost`` is read from timed samples (CPU or wall seconds), which a second
     sweep may not reproduce and the sweep times again; not counted work or counts."""
     return cost.endswith("_s") and cost != "work_s"
-
-
-def ratio_text(value: float) -> str:
-    """A cost ratio (a margin, a heat map's cell) with the digits that tell it from 1:
-    '1' (exactly), '1.003', '1.40', '12.3', '140' ('.3g' printed 1.003 as '1', the
-    winner's own value, and 1.4 beside 1.19)."""
-    if value == 1.0:
-        return "1"
-    if value < 1.1:
-        return f"{value:.3f}"
-    if value < 10:
-        return f"{value:.2f}"
-    return f"{value:.1f}" if value < 100 else f"{value:.0f}"
 
 
 def cost_interval(runs: pd.DataFrame, cost: str) -> tuple[pd.Series, pd.Series]:
@@ -155,7 +143,7 @@ class Decision:
             return "tie"
         if not self.runner_up:
             return "only pair"
-        ahead = f"{ratio_text(self.margin)}x ahead"
+        ahead = f"{times_text(self.margin)} ahead"
         if not self.tie_known:
             return f"{ahead} (one sample: tie unknown)"
         return ahead if self.timed_apart else f"{ahead} ({NOT_TIMED})"

@@ -57,7 +57,7 @@ HEADERS: dict[str, str] = {
     "work_s_max": "greatest counted work [s]",
     "repeats": "timed samples",
     "retimed": "samples timed again after the runs",
-    "margin": "margin over the runner-up [x]",
+    "margin": "margin over the runner-up",
     "runner-up": "runner-up (cheapest pair not tied)",
     "tied pairs": "tied pairs",
     "verdict": "verdict",
@@ -69,6 +69,10 @@ HEADERS: dict[str, str] = {
 
 SCIENTIFIC = ("rtol", "atol", "fixed_step_s", "reference_accuracy")
 """Columns always in scientific notation (tolerances and steps are powers of ten)."""
+
+RATIOS = ("margin", "geometric mean ratio")
+"""Columns of cost ratios, printed as the decision table's margins are (:func:`times_text`);
+a table's ``attrs["ratios"]`` names others (True: all its columns)."""
 
 
 def header(column: Any) -> str:
@@ -135,6 +139,35 @@ def cell_text(value: Any) -> str:
     return str(value)
 
 
+def ratio_text(value: float) -> str:
+    """A cost ratio (a margin, a heat map's cell) with the digits that tell it from 1:
+    '1' (exactly), '1.003', '1.40', '12.3', '140' ('.3g' printed 1.003 as '1', the
+    winner's own value, and 1.4 beside 1.19)."""
+    if value == 1.0:
+        return "1"
+    if value < 1.1:
+        return f"{value:.3f}"
+    if value < 10:
+        return f"{value:.2f}"
+    return f"{value:.1f}" if value < 100 else f"{value:.0f}"
+
+
+def times_text(value: Any) -> str:
+    """A ratio of costs as the report prints it wherever a reader sees one (a margin in
+    the decision table, the summary, the ranking, ``workbench results``): '1.70x',
+    '1.003x'; '' when missing. One format, so the summary's '2.103' and the decision's
+    '2.10x' cannot both name one margin."""
+    return "" if _missing(value) else f"{ratio_text(float(value))}x"
+
+
+def ratio_columns(table: pd.DataFrame) -> set[str]:
+    """The columns of ``table`` holding cost ratios (:data:`RATIOS`, ``attrs["ratios"]``)."""
+    named = table.attrs.get("ratios", ())
+    if named is True:
+        return {str(c) for c in table.columns}
+    return {str(c) for c in table.columns if str(c) in RATIOS or c in named}
+
+
 def column_formatter(column: Any, values: pd.Series) -> Callable[[Any], str]:
     """One number format for a whole column: integers when every value is whole;
     scientific (3 significant digits) for :data:`SCIENTIFIC` columns and for values
@@ -157,24 +190,45 @@ def column_formatter(column: Any, values: pd.Series) -> Callable[[Any], str]:
     return lambda value: "" if _missing(value) else f"{float(value):.{decimals}f}"
 
 
+def distinct_formatter(column: Any, values: pd.Series) -> Callable[[Any], str]:
+    """:func:`column_formatter`'s fixed decimals, more where two different values would
+    print alike (up to 12): a Pareto front held two runs of scd '2.992', the dearer one
+    on it by 3e-6 digits, and read as a duplicated row."""
+    base = column_formatter(column, values)
+    numbers = pd.to_numeric(values, errors="coerce") if values.dtype != object else None
+    if numbers is None or numbers.isna().all():
+        return base
+    unique = np.unique(numbers[np.isfinite(numbers)].to_numpy(dtype=float))
+    sample = base(unique[0]) if unique.size else "e"
+    if "e" in sample or "." not in sample:  # scientific or whole numbers: as they are
+        return base
+    decimals = len(sample.partition(".")[2])
+    while decimals < 12 and len({f"{v:.{decimals}f}" for v in unique}) < unique.size:
+        decimals += 1
+    return lambda value: "" if _missing(value) else f"{float(value):.{decimals}f}"
+
+
 def _missing(value: Any) -> bool:
     return value is None or (isinstance(value, float | np.floating) and math.isnan(value))
 
 
 def table_cells(table: pd.DataFrame, index: bool = False) -> tuple[list[str], list[list[str]]]:
     """The readable header and the rows of ``table`` as text, one format a column
-    (:func:`column_formatter`), the index first when ``index``. A table whose
-    ``attrs["one_format"]`` is true (a matrix of one quantity, e.g. cost ratios) has one
-    format for all its columns, so no column shows '1' beside another's '1.000'. A missing
-    value is an empty cell, or the text ``attrs["missing"][row label][column]`` says why it
-    is missing (the CSV, for pandas, keeps it empty)."""
+    (:func:`column_formatter`), the index first when ``index``; cost ratios
+    (:func:`ratio_columns`) as the decision table prints margins (:func:`times_text`);
+    the columns ``attrs["distinct"]`` names with the digits that tell their values apart
+    (:func:`distinct_formatter`). A missing value is an empty cell, or the text
+    ``attrs["missing"][row label][column]`` says why it is missing (the CSV, for pandas,
+    keeps it empty)."""
     head = ([header(table.index.name or "")] if index else []) + [header(c) for c in table.columns]
     missing = table.attrs.get("missing") or {}
-    if table.attrs.get("one_format") and len(table.columns):
-        stacked = pd.Series(table.to_numpy(dtype=float).ravel())
-        formats = [column_formatter("", stacked)] * len(table.columns)
-    else:
-        formats = [column_formatter(c, table[c]) for c in table.columns]
+    ratios, distinct = ratio_columns(table), set(table.attrs.get("distinct", ()))
+    formats = [
+        times_text if str(c) in ratios
+        else distinct_formatter(c, table[c]) if c in distinct
+        else column_formatter(c, table[c])
+        for c in table.columns
+    ]  # fmt: skip
     rows = []
     for label, row in zip(table.index, table.itertuples(index=False), strict=True):
         cells = [fmt(value) for fmt, value in zip(formats, row, strict=True)]
@@ -265,11 +319,29 @@ LONG_ROWS = 40  # more lines of rows: a longtable (breaks across pages; \usepack
 TABLE_FONT = r"\footnotesize\setlength{\tabcolsep}{3pt}"
 
 
-def _words_lines(text: str, width: int) -> list[str]:
-    """``text`` broken at spaces into lines of at most ``width`` characters (a longer
-    word stays whole)."""
-    lines: list[str] = []
+def header_words(text: str) -> list[str]:
+    """The pieces a header may break between: its words, a unit in brackets one piece
+    ('[m or rad]'), so no line ends inside a unit ('drift [m or' over 'rad]')."""
+    words: list[str] = []
     for word in text.split():
+        if words and words[-1].count("[") > words[-1].count("]"):  # inside a unit
+            words[-1] += " " + word
+        else:
+            words.append(word)
+    return words
+
+
+def unbroken_units(text: str) -> str:
+    """``text`` with the spaces inside its units made no-break spaces: a browser breaks
+    a header only where :func:`header_words` allows."""
+    return " ".join(word.replace(" ", "\N{NO-BREAK SPACE}") for word in header_words(text))
+
+
+def _words_lines(text: str, width: int) -> list[str]:
+    """``text`` broken between :func:`header_words` into lines of at most ``width``
+    characters (a longer piece stays whole)."""
+    lines: list[str] = []
+    for word in header_words(text):
         if lines and len(lines[-1]) + 1 + len(word) <= width:
             lines[-1] += " " + word
         else:
@@ -305,7 +377,7 @@ def _columns(
         word = max((len(w) for c in cells for w in c.split()), default=0)
         wrapped = not numeric and longest > WRAP_CHARS
         chars = max(WRAP_CHARS, word) if wrapped else longest
-        width = max(chars, HEADER_CHARS, max(len(w) for w in name.split() or [""]) + 2)
+        width = max(chars, HEADER_CHARS, max(len(w) for w in header_words(name) or [""]) + 2)
         lines = _words_lines(name, width) if break_headers and len(name) > width else [name]
         chars = max(chars, *(len(line) for line in lines))
         columns.append(_Column(lines, numeric, chars, wrapped))
@@ -329,7 +401,7 @@ def _laid_out(head: list[str], rows: list[list[str]], kinds: list[bool]) -> list
             column = columns[k]
             cells = [row[k] for row in rows]
             word = max((len(w) for c in cells for w in c.split()), default=0)
-            header = max(len(w) for line in column.header for w in line.split())
+            header = max(len(w) for line in column.header for w in header_words(line))
             chars = max(share, word, header, MIN_WRAP_CHARS)
             if chars < column.chars:
                 lines = _words_lines(" ".join(column.header), chars)

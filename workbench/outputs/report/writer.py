@@ -69,6 +69,7 @@ from workbench.outputs.report.page import (
     Overview,
     PageTable,
     ProblemSection,
+    decision_note,
     render_page,
 )
 from workbench.outputs.report.paper import PaperSection, write_paper
@@ -226,6 +227,7 @@ def write_report(
               if plan and coverage_notice(runs, plan) else []),  # fmt: skip
             *(f"Not converging: {line}." for line in stalled),
             overview.sentence,
+            decision_note(runs, measure),  # the page's words above the decision table
         ]
         write_paper(
             out,
@@ -408,7 +410,7 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
     )
     ratio_table = ratio.copy()
     ratio_table.index.name = "problem"
-    ratio_table.attrs["one_format"] = True  # one quantity: one number format
+    ratio_table.attrs["ratios"] = True  # every cell a cost ratio, printed as margins are
     # a cell without a value says why (Markdown and LaTeX; the CSV keeps numbers for
     # pandas): an empty one read the same as 'not run' or 'skipped' left out
     ratio_table.attrs["missing"] = {
@@ -439,24 +441,29 @@ def overview_of(runs: pd.DataFrame, out: Path, measure: Cost | None = None) -> O
         columns = ["problem", "pair", "rtol", "scd", "err_l2", "err_max", *costs]
         fronts.append(front[columns])
     pareto = pd.concat(fronts, ignore_index=True) if fronts else pd.DataFrame()
+    # two runs a hair apart in scd are both on the front: their scd must not print alike
+    pareto.attrs["distinct"] = ["scd"]
     write_table(
         pareto,
         out / "tables",
         "pareto",
         "Pareto front of each problem: the runs without warnings that no other run beats "
-        f"on both {measure.name} and scd; {measure.statement()}",
+        f"on both {measure.name} and scd (printed with the digits that tell its runs "
+        f"apart); {measure.statement()}",
         keys=leading_keys(pareto, ("problem", "pair", "rtol")),  # a row is a run
     )
     factor = f"{recommendation.factor:g}x"
     ranked = len(recommendation.table)
+    mean = "geometric mean of cost / best over the problems reached"
     ranking = recommendation.table.reset_index().rename(
         columns={
             "within": f"problems within {factor} of the best",
             "reached": f"problems reaching scd >= {target:g}",
             # of the problems a pair reached: one problem's 1.3 beside two problems' 1.16
-            "geometric mean ratio": "geometric mean of cost / best over the problems reached",
+            "geometric mean ratio": mean,
         }
     )
+    ranking.attrs["ratios"] = [mean]
     # the page, CSV and Markdown list every pair; the LaTeX, on a page of a paper, the
     # first RANKED_SHOWN, and says so and where the others are
     write_table(
