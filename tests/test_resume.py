@@ -243,12 +243,15 @@ def test_rerun_redoes_timeouts_and_failures_and_fresh_redoes_all(
     assert ok.counts["ok"] == 2
     frame = store.load_results(tmp_path)
     assert set(frame["status"]) == {"ok"} and len(frame) == 2
-    before = {p.name: p.stat().st_ino for p in (tmp_path / "runs").glob("*.json")}
+    # each row file written again: (inode, mtime) as the pool's row_stamp tells them (a
+    # row is written in place after the old one is removed, which may free its inode)
+    stamp = lambda p: (p.stat().st_ino, p.stat().st_mtime_ns)  # noqa: E731
+    before = {p.name: stamp(p) for p in (tmp_path / "runs").glob("*.json")}
     fresh, lines = sweep_lines(text, fresh=True)
     assert fresh.counts["ok"] == 2 and any(
         line.startswith("fresh: redoing all 2") for line in lines
     )
-    after = {p.name: p.stat().st_ino for p in (tmp_path / "runs").glob("*.json")}
+    after = {p.name: stamp(p) for p in (tmp_path / "runs").glob("*.json")}
     assert before.keys() == after.keys() and all(before[k] != after[k] for k in before)
 
 

@@ -53,8 +53,9 @@ def timeout_message(limit: float) -> str:
 
 def row_stamp(out: Path, run_id: str) -> tuple[int, int] | None:
     """(inode, mtime in ns) of the run's row file, or None: taken when a run is handed to a
-    worker, it tells a row written by that attempt (a new file, renamed into place) from an
-    older one (a re-run of a done row)."""
+    worker, it tells a row written by that attempt (a new file, written after the old one
+    is removed, which may free its inode for it: the time tells them apart) from an older
+    one (a re-run of a done row)."""
     try:
         stat = store.row_path(out, run_id).stat()
     except OSError:
