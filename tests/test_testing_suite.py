@@ -290,6 +290,21 @@ def test_the_summary_says_over_what_span_the_trajectory_was_checked(register):
     assert "checked over" not in check_formalism("test-late-nan", checks="structural").summary()
 
 
+def test_a_formalisms_failed_tight_run_is_a_fail_row_not_a_skip(register):
+    """Over 0.8 s the NaN forces are reached: the formalism's own run failing is a finding
+    (it read 'SKIP energy' and the report passed); the other checks stand."""
+    register("formalism", LateNan)
+    report = check_formalism("test-late-nan", ["double-pendulum"], horizon=0.8)
+    run = failure(report, "tight-run", "double-pendulum")
+    assert "DOP853 rtol 1e-10 over 0.8 s" in run.message and "not checked" in run.message
+    assert not report.ok and [r.check for r in report.failures] == ["tight-run"]
+    assert any(r.check == "accelerations" and r.status == "pass" for r in report.results)
+    # a formalism without an ode form is not a failure: nothing to run
+    index3 = check_formalism("absolute-dae", ["double-pendulum"], {"index": 3}, checks=["motion"])
+    (energy,) = [r for r in index3.results if r.check == "energy"]
+    assert energy.status == "skip" and "built no ode form" in energy.message
+
+
 class FrozenMultipliers(Integrator):
     """Backward Euler on the dae form whose Newton solves only the differential
     equations: the algebraic variables (the multipliers) keep their first values (test)."""

@@ -54,6 +54,7 @@ from workbench.testing.states import (
     central_difference,
     energy_scale,
     formalism_state,
+    missing_ode_form,
     observed,
     random_joint_states,
     tight_run,
@@ -465,10 +466,15 @@ def _check_motion(
     equations, reference, reference_name = subject
     name = problem.name
     t_end = state.t0 + horizon
+    if missing_ode_form(equations):  # a form not offered: nothing to check, no finding
+        report.skipped("energy", name, missing_ode_form(equations))
+        return
     try:
         times, y = tight_run(equations, state, t_end)
-    except Exception as error:  # noqa: BLE001
-        report.skipped("energy", name, one_line(error))
+    except Exception as error:  # noqa: BLE001 - the formalism's own run failed: a finding
+        report.failed("tight-run", name, f"DOP853 rtol 1e-10 over {horizon:g} s: "
+                      f"{one_line(error)}; energy, invariants, constraints and the end "
+                      "pose not checked")  # fmt: skip
         return
     obs, nq, nv = equations.observables, equations.nq, equations.nv
     energies = np.array(
@@ -517,7 +523,12 @@ def _check_motion(
             tolerances["constraints"],
             f"largest residual (joints, contacts) {run}",
         )
-    _, y_ref = tight_run(reference, ref_state, t_end)
+    try:
+        _, y_ref = tight_run(reference, ref_state, t_end)
+    except Exception as error:  # noqa: BLE001 - the reference's run, not the subject's
+        report.skipped("trajectory", name, f"the reference formalism {reference_name!r}'s "
+                       f"run failed: {one_line(error)}")  # fmt: skip
+        return
     ours = obs.poses(t_end, y[-1, :nq])[None]
     theirs = reference.observables.poses(t_end, y_ref[-1, : reference.nq])[None]
     length = length_scale(model, theirs)

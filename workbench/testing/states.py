@@ -102,6 +102,16 @@ def observed(equations: Equations, state: InitialState) -> dict[str, np.ndarray]
     }
 
 
+def missing_ode_form(equations: Equations) -> str:
+    """Why :func:`tight_run` cannot run ``equations`` (no ode form), or ""."""
+    if "ode" in equations.forms:
+        return ""
+    return (
+        f"formalism {equations.formalism!r} built no ode form here (give options that "
+        "offer one, e.g. index=1)"
+    )
+
+
 def tight_run(
     equations: Equations,
     state: InitialState,
@@ -117,11 +127,8 @@ def tight_run(
     """
     import scipy.integrate
 
-    if "ode" not in equations.forms:
-        raise WorkbenchError(
-            f"formalism {equations.formalism!r} built no ode form here (give options that "
-            "offer one, e.g. index=1)"
-        )
+    if missing_ode_form(equations):
+        raise WorkbenchError(missing_ode_form(equations))
     rhs = equations.forms["ode"].rhs
     times = np.linspace(state.t0, t_end, n) if times is None else np.asarray(times, float)
     n = times.size
