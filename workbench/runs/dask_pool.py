@@ -476,7 +476,10 @@ def run_dask(
     try:
         import distributed  # noqa: F401 - its loggers exist once it is imported
     except ImportError as error:
-        raise ConfigError(f"--scheduler needs the 'distributed' package: {error}") from None
+        raise ConfigError(
+            f"a Dask scheduler needs the 'distributed' package: {error} "
+            "(pip install distributed; or run on the local pool, without a scheduler)"
+        ) from None
     with dask_log_in(out):
         return _run_dask(
             todo, out, limit, plugins, scheduler, record, timing, states, recorder, say
@@ -712,7 +715,7 @@ class _ClientWatch:
         if status in ("closed", "closing", "failed") or now - self.since > LOST_AFTER_S:
             return (
                 f"the Dask scheduler {self.address} was lost (client {status}); "
-                "start it again (or drop --scheduler) and resume"
+                "start it again (or resume on the local pool, without a scheduler)"
             )
         return None
 
