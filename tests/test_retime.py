@@ -238,3 +238,30 @@ def test_a_workers_timing_child_returns_its_samples_and_is_killed_past_the_limit
     for run_id, _status, _wall, _cpu, counts in samples:  # each round did the same work
         assert by_run.setdefault(run_id, counts) == counts
     assert len(time_on_worker(specs, 2, 0.0, 1e-6, [], [], {})) < len(samples)
+
+
+def test_the_clusters_retiming_ends_when_no_worker_takes_it(monkeypatch) -> None:
+    """A cluster whose workers left after the runs: the runs would wait for one however
+    late, the re-timing (optional) gives up after its limit and the rows keep theirs."""
+    import time
+
+    distributed = pytest.importorskip("distributed")
+    from workbench.runs import dask_retime
+
+    monkeypatch.setattr(dask_retime, "START_S", 1.0)  # (a child's start-up allowance)
+    run = RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-6, 1e-9)
+    taken: list = []
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        said: list[str] = []
+        sampler = dask_retime.ClusterSampler(cluster.scheduler_address, said.append)
+        try:
+            started = time.monotonic()
+            sampler([run], {run.run_id: 0.01}, 2, 0.0, 1.0, [], taken.append)
+            waited = time.monotonic() - started
+        finally:
+            sampler.close()
+    limit = dask_retime.phase_limit([[run]], {run.run_id: 0.01}, 2, 0.0, 1.0)
+    assert taken == [] and limit <= waited < limit + 30
+    assert said == [f"close calls: the cluster's timing did not end within {limit:.0f} s (no "
+                    "worker, or one far slower than the runs); the runs not timed again keep "
+                    "their own samples"]  # fmt: skip

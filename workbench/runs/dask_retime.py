@@ -24,7 +24,7 @@ from typing import Any
 
 from workbench.execution.execute import RunSpec
 from workbench.execution.worker_env import thread_environment
-from workbench.runs.retime import Sample, balanced_bins, timer_main
+from workbench.runs.retime import SAMPLE_OVERHEAD_S, Sample, balanced_bins, timer_main
 from workbench.runs.shipping import pack_modules, unpack_modules
 
 START_S = 120.0  # a child's imports and plugins: its first message comes within this
@@ -36,9 +36,10 @@ class ClusterSampler:
     its worker threads, a bin of runs each. Made, it has connected (a scheduler gone
     since the runs raises the client's error here)."""
 
-    def __init__(self, scheduler: str) -> None:
+    def __init__(self, scheduler: str, say: Callable[[str], None] = print) -> None:
         import distributed
 
+        self.say = say
         self.client = distributed.Client(scheduler, timeout="10s")
         self.jobs = max(1, sum(self.client.nthreads().values()))
 
@@ -49,21 +50,45 @@ class ClusterSampler:
 
         paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
         modules = pack_modules(plugins)
+        bins = balanced_bins(runs, cost, self.jobs)
         futures = [
             self.client.submit(time_on_worker, [spec.to_dict() for spec in runs_of_bin],
                                rounds, gap, limit, plugins, paths, modules, pure=False)
-            for runs_of_bin in balanced_bins(runs, cost, self.jobs)
+            for runs_of_bin in bins
         ]  # fmt: skip
-        for future in distributed.as_completed(futures):
-            try:
-                samples = future.result()
-            except Exception:  # noqa: BLE001, S112 - a lost worker: its runs' rows stay
-                continue
-            for sample in samples:
-                take(tuple(sample))
+        seconds = phase_limit(bins, cost, rounds, gap, limit)
+        try:
+            for future in distributed.as_completed(futures, timeout=seconds):
+                try:
+                    samples = future.result()
+                except Exception:  # noqa: BLE001, S112 - a lost worker: its runs' rows stay
+                    continue
+                for sample in samples:
+                    take(tuple(sample))
+        except TimeoutError:  # (no worker left, or one far slower): the rows stay
+            self.client.cancel(futures)
+            self.say(
+                f"close calls: the cluster's timing did not end within {seconds:.0f} s (no "
+                "worker, or one far slower than the runs); the runs not timed again keep "
+                "their own samples"
+            )
 
     def close(self) -> None:
         self.client.close()
+
+
+SLACK = 4.0  # times the bins' measured cost a task may take before the phase gives up
+
+
+def phase_limit(bins: list[list[RunSpec]], cost: dict[str, float], rounds: int, gap: float,
+                limit: float) -> float:  # fmt: skip
+    """Seconds the cluster's timing tasks may take in all: a child's start-up, the gaps,
+    and :data:`SLACK` times the largest bin's rounds (its runs' measured integration and
+    set-up), at least one time limit. Past it the phase ends, the rows keeping what they
+    had: runs wait for a worker however late, an optional phase does not (a cluster
+    whose workers left after the runs would wait forever)."""
+    largest = max(sum(cost[spec.run_id] + SAMPLE_OVERHEAD_S for spec in runs) for runs in bins)
+    return START_S + rounds * gap + max(limit, SLACK * (rounds + 1) * largest)
 
 
 def time_on_worker(specs: list[dict[str, Any]], rounds: int, gap: float, limit: float,

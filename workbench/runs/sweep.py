@@ -261,7 +261,7 @@ def _retime(
     sampler, jobs = None, timing.workers
     if scheduler:
         try:
-            sampler = ClusterSampler(scheduler)
+            sampler = ClusterSampler(scheduler, say or _stderr)
         except Exception as error:  # noqa: BLE001 - the scheduler gone since the runs
             (say or _stderr)(f"close calls not timed again: {one_line(error)[:200]}")
             return key
