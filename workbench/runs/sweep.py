@@ -34,7 +34,7 @@ from workbench.execution.environment import sweep_environment
 from workbench.execution.timing import Timing, check_budget, check_repeats, retime_problem
 from workbench.files import make_dirs, sync_file_system
 from workbench.runs import local_pool, output_keys, store
-from workbench.runs.dask_pool import check_scheduler_address, run_dask
+from workbench.runs.dask_pool import check_scheduler_address, dask_log_in, run_dask
 from workbench.runs.dask_retime import ClusterSampler
 from workbench.runs.estimate import estimate_lines, known_costs
 from workbench.runs.local_pool import merge_run_recordings, run_local
@@ -259,22 +259,24 @@ def _retime(
     if output_keys.is_current(marker, key):
         return key
     sampler, jobs = None, timing.workers
-    if scheduler:
+    # what distributed logs goes to OUT/logs/dask-client.log, as in the runs' phase
+    with dask_log_in(out_dir) if scheduler else contextlib.nullcontext():
+        if scheduler:
+            try:
+                sampler = ClusterSampler(scheduler, say or _stderr)
+            except Exception as error:  # noqa: BLE001 - the scheduler gone since the runs
+                (say or _stderr)(f"close calls not timed again: {one_line(error)[:200]}")
+                return key
+            jobs = sampler.jobs
         try:
-            sampler = ClusterSampler(scheduler, say or _stderr)
-        except Exception as error:  # noqa: BLE001 - the scheduler gone since the runs
-            (say or _stderr)(f"close calls not timed again: {one_line(error)[:200]}")
-            return key
-        jobs = sampler.jobs
-    try:
-        done = retime_close_calls(
-            out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit,
-            sweep.plugins, say or _stderr,
-            None if sampler else local_pool.worker_context(), jobs=jobs, sampler=sampler,
-        )  # fmt: skip
-    finally:
-        if sampler is not None:
-            sampler.close()
+            done = retime_close_calls(
+                out_dir, sweep.runs, close_calls, rounds, timing.repeat_budget, limit,
+                sweep.plugins, say or _stderr,
+                None if sampler else local_pool.worker_context(), jobs=jobs, sampler=sampler,
+            )  # fmt: skip
+        finally:
+            if sampler is not None:
+                sampler.close()
     files.write_json_atomic({"rounds": rounds, "gap_s": GAP_S, "runs": done}, marker,
                             root=out_dir)  # fmt: skip
     key = output_keys.rows_key(out_dir) if done else key
