@@ -108,18 +108,23 @@ def test_the_rounds_are_checked_in_the_specification(tmp_path) -> None:
             parse_spec(text + f"retime = {bad}\n")
 
 
-def test_a_sweep_times_its_close_calls_again_once(tmp_path) -> None:
-    out = tmp_path / "out"
-    spec = parse_spec(f"""
+def two_pairs(out, extra: str = "") -> str:
+    """A sweep of two close pairs (the double pendulum, two formalisms, DOP853), timed
+    again twice."""
+    return f"""
 out = "{out.as_posix()}"
-jobs = 2
-time_limit = 300.0  # only a hung run reaches it
+{extra}time_limit = 300.0  # only a hung run reaches it
 retime = 2
 problems = ["double-pendulum"]
 formalisms = ["minimal-ode", "recursive"]
 integrators = ["scipy-dop853"]
 tolerances = [1e-6]
-""")
+"""
+
+
+def test_a_sweep_times_its_close_calls_again_once(tmp_path) -> None:
+    out = tmp_path / "out"
+    spec = parse_spec(two_pairs(out, "jobs = 2\n"))
     said: list[str] = []
     seen: list[set[str]] = []
 
@@ -191,15 +196,7 @@ def test_a_dask_sweep_times_its_close_calls_again_on_the_workers(tmp_path) -> No
     samples, and the plan and the progress lines say so."""
     distributed = pytest.importorskip("distributed")
     out = tmp_path / "out"
-    spec = parse_spec(f"""
-out = "{out.as_posix()}"
-time_limit = 300.0  # only a hung run reaches it
-retime = 2
-problems = ["double-pendulum"]
-formalisms = ["minimal-ode", "recursive"]
-integrators = ["scipy-dop853"]
-tolerances = [1e-6]
-""")
+    spec = parse_spec(two_pairs(out))
     said: list[str] = []
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None

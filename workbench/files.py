@@ -296,10 +296,15 @@ def atomic_write(
     except BaseException as error:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temp_name)
-        if isinstance(error, OSError) and error.filename is None and error.errno:
-            # a write's ENOSPC names no file: name the one that could not be written
-            raise OSError(error.errno, error.strerror, str(path)) from error
-        raise
+        _raise_naming(error, path)
+
+
+def _raise_naming(error: BaseException, path: Path) -> None:
+    """Raise ``error`` again; an OSError naming no file (a write's ENOSPC) as one naming
+    ``path``, the file that could not be written."""
+    if isinstance(error, OSError) and error.filename is None and error.errno:
+        raise OSError(error.errno, error.strerror, str(path)) from error
+    raise error
 
 
 def write_new_file(
@@ -336,9 +341,7 @@ def write_new_file(
     except BaseException as error:
         with contextlib.suppress(OSError):
             os.unlink(path)
-        if isinstance(error, OSError) and error.filename is None and error.errno:
-            raise OSError(error.errno, error.strerror, str(path)) from error
-        raise
+        _raise_naming(error, path)
 
 
 def sync_file_system(path: str | os.PathLike[str]) -> None:

@@ -431,6 +431,12 @@ def _serve_main(fd: int) -> None:
         shutil.rmtree(setting["out"], ignore_errors=True)
 
 
+def client_paths() -> list[str]:
+    """This process's ``sys.path`` as absolute folders, for a worker's children (its
+    current folder for the empty entry): where the spec's local plugin modules are."""
+    return [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+
+
 def check_scheduler_address(scheduler: str, option: str = "--scheduler") -> None:
     """ConfigError for an address Dask cannot read (a host without its port): said before
     a sweep writes its plan and logs into OUT, not after (an address that reads well but
@@ -544,7 +550,7 @@ def _run_dask(
         ) from None
     reference_dir = str((out / "references").resolve())
     shipped: dict[str | None, tuple[list[str], Any]] = {}  # problem -> files, their future
-    paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+    paths = client_paths()
     queue: deque[Keyed] = deque((equations_key(spec), spec) for spec in todo)
     gate = ReferenceGate(queue, Path(reference_dir))  # a reference computed once, not a worker
     futures: dict[concurrent.futures.Future, tuple[RunSpec, str | None]] = {}

@@ -19,11 +19,11 @@ import socket
 import subprocess
 import sys
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from workbench.execution.execute import RunSpec
 from workbench.execution.worker_env import thread_environment
+from workbench.runs.dask_pool import client_paths
 from workbench.runs.retime import SAMPLE_OVERHEAD_S, Sample, balanced_bins, timer_main
 from workbench.runs.shipping import pack_modules, unpack_modules
 
@@ -48,7 +48,7 @@ class ClusterSampler:
                  take: Callable[[Sample | None], None]) -> None:  # fmt: skip
         import distributed
 
-        paths = [str(Path(p).resolve()) if p else os.getcwd() for p in sys.path]
+        paths = client_paths()
         modules = pack_modules(plugins)
         bins = balanced_bins(runs, cost, self.jobs)
         futures = [
