@@ -107,6 +107,47 @@ def test_corrupt_row_is_reported_not_fatal(tmp_path) -> None:
     assert store.completed_run_ids(tmp_path) == {"a" * 16}
 
 
+def test_a_row_and_series_read_mid_write_are_read_whole(tmp_path) -> None:
+    """`workbench results` beside a running sweep: a worker writes a run's files in place
+    (files.write_new_file), so a reader can open a series that is a part and a row that is
+    still empty; both are whole a moment later and read so, with no warning."""
+    import threading
+    import warnings
+
+    store.write_run(tmp_path, row("a" * 16), series("a" * 16))
+    row_file = store.row_path(tmp_path, "a" * 16)
+    series_file = store.series_path(tmp_path, "a" * 16)
+    whole_row, whole_series = row_file.read_bytes(), series_file.read_bytes()
+    for part, path, whole in ((whole_series[: len(whole_series) // 2], series_file, whole_series),
+                              (b"", row_file, whole_row)):  # a series without footer, a row empty
+        path.write_bytes(part)
+        finish = threading.Timer(0.2, path.write_bytes, [whole])
+        finish.start()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # "unreadable ... file" would fail here
+                frame = store.load_results(tmp_path)
+                one = store.load_series(tmp_path, "a" * 16)
+        finally:
+            finish.join()
+        assert list(frame["run_id"]) == ["a" * 16] and frame.attrs["unreadable"] == []
+    assert list(one["t"]) == [0.0, 1.0]
+
+
+def test_an_old_broken_row_is_not_waited_for(tmp_path) -> None:
+    """A part left by a killed writer long ago is unreadable at once (no settling wait)."""
+    import os
+    import time
+
+    store.write_run(tmp_path, row("a" * 16), series("a" * 16))
+    broken = store.row_path(tmp_path, "b" * 16)
+    broken.write_text("{")
+    os.utime(broken, (time.time() - 60, time.time() - 60))
+    started = time.monotonic()
+    assert store.read_row(broken, settle=True) is None
+    assert time.monotonic() - started < store.SETTLE_S
+
+
 def test_missing_results_is_a_config_error(tmp_path) -> None:
     with pytest.raises(ConfigError, match="no results"):
         store.load_results(tmp_path / "nothing")

@@ -205,7 +205,7 @@ def one_run_recording(recording: Any, run_id: str) -> Any:
     from workbench.runs import store
 
     row_file = store.row_path(recording.parent, run_id)
-    row = store.read_row(row_file) if row_file.is_file() else None
+    row = store.read_row(row_file, settle=True) if row_file.is_file() else None
     if row is None:
         raise ConfigError(
             f"no run {run_id!r} in {recording.parent}: give a run id from "

@@ -16,11 +16,14 @@ Layout of an output directory ``<out>``::
     <out>/environment.json           the full environment of the last sweep started here
                                      (workbench.execution.environment.sweep_environment)
 
-Every file is written atomically (:func:`workbench.files.atomic_write`): to a temporary
-file in the same directory, then renamed over the target with :func:`os.replace`. The
-series is written before the row, so a row file implies its series; a sweep killed at
-any moment leaves only whole files, and a resumed sweep skips the run ids whose row
-exists.
+A run's row and series are written in place (:func:`workbench.files.write_new_file`),
+the series first, so a whole row implies a whole series; a worker killed mid-write leaves
+a row that does not parse or a series without its footer, which read as not done, and a
+resumed sweep redoes those runs and skips the run ids whose row is whole. The other files
+are written atomically (:func:`workbench.files.atomic_write`: a temporary file renamed
+over the target). A reader beside a running sweep (``workbench results``) may meet a row
+being written: :func:`read_settled` reads a new file that does not parse again for up
+to :data:`SETTLE_S`.
 
 :func:`load_results` returns a DataFrame whose first columns are always those of
 :data:`~workbench.execution.row_schema.SCHEMA`, in that order (missing values NaN or
@@ -36,10 +39,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import pandas as pd
 
@@ -56,6 +60,8 @@ from workbench.execution.row_schema import (
     row_schema_version,
 )
 from workbench.files import remove_temporaries, write_json_atomic, write_parquet_atomic
+
+T = TypeVar("T")
 
 RUNS_DIR = "runs"
 SERIES_DIR = "series"
@@ -113,8 +119,11 @@ def write_run(
     )
 
 
-def read_row(path: Path) -> dict[str, Any] | None:
-    """One row file, or None if it is unreadable (truncated, corrupt, not an object)."""
+def read_row(path: Path, settle: bool = False) -> dict[str, Any] | None:
+    """One row file, or None if it is unreadable (truncated, corrupt, not an object).
+    ``settle``: a new file is read again while it does not parse (:func:`read_settled`)."""
+    if settle:
+        return read_settled(path, read_row)
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -122,6 +131,37 @@ def read_row(path: Path) -> dict[str, Any] | None:
     if not isinstance(data, dict) or not isinstance(data.get("run_id"), str):
         return None
     return data
+
+
+SETTLE_S = 1.0
+"""Seconds after its last change within which a file that does not read may still be
+being written (a run's row or series, written in place in well under a millisecond)."""
+
+
+def read_settled(path: Path, read: Callable[[Path], T | None]) -> T | None:
+    """``read(path)``, and again after short waits while it gives None or raises and the
+    file changed less than :data:`SETTLE_S` ago: a reader beside a running sweep meets a
+    row or series in the middle of its write (an empty file, a part), which a moment later
+    is whole. A file older than that is what a killed writer left: not waited for. The
+    last attempt's error is raised, None given as it is."""
+    pause = 0.005
+    while True:
+        try:
+            value, error = read(path), None
+        except Exception as raised:  # noqa: BLE001 - whatever ``read`` raises, re-raised below
+            value, error = None, raised
+        if value is not None:
+            return value
+        try:
+            age = time.time() - Path(path).stat().st_mtime
+        except OSError:  # gone meanwhile (a run done again unlinks it first)
+            age = SETTLE_S
+        if not 0 <= age < SETTLE_S:
+            if error is not None:
+                raise error
+            return None
+        time.sleep(pause)
+        pause = min(2 * pause, 0.1)
 
 
 def row_options(row: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -261,7 +301,7 @@ def load_results(path: str | os.PathLike[str]) -> pd.DataFrame:
         )
     rows, unreadable, migrated, newer = [], [], [], []
     for row_file in sorted(directory.glob("*.json")):
-        row = read_row(row_file)
+        row = read_row(row_file, settle=True)  # beside a running sweep: a row mid-write
         version = 0 if row is None else row_schema_version(row, row_file)
         defects = ["unreadable"] if row is None else row_defects(row, SCHEMA_COLUMNS, row_file.stem)
         if version > SCHEMA_VERSION:
@@ -304,7 +344,7 @@ def load_series(
         if not file.is_file():
             raise ConfigError(f"no time series for run {run_id!r} in {path}")
         try:
-            frame = pd.read_parquet(file)
+            frame = read_settled(file, pd.read_parquet)
         except Exception as error:  # noqa: BLE001 - pyarrow raises several kinds
             raise ConfigError(
                 f"time series {file} is unreadable ({one_line(error)}); "
@@ -319,7 +359,7 @@ def load_series(
     frames, unreadable = [], []
     for file in sorted(directory.glob("*.parquet")):
         try:
-            frames.append(_without_states(pd.read_parquet(file)))
+            frames.append(_without_states(read_settled(file, pd.read_parquet)))
         except Exception:  # noqa: BLE001 - pyarrow raises several kinds
             unreadable.append(str(file))
     if unreadable:
