@@ -150,3 +150,28 @@ def test_a_header_never_breaks_inside_its_unit(report: Path) -> None:
     assert "max position drift [m\N{NO-BREAK SPACE}or\N{NO-BREAK SPACE}rad]" in header
     assert "max velocity drift [m/s\N{NO-BREAK SPACE}or\N{NO-BREAK SPACE}rad/s]" in header
     assert "max energy error / energy in motion" in header  # breaks between words as before
+
+
+def test_a_broken_header_takes_as_few_lines_as_the_page_allows() -> None:
+    """A ranking's last header took 5 lines of 12 characters ('geometric mean' / 'of cost /
+    best' / ...) beside 200 pt of free page: headers now widen to the fewest lines at
+    which the table still fits, each whole, nothing lost."""
+    from workbench.outputs.report.tables import TEXT_WIDTH_PT, _laid_out
+
+    head = [
+        "formalism / integrator",
+        "problems within 2x of the best",
+        "problems reaching scd >= 6",
+        "geometric mean of cost / best over the problems reached",
+    ]
+    rows = [["minimal-ode / scipy-dop853", "6", "6", "1.24x"],
+            ["absolute-dae / sundials-cvode-bdf", "0", "0", ""]]  # fmt: skip
+    columns = _laid_out(head, rows, [False, True, True, True])
+    assert sum(column.width_pt for column in columns) <= TEXT_WIDTH_PT
+    assert max(len(column.header) for column in columns) == 3  # 5 before; 2 do not fit
+    assert [" ".join(column.header) for column in columns] == head
+    text = latex_table(pd.DataFrame(rows, columns=head))
+    assert "geometric mean of cost / best over the problems reached" in joined_headers(text)
+    # a table whose headers fit whole keeps them whole
+    whole = _laid_out(["rtol", "ok"], [["1e-06", "3"]], [True, True])
+    assert all(len(column.header) == 1 for column in whole)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -406,6 +406,27 @@ def _laid_out(head: list[str], rows: list[list[str]], kinds: list[bool]) -> list
             if chars < column.chars:
                 lines = _words_lines(" ".join(column.header), chars)
                 columns[k] = _Column(lines, False, chars, True)
+    return _fewer_header_lines(columns, head)
+
+
+def _fewer_header_lines(columns: list[_Column], head: list[str]) -> list[_Column]:
+    """``columns`` with their broken headers in as few lines as the page allows: each
+    header of more than L lines widened until it takes L, for the least L at which the
+    table still fits (a ranking's 'geometric mean of cost / best over the problems
+    reached' took 5 lines of 12 characters beside 200 pt of free page)."""
+    most = max(len(column.header) for column in columns)
+    for limit in range(1, most):
+        widened = []
+        for column, name in zip(columns, head, strict=True):
+            if len(column.header) <= limit:
+                widened.append(column)
+                continue
+            width = column.chars
+            while len(lines := _words_lines(name, width)) > limit:
+                width += 1
+            widened.append(replace(column, header=lines, chars=max(column.chars, width)))
+        if sum(column.width_pt for column in widened) <= TEXT_WIDTH_PT:
+            return widened
     return columns
 
 
