@@ -11,11 +11,18 @@ import pytest
 from tests.test_report_decision import costed
 from workbench.errors import ConfigError
 from workbench.execution.execute import RunSpec
+from workbench.execution.row_schema import SCHEMA_VERSION
 from workbench.execution.timing import retimed_columns
 from workbench.outputs.report.close_calls import close_calls
 from workbench.outputs.report.ranking import decide
 from workbench.runs import store
-from workbench.runs.retime import RETIMED_FILE, balanced_bins, retimed_row
+from workbench.runs.retime import (
+    CHILD_START_S,
+    RETIMED_FILE,
+    balanced_bins,
+    retime_close_calls,
+    retimed_row,
+)
 from workbench.runs.sweep import parse_spec, run_sweep
 
 OWN = {"integrate_s": 0.021, "integrate_s_min": 0.020, "integrate_s_max": 0.022,
@@ -96,6 +103,38 @@ def test_the_timing_processes_share_the_work_a_model_in_one() -> None:
     loads = sorted(sum(cost[spec.run_id] for spec in b) for b in bins)
     assert loads == [8.0, 8.0]  # one heavy-top model (6 s) and one four-bar (2 s) each
     assert len(balanced_bins(runs[:2], cost, 2)) == 1  # one model: one process
+
+
+def test_the_announced_time_counts_the_processes_start_up_and_their_models_builds(
+    tmp_path,
+) -> None:
+    """A timing process starts and builds each of its models once before its first sample:
+    the announced seconds count it, from the rows' build times (each model's most, not
+    every row's), shared by the processes; not from a clock (the samples are not taken)."""
+    runs = [RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-6, 1e-9),
+            RunSpec("simple-pendulum", "minimal-ode", "scipy-rk45", 1e-6, 1e-9),
+            RunSpec("simple-pendulum", "recursive", "scipy-dop853", 1e-6, 1e-9)]  # fmt: skip
+    built = [(18.0, 1.0), (20.0, 1.0), (9.0, 1.0)]  # a model built by both workers: 21 s
+    for spec, (build, init) in zip(runs, built, strict=True):
+        row = {"run_id": spec.run_id, "schema_version": SCHEMA_VERSION, "status": "ok",
+               "integrate_cpu_s": 0.01, "retimed": 0, "build_s": build, "init_s": init}  # fmt: skip
+        path = store.row_path(tmp_path, spec.run_id)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(row))
+
+    def announced(jobs: int) -> float:
+        said: list[str] = []
+        done = retime_close_calls(
+            tmp_path, runs, lambda frame: list(frame["run_id"]), 2, 3.0, 10.0, [],
+            said.append, jobs=jobs, sampler=lambda *args: None,  # (no samples: rows stay)
+        )  # fmt: skip
+        assert done == [] and len(said) == 1
+        assert said[0].startswith("timing 3 close call(s) again: 2 rounds at least 2 s apart")
+        return float(said[0].split("(about ")[1].split(" s;")[0])
+
+    builds = 21.0 + 10.0  # each model once (its most); the rounds' gap and CPU about 2 s
+    assert CHILD_START_S + builds <= announced(1) <= CHILD_START_S + builds + 3
+    assert CHILD_START_S + builds / 2 <= announced(2) <= CHILD_START_S + builds / 2 + 3
 
 
 def test_the_rounds_are_checked_in_the_specification(tmp_path) -> None:

@@ -51,7 +51,15 @@ GAP_S = 2.0  # a round begins at least this long after the one before (slow spel
 SAMPLE_OVERHEAD_S = 0.015
 """Seconds a sample costs beside its integration (a run's set-up in ``execute_run``): the
 full suite's 495 close calls took 79.6 s in 2 processes against 54 s of their
-integrations' CPU (Intel Xeon, 2026-11-29: 17 ms a sample)."""
+integrations' CPU (Intel Xeon, 2026-11-29: 17 ms a sample). That excess held the
+processes' start-up and builds too, counted apart since (:func:`phase_seconds`), so it
+errs high: a quick-suite sample took 0.5-1 ms of CPU beside its integration once built."""
+CHILD_START_S = 1.5
+"""Seconds a timing process takes before its first run: a fresh interpreter's imports
+(Python, workbench, CasADi, SciPy) and plugin discovery, as a Dask worker's child pays
+them (1.1-1.6 s alone, 1.2-1.9 s two at once; a local child forked from the pool's
+forkserver 0.2 s; Intel Xeon, 2 cores, load 1.5-2.6, 2026-11-29). Its models' builds
+come on top: :func:`build_seconds`."""
 HELD_MODELS = 32  # models the timing process keeps built (the pool's workers keep 2)
 RETIMED_FILE = "retimed.json"  # what the last re-timing did, its key beside it
 
@@ -156,11 +164,11 @@ def retime_close_calls(
     ]  # fmt: skip
     if not chosen:
         return []
-    integration = sum(rows[r]["integrate_cpu_s"] for r in chosen)
-    seconds = (integration + len(chosen) * SAMPLE_OVERHEAD_S) * (rounds + 1) / jobs
+    children = sampler is not None or context is not None  # (else timed in this process)
+    seconds = phase_seconds(rows, by_id, chosen, rounds, gap, jobs, children)
     say(
         f"timing {len(chosen)} close call(s) again: {rounds} rounds at least {gap:g} s apart "
-        f"(about {max(seconds, gap * (rounds - 1)):.0f} s; `--retime 0` skips it)"
+        f"(about {seconds:.0f} s; `--retime 0` skips it)"
     )
     samples: dict[str, list[Sample]] = defaultdict(list)
 
@@ -185,6 +193,38 @@ def retime_close_calls(
                                     root=out, indent=None)  # fmt: skip
             rewritten.append(run_id)
     return rewritten
+
+
+def phase_seconds(rows: dict[str, dict[str, Any]], specs: dict[str, RunSpec], chosen: list[str],
+                  rounds: int, gap: float, jobs: int, children: bool = True) -> float:  # fmt: skip
+    """About how long the timing of ``chosen`` takes in ``jobs`` processes (``children``;
+    else in this one): a process's start-up (:data:`CHILD_START_S`) and its models' builds
+    (:func:`build_seconds`), then as :func:`sample_rounds` goes, an untimed round and
+    ``rounds`` timed ones, each but the last at least ``gap`` s; a round is the runs'
+    measured integration CPU and :data:`SAMPLE_OVERHEAD_S` each, shared by the processes."""
+    jobs = max(1, min(jobs, len({equations_key(specs[r]) for r in chosen})))
+    integration = sum(rows[r]["integrate_cpu_s"] for r in chosen)
+    round_ = (integration + len(chosen) * SAMPLE_OVERHEAD_S) / jobs
+    start = (CHILD_START_S if children else 0.0) + build_seconds(rows, specs, chosen) / jobs
+    return start + 2 * round_ + (rounds - 1) * max(gap, round_)
+
+
+def build_seconds(rows: dict[str, dict[str, Any]], specs: dict[str, RunSpec],
+                  chosen: list[str]) -> float:  # fmt: skip
+    """Seconds the models of ``chosen`` took to build once each, as the runs measured it:
+    a model's most ``build_s`` + ``init_s`` among its rows (a worker's first run of it
+    builds it, the others reuse it: 0). A timing process builds each of its models once
+    before its first sample; C compiled by a run is loaded from the disk cache, not
+    counted."""
+    built: dict[Any, float] = defaultdict(float)
+    for run_id, row in rows.items():
+        seconds = sum(
+            value for value in (row.get("build_s"), row.get("init_s"))
+            if isinstance(value, int | float) and math.isfinite(value)
+        )  # fmt: skip
+        key = equations_key(specs[run_id])
+        built[key] = max(built[key], seconds)
+    return sum(built[key] for key in {equations_key(specs[r]) for r in chosen})
 
 
 def _rows(out: Path, specs: dict[str, RunSpec]) -> dict[str, dict[str, Any]]:
