@@ -761,7 +761,7 @@ class RerunSink:
                 elif not chunk.is_static:
                     poses.setdefault(shared, []).append(_instance_poses(chunk.to_record_batch()))
                 elif self._shared_logged.setdefault(shared, str(path)) == str(path):
-                    self.recording.send_chunks(chunk)  # the first file's copy only
+                    self._send(chunk)  # the first file's copy only
                 continue
             if len(parts) < 6:
                 continue
@@ -781,7 +781,8 @@ class RerunSink:
                 had = self.run_quantities[run]
                 had += [quantity for quantity in quantities if quantity not in had]
                 self.quantities.update(quantities)
-            self.recording.send_chunks(chunk)
+            self._send(chunk)
+        self.flush_chunks()
         if indexed:  # a run the index does not name (not written so): every plot offered
             for run in found:
                 quantities = (index or {}).get(run, SERIES_QUANTITIES)
