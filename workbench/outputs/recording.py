@@ -511,8 +511,8 @@ class RerunSink:
         series_path = f"{path}/{SERIES_ENTITY}"
         # the legend's name of each line; which quantities the run has is read from the
         # values (a component column of static data a run costs the reader about 5 KiB)
-        names = rr.SeriesLines.columns(names=[label] * len(SERIES_QUANTITIES))
-        self._send(Chunk.from_columns(series_path, [], names.partition([len(SERIES_QUANTITIES)])))
+        names = _names_column(label, len(SERIES_QUANTITIES))
+        self._send(Chunk.from_columns(series_path, [], [names]))
         self._send(
             Chunk.from_columns(
                 series_path,
@@ -1194,7 +1194,8 @@ def _column_types() -> dict[str, tuple[Any, Any]]:
     poses = rr.InstancePoses3D.columns(
         translations=np.zeros((1, 3), np.float32), quaternions=np.zeros((1, 4), np.float32)
     )
-    columns = [*poses, *rr.Scalars.columns(scalars=np.zeros((1, 1)))]
+    columns = [*poses, *rr.Scalars.columns(scalars=np.zeros((1, 1))),
+               *rr.SeriesLines.columns(names=["name"])]  # fmt: skip
     return {
         column.component_descriptor().component.split(":")[-1]: (
             column.component_descriptor(),
@@ -1221,6 +1222,17 @@ def _column(field: str, values: np.ndarray) -> Any:
         flat = pa.FixedSizeListArray.from_arrays(flat, type=value_type)
     offsets = np.arange(0, n * k + 1, k, dtype=np.int32)
     return rr.ComponentColumn(descriptor, _ArrowBatch(flat), offsets=offsets)
+
+
+def _names_column(label: str, count: int) -> Any:
+    """A column of one row: ``count`` times ``label``, the series lines' names, built in
+    Arrow directly (Rerun's ``SeriesLines.columns(...).partition(...)``: about 0.1 ms a run)."""
+    import pyarrow as pa
+    import rerun as rr
+
+    descriptor, value_type = _column_types()["names"]
+    names = _ArrowBatch(pa.array([label] * count, type=value_type))
+    return rr.ComponentColumn(descriptor, names, offsets=np.array([0, count], np.int32))
 
 
 def _child_frames(model: Any) -> list[tuple[str, np.ndarray, np.ndarray]]:
