@@ -239,6 +239,24 @@ def test_a_column_built_in_arrow_is_the_one_rerun_builds(n: int, k: int, seed: i
         )
 
 
+def test_the_series_names_column_is_rerun_s_own() -> None:
+    """A run's series names, built in Arrow (``_names_column``), are the column Rerun's
+    ``SeriesLines.columns(names=...).partition(...)`` makes: its descriptor, one row of
+    the label ``count`` times; and a static chunk of it keeps them (names with a space,
+    an accent and a slash, as run labels have)."""
+    from rerun.chunk import Chunk
+
+    from workbench.outputs.recording import _names_column
+
+    label = "minimal-ode / scipy-dop853 rtol=1e-06 é"
+    mine = _names_column(label, 8)
+    (theirs,) = rr.SeriesLines.columns(names=[label] * 8).partition([8])
+    assert mine.component_descriptor() == theirs.component_descriptor()
+    assert mine.as_arrow_array().equals(theirs.as_arrow_array())
+    batch = Chunk.from_columns("runs/x/series", [], [mine]).to_record_batch()
+    assert batch.column(batch.num_columns - 1).to_pylist() == [[label] * 8]
+
+
 @settings(max_examples=50, deadline=None)
 @given(
     st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1),
