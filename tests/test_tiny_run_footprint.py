@@ -585,33 +585,36 @@ def test_the_recording_logs_a_series_given_as_columns_as_it_logs_its_frame(monke
     spec = RunSpec("simple-pendulum", "minimal-ode", "scipy-dop853", 1e-5, 1e-7)
     result = execute_run(spec)
     sent = []
-
-    class Stream:
-        def log(self, path, *archetypes, static=False):
-            sent.append(("log", path, static))
-
-        def send_columns(self, path, indexes, columns):
-            times = [np.asarray(i.as_arrow_array().to_numpy(zero_copy_only=False)) for i in indexes]
-            sent.append(("send", path, times, columns))
-
-    monkeypatch.setattr(recording_module, "_column", lambda field, values: (field, values.copy()))
     sink = recording_module.RerunSink()
-    sink.recording = Stream()
+    monkeypatch.setattr(sink, "_send", sent.append)  # the chunks a run's series makes
 
     def logged(series, run_id):
         sent.clear()
         sink._log_series("runs/x", series, "label", run_id)
-        return sent[:]
+        return [
+            (chunk.entity_path, chunk.is_static, chunk.to_record_batch().drop_columns(
+                ["rerun.controls.RowId"]).to_pydict())
+            for chunk in sent
+        ]  # fmt: skip
 
     for run_id in (spec.run_id, None):
         by_columns, by_frame = logged(result.columns, run_id), logged(result.series, run_id)
-        assert len(by_columns) == len(by_frame) == 2
-        assert by_columns[0] == by_frame[0]
-        (_, _, t_columns, [(_, v_columns)]), (_, _, t_frame, [(_, v_frame)]) = (
-            by_columns[1], by_frame[1],
-        )  # fmt: skip
-        np.testing.assert_array_equal(t_columns[0], t_frame[0])
-        np.testing.assert_array_equal(v_columns, v_frame)
+        assert [static for _, static, _ in by_columns] == [True, False]  # names, then values
+        (_, _, names), (_, _, values) = by_columns
+        assert names["SeriesLines:names"] == [["label"] * len(recording_module.SERIES_QUANTITIES)]
+        assert len(values["sim_time"]) == len(result.series)
+        for (path, static, columns), (path_f, static_f, columns_f) in zip(
+            by_columns, by_frame, strict=True
+        ):
+            assert (path, static) == (path_f, static_f)
+            assert columns.keys() == columns_f.keys()
+            for name in columns:  # NaN (a quantity the run has not) equal to NaN
+                if name in ("SeriesLines:names", "sim_time"):
+                    assert columns[name] == columns_f[name]
+                else:
+                    np.testing.assert_array_equal(
+                        np.array(columns[name], dtype=float), np.array(columns_f[name], dtype=float)
+                    )
     assert logged(result.columns, "another run") == logged(result.series, "another run") == []
     assert logged(dict(result.columns, t=np.zeros(0)), spec.run_id) == []
 
