@@ -54,6 +54,11 @@ And once a file, outside the runs::
                                        has (:data:`SERIES_INDEX`), so that a merge need
                                        not read every run's series to make the plots
 
+A run's entities are sent as chunks built here (``rerun.chunk.Chunk``: its shapes' one
+static chunk made once per model and copied to each run's path, its poses and series in
+Arrow), several at a time (:meth:`RerunSink._send`): the recording's share of a tiny
+run's cost is mostly Rerun's encoding of them (docs/performance.md).
+
 ``sim_time`` is a duration timeline in seconds of simulated time. Poses come from
 ``equations.observables.poses`` (Euler parameters scalar-first, converted here to Rerun's
 x, y, z, w). Runs logged twice under the same path (same keys, other options) get the
