@@ -321,6 +321,21 @@ def _args(run: tuple) -> tuple:
     return spec, fake_equations(), None, trajectory, series
 
 
+def test_a_file_never_ended_leaves_nothing_in_the_next(tmp_path: Path) -> None:
+    """A run logged to a file whose writing then failed (``end_file`` never reached) is not
+    in the next file: its chunks still held by the sink are dropped with the file, as its
+    stream was (the runs of a file begun are its own)."""
+    sink = RerunSink()
+    sink.begin_file(tmp_path / "lost.rrd")
+    lost = sink.log_run(*_args(fake_run(1e-3)))
+    assert sink._chunks  # held, not yet sent
+    sink.begin_file(tmp_path / "next.rrd")
+    kept = sink.log_run(*_args(fake_run(1e-6)))
+    chunks = read_chunks(sink.end_file())
+    assert f"/{kept}/series" in chunks
+    assert not any(path.startswith(f"/{lost}") for path in chunks)
+
+
 def test_merge_recordings_of_workers(tmp_path: Path) -> None:
     files = []
     for rtol in (1e-3, 1e-6):

@@ -636,6 +636,7 @@ class RerunSink:
         recording stream (see the module docstring). The runs are kept in memory (a Rerun
         binary stream) until :meth:`end_file` writes them, which costs less than a file
         sink (its thread start-up and flush; docs/performance.md)."""
+        self._chunks.clear()  # of a file never ended (its writer failed): not this one's
         self._stream = self.recording.binary_stream()
         self._file = Path(path)
         self._file_values = 0
