@@ -107,12 +107,15 @@ def test_corrupt_row_is_reported_not_fatal(tmp_path) -> None:
     assert store.completed_run_ids(tmp_path) == {"a" * 16}
 
 
-def test_a_row_and_series_read_mid_write_are_read_whole(tmp_path) -> None:
+def test_a_row_and_series_read_mid_write_are_read_whole(tmp_path, monkeypatch) -> None:
     """`workbench results` beside a running sweep: a worker writes a run's files in place
     (files.write_new_file), so a reader can open a series that is a part and a row that is
-    still empty; both are whole a moment later and read so, with no warning."""
+    still empty; both are whole a moment later and read so, with no warning. (The settling
+    time raised: a timer thread late on a busy machine still finishes the file within it.)"""
     import threading
     import warnings
+
+    monkeypatch.setattr(store, "SETTLE_S", 60.0)
 
     store.write_run(tmp_path, row("a" * 16), series("a" * 16))
     row_file = store.row_path(tmp_path, "a" * 16)
@@ -134,18 +137,27 @@ def test_a_row_and_series_read_mid_write_are_read_whole(tmp_path) -> None:
     assert list(one["t"]) == [0.0, 1.0]
 
 
-def test_an_old_broken_row_is_not_waited_for(tmp_path) -> None:
-    """A part left by a killed writer long ago is unreadable at once (no settling wait)."""
-    import os
-    import time
+def test_an_old_broken_row_is_not_waited_for(tmp_path, monkeypatch) -> None:
+    """A part left by a killed writer long ago is unreadable at once (no settling wait);
+    a new one is read again, then given up once it is older than SETTLE_S (a fake clock
+    that the waits advance: no real time in the test)."""
+    from types import SimpleNamespace
 
-    store.write_run(tmp_path, row("a" * 16), series("a" * 16))
     broken = store.row_path(tmp_path, "b" * 16)
+    broken.parent.mkdir(parents=True)
     broken.write_text("{")
-    os.utime(broken, (time.time() - 60, time.time() - 60))
-    started = time.monotonic()
+    changed = broken.stat().st_mtime
+    clock, waits = [changed + 60.0], []
+
+    def sleep(seconds: float) -> None:
+        waits.append(seconds)
+        clock[0] += seconds
+
+    monkeypatch.setattr(store, "time", SimpleNamespace(time=lambda: clock[0], sleep=sleep))
+    assert store.read_row(broken, settle=True) is None and waits == []
+    clock[0] = changed + 0.5  # half a second after its last change
     assert store.read_row(broken, settle=True) is None
-    assert time.monotonic() - started < store.SETTLE_S
+    assert waits and clock[0] >= changed + store.SETTLE_S  # waited until it was old
 
 
 def test_missing_results_is_a_config_error(tmp_path) -> None:
