@@ -254,3 +254,38 @@ def test_constraints_that_move_with_time_are_not_time_invariant() -> None:
     still = ca.Function("g", [t, x], [x[0] - 1, ca.jacobian(x[0] - 1, x)])
     assert not _mapped_along(moving, {}, 0).time_invariant
     assert _mapped_along(still, {}, 0).time_invariant
+
+
+def test_samples_the_shortcut_refuses_are_walked_at_once_to_the_same_ends() -> None:
+    """On an ellipse sampled 0.2 rad apart (a sample's way turns by more than the
+    shortcut's third of the walk's limit, less than the limit): no sample is certified, and
+    every walk is taken for all samples at once (:meth:`_Shortcut.walks`), each ending
+    where the walk alone ends, with the departure, distance and walked count of the walk
+    alone and no call of the constraints a point but the first."""
+    semi, calls = np.array([2.0, 1.0]), []
+
+    def ellipse(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        calls.append(t)
+        return np.array([(x / semi) @ (x / semi) - 1.0]), (2 * x / semi**2)[None, :]
+
+    def along(times: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        scaled = x / semi
+        return (np.sum(scaled**2, axis=1) - 1.0)[:, None], (2 * x / semi**2)[:, None, :]
+
+    ellipse.along = along  # type: ignore[attr-defined]
+    ellipse.along.time_invariant = True  # type: ignore[attr-defined]
+    angles = np.arange(0.0, 6.0, 0.2)
+    q = np.column_stack([np.cos(angles), np.sin(angles)]) * semi * (1 + 1e-8)
+    fast = _Shortcut(along, angles, q, 1, 1)
+    assert not fast.certified.any()
+    ends = fast.walks(angles, q, ~fast.certified)
+    follower = _Follower(ellipse, 1)
+    for k in range(1, len(angles)):  # the walk alone from each sample's start
+        alone = follower.walk(angles[k], fast.start[k], q[k])
+        np.testing.assert_allclose(ends[k], alone, atol=1e-9)
+    calls.clear()
+    left_at, distance, walked = _departure(ellipse, angles, q)
+    assert len(calls) == 1 and walked == len(angles) - 1
+    alone = _departure(ellipse, angles, q, shortcut=False)
+    assert math.isnan(left_at) and math.isnan(alone[0])
+    assert distance == pytest.approx(alone[1], rel=1e-3)
