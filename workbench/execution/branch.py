@@ -41,7 +41,7 @@ y_{k-1} wherever the sample before was followed to it, so they are first taken f
 such samples at once (:meth:`_Shortcut.walks`: the walk's own steps and tests, batched);
 a sample whose walk ends there on y_k is followed to y_k as the walk one at a time would
 follow it, and the walk one at a time takes the rest (RSRRR in absolute coordinates,
-71 of 200 samples walked: its audit 0.28 -> 0.07-0.11 s). When the constraints do not depend on t
+71 of 200 samples walked: its audit 0.28 -> 0.15 s). When the constraints do not depend on t
 (found from the Function's sparsity) and every projection already passes the projection's
 own first test, the walk's starts are those projections as they are: projecting them at
 the next sample's time would evaluate g at the same points to the same bits and take no
@@ -610,8 +610,8 @@ def constraints_of(equations: Any) -> Constraints | None:
             g_function = mechanical.position_constraints.function
             jacobian_function = mechanical.position_jacobian.function
             t, x = ca.MX.sym("t"), ca.MX.sym("q", nq)
-            made["holonomic"] = _expanded(
-                ca.Function("g_and_g_q", [t, x], [g_function(t, x), jacobian_function(t, x)])
+            made["holonomic"] = ca.Function(
+                "g_and_g_q", [t, x], [g_function(t, x), jacobian_function(t, x)]
             )
         holonomic.along = _mapped_along(made["holonomic"], made, 0)  # type: ignore[attr-defined]
         return holonomic
@@ -619,10 +619,10 @@ def constraints_of(equations: Any) -> Constraints | None:
         if "residuals" not in made:
             function = equations.observables.residuals.function
             names_in, names_out = function.name_in(), function.name_out()
-            made["residuals"] = _expanded(function.factory(
+            made["residuals"] = function.factory(
                 "residuals_and_jacobian", list(names_in),
                 [names_out[0], f"jac:{names_out[0]}:{names_in[1]}"],
-            ))  # fmt: skip
+            )  # fmt: skip
         both = made["residuals"]
         zero_v = np.zeros(equations.nv)
 
@@ -634,18 +634,6 @@ def constraints_of(equations: Any) -> Constraints | None:
         residuals.along = _mapped_along(both, made, equations.nv)  # type: ignore[attr-defined]
         return residuals
     return None
-
-
-def _expanded(function: ca.Function) -> ca.Function:
-    """``function`` as one SX graph where it expands (the VM then evaluates the calls it
-    wraps without a call each: RSRRR's position constraints and their Jacobian at 201
-    points 6.6 -> 2.7 ms), else as it is (a node with no SX form: a numeric solve)."""
-    if function.is_a("SXFunction"):
-        return function
-    try:
-        return function.expand()
-    except RuntimeError:
-        return function
 
 
 def _mapped_along(function: ca.Function, cache: dict, nv: int) -> Along:
