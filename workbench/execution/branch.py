@@ -72,9 +72,8 @@ FAST_TURN = MAX_TURN / 3  # rad: a sample's way taken in one step (:class:`_Shor
 FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq, and sigma_rank, are at its ends at
 # least this fraction of their largest along the run (far from rank loss)
 GRAM_RATIO = 1e-5  # below it a sample's projection is by SVD (J J^T squares the condition)
-WALK_ROUNDS = 3 * SETTLE  # steps tried at most by :meth:`_Shortcut.walks`, ...
-WALK_FEWEST = 2  # ... while more samples than this are still walking (each round
-# evaluates every sample: the last few are walked one at a time)
+WALK_WINDOW = 16  # samples walked at once first (then twice as many, ...)
+WALK_ROUNDS = 3 * SETTLE  # steps tried at most by :meth:`_Shortcut.walks`
 BATCH_VALUES = 1 << 22  # Jacobian entries evaluated at once (32 MiB): samples in batches
 
 
@@ -116,8 +115,11 @@ def _departure(constraints: Constraints, times: np.ndarray, q: np.ndarray,
         return math.nan, math.nan, 0
     x, on_shortcut = fast.y[0], shortcut  # the point followed: sample 0's projection
     farthest, walked = 0.0, 0
-    # the others' walks from y_{k-1}, all at once: taken where they end on y_k (below)
-    ends = fast.walks(times, q, ~fast.certified) if shortcut else None
+    # the others' walks from y_{k-1}, many at once: taken where they end on y_k (below);
+    # made as the loop reaches them, in windows of WALK_WINDOW, 2 WALK_WINDOW, ... samples
+    # (a run found off its branch early leaves the rest unwalked)
+    ends, refused = np.full_like(q, np.nan, dtype=float), np.flatnonzero(~fast.certified)
+    walked_to, window = 0, WALK_WINDOW  # samples below walked_to: their walks made
     for k in range(1, len(times)):
         if on_shortcut and fast.certified[k]:
             x = fast.y[k]
@@ -126,12 +128,17 @@ def _departure(constraints: Constraints, times: np.ndarray, q: np.ndarray,
         walked += 1
         t = float(times[k])
         floor = FLOOR * (1.0 + float(np.max(np.abs(q[k]))))
-        if on_shortcut and ends is not None and fast.projected[k]:
+        if on_shortcut and fast.projected[k]:
+            if k >= walked_to:
+                chosen = refused[refused >= k][:window]
+                ends[chosen] = fast.walks(times, q, np.isin(np.arange(len(times)), chosen))[chosen]
+                walked_to, window = int(chosen[-1]) + 1, 2 * window
             distance = float(np.linalg.norm(q[k] - ends[k]))  # (NaN: not walked there)
             if distance <= DRIFT_FACTOR * float(fast.drift[k]) + floor and (
                 float(np.linalg.norm(ends[k] - fast.y[k])) <= floor
-            ):  # what the walk below finds, from the same start
-                farthest = max(farthest, distance)
+            ):  # what the walk below finds, from the same start; its end within the
+                # walk's stopping tolerance of y_k, whose own distance is the drift
+                farthest = max(farthest, float(fast.drift[k]))
                 x = fast.y[k]
                 continue
         x = follower.project(t, x)  # the manifold at t (rheonomic constraints move)
@@ -248,10 +255,13 @@ class _Shortcut:
     def walks(self, times: np.ndarray, q: np.ndarray, wanted: np.ndarray) -> np.ndarray:
         """:meth:`_Follower.walk` from each ``wanted`` sample's start (y_{k-1} moved onto
         g(t_k, .) = 0) towards q_k, for all of them at once: the same steps, tests and
-        stop, each sample's first step the whole way along its tangent (a walk whose
-        adapted step is that long). Rows of NaN for a sample not walked to its end here
-        (refused down to the smallest step, more than :data:`SETTLE` directions, or one of
-        the last few still walking): the walk takes those one by one."""
+        stop, the normal space taken as the walk takes it (the first ``rank`` right
+        singular vectors of dg/dq, even at a singular point), each sample's first step the
+        whole way along its tangent (a walk whose adapted step is that long). Rows of NaN
+        for a sample not walked to its end here (refused down to the smallest step, more
+        than :data:`SETTLE` directions, or more than :data:`WALK_ROUNDS` steps tried): the
+        walk takes those one by one. A round evaluates only the samples still walking
+        (padded to a power of 2 of them)."""
         n, nq = q.shape
         ends = np.full((n, nq), np.nan)
         wanted = wanted & self.start_ok & np.all(np.isfinite(q), axis=1)
@@ -259,8 +269,8 @@ class _Shortcut:
         rows = np.flatnonzero(wanted)  # the samples still walking
         if not len(rows):
             return ends
-        t, target = times[rows], q[rows]
-        x, jacobian = self.start[rows].copy(), self.start_jacobian[rows].copy()
+        t, target, x = times[rows], q[rows], self.start[rows].copy()
+        jacobian = self.start_jacobian[rows].copy()
         scale = 1.0 + np.max(np.abs(x), axis=1)
         step, last = np.full(len(rows), np.nan), np.full(len(rows), np.inf)
         unit, length = np.zeros_like(x), np.zeros(len(rows))
@@ -269,9 +279,7 @@ class _Shortcut:
         for _ in range(WALK_ROUNDS):
             if turned.any():
                 way = target - x
-                with np.errstate(all="ignore"):
-                    (normal,) = self._normal_part(jacobian, way)
-                new = way - normal
+                new = way - self._walk_normal_part(jacobian, way)
                 size = np.linalg.norm(new, axis=1)
                 stop = turned & ((size <= 1e-10 * scale)
                                  | (size >= last * (1 - 1e-6)) & (size < 1e-6 * scale))  # fmt: skip
@@ -287,7 +295,7 @@ class _Shortcut:
                     a[keep] for a in (rows, t, target, x, jacobian, scale, step, last, unit,
                                       length, directions)
                 )  # fmt: skip
-            if len(rows) <= WALK_FEWEST:
+            if not len(rows):
                 break
             s = np.minimum(step, length)
             moved, converged, moved_jacobian = self._corrected(
@@ -297,8 +305,7 @@ class _Shortcut:
             norm = np.linalg.norm(travelled, axis=1)
             with np.errstate(all="ignore"):
                 cosine = np.einsum("ki,ki->k", travelled, unit) / norm
-                (unit_normal,) = self._normal_part(moved_jacobian, unit)
-                kept = np.linalg.norm(unit - unit_normal, axis=1)
+                kept = np.linalg.norm(unit - self._walk_normal_part(moved_jacobian, unit), axis=1)
             turn = np.arccos(np.clip(np.where(norm > 0, cosine, 1.0), -1.0, 1.0))
             taken = converged & (turn <= MAX_TURN) & (norm <= 2 * s)
             taken &= kept >= math.cos(MAX_TURN)
@@ -311,6 +318,32 @@ class _Shortcut:
                                   length, directions)
             )  # fmt: skip
         return ends
+
+    def _walk_normal_part(self, jacobians: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Each w's projection on the span of the first ``rank`` right singular vectors of
+        its dg/dq, as the walk takes it: by the Gram matrix J J^T where the rows are
+        independent and far from rank loss (its eigenvalues' ratio at least GRAM_RATIO
+        squared: the same space), else by the SVD (at a singular point those vectors
+        span more than the rows: the walk's choice, kept)."""
+        if not self.gram:
+            return _normal_part(self._normal_basis(jacobians), w)
+        gram = jacobians @ jacobians.transpose(0, 2, 1)
+        with np.errstate(all="ignore"):
+            values = np.linalg.eigvalsh(_finite(gram))
+            apart = values[:, 0] > GRAM_RATIO**2 * values[:, -1]
+        part = np.empty_like(w)
+        if apart.any():
+            solved = np.linalg.solve(gram[apart], np.einsum("kmi,ki->km", jacobians[apart],
+                                                            w[apart])[..., None])  # fmt: skip
+            part[apart] = np.einsum("kmi,km->ki", jacobians[apart], solved[..., 0])
+        if not apart.all():
+            part[~apart] = _normal_part(self._normal_basis(jacobians[~apart]), w[~apart])
+        return part
+
+    def _normal_basis(self, jacobians: np.ndarray) -> np.ndarray:
+        """(k, rank, nq): the first ``rank`` right singular vectors of each dg/dq, as
+        :meth:`_Follower._tangent_direction` takes them."""
+        return np.linalg.svd(_finite(jacobians), full_matrices=True)[2][:, : self.rank]
 
     def _solve(self, matrices: np.ndarray, rhs: np.ndarray, rank: int,
                active: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
@@ -335,9 +368,8 @@ class _Shortcut:
         if self.gram:
             return [self._solve(jacobians, np.einsum("kmi,ki->km", jacobians, w), self.rank)
                     for w in ws]  # fmt: skip
-        _, _, vt = np.linalg.svd(_finite(jacobians), full_matrices=True)
-        normal = vt[:, : self.rank]
-        return [np.einsum("kri,kr->ki", normal, np.einsum("kri,ki->kr", normal, w)) for w in ws]
+        normal = self._normal_basis(jacobians)
+        return [_normal_part(normal, w) for w in ws]
 
     def _project(
         self, times: np.ndarray, x: np.ndarray
@@ -433,6 +465,11 @@ def _converged(x: np.ndarray, g_before: np.ndarray) -> bool:
     with np.errstate(invalid="ignore"):
         small = np.max(np.abs(g), axis=1, initial=0.0) <= 1e-13 * (1.0 + np.max(np.abs(x), axis=1))
     return bool(np.all(np.isfinite(g)) and np.all(small))
+
+
+def _normal_part(normal: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Each w's projection on the span of its basis ``normal`` (k, rank, nq)."""
+    return np.einsum("kri,kr->ki", normal, np.einsum("kri,ki->kr", normal, w))
 
 
 def _finite(matrices: np.ndarray) -> np.ndarray:
