@@ -41,7 +41,7 @@ y_{k-1} wherever the sample before was followed to it, so they are first taken f
 such samples at once (:meth:`_Shortcut.walks`: the walk's own steps and tests, batched);
 a sample whose walk ends there on y_k is followed to y_k as the walk one at a time would
 follow it, and the walk one at a time takes the rest (RSRRR in absolute coordinates,
-71 of 200 samples walked: its audit 0.28 -> 0.15 s). When the constraints do not depend on t
+71 of 200 samples walked: its check 0.18-0.29 -> 0.10-0.16 s). When the constraints do not depend on t
 (found from the Function's sparsity) and every projection already passes the projection's
 own first test, the walk's starts are those projections as they are: projecting them at
 the next sample's time would evaluate g at the same points to the same bits and take no
@@ -72,8 +72,8 @@ FAST_TURN = MAX_TURN / 3  # rad: a sample's way taken in one step (:class:`_Shor
 FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq, and sigma_rank, are at its ends at
 # least this fraction of their largest along the run (far from rank loss)
 GRAM_RATIO = 1e-5  # below it a sample's projection is by SVD (J J^T squares the condition)
-WALK_WINDOW = 16  # samples walked at once first (then twice as many, ...)
-WALK_ROUNDS = 3 * SETTLE  # steps tried at most by :meth:`_Shortcut.walks`
+WALK_WINDOW = 2  # samples walked at once first (then twice as many, ...)
+WALK_ROUNDS = 12  # steps tried at most by :meth:`_Shortcut.walks` (then: one at a time)
 BATCH_VALUES = 1 << 22  # Jacobian entries evaluated at once (32 MiB): samples in batches
 
 
@@ -117,7 +117,9 @@ def _departure(constraints: Constraints, times: np.ndarray, q: np.ndarray,
     farthest, walked = 0.0, 0
     # the others' walks from y_{k-1}, many at once: taken where they end on y_k (below);
     # made as the loop reaches them, in windows of WALK_WINDOW, 2 WALK_WINDOW, ... samples
-    # (a run found off its branch early leaves the rest unwalked)
+    # while every walk of a window ends, WALK_WINDOW again after one that does not (a run
+    # found off its branch leaves the rest unwalked; near a singular point few are walked
+    # twice, in a window and one at a time)
     ends, refused = np.full_like(q, np.nan, dtype=float), np.flatnonzero(~fast.certified)
     walked_to, window = 0, WALK_WINDOW  # samples below walked_to: their walks made
     for k in range(1, len(times)):
@@ -132,7 +134,8 @@ def _departure(constraints: Constraints, times: np.ndarray, q: np.ndarray,
             if k >= walked_to:
                 chosen = refused[refused >= k][:window]
                 ends[chosen] = fast.walks(times, q, np.isin(np.arange(len(times)), chosen))[chosen]
-                walked_to, window = int(chosen[-1]) + 1, 2 * window
+                whole = bool(np.all(np.isfinite(ends[chosen])))  # (else: near a singular point)
+                walked_to, window = int(chosen[-1]) + 1, 2 * window if whole else WALK_WINDOW
             distance = float(np.linalg.norm(q[k] - ends[k]))  # (NaN: not walked there)
             if distance <= DRIFT_FACTOR * float(fast.drift[k]) + floor and (
                 float(np.linalg.norm(ends[k] - fast.y[k])) <= floor
