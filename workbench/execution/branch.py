@@ -37,14 +37,15 @@ projection is the followed point and its distance is its drift. Every other samp
 a singular configuration, a sharp bend, a change of branch) is walked by the continuation
 from the point followed before it, as without the shortcut, and the shortcut resumes once
 the walk is back on the sample's projection. Those walks too start from the projection
-y_{k-1} wherever the sample before was followed to it, so they are first taken for all
-such samples at once (:meth:`_Shortcut.walks`: the walk's own steps and tests, batched);
-a sample whose walk ends there on y_k is followed to y_k as the walk one at a time would
-follow it, and the walk one at a time takes the rest (RSRRR in absolute coordinates,
-71 of 200 samples walked: its check 0.18-0.29 -> 0.10-0.16 s). When the constraints do not depend on t
-(found from the Function's sparsity) and every projection already passes the projection's
-own first test, the walk's starts are those projections as they are: projecting them at
-the next sample's time would evaluate g at the same points to the same bits and take no
+y_{k-1} wherever the sample before was followed to it, so they are first made for several
+such samples together (:meth:`_Shortcut.walks`: the walk's own steps and tests, batched; in
+windows of samples as the loop reaches them); a sample whose walk ends there on y_k is
+followed to y_k as the walk one at a time would follow it, and the walk one at a time
+takes the rest (RSRRR in absolute coordinates, 71 of 200 samples walked: its check
+0.18-0.29 -> 0.10-0.16 s). When the constraints do not depend on t (found from the
+Function's sparsity) and every projection already passes the projection's own first
+test, the walk's starts are those projections as they are: projecting them at the next
+sample's time would evaluate g at the same points to the same bits and take no
 step (one evaluation of all samples saved a run).
 """
 
