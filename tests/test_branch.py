@@ -256,12 +256,12 @@ def test_constraints_that_move_with_time_are_not_time_invariant() -> None:
     assert _mapped_along(still, {}, 0).time_invariant
 
 
-def test_samples_the_shortcut_refuses_are_walked_at_once_to_the_same_ends() -> None:
+def test_samples_the_shortcut_refuses_are_walked_together_to_the_same_ends() -> None:
     """On an ellipse sampled 0.2 rad apart (a sample's way turns by more than the
     shortcut's third of the walk's limit, less than the limit): no sample is certified, and
-    every walk is taken for all samples at once (:meth:`_Shortcut.walks`), each ending
-    where the walk alone ends, with the departure, distance and walked count of the walk
-    alone and no call of the constraints a point but the first."""
+    the walks are made for many samples together (:meth:`_Shortcut.walks`), each ending
+    where the walk alone ends, with the departure and walked count of the walk alone, its
+    distance to 1e-3, and no call of the constraints a point but the first."""
     semi, calls = np.array([2.0, 1.0]), []
 
     def ellipse(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
