@@ -256,36 +256,48 @@ def test_constraints_that_move_with_time_are_not_time_invariant() -> None:
     assert _mapped_along(still, {}, 0).time_invariant
 
 
-def test_samples_the_shortcut_refuses_are_walked_together_to_the_same_ends() -> None:
+@pytest.mark.parametrize("growth", [0.0, 0.05])  # 0.05: the ellipse grows with t (rheonomic)
+def test_samples_the_shortcut_refuses_are_walked_together_to_the_same_ends(growth) -> None:
     """On an ellipse sampled 0.2 rad apart (a sample's way turns by more than the
     shortcut's third of the walk's limit, less than the limit): no sample is certified, and
     the walks are made for many samples together (:meth:`_Shortcut.walks`), each ending
     where the walk alone ends, with the departure and walked count of the walk alone, its
-    distance to 1e-3, and no call of the constraints a point but the first."""
-    semi, calls = np.array([2.0, 1.0]), []
+    distance to 1e-3, and no call of the constraints a point but the first. With ``growth``
+    the first semi-axis is 2 + growth t: each walk starts from y_{k-1} moved onto the
+    ellipse of t_k, as the walk alone starts."""
+    calls = []
+
+    def semi(t):  # (n,) times -> (n, 2) semi-axes; a float -> (2,)
+        return np.stack([2.0 + growth * np.asarray(t), np.ones_like(np.asarray(t))], axis=-1)
 
     def ellipse(t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         calls.append(t)
-        return np.array([(x / semi) @ (x / semi) - 1.0]), (2 * x / semi**2)[None, :]
+        axes = semi(t)
+        return np.array([(x / axes) @ (x / axes) - 1.0]), (2 * x / axes**2)[None, :]
 
     def along(times: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        scaled = x / semi
-        return (np.sum(scaled**2, axis=1) - 1.0)[:, None], (2 * x / semi**2)[:, None, :]
+        axes = semi(times)
+        return (np.sum((x / axes) ** 2, axis=1) - 1.0)[:, None], (2 * x / axes**2)[:, None, :]
 
     ellipse.along = along  # type: ignore[attr-defined]
-    ellipse.along.time_invariant = True  # type: ignore[attr-defined]
+    ellipse.along.time_invariant = growth == 0.0  # type: ignore[attr-defined]
     angles = np.arange(0.0, 6.0, 0.2)
-    q = np.column_stack([np.cos(angles), np.sin(angles)]) * semi * (1 + 1e-8)
+    q = np.column_stack([np.cos(angles), np.sin(angles)]) * semi(angles) * (1 + 1e-8)
     fast = _Shortcut(along, angles, q, 1, 1)
-    assert not fast.certified.any()
-    ends = fast.walks(angles, q, ~fast.certified)
+    refused = ~fast.certified
+    refused[0] = False
+    assert refused.sum() >= len(angles) - 6  # (all of them on the fixed ellipse)
+    assert growth or refused.sum() == len(angles) - 1
+    ends = fast.walks(angles, q, refused)
     follower = _Follower(ellipse, 1)
-    for k in range(1, len(angles)):  # the walk alone from each sample's start
-        alone = follower.walk(angles[k], fast.start[k], q[k])
+    for k in np.flatnonzero(refused):  # the walk alone from each sample's start
+        start = follower.project(angles[k], fast.y[k - 1])
+        np.testing.assert_allclose(fast.start[k], start, atol=1e-12)
+        alone = follower.walk(angles[k], start, q[k])
         np.testing.assert_allclose(ends[k], alone, atol=1e-9)
     calls.clear()
     left_at, distance, walked = _departure(ellipse, angles, q)
-    assert len(calls) == 1 and walked == len(angles) - 1
+    assert len(calls) == 1 and walked == refused.sum()
     alone = _departure(ellipse, angles, q, shortcut=False)
     assert math.isnan(left_at) and math.isnan(alone[0])
     assert distance == pytest.approx(alone[1], rel=1e-3)

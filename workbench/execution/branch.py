@@ -336,10 +336,8 @@ class _Shortcut:
             values = np.linalg.eigvalsh(_finite(gram))
             apart = values[:, 0] > GRAM_RATIO**2 * values[:, -1]
         part = np.empty_like(w)
-        if apart.any():
-            solved = np.linalg.solve(gram[apart], np.einsum("kmi,ki->km", jacobians[apart],
-                                                            w[apart])[..., None])  # fmt: skip
-            part[apart] = np.einsum("kmi,km->ki", jacobians[apart], solved[..., 0])
+        if apart.any():  # (the shortcut's own Gram solve)
+            (part[apart],) = self._normal_part(jacobians[apart], w[apart])
         if not apart.all():
             part[~apart] = _normal_part(self._normal_basis(jacobians[~apart]), w[~apart])
         return part
