@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -235,6 +237,59 @@ def test_frozen_startup_objects_are_skipped_and_later_garbage_still_collected() 
         assert freed() is None
     finally:
         gc.unfreeze()
+
+
+def test_a_problem_whose_making_imports_many_modules_has_them_frozen_in_a_worker() -> None:
+    """A robot's model imports its reader's hundreds of modules after the worker froze its
+    start-up: they are frozen too (each later eviction's collection would visit them), the
+    equations cached before are dropped and their cycles collected first (frozen, they
+    would never be), this problem's model stays; a process that froze nothing (a
+    notebook) has nothing frozen."""
+    import gc
+    import types
+    import weakref
+
+    from workbench.execution import execute as runs
+
+    class Node:
+        pass
+
+    names = [f"_wb_test_module_{i}" for i in range(runs.FREEZE_AFTER_MODULES)]
+
+    def make() -> Node:
+        for name in names:
+            module = types.ModuleType(name)
+            module.payload = [Node() for _ in range(3)]
+            sys.modules[name] = module
+        return Node()
+
+    key_spec = spec()
+    runs.clear_cache()
+    try:
+        model, reused = runs.cached_problem_part(key_spec, "model", make)
+        assert not reused and gc.get_freeze_count() == 0  # not a worker: nothing frozen
+        for name in names:
+            del sys.modules[name]
+        runs.clear_cache()
+        runs.freeze_loaded_objects()  # a worker's start-up
+        cycle = Node()
+        cycle.itself = cycle
+        runs._EQUATIONS[("cached", "", "", "")] = runs._Cached(cycle)
+        evicted = weakref.ref(cycle)
+        del cycle
+        other = replace(key_spec, problem_options={"length": 2.0})
+        runs.cached_problem_part(other, "model", Node)
+        model, _ = runs.cached_problem_part(key_spec, "model", make)
+        tracked = {id(o) for o in gc.get_objects()}
+        assert id(sys.modules[names[0]].payload[0]) not in tracked  # frozen
+        assert evicted() is None and not runs._EQUATIONS  # collected, not frozen
+        assert runs.cached_problem_part(key_spec, "model", make) == (model, True)
+        assert len(runs._PROBLEMS) == 1
+    finally:
+        gc.unfreeze()
+        for name in names:
+            sys.modules.pop(name, None)
+        runs.clear_cache()
 
 
 def test_initial_state_is_computed_once_per_cached_equations() -> None:

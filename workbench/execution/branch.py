@@ -74,7 +74,8 @@ FAST_RATIO = 1e-2  # ... and sigma_rank / sigma_1 of dg/dq, and sigma_rank, are 
 # least this fraction of their largest along the run (far from rank loss)
 GRAM_RATIO = 1e-5  # below it a sample's projection is by SVD (J J^T squares the condition)
 WALK_WINDOW = 2  # samples walked at once first (then twice as many, ...)
-WALK_ROUNDS = 12  # steps tried at most by :meth:`_Shortcut.walks` (then: one at a time)
+WALK_ROUNDS = 48  # steps tried at most by :meth:`_Shortcut.walks` (then: one at a time; at
+# 12, IFToMM A01's samples 0.5 s apart, about 2 rad of swing each, were all walked twice)
 BATCH_VALUES = 1 << 22  # Jacobian entries evaluated at once (32 MiB): samples in batches
 
 

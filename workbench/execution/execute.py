@@ -44,9 +44,11 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
+import gc
 import hashlib
 import json
 import math
+import sys
 import time
 from collections import OrderedDict
 from collections.abc import Iterator
@@ -267,8 +269,31 @@ def cached_problem_part(spec: RunSpec, part: str, make: Any) -> tuple[Any, bool]
         release_freed_memory()
     if part in entry:
         return entry[part], True
+    modules = len(sys.modules)
     entry[part] = value = make()
+    if len(sys.modules) - modules >= FREEZE_AFTER_MODULES and gc.get_freeze_count():
+        _freeze_new_modules(key)  # in a worker, which froze its start-up's
     return value, False
+
+
+FREEZE_AFTER_MODULES = 50
+"""A problem part whose making imported this many modules (a robot's: yourdfpy, trimesh and
+networkx, about 500 modules and 30,000 objects) has them frozen: else each later cache
+eviction's collection visits them (16-26 ms a collection against 1-2 ms; Zen 3,
+2026-11-29). Only in a process that froze its start-up's objects (a sweep's worker): a
+notebook's objects are never frozen."""
+
+
+def _freeze_new_modules(key: tuple[str, str]) -> None:
+    """What a problem's making imported kept out of the collector's full passes, as a worker
+    does with its start-up's (:func:`freeze_loaded_objects`). The other problems' entries and
+    the equations are dropped first: frozen, an evicted entry's reference cycles (its
+    evaluators') would never be collected; this problem's model stays."""
+    for other in [k for k in _PROBLEMS if k != key]:
+        del _PROBLEMS[other]
+    _EQUATIONS.clear()
+    gc.collect()
+    gc.freeze()
 
 
 def equations_key(spec: RunSpec) -> tuple[str, str, str, str]:
@@ -315,7 +340,6 @@ def release_freed_memory() -> None:
     """Hand the heap's free pages back to the system (glibc's ``malloc_trim``; elsewhere
     nothing): freed CasADi graphs otherwise stay in the worker's resident memory."""
     import ctypes
-    import gc
 
     gc.collect()
     try:
@@ -332,8 +356,6 @@ def freeze_loaded_objects() -> None:
     tracked object: 31,000 in a worker of the full sweep that had loaded Rerun, 18-25 ms
     a collection; frozen, the few thousand a run's caches hold. Objects made later (the
     equations, references) are collected as before."""
-    import gc
-
     gc.collect()
     gc.freeze()
 
