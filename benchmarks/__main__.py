@@ -129,6 +129,8 @@ def targets() -> list[Row]:
         suite = row.command.split()[2] if row.command.split()[2] != "--out" else "full"
         full = suite == "full"  # the targets were set for the full comparison
         load = f"load {row.load_1min:.1f}" if "load_1min" in row else ""
+        if isinstance(row.get("cpu"), str):  # (measured before 2026-11-29: not recorded)
+            load = f"{row.cpu}, {row.date}; {load}"
         what = f"sweep {suite} ({row.runs} runs)"
         rows.append(Row(f"{what}, peak memory of all processes (GiB)", row.peak_pss_gib,
                         1.0 if full else NAN, note=load))  # fmt: skip
@@ -403,6 +405,8 @@ def print_rows(rows: list[Row]) -> None:
             interval = f" [{row.low:.2f}, {row.high:.2f}] ({row.interval})"
         bound = "none" if pd.isna(row.bound) else f"{'<=' if row.most else '>='} {row.bound:g}"
         value = "n/a" if pd.isna(row.value) else f"{row.value:.2f}"
+        if value == f"{row.bound:.2f}" and row.value != row.bound:  # 0.102 is not 0.10
+            value = f"{row.value:.3f}"
         line = f"- {row.target}: {value}{interval}, target {bound}: "
         line += verdict(row.value, row.bound, row.low, row.high, row.most)
         print(line + (f" ({row.note})" if row.note else ""))

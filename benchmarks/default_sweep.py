@@ -43,6 +43,8 @@ from pathlib import Path
 import pandas as pd
 import psutil
 
+from workbench.execution.environment import cpu_model
+
 RESULTS = Path(__file__).parent / "results"
 STAGES = ("build_s", "compile_s", "init_s", "integrate_s", "metrics_s", "reference_s", "log_s")
 NOT_IN_WALL = ("reference_s", "log_s")
@@ -197,7 +199,8 @@ def main(argv: list[str] | None = None) -> pd.DataFrame:
         jobs = args.jobs or int(re.search(r"jobs\s*=\s*(\d+)", _spec_text(args.suite)).group(1))
         shares, per_formalism = time_shares(out, jobs, measured["runs_phase_s"])
     print(measured.pop("output").strip())
-    row = {**measured, **shares, "load_1min": os.getloadavg()[0], "cpu_count": os.cpu_count()}
+    row = {**measured, **shares, "load_1min": os.getloadavg()[0], "cpu_count": os.cpu_count(),
+           "cpu": cpu_model(), "date": time.strftime("%Y-%m-%d")}  # fmt: skip
     table = pd.DataFrame([row])
     RESULTS.mkdir(exist_ok=True)
     table.to_csv(RESULTS / results_name(args.suite), index=False)
