@@ -292,7 +292,7 @@ def _freeze_new_modules(key: tuple[str, str]) -> None:
     for other in [k for k in _PROBLEMS if k != key]:
         del _PROBLEMS[other]
     _EQUATIONS.clear()
-    gc.collect()
+    release_freed_memory()
     gc.freeze()
 
 
