@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from scipy.spatial.transform import Rotation
 
 from tests.test_recording import fake_equations, fake_run
 from workbench.files import write_json_atomic
@@ -67,9 +68,10 @@ def mesh_bytes(path: Path) -> tuple[int, int]:
     return count, size
 
 
-def instances(path: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """(run of each instance, times, translations (times, runs, 3)) of the shared mesh."""
-    runs, times, translations = [], [], []
+def instances(path: Path) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """(run of each instance, times, translations (times, runs, 3), matrices (times, runs,
+    3, 3)) of the shared mesh."""
+    runs, times, translations, matrices = [], [], [], []
     for chunk in chunks_of(path):
         if chunk.entity_path == f"/{MESH}/{INSTANCE_RUNS}":
             runs = chunk.to_record_batch().column(INSTANCE_RUNS)[0].as_py()
@@ -79,7 +81,10 @@ def instances(path: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
         if "InstancePoses3D:translations" in batch.schema.names:
             times.append(batch.column("sim_time").cast("int64").to_numpy() / 1e9)
             translations += batch.column("InstancePoses3D:translations").to_pylist()
-    return runs, np.concatenate(times), np.array(translations)
+            matrices += batch.column("InstancePoses3D:mat3x3").to_pylist()
+    # Rerun keeps a 3 x 3 matrix by columns
+    matrices = np.array(matrices).reshape(len(matrices), -1, 3, 3).transpose(0, 1, 3, 2)
+    return runs, np.concatenate(times), np.array(translations), matrices
 
 
 def run_path(rtol: float) -> str:
@@ -95,12 +100,17 @@ def test_a_models_mesh_is_stored_once_however_many_runs_use_it(tmp_path: Path) -
     assert mesh_bytes(merged) == mesh_bytes(one_run)  # one copy, not six
     # each run still shows its robot: instance k of the mesh is run k's arm, spinning
     # about z (angle t) with the mesh's offset on it
-    runs, times, translations = instances(merged)
+    runs, times, translations, matrices = instances(merged)
     assert sorted(runs) == sorted(run_path(10.0**-k) for k in range(3, 9))
     expected = np.column_stack([0.2 * np.cos(times), 0.2 * np.sin(times), 0 * times])
-    assert translations.shape == (len(times), 6, 3)
+    turned = SCALE * Rotation.from_euler("z", times[:, None]).as_matrix()  # the arm's turn, scaled
+    assert translations.shape == (len(times), 6, 3) and matrices.shape == (len(times), 6, 3, 3)
     for k in range(6):
         np.testing.assert_allclose(translations[:, k], expected, atol=1e-6)
+        np.testing.assert_allclose(matrices[:, k], turned, atol=1e-6)
+    _runs, times, _translations, matrices = instances(one_run)  # a worker's file, not merged
+    turned = SCALE * Rotation.from_euler("z", times[:, None]).as_matrix()
+    np.testing.assert_allclose(matrices[:, 0], turned, atol=1e-6)
     # and the run's own entities keep its shapes (static) and their poses
     kinds = {(chunk.entity_path, chunk.is_static) for chunk in chunks_of(merged)}
     for k in range(3, 9):
@@ -121,7 +131,7 @@ def test_a_sweep_keeps_one_copy_and_redone_runs_replace_theirs(tmp_path: Path) -
     write_run_files(directory, [1e-4, 1e-5], equations)  # 1e-4 redone, 1e-5 new
     merge_run_recordings(SweepRecorder, tmp_path)
     assert not list(directory.iterdir())
-    runs, _times, translations = instances(merged)
+    runs, _times, translations, _matrices = instances(merged)
     assert sorted(runs) == sorted(run_path(r) for r in (1e-3, 1e-4, 1e-5))
     assert translations.shape[1] == 3 and mesh_bytes(merged)[0] == 1
     series = [  # one copy of each run's values: the redone run's old one is left out
@@ -159,7 +169,7 @@ def test_view_opens_one_run_of_a_sweeps_recording(tmp_path: Path, monkeypatch) -
     outcome = CliRunner().invoke(app, ["view", str(out), "--run", "abc"])
     assert outcome.exit_code == 0, outcome.output
     one = Path(started[0][-1])
-    runs, _times, translations = instances(one)
+    runs, _times, translations, _matrices = instances(one)
     assert runs == [run_path(1e-4)] and translations.shape[1] == 1 and mesh_bytes(one)[0] == 1
     assert {
         c.entity_path.removesuffix("/series")

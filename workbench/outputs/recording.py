@@ -282,7 +282,7 @@ class RerunSink:
         self._mesh_places: dict[str, dict[str, tuple[str, np.ndarray, np.ndarray]]] = {}
         # shared entities logged to the current file (-> the file copied from, when merging)
         self._shared_logged: dict[str, str] = {}
-        # shared mesh entity -> run path -> (times s, translations (n, 3), mat3x3 (n, 9))
+        # shared mesh entity -> run path -> (times s, translations (n, 3), mat3x3 (n, 9) by columns)
         self.instances: dict[str, dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
 
     # -- logging --------------------------------------------------------------------------
@@ -465,7 +465,9 @@ class RerunSink:
             self.instances.setdefault(f"{shared}/{relative}", {})[path] = (
                 times[rows],
                 (pose[:, :3] + rotation @ np.asarray(position, dtype=float)).astype(np.float32),
-                (rotation @ np.asarray(matrix, dtype=float)).reshape(-1, 9).astype(np.float32),
+                # by columns, as Rerun keeps a 3 x 3 matrix (and _instance_poses reads it)
+                (rotation @ np.asarray(matrix, dtype=float)).transpose(0, 2, 1)
+                .reshape(-1, 9).astype(np.float32),
             )
 
     def _log_series(
@@ -703,17 +705,14 @@ class RerunSink:
                 translations.append(translation[at])
                 matrices.append(matrix[at])
             # (samples, runs, 3 or 9): one row a sample time, an instance a run
-            translation = np.stack(translations, axis=1).reshape(-1, 3)
-            matrix = np.stack(matrices, axis=1).reshape(-1, 9)
+            translation, matrix = np.stack(translations, axis=1), np.stack(matrices, axis=1)
             self.recording.log(
                 f"{entity}/{INSTANCE_RUNS}", rr.AnyValues(**{INSTANCE_RUNS: runs}), static=True
             )
             self.recording.send_columns(
                 entity,
                 indexes=[rr.TimeColumn(TIMELINE, duration=grid)],
-                columns=rr.InstancePoses3D.columns(
-                    translations=translation, mat3x3=matrix
-                ).partition([len(runs)] * len(grid)),
+                columns=[_column("translations", translation), _column("mat3x3", matrix)],
             )
         self.instances.clear()
 
@@ -870,8 +869,9 @@ def extract_run(recording: str | Path, run: str, target: str | Path) -> Path:
 
 
 def _instance_poses(batch: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(times s, translations (rows, instances, 3), mat3x3 (rows, instances, 9)) of a chunk
-    of InstancePoses3D rows that all have the same number of instances."""
+    """(times s, translations (rows, instances, 3), mat3x3 (rows, instances, 9), each matrix
+    by columns as Rerun keeps it) of a chunk of InstancePoses3D rows that all have the same
+    number of instances."""
     import pyarrow as pa
 
     times = batch.column(TIMELINE).cast(pa.int64()).to_numpy() / 1e9
@@ -1193,13 +1193,14 @@ class _ArrowBatch:
 @functools.cache
 def _column_types() -> dict[str, tuple[Any, Any]]:
     """Field -> (Rerun's component descriptor, Arrow type of one value) of the columns a
-    run sends on ``sim_time``: instance translations and quaternions, and scalars, as
-    Rerun's own ``columns()`` makes them (asked once)."""
+    run sends on ``sim_time``: instance translations, quaternions and 3 x 3 matrices (a
+    shared mesh's), and scalars, as Rerun's own ``columns()`` makes them (asked once)."""
     import rerun as rr
 
     poses = rr.InstancePoses3D.columns(
-        translations=np.zeros((1, 3), np.float32), quaternions=np.zeros((1, 4), np.float32)
-    )
+        translations=np.zeros((1, 3), np.float32), quaternions=np.zeros((1, 4), np.float32),
+        mat3x3=np.zeros((1, 9), np.float32),
+    )  # fmt: skip
     columns = [*poses, *rr.Scalars.columns(scalars=np.zeros((1, 1))),
                *rr.SeriesLines.columns(names=["name"])]  # fmt: skip
     return {
