@@ -10,6 +10,18 @@ import pytest
 from workbench.plugin.registry import REGISTRY
 
 
+@pytest.fixture(autouse=True)
+def _registry_left_as_found():
+    """Every test leaves the plugin registry as it found it: a class given to
+    ``workbench.run`` is registered, and a later test in the same process would list it
+    (the catalog's check that every registered problem has its expected values)."""
+    REGISTRY.discover()
+    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
+    yield
+    for kind, entries in saved.items():
+        REGISTRY.entries[kind] = entries
+
+
 @pytest.fixture
 def fake_plugins():
     """Register tests/fake_plugins.py for one test, then restore the registry."""

@@ -231,6 +231,9 @@ class _Builder:
         self.model = Model(robot.name or source.path.stem, "spatial", **kwargs)
         self.imported = ImportedRobot(self.model, source.path)
         self.link_of: dict[str, str] = {}  # body -> the link it is named after
+        self.joint_names = {joint.name for joint in robot.joints}  # what a body must not be
+        if floating_base:
+            self.joint_names.add("root_joint")
 
     # -- the tree ---------------------------------------------------------------------
     def root_link(self) -> tuple[str, dict[str, list[Any]]]:
@@ -270,11 +273,8 @@ class _Builder:
     def body_name(self, link: str) -> str:
         """The body of a moving link: the link's name, unless a joint has that name too
         (URDF allows it; the model does not): then ``<link>_link``."""
-        joints = {joint.name for joint in self.robot.joints}
-        if self.floating_base:
-            joints.add("root_joint")
         name = link
-        while name in joints:
+        while name in self.joint_names:
             name += "_link"
         self.link_of[name] = link
         return name
