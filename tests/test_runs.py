@@ -212,6 +212,30 @@ def test_equations_cache_keeps_the_most_recently_used(fake_plugins, monkeypatch)
     runs.clear_cache()
 
 
+def test_an_eviction_hands_memory_back_only_in_a_worker(monkeypatch) -> None:
+    """A sweep's worker (its start-up frozen) collects and trims at each cache eviction; a
+    notebook does not: there a full collection visits all its user holds, and alternating
+    three problems took 0.24-0.76 s a run against 0.09-0.12 (docs/performance.md)."""
+    import gc
+
+    from workbench.execution import execute as runs
+
+    released = []
+    monkeypatch.setattr(runs, "release_freed_memory", lambda: released.append(1))
+    monkeypatch.setattr(runs, "EQUATIONS_CACHE_SIZE", 1)
+    runs.clear_cache()
+    try:
+        for length in (1.0, 2.0):
+            runs.cached_problem_part(spec(problem_options={"length": length}), "model", object)
+        assert len(runs._PROBLEMS) == 1 and not released  # evicted, left to the collector
+        gc.freeze()  # as a worker's start-up does
+        runs.cached_problem_part(spec(problem_options={"length": 3.0}), "model", object)
+        assert len(runs._PROBLEMS) == 1 and released == [1]
+    finally:
+        gc.unfreeze()
+        runs.clear_cache()
+
+
 def test_frozen_startup_objects_are_skipped_and_later_garbage_still_collected() -> None:
     """A worker freezes what it loaded before its first run: a collection then no longer
     visits those objects, and garbage made afterwards (an evicted entry's reference
