@@ -15,6 +15,7 @@ import contextlib
 import os
 import sys
 from collections.abc import Iterator
+from typing import Any
 
 THREADS_VARIABLE = "WORKBENCH_THREADS"
 DEFAULT_THREADS = 1
@@ -72,12 +73,7 @@ def threads_as_workers() -> Iterator[int]:
     saved = {name: os.environ.get(name) for name in thread_environment(count)}
     os.environ.update(thread_environment(count))
     _threads_seen.clear()
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:  # only the variables: right for libraries not loaded yet
-        controller = None
-    else:
-        controller = ThreadpoolController()
+    controller = _controller()
     before = {lib.filepath for lib in controller.lib_controllers} if controller else set()
     try:
         with controller.limit(limits=count) if controller else contextlib.nullcontext():
@@ -89,7 +85,7 @@ def threads_as_workers() -> Iterator[int]:
             else:
                 os.environ[name] = value
         if controller is not None:
-            for lib in ThreadpoolController().lib_controllers:
+            for lib in _controller().lib_controllers:
                 if lib.filepath not in before:
                     lib.set_num_threads(_default_threads(lib.internal_api, saved))
         _threads_seen.clear()
@@ -122,12 +118,31 @@ def threads_in_force() -> int | None:
 
 
 def _threads_now() -> int | None:
-    try:
-        from threadpoolctl import threadpool_info
-    except ImportError:
+    controller = _controller()
+    if controller is None:
         for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
             if os.environ.get(name, "").strip().isdigit():
                 return int(os.environ[name])
         return None
-    counts = [int(pool.get("num_threads", 0)) for pool in threadpool_info()]
+    counts = [int(pool.get("num_threads", 0)) for pool in controller.info()]
     return max(counts) if counts else None
+
+
+_controllers: dict[int, Any] = {}  # modules loaded -> threadpoolctl's controller
+
+
+def _controller() -> Any:
+    """threadpoolctl's controller of the BLAS/OpenMP libraries loaded now, or None without
+    threadpoolctl. Made again only when modules were imported since (a new library comes
+    with an extension module): making one reads the process's loaded libraries, 5 ms,
+    and a notebook's run made three (16 ms of a 66 ms pendulum run); the thread counts it
+    reports are asked of the libraries each time."""
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    loaded = len(sys.modules)
+    if loaded not in _controllers:
+        _controllers.clear()
+        _controllers[loaded] = ThreadpoolController()
+    return _controllers[loaded]

