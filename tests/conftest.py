@@ -24,11 +24,8 @@ def _registry_left_as_found():
 
 @pytest.fixture
 def fake_plugins():
-    """Register tests/fake_plugins.py for one test, then restore the registry."""
-    REGISTRY.discover()
-    saved = {kind: dict(entries) for kind, entries in REGISTRY.entries.items()}
+    """Register tests/fake_plugins.py for one test (the registry is restored after every
+    test: ``_registry_left_as_found``)."""
     sys.modules.pop("tests.fake_plugins", None)
     yield importlib.import_module("tests.fake_plugins")
-    for kind, entries in saved.items():
-        REGISTRY.entries[kind] = entries
     sys.modules.pop("tests.fake_plugins", None)

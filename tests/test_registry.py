@@ -419,3 +419,18 @@ def test_a_plugin_file_here_that_was_not_imported_is_named(tmp_path, monkeypatch
     assert "./test_not_imported.py is not imported unless named: add --plugins " in str(
         caught.value
     )
+
+
+def test_non_default_options_name_only_what_differs_from_a_registered_plugins_defaults():
+    """A run's label keeps the options that differ from the plugin's defaults; for a name
+    no plugin has here (a run recorded elsewhere), all of them; a robot file's run is the
+    robot problem's, whose defaults are known."""
+    options = {"index": 3, "compile": "jit", "baumgarte_alpha": 10.0}
+    assert registry_module.non_default_options("formalism", "minimal-ode", options) == {
+        "compile": "jit"
+    }
+    assert registry_module.non_default_options("formalism", "no-such-formalism", options) == options
+    robot = registry_module.REGISTRY.find("problem", "ur5.urdf")
+    assert robot is not None and robot.name == "robot"
+    assert registry_module.REGISTRY.find("problem", "no-such-problem") is None
+    assert registry_module.non_default_options("nonsense", "minimal-ode", options) == options
