@@ -119,13 +119,15 @@ def thin_tick_labels(figure: Any, gap: float = 2.0) -> None:
     """Blank the tick labels that would overlap another (boxes measured with the
     renderer, ``gap`` pixels apart at least): major labels are kept first, in order of
     value, then the minor ones that still fit; names are never blanked. Done by wrapping
-    each axis's formatter, so every format saved afterwards draws the same labels. The
-    layout is made without rasterizing (the same labels blanked in the quick suite's
-    report, 5 % less of its time than a draw)."""
-    figure.draw_without_rendering()
+    each axis's formatter, so every format saved afterwards draws the same labels. Only
+    the ticks are laid out, axes by axes, as a draw would place them: the same files as
+    after a whole draw without rendering, and 27 % less time (the quick suite's report)."""
     renderer = figure.canvas.get_renderer()
     for ax in figure.axes:
+        locator = ax.get_axes_locator()  # where a draw puts the axes (aspect, colorbar)
+        ax.apply_aspect(locator(ax, renderer) if locator else None)
         for axis in (ax.xaxis, ax.yaxis):
+            axis.get_tightbbox(renderer)  # places its ticks and their labels
             shown = shown_tick_labels(axis, renderer)
             texts = [label.get_text() for label in axis.get_ticklabels(minor=False)]
             if not all(_is_number(text) for text in texts if text):
