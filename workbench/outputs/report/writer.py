@@ -10,6 +10,7 @@ import json
 import os
 import warnings
 from collections.abc import Callable, Mapping
+from concurrent.futures import Future
 from pathlib import Path
 
 import pandas as pd
@@ -82,6 +83,7 @@ from workbench.outputs.report.pool import (
 )
 from workbench.outputs.report.ranking import NOT_TIMED, NOT_TIMED_NOTE
 from workbench.outputs.report.scorecards import scorecards
+from workbench.outputs.report.section_cache import keep_section, kept_section, section_key
 from workbench.outputs.report.tables import leading_keys, write_table
 from workbench.outputs.report.traits import Traits, problem_traits
 from workbench.runs import output_keys
@@ -165,13 +167,10 @@ def write_report(
     with figure_formats(formats):
         overview = overview_of(runs, out, measure)
 
-    jobs = figure_jobs(len(problems)) if jobs is None else max(1, jobs)
     show = len(problems) > 1 if progress is None else progress
-    with (
-        progress_bar("report", len(problems), show=show) as bar,
-        figure_executor(jobs) as executor,
-    ):
-        tasks = []
+    drawn: dict[str, str] = {}  # problem -> the key of its section, drawn in this report
+    with progress_bar("report", len(problems), show=show) as bar:
+        work = []
         for problem in problems:
             of_problem = runs[runs["problem"] == problem]
             series = _load_series(of_problem, series_loader, measure.column)
@@ -181,10 +180,25 @@ def write_report(
             sketch = mechanism_sketch(traits.model) if traits.model is not None else None
             traits.model = None
             arguments = (of_problem, series, out, measure.column, traits, sketch, formats)
-            future = submit_or_none(executor, problem_section, *arguments)
-            tasks.append((problem, future, arguments))
-        # a worker killed from outside: its problems are drawn again here (one warning)
-        sections = results_or_redone(tasks, problem_section, bar.step)
+            key = section_key(of_problem, series, measure.column, traits, sketch, formats)
+            work.append((problem, arguments, key, kept_section(out, slug(problem), key)))
+        to_draw = sum(kept is None for *_, kept in work)
+        jobs = figure_jobs(to_draw) if jobs is None else max(1, jobs)
+        with figure_executor(jobs) as executor:
+            tasks = []
+            for problem, arguments, key, kept in work:
+                if kept is None:  # drawn again: what it is drawn from changed
+                    drawn[problem] = key
+                    future = submit_or_none(executor, problem_section, *arguments)
+                else:  # as the last report into this folder drew it
+                    future = Future()
+                    future.set_result(kept)
+                tasks.append((problem, future, arguments))
+            # a worker killed from outside: its problems are drawn again here (one warning)
+            sections = results_or_redone(tasks, problem_section, bar.step)
+    for section in sections:
+        if section.problem in drawn:
+            keep_section(out, section, drawn[section.problem])
 
     targets = decision_targets(runs, measure.column)
     decided = decision_rows(runs, targets, measure.column, sections)
