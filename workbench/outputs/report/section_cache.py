@@ -152,8 +152,7 @@ def _plain(section: ProblemSection) -> dict[str, Any]:
 
 def _section(data: dict[str, Any]) -> ProblemSection:
     """The section of :func:`_plain`'s data; TypeError or KeyError on anything else."""
-    traits = data["traits"]
-    rtol = data["rtol"]
+    traits, rtol = data["traits"], data["rtol"]
     return ProblemSection(
         problem=_text(data["problem"]),
         anchor=_text(data["anchor"]),
@@ -165,11 +164,17 @@ def _section(data: dict[str, Any]) -> ProblemSection:
         drift_table=_table(data["drift_table"]),
         error=_figure(data["error"]),
         picture=_figure(data["picture"]),
-        traits=None if traits is None else Traits(
-            family=_text(traits["family"]), traits=_texts(traits["traits"]),
-            stiffness=_text(traits["stiffness"]), drift_units=set(_texts(traits["drift_units"])),
-        ),  # fmt: skip
+        traits=None if traits is None else _traits(traits),
         reference=_text(data["reference"]),
+    )
+
+
+def _traits(data: Any) -> Traits:
+    return Traits(
+        family=_text(data["family"]),
+        traits=_texts(data["traits"]),
+        stiffness=_text(data["stiffness"]),
+        drift_units=set(_texts(data["drift_units"])),
     )
 
 
