@@ -461,13 +461,13 @@ def test_dask_scheduler_runs_and_kills_hung_runs(fake_plugins, tmp_path) -> None
     distributed = pytest.importorskip("distributed")
     text = spec_text(tmp_path, '["test-rk45", "test-hang", "test-die"]')
     # a Dask task's limit covers its child's interpreter start-up (seconds at load 15):
-    # 60 s is a limit only the hung runs reach; two workers wait for them side by side
+    # 30 s is a limit only the hung runs reach; two workers wait for them side by side
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster:
         summary = run_sweep(
             parse_spec(text),
-            time_limit=60.0,
+            time_limit=30.0,
             scheduler=cluster.scheduler_address,
             show_progress=False,
         )

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.files import LinkRefusedError, open_no_follow, write_json_atomic
-from workbench.outputs.report.figures import Axis, FigureFiles
+from workbench.outputs.report.figures import Axis, FigureFiles, slug
 from workbench.outputs.report.page import PageTable, ProblemSection
 from workbench.outputs.report.traits import Traits
 from workbench.runs import output_keys
@@ -66,17 +66,19 @@ def section_key(
     )
 
 
-def kept_section(out: Path, anchor: str, key: str) -> ProblemSection | None:
-    """The section described in ``out``/figures for ``key``, if its files are still the
-    ones it wrote; else None (none kept, another key, a file changed or gone, or a
-    description this code does not read)."""
-    path = out / "figures" / f"{anchor}{SUFFIX}"
+def kept_section(out: Path, problem: str, key: str) -> ProblemSection | None:
+    """The section of ``problem`` described in ``out``/figures for ``key``, if its files
+    are still the ones it wrote; else None (none kept, another key, a file changed or
+    gone, or a description this code does not read)."""
+    path = out / "figures" / f"{slug(problem)}{SUFFIX}"
     try:
         with os.fdopen(open_no_follow(path, os.O_RDONLY, out), encoding="utf-8") as file:
             kept = json.load(file)
         if kept["key"] != key:
             return None
         section = _section(kept["section"])
+        if (section.problem, section.anchor) != (problem, slug(problem)):
+            return None
         files = section_files(out, section)
         if not all(f.is_file() for f in files) or output_keys.files_key(files) != kept["files"]:
             return None

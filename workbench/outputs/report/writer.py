@@ -181,7 +181,7 @@ def write_report(
             traits.model = None
             arguments = (of_problem, series, out, measure.column, traits, sketch, formats)
             key = section_key(of_problem, series, measure.column, traits, sketch, formats)
-            work.append((problem, arguments, key, kept_section(out, slug(problem), key)))
+            work.append((problem, arguments, key, kept_section(out, problem, key)))
         to_draw = sum(kept is None for *_, kept in work)
         jobs = figure_jobs(to_draw) if jobs is None else max(1, jobs)
         with figure_executor(jobs) as executor:
