@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import warnings
@@ -169,9 +170,9 @@ def write_report(
 
     show = len(problems) > 1 if progress is None else progress
     drawn: dict[str, str] = {}  # problem -> the key of its section, drawn in this report
-    with progress_bar("report", len(problems), show=show) as bar:
-        work = []
-        for problem in problems:
+    with progress_bar("report", len(problems), show=show) as bar, contextlib.ExitStack() as stack:
+        executor, tasks = None, []
+        for index, problem in enumerate(problems):
             of_problem = runs[runs["problem"] == problem]
             series = _load_series(of_problem, series_loader, measure.column)
             # the model is built here, where the plugins are loaded: a figure worker then
@@ -181,21 +182,19 @@ def write_report(
             traits.model = None
             arguments = (of_problem, series, out, measure.column, traits, sketch, formats)
             key = section_key(of_problem, series, measure.column, traits, sketch, formats)
-            work.append((problem, arguments, key, kept_section(out, problem, key)))
-        to_draw = sum(kept is None for *_, kept in work)
-        jobs = figure_jobs(to_draw) if jobs is None else max(1, jobs)
-        with figure_executor(jobs) as executor:
-            tasks = []
-            for problem, arguments, key, kept in work:
-                if kept is None:  # drawn again: what it is drawn from changed
-                    drawn[problem] = key
-                    future = submit_or_none(executor, problem_section, *arguments)
-                else:  # as the last report into this folder drew it
-                    future = Future()
-                    future.set_result(kept)
-                tasks.append((problem, future, arguments))
-            # a worker killed from outside: its problems are drawn again here (one warning)
-            sections = results_or_redone(tasks, problem_section, bar.step)
+            kept = kept_section(out, problem, key)
+            if kept is None:  # drawn (again): what it is drawn from changed
+                if executor is None:  # workers for this problem and those after it at most
+                    count = figure_jobs(len(problems) - index) if jobs is None else max(1, jobs)
+                    executor = stack.enter_context(figure_executor(count))
+                drawn[problem] = key
+                future = submit_or_none(executor, problem_section, *arguments)
+            else:  # as the last report into this folder drew it
+                future = Future()
+                future.set_result(kept)
+            tasks.append((problem, future, arguments))
+        # a worker killed from outside: its problems are drawn again here (one warning)
+        sections = results_or_redone(tasks, problem_section, bar.step)
     for section in sections:
         if section.problem in drawn:
             keep_section(out, section, drawn[section.problem])
