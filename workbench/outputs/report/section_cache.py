@@ -37,6 +37,16 @@ SUFFIX = ".section.json"
 TABLE_SUFFIXES = ("csv", "md", "tex")  # what write_table writes of a table
 
 
+def drawing_code_key() -> str:
+    """The report's code and matplotlib's version: what draws every section (read once a
+    report, not once a problem: it hashes the report package's files)."""
+    import matplotlib
+
+    return output_keys.key_of(
+        output_keys.source_key("workbench.outputs.report"), matplotlib.__version__
+    )
+
+
 def section_key(
     runs: pd.DataFrame,
     series: Mapping[str, pd.DataFrame | None] | None,
@@ -44,11 +54,10 @@ def section_key(
     traits: Traits,
     sketch: Any,
     formats: tuple[str, ...],
+    code: str,
 ) -> str:
-    """The key of a section drawn from these arguments of ``problem_section``: their
-    content (values to the bit), the report's code and matplotlib's version."""
-    import matplotlib
-
+    """The key of a section drawn from these arguments of ``problem_section``, their
+    content to the bit, by the code of ``code`` (:func:`drawing_code_key`)."""
     digest = hashlib.sha256()
     digest.update(_frame_digest(runs).encode())
     for run_id in sorted(series or {}):
@@ -59,11 +68,7 @@ def section_key(
         traits.stiffness, sorted(traits.drift_units),
         None if sketch is None else [getattr(sketch, f.name) for f in dataclasses.fields(sketch)],
     ]).encode())  # fmt: skip
-    return output_keys.key_of(
-        digest.hexdigest(),
-        output_keys.source_key("workbench.outputs.report"),
-        matplotlib.__version__,
-    )
+    return output_keys.key_of(digest.hexdigest(), code)
 
 
 def kept_section(out: Path, problem: str, key: str) -> ProblemSection | None:

@@ -84,7 +84,12 @@ from workbench.outputs.report.pool import (
 )
 from workbench.outputs.report.ranking import NOT_TIMED, NOT_TIMED_NOTE
 from workbench.outputs.report.scorecards import scorecards
-from workbench.outputs.report.section_cache import keep_section, kept_section, section_key
+from workbench.outputs.report.section_cache import (
+    drawing_code_key,
+    keep_section,
+    kept_section,
+    section_key,
+)
 from workbench.outputs.report.tables import leading_keys, write_table
 from workbench.outputs.report.traits import Traits, problem_traits
 from workbench.runs import output_keys
@@ -170,6 +175,7 @@ def write_report(
 
     show = len(problems) > 1 if progress is None else progress
     drawn: dict[str, str] = {}  # problem -> the key of its section, drawn in this report
+    code = drawing_code_key()
     with progress_bar("report", len(problems), show=show) as bar, contextlib.ExitStack() as stack:
         executor, tasks = None, []
         for index, problem in enumerate(problems):
@@ -181,7 +187,7 @@ def write_report(
             sketch = mechanism_sketch(traits.model) if traits.model is not None else None
             traits.model = None
             arguments = (of_problem, series, out, measure.column, traits, sketch, formats)
-            key = section_key(of_problem, series, measure.column, traits, sketch, formats)
+            key = section_key(of_problem, series, measure.column, traits, sketch, formats, code)
             kept = kept_section(out, problem, key)
             if kept is None:  # drawn (again): what it is drawn from changed
                 if executor is None:  # workers for this problem and those after it at most
