@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from workbench.numerics import linalg
 from workbench.numerics.linalg import gauss_newton, independent_columns, independent_rows
 
 
@@ -102,3 +104,29 @@ def test_gauss_newton_reports_failure() -> None:
     result = gauss_newton(not_finite, np.array([0.5]), lambda x, step: x + step)
     assert not result.converged
     assert result.x[0] == 0.5
+
+
+def test_extreme_singular_values_are_the_svds_and_its_bits_near_rank_loss():
+    """sigma_1 and sigma_rank of stacked matrices (wide, tall, square; redundant rows, a
+    zero matrix): within 1e-11 of ``np.linalg.svd`` where well conditioned, to the bit
+    where sigma_rank / sigma_1 < EXACT_BELOW; a non-finite matrix raises as the SVD does."""
+    rng = np.random.default_rng(7)
+    for shape in [(40, 6, 9), (40, 9, 6), (40, 7, 7)]:
+        matrices = rng.standard_normal(shape)
+        matrices[1] *= np.geomspace(1.0, 1e-7, shape[2])  # near rank loss
+        matrices[2, -1] = matrices[2, 0] + matrices[2, 1]  # a redundant row
+        matrices[3] = 0.0
+        singular = np.linalg.svd(matrices, compute_uv=False)
+        for rank in (1, min(shape[1:]) - 1, min(shape[1:])):
+            values = linalg.extreme_singular_values(matrices, rank)
+            expected = singular[:, [0, rank - 1]]
+            near = ~(expected[:, 1] >= linalg.EXACT_BELOW * expected[:, 0]) | (expected[:, 0] == 0)
+            assert near[3] and (near[1] or rank == 1)  # (a zero matrix; rank loss)
+            np.testing.assert_array_equal(values[near], expected[near])
+            np.testing.assert_allclose(values[~near], expected[~near], rtol=1e-11)
+    broken = rng.standard_normal((3, 4, 5))
+    broken[1, 0, 0] = np.nan
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.svd(broken, compute_uv=False)
+    with pytest.raises(np.linalg.LinAlgError):
+        linalg.extreme_singular_values(broken, 4)

@@ -62,7 +62,7 @@ from scipy.optimize import minimize_scalar
 
 from workbench.equations.evaluate import FastFunction, evaluate_along
 from workbench.execution.branch import branch_departure, constraints_of
-from workbench.numerics.linalg import independent_rows
+from workbench.numerics.linalg import extreme_singular_values, independent_rows
 
 SINGULAR_RATIO = 1e-4  # sigma_min / sigma_max of W below this: a singular passage
 PARTITION_NOTE = "fixed velocity partition"  # how a formalism's notes declare one
@@ -159,10 +159,16 @@ def health_audit(
     if rank <= 0:
         row["dof_start"] = row["dof_max"] = dof_start
         return row
-    values = np.linalg.svd(matrices, compute_uv=False)  # (n, min(nc, nv)), one call
+    values = extreme_singular_values(matrices, rank)  # (n, 2): sigma_1, sigma_rank
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratios = np.where(values[:, 0] > 0, values[:, rank - 1] / values[:, 0], 0.0)
-    best, best_at = float(np.min(ratios)), float(times[int(np.argmin(ratios))])
+        ratios = np.where(values[:, 0] > 0, values[:, 1] / values[:, 0], 0.0)
+    # the least ratio and its time as the SVD's: those within the eigenvalues' rounding
+    # of the least (the ratio may stay the same along a run) taken again by the SVD
+    close = np.flatnonzero(ratios <= np.min(ratios) * (1 + 1e-9))
+    exact = np.linalg.svd(matrices[close], compute_uv=False)
+    ratios[close] = np.where(exact[:, 0] > 0, exact[:, rank - 1] / exact[:, 0], 0.0)
+    least = int(close[np.argmin(ratios[close])])
+    best, best_at = float(ratios[least]), float(times[least])
     deepest = sorted(_local_minima(ratios), key=lambda k: ratios[k])[:REFINE_MOST]
     for k in [k for k in deepest if ratios[k] < REFINE_BELOW * np.median(ratios)]:
         ratio, at = _refine(

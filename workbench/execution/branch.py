@@ -59,7 +59,7 @@ import casadi as ca
 import numpy as np
 
 from workbench.equations.evaluate import evaluate_along
-from workbench.numerics.linalg import independent_rows
+from workbench.numerics.linalg import extreme_singular_values, independent_rows
 
 DRIFT_FACTOR = 100.0  # a sample this many times farther than its drift: off the branch
 FLOOR = 1e-6  # ... and farther than this times (1 + max |q|)
@@ -184,14 +184,14 @@ class _Shortcut:
         scale = 1.0 + np.max(np.abs(q), axis=1)
         self.y, self.projected, y_jacobian, y_g = self._project(times, q)
         self.projected &= finite
-        values_y = _singular_values(y_jacobian)
-        redo = ~self.projected | (_ratio(values_y, rank) < GRAM_RATIO)
+        values_y = _singular_values(y_jacobian, rank)  # (n, 2): sigma_1, sigma_rank
+        redo = ~self.projected | (_ratio(values_y) < GRAM_RATIO)
         if self.gram and redo.any():  # near rank loss: by SVD, as the walk projects
             self.gram, gram = False, self.gram
             again, converged, jacobian, g = self._project(times[redo], q[redo])
             self.gram = gram
             self.y[redo], self.projected[redo] = again, converged & finite[redo]
-            values_y[redo] = _singular_values(jacobian)
+            values_y[redo] = _singular_values(jacobian, rank)
             y_jacobian[redo], y_g[redo] = jacobian, g
         self.drift = np.where(self.projected, np.linalg.norm(q - self.y, axis=1), 0.0)
         self.certified = np.zeros(n, dtype=bool)
@@ -212,17 +212,17 @@ class _Shortcut:
         values_a = np.vstack([values_y[:1], values_y[:-1]])
         moved_on = np.any(start != before, axis=1)  # rheonomic constraints
         if moved_on.any():
-            values_a[moved_on] = _singular_values(start_jacobian[moved_on])
+            values_a[moved_on] = _singular_values(start_jacobian[moved_on], rank)
         # both ends far from rank loss: sigma_rank / sigma_1 and sigma_rank (a single row
         # that tends to 0) within FAST_RATIO of their best along the run
-        ratio_y, ratio_a = _ratio(values_y, rank), _ratio(values_a, rank)
+        ratio_y, ratio_a = _ratio(values_y), _ratio(values_a)
         best = self.projected & np.isfinite(ratio_y)
         if not best.any():
             return
         ratio_least = FAST_RATIO * float(np.max(ratio_y[best]))
-        least = FAST_RATIO * float(np.max(values_y[best, rank - 1]))
+        least = FAST_RATIO * float(np.max(values_y[best, 1]))
         started &= (ratio_a >= ratio_least) & (ratio_y >= ratio_least)
-        started &= (values_a[:, rank - 1] >= least) & (values_y[:, rank - 1] >= least)
+        started &= (values_a[:, 1] >= least) & (values_y[:, 1] >= least)
         way = q - start
         with np.errstate(all="ignore"):
             (normal,) = self._normal_part(start_jacobian, way)
@@ -369,8 +369,16 @@ class _Shortcut:
         its projection on the tangent space, as :meth:`_Follower._tangent_direction`),
         for each of ``ws`` (one SVD of the Jacobians for all of them)."""
         if self.gram:
-            return [self._solve(jacobians, np.einsum("kmi,ki->km", jacobians, w), self.rank)
-                    for w in ws]  # fmt: skip
+            rhs = np.stack([np.einsum("kmi,ki->km", jacobians, w) for w in ws], axis=-1)
+            with np.errstate(all="ignore"):
+                try:  # one Gram matrix and factorization for all of them
+                    gram = jacobians @ jacobians.transpose(0, 2, 1)
+                    solved = np.linalg.solve(gram, rhs)
+                    return [np.einsum("kmi,km->ki", jacobians, solved[..., j])
+                            for j in range(len(ws))]  # fmt: skip
+                except np.linalg.LinAlgError:  # an exactly singular one
+                    return [_truncated_solves(jacobians, rhs[..., j], self.rank)
+                            for j in range(len(ws))]  # fmt: skip
         normal = self._normal_basis(jacobians)
         return [_normal_part(normal, w) for w in ws]
 
@@ -482,14 +490,16 @@ def _finite(matrices: np.ndarray) -> np.ndarray:
     return np.where(bad[:, None, None], 0.0, matrices) if bad.any() else matrices
 
 
-def _singular_values(matrices: np.ndarray) -> np.ndarray:
-    return np.linalg.svd(_finite(matrices), compute_uv=False)
+def _singular_values(matrices: np.ndarray, rank: int) -> np.ndarray:
+    """(k, 2): sigma_1 and sigma_rank of each stacked matrix, a non-finite one as zeros
+    (:func:`~workbench.numerics.linalg.extreme_singular_values`: the SVD's near rank loss)."""
+    return extreme_singular_values(_finite(matrices), rank)
 
 
-def _ratio(values: np.ndarray, rank: int) -> np.ndarray:
-    """sigma_rank / sigma_1 of each stacked matrix's singular values (0 for a zero one)."""
+def _ratio(values: np.ndarray) -> np.ndarray:
+    """sigma_rank / sigma_1 of each row (sigma_1, sigma_rank) (0 for a zero matrix)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(values[:, 0] > 0, values[:, rank - 1] / values[:, 0], 0.0)
+        return np.where(values[:, 0] > 0, values[:, 1] / values[:, 0], 0.0)
 
 
 def _truncated_solves(matrices: np.ndarray, rhs: np.ndarray, rank: int) -> np.ndarray:
