@@ -367,7 +367,7 @@ class _Shortcut:
     def _normal_part(self, jacobians: np.ndarray, *ws: np.ndarray) -> list[np.ndarray]:
         """Each w's part in the row space of the rank-``rank`` part of its dg/dq (w less
         its projection on the tangent space, as :meth:`_Follower._tangent_direction`),
-        for each of ``ws`` (one SVD of the Jacobians for all of them)."""
+        for each of ``ws`` (one Gram factorization or SVD of the Jacobians for all of them)."""
         if self.gram:
             rhs = np.stack([np.einsum("kmi,ki->km", jacobians, w) for w in ws], axis=-1)
             with np.errstate(all="ignore"):
