@@ -351,18 +351,25 @@ class _Shortcut:
     def _solve(self, matrices: np.ndarray, rhs: np.ndarray, rank: int,
                active: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         """Minimum-norm solutions of the stacked systems (:func:`_truncated_solve`); only
-        the ``active`` ones (default all) are needed."""
+        the ``active`` ones (default all) are needed. ``rhs`` (k, m), or (k, m, r): r
+        right-hand sides a system, one factorization for them all."""
+        columns = rhs if rhs.ndim == 3 else rhs[..., None]
+        solved: list[np.ndarray] | None = None
         if self.gram:
             with np.errstate(all="ignore"):
                 try:
                     gram = matrices @ matrices.transpose(0, 2, 1)
                     if active is not None:  # (an idle one may be singular: no matter)
                         gram[~active] = np.eye(gram.shape[1])
-                    solved = np.linalg.solve(gram, rhs[..., None])[..., 0]
-                    return np.einsum("kmi,km->ki", matrices, solved)
+                    factors = np.linalg.solve(gram, columns)
+                    solved = [np.einsum("kmi,km->ki", matrices, factors[..., j])
+                              for j in range(columns.shape[2])]  # fmt: skip
                 except np.linalg.LinAlgError:  # an exactly singular one
                     pass
-        return _truncated_solves(matrices, rhs, rank)
+        if solved is None:
+            solved = [_truncated_solves(matrices, columns[..., j], rank)
+                      for j in range(columns.shape[2])]  # fmt: skip
+        return np.stack(solved, axis=-1) if rhs.ndim == 3 else solved[0]
 
     def _normal_part(self, jacobians: np.ndarray, *ws: np.ndarray) -> list[np.ndarray]:
         """Each w's part in the row space of the rank-``rank`` part of its dg/dq (w less
@@ -370,15 +377,8 @@ class _Shortcut:
         for each of ``ws`` (one Gram factorization or SVD of the Jacobians for all of them)."""
         if self.gram:
             rhs = np.stack([np.einsum("kmi,ki->km", jacobians, w) for w in ws], axis=-1)
-            with np.errstate(all="ignore"):
-                try:  # one Gram matrix and factorization for all of them
-                    gram = jacobians @ jacobians.transpose(0, 2, 1)
-                    solved = np.linalg.solve(gram, rhs)
-                    return [np.einsum("kmi,km->ki", jacobians, solved[..., j])
-                            for j in range(len(ws))]  # fmt: skip
-                except np.linalg.LinAlgError:  # an exactly singular one
-                    return [_truncated_solves(jacobians, rhs[..., j], self.rank)
-                            for j in range(len(ws))]  # fmt: skip
+            solved = self._solve(jacobians, rhs, self.rank)
+            return [np.ascontiguousarray(solved[..., j]) for j in range(len(ws))]
         normal = self._normal_basis(jacobians)
         return [_normal_part(normal, w) for w in ws]
 
